@@ -1,0 +1,40 @@
+"""Requesters for the Figure 2 scheduler: a module that asks for the motors now and then.
+
+A vision requester and a manipulation requester are the same IOTA with other parameters:
+priority, how long the motion takes (epoch), how long it may wait (timeout), when it first asks
+and how long it pauses after each answer.
+"""
+from iotad import Input, Iota, Output, Param
+
+from channels.messages import ACK, MDL_REQ, MODE
+
+
+class Requester(Iota):
+    priority = Param(1)
+    epoch = Param(2.0)
+    timeout = Param(5.0)
+    start = Param(0.0)
+    pause = Param(1.0)
+    count = Param(3)       # how many requests it makes
+    setpoint = Param(0.0)  # the MDL control input w it asks for
+
+    req = Output(MDL_REQ, switching=1)
+    ack = Input(ACK, switching=1)
+
+    def init(self):
+        self.waiting = False
+        self.sent = 0
+        self.answers = []
+
+    @req.action(value=lambda self: MDL_REQ(control=MODE(w=self.setpoint, k=1.0), epoch=self.epoch,
+                                           timeout=self.timeout, priority=self.priority),
+                when=lambda self: not self.waiting and self.sent < self.count,
+                after=lambda self: self.start if self.sent == 0 else self.pause)
+    def ask(self):
+        self.waiting = True
+        self.sent += 1
+
+    @ack.input
+    def answered(self, x):
+        self.waiting = False
+        self.answers.append(x)

@@ -1,0 +1,85 @@
+"""Clocks: where "now" comes from and how the engine waits for the next deadline or input.
+
+A clock owns the engine's inbox of external inputs. `VirtualClock` jumps straight to the next
+event (deterministic: tests, replay, fast simulation); `RealClock` reads the monotonic clock and
+blocks on a thread-safe queue that zenoh callbacks feed. The engine needs only these methods.
+"""
+from __future__ import annotations
+
+import heapq
+import itertools
+import math
+import queue
+import time
+from typing import Any
+
+
+class Clock:
+    virtual = True
+
+    def now(self) -> float:  # pragma: no cover - interface
+        raise NotImplementedError
+
+    def post(self, item: Any, t: float | None = None) -> None:  # pragma: no cover - interface
+        """Queue an external input; a virtual clock delivers it at `t`, a real one on arrival."""
+        raise NotImplementedError
+
+    def wait(self, deadline: float) -> Any | None:  # pragma: no cover - interface
+        """Return the next input due no later than `deadline`, or None once `deadline` is reached."""
+        raise NotImplementedError
+
+
+class VirtualClock(Clock):
+    virtual = True
+
+    def __init__(self, start: float = 0.0):
+        self._now = start
+        self._inbox: list = []
+        self._seq = itertools.count()  # keeps arrival order among inputs at one instant
+
+    def now(self) -> float:
+        return self._now
+
+    def post(self, item: Any, t: float | None = None) -> None:
+        t = self._now if t is None else t
+        if t < self._now:
+            raise ValueError(f"input at t={t} is in the past (now {self._now})")
+        heapq.heappush(self._inbox, (t, next(self._seq), item))
+
+    def wait(self, deadline: float) -> Any | None:
+        if self._inbox and self._inbox[0][0] <= deadline:
+            t, _, item = heapq.heappop(self._inbox)
+            self._now = t
+            return item
+        if not math.isinf(deadline):
+            self._now = max(self._now, deadline)
+        return None
+
+    def pending(self) -> int:
+        return len(self._inbox)
+
+
+class RealClock(Clock):
+    """Seconds since the clock was made, scaled by `time_unit` (seconds per spec time unit)."""
+
+    virtual = False
+
+    def __init__(self, time_unit: float = 1.0):
+        self.time_unit = time_unit
+        self._origin = time.monotonic()
+        self._inbox: queue.Queue = queue.Queue()
+
+    def now(self) -> float:
+        return (time.monotonic() - self._origin) / self.time_unit
+
+    def post(self, item: Any, t: float | None = None) -> None:
+        self._inbox.put(item)
+
+    def wait(self, deadline: float) -> Any | None:
+        timeout = None if math.isinf(deadline) else max(0.0, (deadline - self.now()) * self.time_unit)
+        try:
+            if timeout == 0.0:
+                return self._inbox.get_nowait()
+            return self._inbox.get(timeout=timeout)
+        except queue.Empty:
+            return None

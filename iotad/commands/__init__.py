@@ -1,0 +1,1 @@
+"""One module per `iotad` subcommand; each defines `register(subparsers)` and optionally ORDER."""

@@ -1,0 +1,48 @@
+"""Loading a Python IOTA class named as "path/to/file.py:Class" or "package.module:Class"."""
+from __future__ import annotations
+
+import importlib
+import importlib.util
+import sys
+from pathlib import Path
+from typing import Any
+
+
+class LoadError(Exception):
+    pass
+
+
+def load_object(reference: str, base: Path | None = None) -> Any:
+    if ":" not in reference:
+        raise LoadError(f"{reference!r}: expected 'file.py:Class' or 'module:Class'")
+    where, name = reference.rsplit(":", 1)
+    if where.endswith(".py"):
+        path = Path(where)
+        if not path.is_absolute() and base is not None:
+            path = base / path
+        if not path.is_file():
+            raise LoadError(f"{reference!r}: no file {path}")
+        module_name = f"_iotad_user_{path.stem}_{abs(hash(str(path.resolve())))}"
+        module = sys.modules.get(module_name)
+        if module is None:
+            # The file's folder goes on sys.path so that it can import its neighbours.
+            folder = str(path.resolve().parent)
+            if folder not in sys.path:
+                sys.path.insert(0, folder)
+            spec = importlib.util.spec_from_file_location(module_name, path)
+            module = importlib.util.module_from_spec(spec)
+            sys.modules[module_name] = module
+            try:
+                spec.loader.exec_module(module)
+            except Exception as exc:
+                del sys.modules[module_name]
+                raise LoadError(f"{path}: {type(exc).__name__}: {exc}") from exc
+    else:
+        try:
+            module = importlib.import_module(where)
+        except ImportError as exc:
+            raise LoadError(f"{reference!r}: cannot import {where}: {exc}") from exc
+    try:
+        return getattr(module, name)
+    except AttributeError:
+        raise LoadError(f"{reference!r}: {where} has no {name}") from None

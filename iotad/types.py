@@ -1,0 +1,315 @@
+"""Value types carried by channels and held in state: int, float, bool, enums, structs, fixed arrays.
+
+A type knows how to check a value (range included), copy it (so that two IOTAs never share a
+mutable value), turn it into plain data for traces and msgpack (`to_plain`), build it back
+(`from_plain`), and describe itself as JSON Schema. Enum values are their names (plain `str`),
+so traces and payloads read the same as the specification.
+"""
+from __future__ import annotations
+
+import math
+from typing import Any
+
+
+class BadValue(ValueError):
+    """A value does not fit its declared type or range. Raised by `check` and `from_plain`."""
+
+
+class Type:
+    """Base of all value types. Subclasses override the few methods that differ."""
+
+    name = "type"
+
+    def check(self, value: Any) -> None:  # pragma: no cover - every type overrides it
+        raise NotImplementedError
+
+    def copy(self, value: Any) -> Any:
+        return value
+
+    def to_plain(self, value: Any) -> Any:
+        return value
+
+    def from_plain(self, plain: Any) -> Any:
+        self.check(plain)
+        return plain
+
+    def default(self) -> Any:  # pragma: no cover - every type overrides it
+        raise NotImplementedError
+
+    def json_schema(self) -> dict:  # pragma: no cover - every type overrides it
+        raise NotImplementedError
+
+    def __repr__(self) -> str:
+        return self.name
+
+
+class _Number(Type):
+    py_types: tuple = ()
+    schema_type = "number"
+
+    def __init__(self, low: float | None = None, high: float | None = None):
+        self.low, self.high = low, high
+
+    def __call__(self, low: float | None = None, high: float | None = None) -> "_Number":
+        """`Float(0, 1)` is a float restricted to [0, 1]."""
+        return type(self)(low, high)
+
+    def check(self, value: Any) -> None:
+        if isinstance(value, bool) or not isinstance(value, self.py_types):
+            raise BadValue(f"expected {self.name}, got {type(value).__name__} {value!r}")
+        if self.low is not None and value < self.low or self.high is not None and value > self.high:
+            raise BadValue(f"{value!r} outside range [{self.low}, {self.high}]")
+
+    def json_schema(self) -> dict:
+        schema: dict = {"type": self.schema_type}
+        if self.low is not None:
+            schema["minimum"] = self.low
+        if self.high is not None:
+            schema["maximum"] = self.high
+        return schema
+
+    def __repr__(self) -> str:
+        if self.low is None and self.high is None:
+            return self.name
+        return f"{self.name}[{self.low}..{self.high}]"
+
+    def __eq__(self, other: object) -> bool:
+        return type(other) is type(self) and (self.low, self.high) == (other.low, other.high)
+
+    def __hash__(self) -> int:
+        return hash((self.name, self.low, self.high))
+
+
+class IntType(_Number):
+    name = "int"
+    py_types = (int,)
+    schema_type = "integer"
+
+    def default(self) -> int:
+        return 0 if self.low is None else int(self.low)
+
+
+class FloatType(_Number):
+    name = "float"
+    py_types = (int, float)
+
+    def check(self, value: Any) -> None:
+        super().check(value)
+        if isinstance(value, float) and math.isnan(value):
+            raise BadValue("NaN is not a valid float value")
+
+    def from_plain(self, plain: Any) -> float:
+        self.check(plain)
+        return float(plain)
+
+    def default(self) -> float:
+        return 0.0 if self.low is None else float(self.low)
+
+
+class BoolType(Type):
+    name = "bool"
+
+    def check(self, value: Any) -> None:
+        if not isinstance(value, bool):
+            raise BadValue(f"expected bool, got {type(value).__name__} {value!r}")
+
+    def default(self) -> bool:
+        return False
+
+    def json_schema(self) -> dict:
+        return {"type": "boolean"}
+
+
+class EnumType(Type):
+    """Symbolic values such as COMMIT, ABORT, REJECT. `Ack.COMMIT == "COMMIT"`."""
+
+    def __init__(self, name: str, *members: str):
+        if not members:
+            raise BadValue(f"enum {name} needs at least one member")
+        self.name, self.members = name, tuple(members)
+        self._set = frozenset(members)
+        for member in members:
+            if not member.startswith("_") and member not in ("name", "members"):
+                setattr(self, member, member)
+
+    def check(self, value: Any) -> None:
+        if value not in self._set or not isinstance(value, str):
+            raise BadValue(f"{value!r} is not a member of enum {self.name} {list(self.members)}")
+
+    def default(self) -> str:
+        return self.members[0]
+
+    def json_schema(self) -> dict:
+        return {"type": "string", "enum": list(self.members), "title": self.name}
+
+
+class Record:
+    """A struct value: attribute access like the paper's `request[i].command.priority`."""
+
+    __slots__ = ()
+    _type: "StructType"
+
+    def __init__(self, *args: Any, **fields: Any):
+        names = self._type.field_names
+        if len(args) > len(names):
+            raise TypeError(f"{self._type.name} takes at most {len(names)} positional fields")
+        for name, value in zip(names, args):
+            fields[name] = value
+        unknown = set(fields) - set(names)
+        if unknown:
+            raise TypeError(f"{self._type.name} has no field(s) {sorted(unknown)}")
+        for name in names:
+            object.__setattr__(self, name, fields[name] if name in fields else self._type.fields[name].default())
+
+    def __eq__(self, other: object) -> bool:
+        return (isinstance(other, Record) and other._type is self._type
+                and all(getattr(self, n) == getattr(other, n) for n in self._type.field_names))
+
+    __hash__ = None  # type: ignore[assignment]  # mutable
+
+    def __repr__(self) -> str:
+        inner = ", ".join(f"{n}={getattr(self, n)!r}" for n in self._type.field_names)
+        return f"{self._type.name}({inner})"
+
+
+class StructType(Type):
+    """`Struct("mode", w=Float, k=Float)`; calling it builds a value: `Mode(w=1.0, k=0.5)`."""
+
+    def __init__(self, name: str, **fields: Type):
+        self.name = name
+        self.fields: dict[str, Type] = {k: _as_type(v) for k, v in fields.items()}
+        self.field_names = tuple(self.fields)
+        self.record = type(name, (Record,), {"__slots__": self.field_names, "_type": self})
+
+    def __call__(self, *args: Any, **fields: Any) -> Record:
+        return self.record(*args, **fields)
+
+    def check(self, value: Any) -> None:
+        if not isinstance(value, Record) or value._type is not self:
+            raise BadValue(f"expected struct {self.name}, got {type(value).__name__}")
+        for name, ftype in self.fields.items():
+            field_value = getattr(value, name)
+            if field_value is None:
+                continue  # a struct field may be unset (NULL in the paper) until assigned
+            try:
+                ftype.check(field_value)
+            except BadValue as exc:
+                raise BadValue(f"{self.name}.{name}: {exc}") from None
+
+    def copy(self, value: Any) -> Any:
+        if value is None:
+            return None
+        new = object.__new__(self.record)
+        for name, ftype in self.fields.items():
+            object.__setattr__(new, name, ftype.copy(getattr(value, name)))
+        return new
+
+    def to_plain(self, value: Any) -> Any:
+        if value is None:
+            return None
+        return {name: (None if (v := getattr(value, name)) is None else ftype.to_plain(v))
+                for name, ftype in self.fields.items()}
+
+    def from_plain(self, plain: Any) -> Record:
+        if isinstance(plain, Record):
+            self.check(plain)
+            return self.copy(plain)
+        if not isinstance(plain, dict):
+            raise BadValue(f"expected an object for struct {self.name}, got {type(plain).__name__}")
+        unknown = set(plain) - set(self.fields)
+        if unknown:
+            raise BadValue(f"struct {self.name} has no field(s) {sorted(unknown)}")
+        missing = [n for n in self.field_names if n not in plain]
+        if missing:
+            raise BadValue(f"struct {self.name} is missing field(s) {missing}")
+        new = object.__new__(self.record)
+        for name, ftype in self.fields.items():
+            try:
+                object.__setattr__(new, name, ftype.from_plain(plain[name]))
+            except BadValue as exc:
+                raise BadValue(f"{self.name}.{name}: {exc}") from None
+        return new
+
+    def default(self) -> Record:
+        return self.record()
+
+    def json_schema(self) -> dict:
+        return {"type": "object", "title": self.name,
+                "properties": {n: t.json_schema() for n, t in self.fields.items()},
+                "required": list(self.field_names), "additionalProperties": False}
+
+
+class ArrayType(Type):
+    """A fixed-length array: `Array(Float, 6)` for six joint positions."""
+
+    def __init__(self, element: Type, length: int):
+        self.element, self.length = _as_type(element), int(length)
+        self.name = f"{self.element.name}[{self.length}]"
+
+    def check(self, value: Any) -> None:
+        if not isinstance(value, (list, tuple)) or len(value) != self.length:
+            raise BadValue(f"expected {self.length} elements of {self.element.name}")
+        for index, item in enumerate(value):
+            try:
+                self.element.check(item)
+            except BadValue as exc:
+                raise BadValue(f"[{index}]: {exc}") from None
+
+    def copy(self, value: Any) -> list:
+        return [self.element.copy(v) for v in value]
+
+    def to_plain(self, value: Any) -> list:
+        return [self.element.to_plain(v) for v in value]
+
+    def from_plain(self, plain: Any) -> list:
+        if not isinstance(plain, (list, tuple)) or len(plain) != self.length:
+            raise BadValue(f"expected a list of {self.length} elements of {self.element.name}")
+        out = []
+        for index, item in enumerate(plain):
+            try:
+                out.append(self.element.from_plain(item))
+            except BadValue as exc:
+                raise BadValue(f"[{index}]: {exc}") from None
+        return out
+
+    def default(self) -> list:
+        return [self.element.default() for _ in range(self.length)]
+
+    def json_schema(self) -> dict:
+        return {"type": "array", "items": self.element.json_schema(),
+                "minItems": self.length, "maxItems": self.length}
+
+
+Int = IntType()
+Float = FloatType()
+Bool = BoolType()
+
+
+def Enum(name: str, *members: str) -> EnumType:
+    return EnumType(name, *members)
+
+
+def Struct(name: str, **fields: Type) -> StructType:
+    return StructType(name, **fields)
+
+
+def Array(element: Type, length: int) -> ArrayType:
+    return ArrayType(element, length)
+
+
+def _as_type(value: Any) -> Type:
+    if isinstance(value, Type):
+        return value
+    builtin = {int: Int, float: Float, bool: Bool}
+    if value in builtin:
+        return builtin[value]
+    raise TypeError(f"{value!r} is not a value type")
+
+
+def to_plain(value: Any) -> Any:
+    """Plain data for a value of unknown type (traces of untyped values)."""
+    if isinstance(value, Record):
+        return value._type.to_plain(value)
+    if isinstance(value, (list, tuple)):
+        return [to_plain(v) for v in value]
+    return value

@@ -1,0 +1,1 @@
+"""The CAN-bus motor node: per-joint commands to CAN frames (not written yet)."""

@@ -1,0 +1,1 @@
+"""The MDL interpreter: motion programs to per-joint commands (not written yet)."""

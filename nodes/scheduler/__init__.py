@@ -1,0 +1,1 @@
+"""The motion scheduler of the paper's Figure 2."""
