@@ -64,9 +64,13 @@ class RealClock(Clock):
 
     virtual = False
 
-    def __init__(self, time_unit: float = 1.0):
+    def __init__(self, time_unit: float = 1.0, origin: float | None = None):
+        """`origin` is a wall-clock time (`time.time()`) that is t=0, so that nodes started by
+        one launcher share a timeline; time then advances by the monotonic clock."""
         self.time_unit = time_unit
-        self._origin = time.monotonic()
+        mono, wall = time.monotonic(), time.time()
+        self._origin = mono if origin is None else mono - (wall - origin)
+        self.origin_wall = wall if origin is None else origin
         self._inbox: queue.Queue = queue.Queue()
 
     def now(self) -> float:

@@ -1,0 +1,83 @@
+"""The wire format shared by node hosts, the recorder, replay and the introspection commands.
+
+- Channel keys: `iota/<system>/<instance path>/<channel>[/<index>]`.
+- A node's own events (all of them: inputs, outputs, internal actions, violations, as trace
+  dicts in the node's clock) go on `iota/<system>/<instance path>/@trace`.
+- Launcher events (node start, exit, restart) go on `iota/<system>/@launcher`.
+- Payload: msgpack of the plain value (None for a channel without a value).
+- Attachment: msgpack `[sequence, send_time_ns]`: a per-publisher counter from 0 (a receiver or
+  recorder sees gaps) and the sender's wall clock `time.time_ns()` at send.
+
+zenoh treats a chunk starting with '@' as verbatim: `iota/sys/**` does NOT match
+`iota/sys/a/@trace`. Subscribe to `subscription_keys(system)` to see everything of a system.
+"""
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import msgpack
+
+PREFIX = "iota"
+
+
+class WireError(ValueError):
+    """A payload or attachment that cannot be decoded."""
+
+
+def channel_key(system: str, path: str, channel: str, index: int | None = None) -> str:
+    key = f"{PREFIX}/{system}/{path}/{channel}"
+    return key if index is None else f"{key}/{index}"
+
+
+def trace_key(system: str, path: str) -> str:
+    return f"{PREFIX}/{system}/{path}/@trace"
+
+
+def launcher_key(system: str) -> str:
+    return f"{PREFIX}/{system}/@launcher"
+
+
+def subscription_keys(system: str) -> list[str]:
+    """Key expressions that together match every key of `system`."""
+    return [f"{PREFIX}/{system}/**", f"{PREFIX}/{system}/**/@trace", f"{PREFIX}/{system}/@launcher",
+            f"{PREFIX}/{system}/**/@heartbeat"]
+
+
+def parse_key(key: str) -> tuple[str, str, str, int | None] | None:
+    """(system, path, channel, index) of a channel key, or None if it is not one.
+
+    The last chunk is an index when it is all digits; `@`-chunks keep their '@'."""
+    parts = key.split("/")
+    if len(parts) < 4 or parts[0] != PREFIX:
+        return None
+    index = None
+    if parts[-1].isdigit() and len(parts) >= 5:
+        index = int(parts[-1])
+        parts = parts[:-1]
+    return parts[1], "/".join(parts[2:-1]), parts[-1], index
+
+
+def encode(value: Any) -> bytes:
+    return msgpack.packb(value, use_bin_type=True)
+
+
+def decode(payload: bytes) -> Any:
+    try:
+        return msgpack.unpackb(payload, raw=False, strict_map_key=False)
+    except Exception as exc:  # noqa: BLE001 - msgpack raises several unrelated types
+        raise WireError(f"malformed msgpack payload ({len(payload)} bytes): {type(exc).__name__}: {exc}") from None
+
+
+def encode_attachment(sequence: int, send_time_ns: int | None = None) -> bytes:
+    return msgpack.packb([sequence, time.time_ns() if send_time_ns is None else send_time_ns])
+
+
+def decode_attachment(attachment: bytes | None) -> tuple[int, int] | None:
+    if not attachment:
+        return None
+    try:
+        sequence, send_ns = msgpack.unpackb(attachment)
+        return int(sequence), int(send_ns)
+    except Exception:  # noqa: BLE001
+        return None
