@@ -9,6 +9,9 @@ from typing import Iterable
 import zenoh
 
 DEFAULT_LISTEN = ("tcp/127.0.0.1:0",)  # port 0: the OS picks a free loopback port
+# Where `iotad run` puts its hub peer unless told otherwise, and where the introspection commands
+# (`iotad ls/echo/pub/hz`) look for a running system by default.
+DEFAULT_HUB_ENDPOINT = "tcp/127.0.0.1:7447"
 
 
 def make_config(listen: Iterable[str] = DEFAULT_LISTEN, connect: Iterable[str] = (), mode: str = "peer") -> zenoh.Config:
@@ -20,9 +23,18 @@ def make_config(listen: Iterable[str] = DEFAULT_LISTEN, connect: Iterable[str] =
     return config
 
 
-def open_session(listen: Iterable[str] = DEFAULT_LISTEN, connect: Iterable[str] = (), mode: str = "peer") -> zenoh.Session:
-    """A zenoh session; close it (or use `with`) or the interpreter hangs at exit."""
-    return zenoh.open(make_config(listen, connect, mode))
+def open_session(listen: Iterable[str] = DEFAULT_LISTEN, connect: Iterable[str] = (), mode: str = "peer",
+                 connect_timeout: float | None = None) -> zenoh.Session:
+    """A zenoh session; close it (or use `with`) or the interpreter hangs at exit.
+
+    With `connect_timeout` (seconds), opening fails with `zenoh.ZError` when no `connect`
+    endpoint answers in time; without it a peer keeps retrying in the background, which is what
+    a node wants (its hub may start later) but not what a command-line tool wants."""
+    config = make_config(listen, connect, mode)
+    if connect_timeout is not None and list(connect):
+        config.insert_json5("connect/timeout_ms", json.dumps(max(1, int(connect_timeout * 1000))))
+        config.insert_json5("connect/exit_on_failure", "true")
+    return zenoh.open(config)
 
 
 def free_port(host: str = "127.0.0.1") -> int:
