@@ -66,7 +66,8 @@ def decode(payload: bytes) -> Any:
     try:
         return msgpack.unpackb(payload, raw=False, strict_map_key=False)
     except Exception as exc:  # noqa: BLE001 - msgpack raises several unrelated types
-        raise WireError(f"malformed msgpack payload ({len(payload)} bytes): {type(exc).__name__}: {exc}") from None
+        detail = str(exc) or f"starts {payload[:16].hex(' ')}"  # some msgpack errors say nothing
+        raise WireError(f"malformed msgpack payload ({len(payload)} bytes): {type(exc).__name__}: {detail}") from None
 
 
 def encode_attachment(sequence: int, send_time_ns: int | None = None) -> bytes:

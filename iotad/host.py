@@ -1,0 +1,213 @@
+"""The node host: one IOTA as one process on zenoh (docs/internals.md "Node host").
+
+One engine thread runs the IOTA under a `HostClock`; zenoh callbacks only enqueue raw samples.
+Outputs go out from an engine sink on pre-declared publishers (msgpack payload, attachment
+`[seq, send_time_ns]`); every event goes to `@trace`; a liveliness token, a heartbeat driven by
+the engine thread and an `@spec` queryable let tools see the node. `close()` stops the engine
+and closes the session: an unclosed session with callback subscribers hangs the interpreter.
+"""
+from __future__ import annotations
+
+import os
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+import zenoh
+
+from . import wire
+from .compose import Composite, flatten
+from .engine import Engine
+from .host_channels import ChannelTable, build, plain_params
+from .host_clock import HostClock, RawInput
+from .host_config import ConfigError, NodeConfig
+from .model import param_values
+from .policy import make_policy
+from .transport import open_session
+
+
+class SpecLoadError(Exception):
+    """The IOTA named by the config could not be loaded or instantiated; `str()` says why."""
+
+
+def load_root(config: NodeConfig) -> tuple[Any, str]:
+    """The root IOTA (an instance or a `Composite`) and its source text, as the config names it."""
+    source = config.source
+    if source["kind"] == "esprit":
+        path = Path(source["file"])
+        try:
+            from . import esprit  # lazily: a Python-only node needs no grammar
+        except ImportError as exc:
+            raise SpecLoadError(f"{path}: ESPRIT support is not available ({exc})") from None
+        try:
+            root = esprit.load_iota(str(path), iota=source.get("iota"), name=config.name, **config.params)
+        except getattr(esprit, "EspritError", ()) as exc:
+            raise SpecLoadError(str(exc)) from None
+        except OSError as exc:
+            raise SpecLoadError(f"{path}: {exc.strerror or exc}") from None
+        except Exception as exc:  # noqa: BLE001 - unknown params and the like: say so, no traceback
+            raise SpecLoadError(f"{path}: {type(exc).__name__}: {exc}") from None
+        return root, _read_text(path)
+    from .loader import LoadError, load_object
+
+    ref = source["ref"]
+    try:
+        factory = load_object(ref)
+    except LoadError as exc:
+        raise SpecLoadError(str(exc)) from None
+    try:
+        root = factory(config.name, **config.params)
+    except Exception as exc:  # noqa: BLE001
+        raise SpecLoadError(f"{ref}: cannot instantiate with params {config.params}: "
+                            f"{type(exc).__name__}: {exc}") from None
+    if not (hasattr(root, "iota_spec") or isinstance(root, Composite)):
+        raise SpecLoadError(f"{ref}: {type(root).__name__} is not an IOTA")
+    return root, _python_text(ref, factory)
+
+
+def _read_text(path: Path) -> str:
+    try:
+        return path.read_text()
+    except OSError:
+        return ""
+
+
+def _python_text(ref: str, factory: Any) -> str:
+    where = ref.rsplit(":", 1)[0]
+    if where.endswith(".py"):
+        return _read_text(Path(where))
+    import inspect
+
+    try:
+        return inspect.getsource(inspect.getmodule(factory))
+    except (OSError, TypeError):
+        return ""
+
+
+class NodeHost:
+    def __init__(self, config: NodeConfig, root: Any, text: str = ""):
+        self.config, self.root, self.text = config, root, text
+        self.flat = flatten(root)
+        self.table: ChannelTable = build(config, self.flat)  # ConfigError before any session opens
+        self._trace_buffer: list[dict] = []
+        self.clock = HostClock(config.time_unit, config.origin, heartbeat_period=config.heartbeat_period,
+                               on_heartbeat=self._heartbeat, on_malformed=self._malformed,
+                               flush=self._flush_trace, pending=self._trace_buffer.__len__)
+        self.engine = Engine(root, self.clock, make_policy(config.policy, config.seed), record=False,
+                             sinks=[self._publish_output, self._trace_buffer.append])
+        self.session: zenoh.Session | None = None
+        self._declared: list[Any] = []
+        self._ports: dict[tuple, list] = {}  # engine (path, channel, index) -> [publisher, seq]
+        self._thread: threading.Thread | None = None
+        self.error: BaseException | None = None
+
+    # ------------------------------------------------------------------ start and stop
+    def start(self) -> None:
+        config = self.config
+        self.session = session = open_session(config.listen, config.connect)
+        base = f"{wire.PREFIX}/{config.system}/{config.path}"
+        block = zenoh.CongestionControl.BLOCK
+        for port in self.table.outputs:
+            publisher = session.declare_publisher(port.key, express=True, congestion_control=block)
+            self._declared.append(publisher)
+            self._ports[port.source] = [publisher, 0]
+        self._trace_pub = session.declare_publisher(wire.trace_key(config.system, config.path),
+                                                    congestion_control=block)
+        self._trace_seq = 0
+        self._beat_pub = session.declare_publisher(f"{base}/@heartbeat")
+        self._declared += [self._trace_pub, self._beat_pub]
+        post = self.clock.post
+        for port in self.table.inputs:
+            for key in port.keys:
+                self._declared.append(session.declare_subscriber(key, _receiver(post, port.name, port.index)))
+        spec_key = f"{base}/@spec"
+        spec_payload = wire.encode(self.describe())
+        self._declared.append(session.declare_queryable(
+            spec_key, lambda query: query.reply(spec_key, spec_payload)))
+        # The token last: whoever sees the node alive may rely on its subscribers being declared.
+        self._declared.append(session.liveliness().declare_token(f"{base}/@alive"))
+        self._thread = threading.Thread(target=self._run, name=f"engine {config.path}", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        try:
+            self.engine.run()
+        except BaseException as exc:  # noqa: BLE001 - reported by the main thread
+            self.error = exc
+        finally:
+            try:
+                self._flush_trace()
+            except Exception:  # noqa: BLE001 - the session may be closing
+                pass
+
+    def alive(self) -> bool:
+        return self._thread is not None and self._thread.is_alive()
+
+    def close(self, timeout: float = 5.0) -> None:
+        """Stop the engine, then undeclare everything and close the session. Idempotent."""
+        if self._thread is not None:
+            self.engine.stop()
+            self._thread.join(timeout)
+        for entity in reversed(self._declared):
+            try:
+                entity.undeclare()
+            except Exception:  # noqa: BLE001 - already gone with a closing session
+                pass
+        self._declared.clear()
+        if self.session is not None:
+            session, self.session = self.session, None
+            session.close()
+
+    # ------------------------------------------------------------------ engine-thread work
+    def _publish_output(self, event: dict) -> None:
+        if event["kind"] != "output":
+            return
+        port = self._ports.get((event["iota"], event["action"], event["index"]))
+        if port is None:
+            return  # an output of a component that the root does not expose
+        seq = port[1]
+        port[1] = seq + 1
+        port[0].put(wire.encode(event["value"]), attachment=wire.encode_attachment(seq))
+
+    def _flush_trace(self) -> None:
+        buffer = self._trace_buffer
+        if not buffer:
+            return
+        put, seq = self._trace_pub.put, self._trace_seq
+        for event in buffer:
+            put(wire.encode(event), attachment=wire.encode_attachment(seq))
+            seq += 1
+        self._trace_seq = seq
+        buffer.clear()
+
+    def _heartbeat(self, t: float, backlog: int) -> None:
+        self._beat_pub.put(wire.encode({"t": t, "firings": self.engine.firings, "queue": backlog}))
+
+    def _malformed(self, t: float, raw: RawInput, message: str) -> None:
+        event = {"t": t, "iota": self.root.instance_name, "action": raw.name, "index": raw.index,
+                 "kind": "violation",
+                 "value": {"violation": "malformed_payload", "message": f"input {raw.name}: {message}; dropped"}}
+        for sink in self.engine.sinks:
+            sink(event)
+
+    # ------------------------------------------------------------------ introspection
+    def describe(self) -> dict:
+        config = self.config
+        params = config.params if isinstance(self.root, Composite) else param_values(self.root)
+        return {"system": config.system, "path": config.path, "source": config.source, "text": self.text,
+                "params": plain_params(params), "channels": self.table.described,
+                "time_unit": config.time_unit, "origin": self.clock.origin_wall, "pid": os.getpid(),
+                "trace": wire.trace_key(config.system, config.path), "started": time.time()}
+
+
+def _receiver(post, name: str, index: int | None):
+    """A zenoh callback for one input: copy the bytes out and enqueue; decoding is the engine's."""
+    def receive(sample: zenoh.Sample) -> None:
+        attachment = sample.attachment
+        post(RawInput(name, index, sample.payload.to_bytes(),
+                      None if attachment is None else attachment.to_bytes()))
+    return receive
+
+
+__all__ = ["ConfigError", "NodeHost", "SpecLoadError", "load_root"]

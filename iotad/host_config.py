@@ -1,0 +1,117 @@
+"""A node host's configuration (the JSON the launcher writes, docs/internals.md "Node host"):
+parsed and checked up front, so that a bad config is one clear line, never a traceback."""
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from .transport import DEFAULT_LISTEN
+
+
+class ConfigError(ValueError):
+    """The config is not usable; `str()` is one line for the user."""
+
+
+@dataclass
+class NodeConfig:
+    system: str
+    path: str
+    source: dict[str, Any]
+    params: dict[str, Any] = field(default_factory=dict)
+    time_unit: float = 1.0
+    origin: float | None = None
+    listen: list[str] = field(default_factory=lambda: list(DEFAULT_LISTEN))
+    connect: list[str] = field(default_factory=list)
+    inputs: dict[str, list[str]] = field(default_factory=dict)  # "chan" or "chan/k" -> bound keys
+    heartbeat_period: float = 0.5
+    policy: str = "eager"
+    seed: int = 0
+
+    @property
+    def name(self) -> str:
+        """The IOTA's instance name: the last chunk of its path (`buggy/wander` -> `wander`)."""
+        return self.path.rsplit("/", 1)[-1]
+
+
+_KNOWN = {"system", "path", "source", "params", "time_unit", "origin", "listen", "connect", "inputs",
+          "heartbeat_period", "policy", "seed"}
+
+
+def load(path: str | Path) -> NodeConfig:
+    try:
+        text = Path(path).read_text()
+    except OSError as exc:
+        raise ConfigError(f"cannot read config {path}: {exc.strerror or exc}") from None
+    return parse(text, str(path))
+
+
+def parse(text: str, where: str = "config") -> NodeConfig:
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise ConfigError(f"{where}: not JSON: {exc.msg} at line {exc.lineno} column {exc.colno}") from None
+    return from_dict(data, where)
+
+
+def _chunks_ok(text: str) -> bool:
+    # zenoh key chunks: no wildcards, no empty chunks, no leading '@' (we use those for @trace etc.)
+    return bool(text) and all(c and not c.startswith("@") and not set(c) & set("*$?#") for c in text.split("/"))
+
+
+def from_dict(data: Any, where: str = "config") -> NodeConfig:
+    if not isinstance(data, dict):
+        raise ConfigError(f"{where}: expected a JSON object")
+    unknown = set(data) - _KNOWN
+    if unknown:
+        raise ConfigError(f"{where}: unknown key(s) {sorted(unknown)}")
+    for key in ("system", "path", "source"):
+        if key not in data:
+            raise ConfigError(f"{where}: missing required key {key!r}")
+    for key in ("system", "path"):
+        if not isinstance(data[key], str) or not _chunks_ok(data[key]) or (key == "system" and "/" in data[key]):
+            raise ConfigError(f"{where}: {key} must be a plain key-expression name, got {data[key]!r}")
+    source = data["source"]
+    if not isinstance(source, dict) or source.get("kind") not in ("esprit", "python"):
+        raise ConfigError(f"{where}: source must be {{\"kind\": \"esprit\"|\"python\", ...}}")
+    if source["kind"] == "esprit" and not isinstance(source.get("file"), str):
+        raise ConfigError(f"{where}: an esprit source needs \"file\"")
+    if source["kind"] == "python" and not isinstance(source.get("ref"), str):
+        raise ConfigError(f"{where}: a python source needs \"ref\" (\"file.py:Class\" or \"module:Class\")")
+    config = NodeConfig(system=data["system"], path=data["path"], source=dict(source))
+    params = data.get("params", {})
+    if not isinstance(params, dict):
+        raise ConfigError(f"{where}: params must be an object")
+    config.params = params
+    for key in ("time_unit", "heartbeat_period"):
+        if key in data:
+            value = data[key]
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not (value > 0) or math.isinf(value):
+                raise ConfigError(f"{where}: {key} must be a positive number, got {value!r}")
+            setattr(config, key, float(value))
+    if data.get("origin") is not None:
+        if isinstance(data["origin"], bool) or not isinstance(data["origin"], (int, float)):
+            raise ConfigError(f"{where}: origin must be a wall-clock time in seconds")
+        config.origin = float(data["origin"])
+    for key in ("listen", "connect"):
+        if key in data:
+            value = data[key]
+            if not isinstance(value, list) or not all(isinstance(e, str) for e in value):
+                raise ConfigError(f"{where}: {key} must be a list of endpoints such as \"tcp/127.0.0.1:0\"")
+            setattr(config, key, list(value))
+    inputs = data.get("inputs", {})
+    if not isinstance(inputs, dict) or not all(
+            isinstance(k, str) and isinstance(v, list) and all(isinstance(e, str) for e in v) for k, v in inputs.items()):
+        raise ConfigError(f"{where}: inputs must map \"channel\" or \"channel/index\" to a list of keys")
+    config.inputs = {k: list(v) for k, v in inputs.items()}
+    if "policy" in data:
+        if data["policy"] not in ("eager", "random"):
+            raise ConfigError(f"{where}: policy must be \"eager\" or \"random\"")
+        config.policy = data["policy"]
+    if "seed" in data:
+        if not isinstance(data["seed"], int) or isinstance(data["seed"], bool):
+            raise ConfigError(f"{where}: seed must be an integer")
+        config.seed = data["seed"]
+    return config
