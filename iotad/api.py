@@ -43,7 +43,7 @@ class Param:
 class _ChannelDecl:
     direction = ""
 
-    def __init__(self, type: Type | None = None, *, switching: float = 0.0, size: int | str | None = None):
+    def __init__(self, type: Type | None = None, *, switching: float | str = 0.0, size: int | str | None = None):
         self.type, self.switching, self.size = type, switching, size
         self.name = ""
         self.decls: list[tuple[int, dict]] = []
@@ -52,7 +52,8 @@ class _ChannelDecl:
         self.name = name
 
     def channel(self) -> Channel:
-        return Channel(self.name, self.direction, self.type, float(self.switching), self.size)
+        switching = self.switching if isinstance(self.switching, str) else float(self.switching)
+        return Channel(self.name, self.direction, self.type, switching, self.size)
 
 
 class Input(_ChannelDecl):

@@ -74,6 +74,7 @@ class Leaf:
     path: str
     iota: Any  # an instance with `iota_spec`, params and state
     sizes: dict[str, int | None]
+    switching: dict[str, float]  # switching times with parameters resolved
 
 
 @dataclass
@@ -90,7 +91,8 @@ def _leaf_of(iota: Any, path: str) -> Leaf:
     spec = iota.iota_spec
     params = param_values(iota)
     sizes = {name: spec.size_of(ch, params) for name, ch in spec.channels.items()}
-    return Leaf(path, iota, sizes)
+    switching = {name: spec.switching_of(ch, params) for name, ch in spec.channels.items()}
+    return Leaf(path, iota, sizes, switching)
 
 
 def flatten(root: Any) -> Flat:

@@ -32,7 +32,7 @@ class Slot:
 
     def __init__(self, leaf: Leaf, channel: Channel, index: int | None):
         self.leaf, self.channel, self.index = leaf, channel, index
-        self.switching = channel.switching_time
+        self.switching = leaf.switching[channel.name]
         self.last = -INF
         self.type = channel.type
         self.targets: list[Slot] = []        # bound inputs an output delivers to
@@ -73,7 +73,8 @@ class Engine:
 
     def __init__(self, root: Any, clock: Clock | None = None, policy: Any = None, *, record: bool = True,
                  sinks: Iterable[Callable[[dict], None]] = (), max_firings_per_instant: int = 10_000,
-                 deadline_tolerance: float = 0.0, reject_early_inputs: bool = True):
+                 deadline_tolerance: float = 0.0, reject_early_inputs: bool = True,
+                 track_dependencies: bool = True):
         self.root = root
         self.clock = clock or VirtualClock()
         self.policy = policy or Eager()
@@ -84,6 +85,9 @@ class Engine:
         self.max_firings_per_instant = max_firings_per_instant
         self.deadline_tolerance = deadline_tolerance
         self.reject_early_inputs = reject_early_inputs
+        # False re-evaluates every precondition of a leaf after each of its firings: slower, and
+        # the reference the dependency analysis is tested against.
+        self.track_dependencies = track_dependencies
         self.halted = False
         self.firings = 0
         self.flat: Flat = flatten(root)
@@ -134,10 +138,10 @@ class Engine:
     def _affected(self, leaf: Leaf, writes: frozenset, index: int | None) -> list[ActionInstance]:
         """Instances of `leaf` whose precondition reads a cell that `writes` (at `index`) may change.
         Computed once per firing action instance and cached, so it need not be fast."""
+        if writes is ALL_STATE or writes == ALL_STATE or not self.track_dependencies:
+            return list(self._by_leaf[leaf.path])
         if not writes:
             return []
-        if writes is ALL_STATE or writes == ALL_STATE:
-            return list(self._by_leaf[leaf.path])
         found: dict[int, ActionInstance] = {}
         for var, key in writes:
             own_element = key == INDEX and index is not None

@@ -34,13 +34,13 @@ class Channel:
     name: str
     direction: str
     type: Type | None = None
-    switching_time: float = 0.0
+    switching_time: float | str = 0.0  # a number, or the name of a parameter
     size: int | str | None = None  # None: one channel; int or parameter name: a family name[N]
 
     def __post_init__(self) -> None:
         if self.direction not in DIRECTIONS:
             raise SpecError(f"channel {self.name}: direction must be one of {DIRECTIONS}")
-        if not (self.switching_time >= 0):
+        if not isinstance(self.switching_time, str) and not (self.switching_time >= 0):
             raise SpecError(f"channel {self.name}: switching time must be >= 0")
 
     @property
@@ -101,6 +101,18 @@ class IotaSpec:
         for channel in self.channels.values():
             if isinstance(channel.size, str) and channel.size not in self.params:
                 raise SpecError(f"{self.name}: channel {channel.name}[{channel.size}] names unknown parameter")
+            if isinstance(channel.switching_time, str) and channel.switching_time not in self.params:
+                raise SpecError(f"{self.name}: channel {channel.name}/{channel.switching_time} names unknown parameter")
+
+    def switching_of(self, channel: Channel, params: dict[str, Any]) -> float:
+        value = channel.switching_time
+        if isinstance(value, str):
+            if value not in params:
+                raise SpecError(f"{self.name}: switching time of {channel.name} names unknown parameter {value}")
+            value = params[value]
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not value >= 0:
+            raise SpecError(f"{self.name}: switching time of {channel.name} must be a number >= 0, got {value!r}")
+        return float(value)
 
     def size_of(self, channel: Channel, params: dict[str, Any]) -> int | None:
         if channel.size is None:

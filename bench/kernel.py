@@ -1,0 +1,113 @@
+"""Kernel benchmark: firings per second in virtual time, and peak memory.
+
+(a) two IOTAs ping-ponging a counter through a binding;
+(b) the Figure 2 scheduler with N=64 requesters asking at random (Random policy).
+Goals (issue 2): (a) >= 100,000 firings/s; cost per firing in (b) within 3x of (a), because a
+firing must not re-evaluate preconditions it cannot affect. (b) is also run with dependency
+tracking off, to show what the tracking saves.
+
+    .venv/bin/python bench/kernel.py [--seconds S]
+"""
+from __future__ import annotations
+
+import argparse
+import gc
+import resource
+import sys
+import time
+import tracemalloc
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "examples"))
+
+from iotad import Composite, Engine, Input, Int, Iota, Output, Random  # noqa: E402
+
+from requesters import Requester  # noqa: E402
+from scheduler import Scheduler  # noqa: E402
+
+
+class Player(Iota):
+    inp = Input(Int)
+    out = Output(Int)
+
+    def init(self):
+        self.ball = None
+
+    @inp.input
+    def got(self, x):
+        self.ball = x
+
+    @out.action(value=lambda self: self.ball + 1, when=lambda self: self.ball is not None, after=0.001)
+    def hit(self):
+        self.ball = None
+
+
+def ping_pong() -> Composite:
+    first = Player("ping")
+    first.ball = 0
+    return Composite("pingpong", first, Player("pong"), bind=[("ping.out", "pong.inp"), ("pong.out", "ping.inp")])
+
+
+def figure2(n: int = 64) -> Composite:
+    requesters = [Requester(f"r{i}", priority=1 + i % 7, epoch=0.5 + (i % 5) * 0.3, timeout=2.0 + i % 3,
+                            start=0.01 * i, pause=1.0 + (i % 4) * 0.5, count=10**9) for i in range(n)]
+    return Composite("figure2", Scheduler("scheduler", N=n, T=0.5), *requesters,
+                     bind=[(f"r{i}.req", f"scheduler.req[{i}]") for i in range(n)]
+                     + [(f"scheduler.ack[{i}]", f"r{i}.ack") for i in range(n)])
+
+
+def measure(build, policy_seed: int | None, seconds: float, record: bool, track: bool = True) -> tuple[float, int]:
+    """Firings per second over about `seconds` of wall time (virtual time grows in chunks)."""
+    policy = Random(policy_seed) if policy_seed is not None else None
+    engine = Engine(build(), policy=policy, record=record, track_dependencies=track)
+    until, start = 0.0, time.perf_counter()
+    gc.collect()
+    while time.perf_counter() - start < seconds:
+        until += 10.0
+        engine.run(until)
+        if record:
+            engine.trace.clear()  # keep memory flat: this measures the engine, not list growth
+    elapsed = time.perf_counter() - start
+    return engine.firings / elapsed, engine.firings
+
+
+def peak_memory(build, until: float) -> float:
+    """Peak traced Python memory (MiB) of building and running a system with its trace kept."""
+    tracemalloc.start()
+    engine = Engine(build(), policy=Random(1))
+    engine.run(until)
+    _, peak = tracemalloc.get_traced_memory()
+    tracemalloc.stop()
+    return peak / 2**20, len(engine.trace)
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seconds", type=float, default=3.0, help="wall time per measurement (default 3)")
+    args = parser.parse_args()
+
+    print(f"iotad kernel benchmark (virtual time, {args.seconds:g} s per figure)")
+    a, a_n = measure(ping_pong, None, args.seconds, record=False)
+    a_rec, _ = measure(ping_pong, None, args.seconds, record=True)
+    b, b_n = measure(figure2, 1, args.seconds, record=False)
+    b_rec, _ = measure(figure2, 1, args.seconds, record=True)
+    b_full, _ = measure(figure2, 1, args.seconds, record=False, track=False)
+    print(f"(a) ping-pong:                 {a:>10,.0f} firings/s  ({a_n:,} firings); with trace kept {a_rec:,.0f}/s")
+    print(f"(b) Figure 2, N=64, random:    {b:>10,.0f} firings/s  ({b_n:,} firings); with trace kept {b_rec:,.0f}/s")
+    print(f"    without dependency tracking {b_full:>9,.0f} firings/s  (tracking is {b / b_full:.1f}x faster)")
+    ratio = a / b
+    print(f"cost per firing (b)/(a): {ratio:.2f}x")
+    mem_a, events_a = peak_memory(ping_pong, 100)
+    mem_b, events_b = peak_memory(figure2, 500)
+    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    print(f"peak traced memory: (a) {mem_a:.1f} MiB for {events_a:,} trace events; "
+          f"(b) {mem_b:.1f} MiB for {events_b:,} trace events; process max RSS {rss:.0f} MiB")
+    goal_a = a >= 100_000
+    goal_b = ratio <= 3.0
+    print(f"goal (a) >= 100,000 firings/s: {'met' if goal_a else 'MISSED'}")
+    print(f"goal (b) cost within 3x of (a): {'met' if goal_b else 'MISSED'}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
