@@ -98,6 +98,9 @@ class IotaSpec:
             elif channel.type is not None and action.value is None:
                 raise SpecError(f"{self.name}: action {action.label} on typed channel "
                                 f"{channel.name} ({channel.type}) needs a value")
+            elif channel.type is None and action.value is not None:
+                raise SpecError(f"{self.name}: action {action.label} gives a value, but channel "
+                                f"{channel.name} carries none")
         for channel in self.channels.values():
             if isinstance(channel.size, str) and channel.size not in self.params:
                 raise SpecError(f"{self.name}: channel {channel.name}[{channel.size}] names unknown parameter")
