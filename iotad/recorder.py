@@ -1,0 +1,263 @@
+"""The recorder: subscribes to a running system over zenoh and writes every event to MCAP.
+
+zenoh calls back on its own threads (one per subscriber); the callbacks only copy the sample
+into a `SimpleQueue` with its receipt time, and one writer thread owns the MCAP file: it maps
+keys to channels, reads the sender's `[sequence, send_time_ns]` attachment (publish time, gap
+detection), asks each new node for its `@spec`, and closes the chunk in progress every
+`flush_period` seconds, so that a SIGKILLed recorder loses at most that much.
+"""
+from __future__ import annotations
+
+import json
+import queue
+import threading
+import time
+import tomllib
+from pathlib import Path
+from typing import Any, Iterable
+
+import msgpack
+
+from . import wire
+from .recording import FORMAT, GAP_TOPIC, McapSink, channel_schemas, packb, schema_for_topic
+from .transport import DEFAULT_LISTEN, open_session
+
+_STOP = object()
+
+
+def expand_keys(keys: Iterable[str]) -> list[str]:
+    """`iota/<sys>/**` does not match `@` chunks in zenoh: widen it to every key of the system."""
+    out: list[str] = []
+    for key in keys:
+        parts = key.split("/")
+        if len(parts) == 3 and parts[0] == wire.PREFIX and parts[2] == "**" and "*" not in parts[1]:
+            wanted = wire.subscription_keys(parts[1])
+        else:
+            wanted = [key]
+        out += [k for k in wanted if k not in out]
+    return out
+
+
+def read_system_file(path: str | Path) -> tuple[str, dict]:
+    """(text, parsed table) of a system TOML file."""
+    text = Path(path).read_text()
+    try:
+        table = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ValueError(f"{path}: not TOML: {exc}") from None
+    return text, table
+
+
+def system_name(table: dict) -> str | None:
+    for candidate in (table.get("system"), table.get("name")):
+        if isinstance(candidate, str):
+            return candidate
+        if isinstance(candidate, dict) and isinstance(candidate.get("name"), str):
+            return candidate["name"]
+    return None
+
+
+class Recorder:
+    """Record `keys` to `output` until `stop()`. `stats` counts what came and what was written."""
+
+    def __init__(self, keys: Iterable[str], output: str | Path, *, system_file: str | Path | None = None,
+                 connect: Iterable[str] = (), listen: Iterable[str] = DEFAULT_LISTEN,
+                 flush_period: float = 0.05, spec_timeout: float = 0.5, query_specs: bool = True):
+        self.system_text, self.system_table = (None, {})
+        if system_file is not None:
+            self.system_text, self.system_table = read_system_file(system_file)
+        self.system = system_name(self.system_table)
+        keys = list(keys)
+        if not keys and self.system:
+            keys = [f"{wire.PREFIX}/{self.system}/**"]
+        if not keys:
+            raise ValueError("nothing to record: give key expressions or a system file")
+        self.keys = expand_keys(keys)
+        if self.system is None:
+            parsed = self.keys[0].split("/")
+            if len(parsed) > 1 and parsed[0] == wire.PREFIX and "*" not in parsed[1]:
+                self.system = parsed[1]
+        self.output = Path(output)
+        self.connect, self.listen = list(connect), list(listen)
+        self.flush_period, self.spec_timeout, self.query_specs = flush_period, spec_timeout, query_specs
+        self.stats = {"received": 0, "written": 0, "gaps": 0, "missing": 0, "duplicates": 0, "flushes": 0}
+        self._queue: queue.SimpleQueue = queue.SimpleQueue()
+        self._session: Any = None
+        self._subscribers: list = []
+        self._thread: threading.Thread | None = None
+        self._error: BaseException | None = None
+        self.specs: dict[str, dict] = {}
+        self._asked: set[str] = set()
+        self._schema_cache: dict[str, dict] = {}
+
+    # ------------------------------------------------------------------ life cycle
+    def start(self) -> "Recorder":
+        self.sink = McapSink(self.output)
+        self.started_ns = time.time_ns()
+        self.sink.add_metadata("iotad.recording", {
+            "format": FORMAT, "system": self.system or "", "keys": self.keys, "started_ns": self.started_ns,
+            "clock": "real", "writer": "iotad record",
+            "time_unit": self._system_time_unit()})
+        if self.system_text is not None:
+            self.sink.attach("system.toml", "application/toml", self.system_text.encode())
+        self.sink.flush()
+        self._session = open_session(self.listen, self.connect)
+        try:
+            put = self._queue.put
+            now = time.time_ns
+
+            def on_sample(sample: Any) -> None:
+                attachment = sample.attachment
+                put((str(sample.key_expr), sample.payload.to_bytes(),
+                     None if attachment is None else attachment.to_bytes(), now()))
+
+            for key in self.keys:
+                self._subscribers.append(self._session.declare_subscriber(key, on_sample))
+            self._thread = threading.Thread(target=self._run, name="iotad-recorder", daemon=True)
+            self._thread.start()
+        except BaseException:
+            self._close_session()
+            raise
+        return self
+
+    def stop(self) -> dict:
+        """Stop receiving, write what is queued, ask missing specs, and finish the file."""
+        try:
+            for subscriber in self._subscribers:
+                subscriber.undeclare()
+            self._subscribers.clear()
+            if self._thread is not None:
+                self._queue.put(_STOP)
+                self._thread.join()
+                self._thread = None
+            if self._error is not None:
+                raise self._error
+            self._ask_missing_specs()
+            self.sink.add_metadata("iotad.gaps", {"count": self.stats["gaps"], "missing": self.stats["missing"]})
+            self.sink.add_metadata("iotad.stats", dict(self.stats, stopped_ns=time.time_ns()))
+            self.sink.finish()
+        finally:
+            self._close_session()
+        return self.stats
+
+    def _close_session(self) -> None:
+        if self._session is not None:
+            self._session.close()
+            self._session = None
+
+    def _system_time_unit(self) -> float:
+        unit = self.system_table.get("time_unit")
+        if unit is None and isinstance(self.system_table.get("system"), dict):
+            unit = self.system_table["system"].get("time_unit")
+        return float(unit) if isinstance(unit, (int, float)) else 1.0
+
+    # ------------------------------------------------------------------ the writer thread
+    def _run(self) -> None:
+        try:
+            self._loop()
+        except BaseException as exc:  # noqa: BLE001 - reported by stop()
+            self._error = exc
+            while True:  # keep the queue from growing without bound
+                if self._queue.get() is _STOP:
+                    break
+
+    def _loop(self) -> None:
+        get, sink, stats = self._queue.get, self.sink, self.stats
+        ids: dict[str, int] = {}
+        last: dict[str, tuple[int, int]] = {}
+        unpack = msgpack.unpackb
+        write = sink.writer.add_message
+        period_ns = int(self.flush_period * 1e9)
+        next_flush = time.monotonic_ns() + period_ns
+        received = written = 0
+        while True:
+            try:
+                item = get(timeout=self.flush_period)
+            except queue.Empty:
+                item = None
+            if item is _STOP:
+                break
+            if item is not None:
+                key, payload, attachment, receipt_ns = item
+                received += 1
+                channel_id = ids.get(key)
+                if channel_id is None:
+                    channel_id = ids[key] = self._new_channel(key)
+                sequence, publish_ns = 0, receipt_ns
+                if attachment is not None:
+                    try:
+                        sequence, publish_ns = unpack(attachment)
+                    except Exception:  # noqa: BLE001 - a foreign publisher's attachment
+                        sequence, publish_ns = 0, receipt_ns
+                    previous = last.get(key)
+                    if previous is not None:
+                        if sequence == previous[0] and publish_ns == previous[1]:
+                            stats["duplicates"] += 1  # the same sample through two overlapping key expressions
+                            continue
+                        if sequence > previous[0] + 1:
+                            self._gap(key, previous[0] + 1, sequence, receipt_ns)
+                    last[key] = (sequence, publish_ns)
+                write(channel_id, receipt_ns, payload, publish_ns, sequence & 0xFFFFFFFF)
+                written += 1
+            if item is None or (written & 0xFF) == 0:
+                now = time.monotonic_ns()
+                if now >= next_flush:
+                    sink.flush()
+                    stats["flushes"] += 1
+                    next_flush = now + period_ns
+                stats["received"], stats["written"] = received, written
+        stats["received"], stats["written"] = received, written
+
+    def _gap(self, key: str, expected: int, got: int, receipt_ns: int) -> None:
+        missing = got - expected
+        self.stats["gaps"] += 1
+        self.stats["missing"] += missing
+        channel_id = self.sink.channel(GAP_TOPIC, "iotad.gap", schema_for_topic(GAP_TOPIC, {}, {})[1])
+        self.sink.write(channel_id, receipt_ns, receipt_ns, self.stats["gaps"] - 1,
+                        packb({"key": key, "expected": expected, "got": got, "missing": missing}))
+
+    def _new_channel(self, key: str) -> int:
+        parsed = wire.parse_key(key)
+        if parsed is not None and parsed[1] and self.query_specs:
+            self._ask_spec(parsed[0], parsed[1])
+        name, schema = schema_for_topic(key, self.specs, self._schema_cache)
+        return self.sink.channel(key, name, schema)
+
+    # ------------------------------------------------------------------ specs
+    def _ask_spec(self, system: str, path: str) -> None:
+        """Ask a node for its spec once (a node answers on `<node>/@spec`); store the answer."""
+        if (system, path) in self._asked or path in self.specs:
+            return
+        self._asked.add((system, path))
+        try:
+            replies = self._session.get(f"{wire.PREFIX}/{system}/{path}/@spec", timeout=self.spec_timeout)
+            for reply in replies:
+                sample = reply.ok
+                if sample is None:
+                    continue
+                spec = msgpack.unpackb(sample.payload.to_bytes(), raw=False, strict_map_key=False)
+                if isinstance(spec, dict):
+                    spec.setdefault("path", path)
+                    self.specs[path] = spec
+                    self._schema_cache[path] = channel_schemas(spec)
+                    self.sink.add_spec(path, spec)
+                    break
+        except Exception:  # noqa: BLE001 - a node without a spec is still recorded
+            pass
+
+    def _ask_missing_specs(self) -> None:
+        if not self.query_specs or self._session is None:
+            return
+        seen = set()
+        for topic in self.sink.channels:
+            parsed = wire.parse_key(topic)
+            if parsed and parsed[1] and topic.endswith("/@trace"):
+                seen.add((parsed[0], parsed[1]))
+        for system, path in sorted(seen):
+            if path not in self.specs:
+                self._asked.discard((system, path))
+                self._ask_spec(system, path)
+
+
+def describe(stats: dict) -> str:
+    return json.dumps(stats)

@@ -1,0 +1,548 @@
+"""Recordings: writing iotad events to MCAP and reading them back, whole or cut short.
+
+One MCAP channel per key (`iota/<system>/<path>/<channel>[/<index>]`, `.../@trace`,
+`iota/<system>/@launcher`), message encoding `msgpack` with a `jsonschema` schema per type.
+A recording carries what replay and check need and nothing else must be found:
+
+- attachment `spec/<path>.json` per node: the node's `@spec` answer (source, text, params,
+  channels), so the node can be rebuilt from the recording alone;
+- attachment `system.toml` (or `system.json` for an in-process run): the system file;
+- metadata `iotad.recording`: system name, time unit, clock origin, who wrote it;
+- messages on `@recorder/gaps`: sequence gaps the recorder saw (they survive a kill),
+  and metadata `iotad.gaps` with their total at a clean finish.
+
+Reading goes through one sequential pass of `mcap.stream_reader.StreamReader`, which also reads
+a file that a killed writer left without a footer; `complete` says whether the footer was there.
+"""
+from __future__ import annotations
+
+import hashlib
+import importlib.util
+import inspect
+import json
+import linecache
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import IO, Any, Callable, Iterable, Iterator
+
+import msgpack
+from mcap.records import Attachment, Channel as McapChannel, Footer, Message, Metadata, Schema
+from mcap.stream_reader import StreamReader
+from mcap.writer import CompressionType, Writer
+
+from . import wire
+from .types import to_plain
+
+MESSAGE_ENCODING = "msgpack"
+SCHEMA_ENCODING = "jsonschema"
+PROFILE = "iotad"
+GAP_TOPIC = "@recorder/gaps"
+FORMAT = "iotad-mcap/1"
+
+# Every message on a `@trace` key is one event in the trace JSONL shape (DESIGN section 5).
+TRACE_SCHEMA = {
+    "title": "iotad trace event", "type": "object",
+    "properties": {"t": {"type": "number"}, "iota": {"type": "string"}, "action": {"type": "string"},
+                   "index": {"type": ["integer", "null"]},
+                   "kind": {"enum": ["input", "output", "internal", "violation"]}, "value": {}},
+    "required": ["t", "iota", "action", "kind"]}
+GAP_SCHEMA = {
+    "title": "iotad sequence gap", "type": "object",
+    "properties": {"key": {"type": "string"}, "expected": {"type": "integer"}, "got": {"type": "integer"},
+                   "missing": {"type": "integer"}}}
+LAUNCHER_SCHEMA = {"title": "iotad launcher event", "type": "object"}
+PERMISSIVE_SCHEMA: dict = {"title": "any msgpack value"}  # unknown type: anything goes
+
+
+class RecordingError(Exception):
+    """A file is not a readable iotad recording (one-line message)."""
+
+
+def packb(value: Any) -> bytes:
+    return msgpack.packb(value, use_bin_type=True)
+
+
+def unpackb(data: bytes) -> Any:
+    return msgpack.unpackb(data, raw=False, strict_map_key=False)
+
+
+# ------------------------------------------------------------------------------------ writing
+class McapSink:
+    """An MCAP file of iotad events: schemas and channels registered on first use.
+
+    `flush()` closes the chunk in progress and pushes it to the file: call it on a timer so a
+    killed writer loses only what arrived since (the mcap writer keeps a whole chunk in memory).
+    """
+
+    def __init__(self, output: str | Path | IO[bytes], *, chunk_size: int = 4 * 1024 * 1024,
+                 compression: CompressionType = CompressionType.ZSTD):
+        self._file = open(output, "wb") if isinstance(output, (str, Path)) else output
+        self._owns_file = isinstance(output, (str, Path))
+        self.writer = Writer(self._file, chunk_size=chunk_size, compression=compression)
+        self.writer.start(profile=PROFILE, library=f"iotad {_version()}")
+        self._schemas: dict[tuple[str, str], int] = {}
+        self.channels: dict[str, int] = {}
+        self.counts: dict[str, int] = {}
+        self.finished = False
+
+    def schema(self, name: str, schema: dict) -> int:
+        text = json.dumps(schema, sort_keys=True)
+        key = (name, text)
+        schema_id = self._schemas.get(key)
+        if schema_id is None:
+            schema_id = self._schemas[key] = self.writer.register_schema(name, SCHEMA_ENCODING, text.encode())
+        return schema_id
+
+    def channel(self, topic: str, schema_name: str, schema: dict, metadata: dict[str, str] | None = None) -> int:
+        channel_id = self.channels.get(topic)
+        if channel_id is None:
+            schema_id = self.schema(schema_name, schema)
+            channel_id = self.channels[topic] = self.writer.register_channel(
+                topic, MESSAGE_ENCODING, schema_id, metadata or {})
+        return channel_id
+
+    def write(self, channel_id: int, log_ns: int, publish_ns: int, sequence: int, data: bytes) -> None:
+        self.writer.add_message(channel_id, log_ns, data, publish_ns, sequence & 0xFFFFFFFF)
+
+    def attach(self, name: str, media_type: str, data: bytes, log_ns: int | None = None) -> None:
+        now = time.time_ns() if log_ns is None else log_ns
+        self.writer.add_attachment(now, now, name, media_type, data)
+
+    def add_spec(self, path: str, spec: dict, log_ns: int | None = None) -> None:
+        self.attach(f"spec/{path}.json", "application/json", json.dumps(spec, default=_plain).encode(), log_ns)
+
+    def add_metadata(self, name: str, data: dict[str, Any]) -> None:
+        self.writer.add_metadata(name, {k: v if isinstance(v, str) else json.dumps(v, default=_plain)
+                                        for k, v in data.items()})
+
+    def flush(self) -> None:
+        self.writer.flush()
+
+    def finish(self) -> None:
+        if self.finished:
+            return
+        self.finished = True
+        self.writer.finish()
+        self._file.flush()
+        if self._owns_file:
+            self._file.close()
+
+
+def _plain(value: Any) -> Any:
+    plain = to_plain(value)
+    if plain is value:
+        return repr(value)
+    return plain
+
+
+def _version() -> str:
+    from . import __version__
+    return __version__
+
+
+# ------------------------------------------------------------------------------------ specs
+def spec_record(iota: Any, path: str, time_unit: float = 1.0) -> dict:
+    """The `@spec` answer for an in-process IOTA: what a node host would answer for it."""
+    from .model import param_values
+    spec = iota.iota_spec
+    if spec.source is not None:  # ESPRIT (or any spec that carries its text)
+        source = {"kind": "esprit", "file": spec.source_path, "iota": spec.name}
+        text = spec.source
+    else:
+        cls = type(iota)
+        file = inspect.getsourcefile(cls)
+        source = {"kind": "python", "ref": f"{file}:{cls.__name__}"}
+        text = Path(file).read_text() if file and Path(file).is_file() else None
+    return {"path": path, "source": source, "text": text, "params": to_plain(param_values(iota)),
+            "channels": channel_list(spec), "time_unit": time_unit}
+
+
+def channel_list(spec: Any) -> list[dict]:
+    return [{"name": c.name, "direction": c.direction, "type": None if c.type is None else c.type.name,
+             "schema": None if c.type is None else c.type.json_schema(), "switching_time": c.switching_time,
+             "size": c.size} for c in spec.channels.values()]
+
+
+def build_node(spec: dict, name: str | None = None) -> Any:
+    """Rebuild a node from its stored `@spec` answer (text first; the file only if no text)."""
+    source = spec.get("source") or {}
+    kind, params, text = source.get("kind"), dict(spec.get("params") or {}), spec.get("text")
+    name = name or spec.get("path")
+    if kind == "esprit":
+        try:
+            from .esprit import load_iota
+        except ImportError:
+            raise RecordingError("this recording holds an ESPRIT spec, and iotad.esprit is not installed") from None
+        return load_iota(text if text else source["file"], iota=source.get("iota"), name=name, **params)
+    if kind == "python":
+        ref = source.get("ref", "")
+        file, _, cls_name = ref.rpartition(":")
+        if text:
+            cls = getattr(_module_from_text(text, file), cls_name, None)
+            if cls is None:
+                raise RecordingError(f"spec of {name}: its stored source has no {cls_name}")
+        else:
+            from .loader import load_object
+            cls = load_object(ref)
+        return cls(name, **params)
+    raise RecordingError(f"spec of {name}: unknown source kind {kind!r}")
+
+
+def _module_from_text(text: str, file: str) -> Any:
+    """Import a stored Python source as a module; its text goes to linecache so that the
+    dependency analysis (iotad.deps) can still read the functions' source."""
+    digest = hashlib.sha1(text.encode()).hexdigest()[:12]
+    name = f"_iotad_recorded_{digest}"
+    module = sys.modules.get(name)
+    if module is not None:
+        return module
+    filename = f"<recorded {Path(file).name or 'spec'} {digest}>"
+    linecache.cache[filename] = (len(text), None, text.splitlines(True), filename)
+    folder = str(Path(file).parent) if file else ""
+    if folder and Path(folder).is_dir() and folder not in sys.path:
+        sys.path.append(folder)  # neighbours it imports, if they are still there
+    spec = importlib.util.spec_from_loader(name, loader=None)
+    module = importlib.util.module_from_spec(spec)
+    module.__file__ = filename
+    sys.modules[name] = module
+    try:
+        exec(compile(text, filename, "exec"), module.__dict__)
+    except Exception as exc:
+        del sys.modules[name]
+        raise RecordingError(f"stored source of {file}: {type(exc).__name__}: {exc}") from None
+    return module
+
+
+def channel_schemas(spec: dict) -> dict[str, tuple[str, dict]]:
+    """channel name -> (schema name, JSON schema), from a stored spec's channel list."""
+    out: dict[str, tuple[str, dict]] = {}
+    for entry in spec.get("channels") or []:
+        if not isinstance(entry, dict) or "name" not in entry:
+            continue
+        schema = entry.get("schema") or entry.get("json_schema")
+        if isinstance(schema, dict):
+            out[entry["name"]] = (str(entry.get("type") or schema.get("title") or entry["name"]), schema)
+        elif entry.get("type") is None and "type" in entry:
+            out[entry["name"]] = ("null", {"type": "null"})
+    if out:
+        return out
+    try:  # a node host that did not give schemas: build the IOTA and ask its types
+        iota = build_node(spec)
+        from .compose import flatten
+        for leaf in flatten(iota).leaves:
+            for name, channel in leaf.iota.iota_spec.channels.items():
+                if channel.type is not None:
+                    out.setdefault(name, (channel.type.name, channel.type.json_schema()))
+    except Exception:  # noqa: BLE001 - schemas are a nicety; permissive ones still record everything
+        pass
+    return out
+
+
+def schema_for_topic(topic: str, specs: dict[str, dict], cache: dict[str, dict]) -> tuple[str, dict]:
+    parsed = wire.parse_key(topic)
+    if topic == GAP_TOPIC:
+        return "iotad.gap", GAP_SCHEMA
+    if topic.endswith("/@launcher"):
+        return "iotad.launcher_event", LAUNCHER_SCHEMA
+    if parsed is None:
+        return "any", PERMISSIVE_SCHEMA
+    _, path, channel, _ = parsed
+    if channel == "@trace":
+        return "iotad.trace_event", TRACE_SCHEMA
+    if path in specs:
+        if path not in cache:
+            cache[path] = channel_schemas(specs[path])
+        found = cache[path].get(channel)
+        if found:
+            return found
+    return "any", PERMISSIVE_SCHEMA
+
+
+# ------------------------------------------------------------------------------------ engine sink
+class EngineRecorder:
+    """An Engine sink that writes what a system of node hosts would publish: every event of a
+    leaf on `iota/<system>/<path>/@trace`, every output on its channel key. Virtual time `t`
+    becomes log and publish time `t * time_unit` seconds after `origin_ns`."""
+
+    def __init__(self, sink: McapSink, root: Any, system: str | None = None, *, time_unit: float = 1.0,
+                 origin_ns: int = 0):
+        from .compose import Composite, flatten
+        self.sink, self.root = sink, root
+        self.system = system or root.instance_name
+        self.time_unit, self.origin_ns = time_unit, origin_ns
+        self.flat = flatten(root)
+        prefix = root.instance_name + "/"
+        self.node_path = {}
+        for leaf in self.flat.leaves:
+            rel = leaf.path[len(prefix):] if leaf.path.startswith(prefix) else leaf.path
+            self.node_path[leaf.path] = rel or leaf.path
+        self._seq: dict[str, int] = {}
+        self._ids: dict[str, int] = {}
+        self._specs: dict[str, dict] = {}
+        self._cache: dict[str, dict] = {}
+        for leaf in self.flat.leaves:
+            path = self.node_path[leaf.path]
+            self._specs[path] = spec_record(leaf.iota, path, time_unit)
+            sink.add_spec(path, self._specs[path], origin_ns)
+        bindings = [[str(s), str(d)] for s, d in self.flat.bindings]
+        sink.add_metadata("iotad.recording", {
+            "format": FORMAT, "system": self.system, "time_unit": time_unit, "origin_ns": origin_ns,
+            "clock": "virtual", "writer": "EngineRecorder", "root": root.instance_name,
+            "nodes": list(self._specs), "bindings": bindings,
+            "composite": isinstance(root, Composite)})
+        sink.attach("system.json", "application/json", json.dumps(
+            {"name": self.system, "nodes": {p: {k: s[k] for k in ("source", "params")} for p, s in self._specs.items()},
+             "bindings": bindings}, default=_plain).encode(), origin_ns)
+
+    def _put(self, topic: str, ns: int, value: Any) -> None:
+        channel_id = self._ids.get(topic)
+        if channel_id is None:
+            name, schema = schema_for_topic(topic, self._specs, self._cache)
+            channel_id = self._ids[topic] = self.sink.channel(topic, name, schema)
+        seq = self._seq.get(topic, 0)
+        self._seq[topic] = seq + 1
+        self.sink.write(channel_id, ns, ns, seq, packb(value))
+
+    def __call__(self, event: dict) -> None:
+        path = self.node_path.get(event["iota"], event["iota"])
+        ns = self.origin_ns + int(round(event["t"] * self.time_unit * 1e9))
+        self._put(wire.trace_key(self.system, path), ns, dict(event, iota=path))
+        if event["kind"] == "output":
+            self._put(wire.channel_key(self.system, path, event["action"], event["index"]), ns, event["value"])
+
+
+def record_run(root: Any, output: str | Path, until: float, inputs: Iterable[dict] = (), policy: Any = None,
+               system: str | None = None, **engine_options: Any):
+    """Run `root` in virtual time up to `until` and write every event to `output` (an MCAP file).
+    `inputs` are input-script entries (`iotad.script`). Returns the engine."""
+    from .clock import VirtualClock
+    from .engine import Engine
+    sink = McapSink(output)
+    try:
+        recorder = EngineRecorder(sink, root, system)
+        engine = Engine(root, VirtualClock(), policy, sinks=[recorder], **engine_options)
+        for entry in inputs:
+            if entry["t"] <= until:
+                engine.post(entry.get("iota"), entry["action"], entry.get("value"), entry.get("index"), t=entry["t"])
+        engine.run(until)
+    finally:
+        sink.finish()
+    return engine
+
+
+# ------------------------------------------------------------------------------------ reading
+@dataclass
+class RecordedMessage:
+    topic: str
+    log_time: int
+    publish_time: int
+    sequence: int
+    data: bytes
+
+    @property
+    def value(self) -> Any:
+        return unpackb(self.data)
+
+
+@dataclass
+class Recording:
+    """Everything in a recording, read in one pass; `complete` is False for a cut-short file."""
+
+    path: str
+    messages: list[RecordedMessage] = field(default_factory=list)
+    schemas: dict[int, Schema] = field(default_factory=dict)
+    channels: dict[int, McapChannel] = field(default_factory=dict)
+    attachments: list[Attachment] = field(default_factory=list)
+    metadata: dict[str, dict[str, str]] = field(default_factory=dict)
+    complete: bool = False
+    truncated_reason: str = ""
+    header_library: str = ""
+
+    # -- what it holds
+    @property
+    def info(self) -> dict[str, Any]:
+        raw = self.metadata.get("iotad.recording", {})
+        out: dict[str, Any] = {}
+        for key, value in raw.items():
+            try:
+                out[key] = json.loads(value)
+            except (TypeError, ValueError):
+                out[key] = value
+        return out
+
+    @property
+    def specs(self) -> dict[str, dict]:
+        out = {}
+        for attachment in self.attachments:
+            if attachment.name.startswith("spec/") and attachment.name.endswith(".json"):
+                try:
+                    spec = json.loads(attachment.data)
+                except ValueError:
+                    continue
+                out[attachment.name[5:-5]] = spec
+        return out
+
+    @property
+    def system_text(self) -> str | None:
+        for attachment in self.attachments:
+            if attachment.name in ("system.toml", "system.json"):
+                return attachment.data.decode(errors="replace")
+        return None
+
+    @property
+    def system(self) -> str | None:
+        name = self.info.get("system")
+        if name:
+            return name
+        for message in self.messages:
+            parsed = wire.parse_key(message.topic)
+            if parsed:
+                return parsed[0]
+        return None
+
+    def topics(self) -> dict[str, int]:
+        counts: dict[str, int] = {}
+        for message in self.messages:
+            counts[message.topic] = counts.get(message.topic, 0) + 1
+        return counts
+
+    def nodes(self) -> list[str]:
+        found = set(self.specs)
+        for topic in self.topics():
+            parsed = wire.parse_key(topic)
+            if parsed and parsed[1] and not parsed[2].startswith("@launcher"):
+                found.add(parsed[1])
+        return sorted(found)
+
+    def trace(self, node: str | None = None) -> list[dict]:
+        """Trace events (from `@trace` keys) of one node or of all, in recorded order."""
+        out = []
+        for message in self.messages:
+            if not message.topic.endswith("/@trace"):
+                continue
+            parsed = wire.parse_key(message.topic)
+            if parsed is None or (node is not None and parsed[1] != node):
+                continue
+            event = message.value
+            if isinstance(event, dict):
+                event.setdefault("node", parsed[1])
+                out.append(event)
+        return out
+
+    def violations(self) -> list[dict]:
+        return [e for e in self.trace() if e.get("kind") == "violation"]
+
+    def gaps(self) -> list[dict]:
+        return [m.value for m in self.messages if m.topic == GAP_TOPIC]
+
+    def launcher_events(self) -> list[dict]:
+        return [dict(m.value, log_time=m.log_time) for m in self.messages
+                if m.topic.endswith("/@launcher") and isinstance(m.value, dict)]
+
+    def duration(self) -> float:
+        if not self.messages:
+            return 0.0
+        times = [m.log_time for m in self.messages]
+        return (max(times) - min(times)) / 1e9
+
+    def schema_of(self, topic: str) -> Schema | None:
+        for channel in self.channels.values():
+            if channel.topic == topic:
+                return self.schemas.get(channel.schema_id)
+        return None
+
+
+def read_recording(path: str | Path) -> Recording:
+    """Read a recording, complete or cut short by a kill; raise RecordingError if it is not MCAP."""
+    path = Path(path)
+    if not path.is_file():
+        raise RecordingError(f"{path}: no such file")
+    recording = Recording(str(path))
+    with open(path, "rb") as stream:
+        try:
+            for record in _records(stream, recording):
+                if isinstance(record, Message):
+                    channel = recording.channels.get(record.channel_id)
+                    if channel is None:
+                        raise RecordingError(f"{path}: message on unknown channel {record.channel_id}")
+                    recording.messages.append(RecordedMessage(channel.topic, record.log_time,
+                                                              record.publish_time, record.sequence, record.data))
+                elif isinstance(record, Schema):
+                    recording.schemas[record.id] = record
+                elif isinstance(record, McapChannel):
+                    recording.channels[record.id] = record
+                elif isinstance(record, Attachment):
+                    recording.attachments.append(record)
+                elif isinstance(record, Metadata):
+                    recording.metadata[record.name] = dict(record.metadata)
+        except RecordingError:
+            raise
+    return recording
+
+
+def _records(stream: IO[bytes], recording: Recording) -> Iterator[Any]:
+    """Records of the data section; stops quietly where a killed writer stopped writing."""
+    reader = StreamReader(stream, record_size_limit=1 << 31)
+    records = reader.records
+    first = True
+    while True:
+        try:
+            record = next(records)
+        except StopIteration:
+            return
+        except Exception as exc:  # noqa: BLE001 - the mcap reader raises many types on a cut-off file
+            if first:
+                raise RecordingError(f"{recording.path}: not an MCAP file ({type(exc).__name__}: {exc})") from None
+            recording.truncated_reason = f"{type(exc).__name__}: {exc}"
+            return
+        if first:
+            recording.header_library = getattr(record, "library", "")
+        first = False
+        if isinstance(record, Footer):
+            recording.complete = True
+            return
+        yield record
+
+
+def copy_recording(recording: Recording, output: str | Path, convert: Callable[[Schema | None, McapChannel, bytes],
+                   tuple[Schema | None, McapChannel, bytes]] | None = None,
+                   extra_metadata: dict[str, dict] | None = None) -> int:
+    """Write a complete MCAP (summary, indexes) holding everything `recording` holds.
+    `convert` may re-encode each channel's messages (export to JSON does). Returns the count."""
+    sink = McapSink(output)
+    try:
+        ids: dict[str, int] = {}
+        schema_ids: dict[tuple, int] = {}
+        by_topic = {c.topic: c for c in recording.channels.values()}
+        for attachment in recording.attachments:
+            sink.writer.add_attachment(attachment.create_time, attachment.log_time, attachment.name,
+                                       attachment.media_type, attachment.data)
+        for name, data in recording.metadata.items():
+            sink.writer.add_metadata(name, data)
+        for name, data in (extra_metadata or {}).items():
+            sink.add_metadata(name, data)
+        count = 0
+        for message in recording.messages:
+            channel_id = ids.get(message.topic)
+            data = message.data
+            if channel_id is None:
+                channel = by_topic[message.topic]
+                schema = recording.schemas.get(channel.schema_id)
+                if convert is not None:
+                    schema, channel, _ = convert(schema, channel, b"")
+                schema_id = 0
+                if schema is not None:
+                    key = (schema.name, schema.encoding, bytes(schema.data))
+                    schema_id = schema_ids.get(key) or schema_ids.setdefault(
+                        key, sink.writer.register_schema(schema.name, schema.encoding, schema.data))
+                channel_id = ids[message.topic] = sink.writer.register_channel(
+                    channel.topic, channel.message_encoding, schema_id, dict(channel.metadata))
+            if convert is not None:
+                data = convert(None, by_topic[message.topic], data)[2]
+            sink.writer.add_message(channel_id, message.log_time, data, message.publish_time, message.sequence)
+            count += 1
+    finally:
+        sink.finish()
+    return count
