@@ -42,3 +42,21 @@ def free_port(host: str = "127.0.0.1") -> int:
     with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
         probe.bind((host, 0))
         return probe.getsockname()[1]
+
+
+class PeerUnreachable(ConnectionError):
+    """No zenoh peer answered at the endpoints a tool was told to connect to."""
+
+
+def open_tool_session(connect: Iterable[str] = (DEFAULT_HUB_ENDPOINT,), timeout: float = 3.0) -> zenoh.Session:
+    """A session for a command-line tool (`iotad ls/echo/pub/hz`): a client of the hub, which
+    relays for its clients at once (a peer would first have to be meshed by gossip with every
+    node, and its first query could miss them). Fails within `timeout` seconds with
+    `PeerUnreachable` (one clear line) instead of retrying forever when nothing runs there."""
+    endpoints = list(connect)
+    try:
+        return open_session((), endpoints, mode="client", connect_timeout=timeout)
+    except zenoh.ZError as exc:
+        reason = str(exc).split(" at ", 1)[0].strip()
+        raise PeerUnreachable(f"no zenoh peer at {', '.join(endpoints)} ({reason}); is a system running? "
+                              "Use --connect ENDPOINT to name its hub") from None
