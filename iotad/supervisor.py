@@ -1,0 +1,172 @@
+"""Owning OS processes: spawn one (never fork in Python), stop it in escalating steps, restart it
+by policy. Knows nothing of zenoh or IOTAs; the launcher drives it.
+
+Every child runs in its own session and process group (so a Ctrl-C at the terminal reaches only
+the launcher, which then stops its children in order) and dies with the launcher even when the
+launcher is killed with SIGKILL: a tiny exec wrapper sets the Linux parent-death signal with
+prctl(PR_SET_PDEATHSIG) and then execs the real command, keeping the pid. The wrapper is its own
+interpreter started by subprocess (fork+exec in C), so no Python code runs in a forked copy of a
+process that holds zenoh threads. PR_SET_PDEATHSIG fires when the *thread* that spawned the child
+ends, so spawn from a thread that lives as long as the launcher (its main thread).
+"""
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable, Sequence
+
+# argv: ppid, death signal, command... . If the parent died before prctl took effect, getppid()
+# has changed: exit rather than run an orphan. Without prctl (not Linux) just exec.
+_DEATH_WRAPPER = """
+import os, sys
+expected_parent, death_signal = int(sys.argv[1]), int(sys.argv[2])
+try:
+    import ctypes
+    libc = ctypes.CDLL(None, use_errno=True)
+    if libc.prctl(1, death_signal, 0, 0, 0) != 0:  # 1 = PR_SET_PDEATHSIG
+        raise OSError(ctypes.get_errno(), "prctl(PR_SET_PDEATHSIG)")
+except (OSError, AttributeError):
+    pass
+if os.getppid() != expected_parent:
+    os._exit(70)
+os.execv(sys.argv[3], sys.argv[3:])
+"""
+
+FAILED_TO_START = 127
+
+
+def wrapped_argv(argv: Sequence[str], death_signal: int = signal.SIGKILL) -> list[str]:
+    """`argv` run under the parent-death wrapper (argv[0] must be an absolute executable path)."""
+    if not sys.platform.startswith("linux"):
+        return list(argv)
+    return [sys.executable, "-I", "-c", _DEATH_WRAPPER, str(os.getpid()), str(int(death_signal)), *argv]
+
+
+class Child:
+    """One OS process we own: started with `start`, stopped with `stop`, always reaped.
+
+    A waiter thread (owned here, ends when the process does) reports the exit at once through
+    `on_exit(child, code)`, so supervision does not depend on polling."""
+
+    def __init__(self, name: str, argv: Sequence[str], *, log: Path | None = None, cwd: str | None = None,
+                 env: dict[str, str] | None = None, on_exit: Callable[["Child", int], None] | None = None):
+        self.name, self.argv, self.log, self.cwd = name, list(argv), log, cwd
+        self.env = env
+        self.on_exit = on_exit
+        self.proc: subprocess.Popen | None = None
+        self.started_at = 0.0       # time.monotonic() of the last start
+        self.code: int | None = None  # exit status of the last run (negative: killed by signal)
+        self._waiter: threading.Thread | None = None
+
+    @property
+    def pid(self) -> int | None:
+        return self.proc.pid if self.proc is not None else None
+
+    def running(self) -> bool:
+        return self.proc is not None and self.proc.poll() is None
+
+    def start(self) -> int:
+        if self.running():
+            raise RuntimeError(f"{self.name} is already running")
+        env = dict(os.environ if self.env is None else self.env)
+        env.setdefault("PYTHONUNBUFFERED", "1")
+        out = open(self.log, "ab") if self.log is not None else subprocess.DEVNULL
+        try:
+            self.proc = subprocess.Popen(wrapped_argv(self.argv), stdin=subprocess.DEVNULL, stdout=out,
+                                         stderr=subprocess.STDOUT, cwd=self.cwd, env=env,
+                                         start_new_session=True, close_fds=True)
+        finally:
+            if out is not subprocess.DEVNULL:
+                out.close()  # the child has its own copy
+        self.code = None
+        self.started_at = time.monotonic()
+        proc = self.proc
+        self._waiter = threading.Thread(target=self._wait, args=(proc,), name=f"wait-{self.name}", daemon=True)
+        self._waiter.start()
+        return proc.pid
+
+    def _wait(self, proc: subprocess.Popen) -> None:
+        code = proc.wait()
+        if proc is self.proc:
+            self.code = code
+        if self.on_exit is not None:
+            self.on_exit(self, code)
+
+    def signal(self, signum: int) -> None:
+        """Signal the child's whole process group (its own session), if it still runs."""
+        proc = self.proc
+        if proc is None or proc.poll() is not None:
+            return
+        try:
+            os.killpg(proc.pid, signum)
+        except (ProcessLookupError, PermissionError):
+            pass
+
+    def wait(self, timeout: float) -> bool:
+        """True once the process has exited (within `timeout` seconds)."""
+        if self.proc is None:
+            return True
+        try:
+            self.proc.wait(timeout=max(0.0, timeout))
+            return True
+        except subprocess.TimeoutExpired:
+            return False
+
+    def stop(self, interrupt_timeout: float = 3.0, terminate_timeout: float = 2.0) -> int | None:
+        """SIGINT, then SIGTERM, then SIGKILL, each after its time-out; returns the exit status."""
+        stop_all([self], interrupt_timeout, terminate_timeout)
+        return self.code if self.proc is None else self.proc.returncode
+
+
+def stop_all(children: Sequence[Child], interrupt_timeout: float = 3.0, terminate_timeout: float = 2.0) -> None:
+    """Stop children together: SIGINT to all, wait; SIGTERM to the rest, wait; SIGKILL, reap."""
+    steps = ((signal.SIGINT, interrupt_timeout), (signal.SIGTERM, terminate_timeout), (signal.SIGKILL, 5.0))
+    for signum, timeout in steps:
+        alive = [c for c in children if c.running()]
+        if not alive:
+            return
+        for child in alive:
+            child.signal(signum)
+        deadline = time.monotonic() + timeout
+        for child in alive:
+            child.wait(deadline - time.monotonic())
+
+
+@dataclass
+class RestartPolicy:
+    """When to start a node again after it exits, and how long to wait first.
+
+    never: not again. on-failure: when it exited non-zero or was killed. always: whatever the
+    status. The wait is `backoff * 2**k` (at most `backoff_max`), where k counts the restarts since
+    the node last ran `healthy_after` seconds; at most `max_restarts` restarts in all."""
+
+    mode: str = "on-failure"
+    max_restarts: int = 5
+    backoff: float = 0.1
+    backoff_max: float = 10.0
+    healthy_after: float = 10.0
+
+    def wants_restart(self, code: int, restarts: int) -> bool:
+        if self.mode == "never" or restarts >= self.max_restarts:
+            return False
+        return self.mode == "always" or code != 0
+
+    def delay(self, consecutive: int) -> float:
+        return min(self.backoff_max, self.backoff * (2 ** consecutive))
+
+
+def describe_exit(code: int | None) -> str:
+    if code is None:
+        return "running"
+    if code < 0:
+        try:
+            return f"killed by {signal.Signals(-code).name}"
+        except ValueError:
+            return f"killed by signal {-code}"
+    return f"exit {code}"
