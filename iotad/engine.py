@@ -366,6 +366,11 @@ class Engine:
         instance.fire_at = fire_at
         heapq.heappush(self._heap, (fire_at, instance.rank, instance.gen, instance))
 
+    def fire_instance(self, instance: ActionInstance, now: float) -> None:
+        """Fire one enabled action instance at `now`, the time chosen from outside the policy:
+        the trace checker (iotad.checker) replays a recorded firing this way."""
+        self._fire(instance, now)
+
     # ---------------------------------------------------------------- events
     def _emit(self, t: float, path: str, channel: str, index: int | None, kind: str, value: Any) -> None:
         event = {"t": t, "iota": path, "action": channel, "index": index, "kind": kind, "value": value}
