@@ -1,0 +1,180 @@
+"""Turns checked ESPRIT expressions and statements into Python source, and finds the state cells
+they read and write.
+
+Compiled functions take `(iota, index)` (an input's do-block also takes `value`); the family
+index variable is `index`, loop variables are `l_<name>`, constants `k_<name>`, externs
+`x_<name>`, struct types `T_<name>`, and state and parameters are attributes of `iota`.
+"""
+from __future__ import annotations
+
+from iotad.model import ANY, INDEX
+from iotad.types import ArrayType, StructType
+
+from . import syntax as S
+from .typesys import ArrayOf, has_null_member, is_int
+
+_PY_OP = {"==": "==", "!=": "!=", "<": "<", "<=": "<=", ">": ">", ">=": ">=", "+": "+", "-": "-", "*": "*"}
+
+
+def _mutable(t) -> bool:
+    return isinstance(t, (StructType, ArrayType, ArrayOf))
+
+
+def expr(node: S.Expr) -> str:
+    if isinstance(node, S.Number):
+        value = node.value
+        return "INF" if value == float("inf") else repr(value)
+    if isinstance(node, S.BoolLit):
+        return repr(node.value)
+    if isinstance(node, S.Null):
+        return "'NULL'" if has_null_member(node.type) else "None"
+    if isinstance(node, S.Name):
+        kind = node.kind
+        if kind in ("state", "param"):
+            return f"iota.{node.id}"
+        if kind == "const":
+            return f"k_{node.id}"
+        if kind == "member":
+            return repr(node.id)
+        if kind == "index":
+            return "index"
+        if kind == "binder":
+            return "value"
+        if kind == "local":
+            return f"l_{node.id}"
+        raise AssertionError(f"unchecked name {node.id}")  # pragma: no cover
+    if isinstance(node, S.FieldOf):
+        return f"{expr(node.obj)}.{node.name}"
+    if isinstance(node, S.IndexOf):
+        if _is_family_index(node.index):
+            return f"{expr(node.obj)}[index]"  # the engine's index is always in range and >= 0
+        return f"ix({expr(node.obj)}, {expr(node.index)})"
+    if isinstance(node, S.Call):
+        return f"x_{node.func}({', '.join(expr(a) for a in node.args)})"
+    if isinstance(node, S.Unary):
+        return f"(not {expr(node.operand)})" if node.op == "!" else f"(-{expr(node.operand)})"
+    if isinstance(node, S.Binary):
+        left, right, op = expr(node.left), expr(node.right), node.op
+        if op == "&&":
+            return f"({left} and {right})"
+        if op == "||":
+            return f"({left} or {right})"
+        if op == "->":
+            return f"((not {left}) or {right})"
+        if op == "/":
+            both_int = is_int(node.left.type) and is_int(node.right.type)
+            return f"c_div({left}, {right})" if both_int else f"({left} / {right})"
+        if op == "%":
+            return f"c_mod({left}, {right})"
+        return f"({left} {_PY_OP[op]} {right})"
+    if isinstance(node, S.Aggregate):
+        items = [(name, _fresh(item)) for name, item in node.items]
+        if isinstance(node.type, StructType):
+            names = node.type.field_names
+            args = ", ".join(f"{name or names[k]}={code}" for k, (name, code) in enumerate(items))
+            return f"T_{node.type.name}({args})"
+        return f"[{', '.join(code for _, code in items)}]"
+    raise AssertionError(f"unknown expression {node!r}")  # pragma: no cover
+
+
+def _fresh(node: S.Expr) -> str:
+    """Code for a value that will be stored: struct and array values are copied."""
+    code = expr(node)
+    if _mutable(node.type) and not isinstance(node, (S.Aggregate, S.Call)):
+        return f"cp({code})"
+    return code
+
+
+def _is_family_index(node: S.Expr) -> bool:
+    return isinstance(node, S.Name) and node.kind == "index"
+
+
+def stmt(node: S.Node, indent: int) -> list[str]:
+    pad = "    " * indent
+    if isinstance(node, S.Block):
+        lines = [line for item in node.body for line in stmt(item, indent)]
+        return lines or [pad + "pass"]
+    if isinstance(node, S.Assign):
+        target, value = node.target, _fresh(node.value)
+        if isinstance(target, S.IndexOf) and not _is_family_index(target.index):
+            return [f"{pad}ix_set({expr(target.obj)}, {expr(target.index)}, {value})"]
+        return [f"{pad}{expr(target)} = {value}"]
+    if isinstance(node, S.CallStmt):
+        return [pad + expr(node.call)]
+    if isinstance(node, S.If):
+        lines = [f"{pad}if {expr(node.cond)}:"] + stmt(node.then, indent + 1)
+        if node.orelse is not None:
+            lines += [f"{pad}else:"] + stmt(node.orelse, indent + 1)
+        return lines
+    if isinstance(node, S.For):
+        # the bounds are evaluated once and the loop variable cannot be assigned: it terminates
+        return [f"{pad}for l_{node.var} in range({expr(node.start)}, {expr(node.stop)}):"] + stmt(node.body, indent + 1)
+    raise AssertionError(f"unknown statement {node!r}")  # pragma: no cover
+
+
+# ---------------------------------------------------------------- cells
+def reads(node: S.Expr | None) -> frozenset:
+    """State cells an expression reads: (var, INDEX) for `var[i]` with i the family index, else
+    (var, ANY)."""
+    found: set = set()
+    if node is not None:
+        _reads(node, found)
+    return frozenset(found)
+
+
+def _reads(node: S.Expr, found: set) -> None:
+    if isinstance(node, S.IndexOf) and isinstance(node.obj, S.Name) and node.obj.kind == "state" \
+            and _is_family_index(node.index):
+        found.add((node.obj.id, INDEX))
+        return
+    if isinstance(node, S.Name):
+        if node.kind == "state":
+            found.add((node.id, ANY))
+        return
+    for child in _children(node):
+        _reads(child, found)
+
+
+def _children(node: S.Expr) -> list:
+    if isinstance(node, S.FieldOf):
+        return [node.obj]
+    if isinstance(node, S.IndexOf):
+        return [node.obj, node.index]
+    if isinstance(node, S.Call):
+        return list(node.args)
+    if isinstance(node, S.Unary):
+        return [node.operand]
+    if isinstance(node, S.Binary):
+        return [node.left, node.right]
+    if isinstance(node, S.Aggregate):
+        return [item for _, item in node.items]
+    return []
+
+
+def writes(node: S.Node | None) -> frozenset:
+    """State cells a do-block may change. Externs get copies of what they are passed, so a call
+    writes nothing."""
+    found: set = set()
+    if node is not None:
+        _writes(node, found)
+    return frozenset(found)
+
+
+def _writes(node: S.Node, found: set) -> None:
+    if isinstance(node, S.Assign):
+        chain = node.target
+        above = None
+        while isinstance(chain, (S.FieldOf, S.IndexOf)):
+            above, chain = chain, chain.obj
+        if isinstance(chain, S.Name) and chain.kind == "state":
+            own = isinstance(above, S.IndexOf) and _is_family_index(above.index)
+            found.add((chain.id, INDEX if own else ANY))
+    elif isinstance(node, S.Block):
+        for item in node.body:
+            _writes(item, found)
+    elif isinstance(node, S.If):
+        _writes(node.then, found)
+        if node.orelse is not None:
+            _writes(node.orelse, found)
+    elif isinstance(node, S.For):
+        _writes(node.body, found)

@@ -1,0 +1,280 @@
+"""Compiles a checked ESPRIT program onto the kernel model: one IotaSpec per IOTA (actions as
+Python closures over generated code), and a factory per IOTA that makes ready instances (an
+`Instance`, or a `Composite` for an IOTA with an inclusion part)."""
+from __future__ import annotations
+
+import types as pytypes
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+from iotad.compose import Composite
+from iotad.model import Action, Channel, Instance, IotaSpec, SpecError
+from iotad.types import BadValue, BoolType, EnumType, FloatType, IntType, StructType
+
+from . import codegen
+from . import syntax as S
+from .checker import Checked, IotaInfo
+from .errors import EspritError, Source
+from .runtime import c_div, c_mod, cp, ix, ix_set
+from .typesys import VOID, ArrayOf, describe
+
+
+@dataclass
+class Module:
+    """A loaded spec file: its IOTAs (name -> factory), types, constants and warnings."""
+
+    path: str
+    text: str
+    iotas: dict[str, "IotaFactory"] = field(default_factory=dict)
+    structs: dict[str, StructType] = field(default_factory=dict)
+    enums: dict[str, EnumType] = field(default_factory=dict)
+    consts: dict[str, Any] = field(default_factory=dict)
+    warnings: list = field(default_factory=list)
+
+    def factory(self, iota: str | None = None) -> "IotaFactory":
+        if not self.iotas:
+            raise EspritError(Source(self.text, self.path).diagnostic(None, "the file declares no iota"))
+        if iota is None:
+            return list(self.iotas.values())[-1]
+        if iota not in self.iotas:
+            raise EspritError(Source(self.text, self.path).diagnostic(
+                None, f"no iota {iota} in this file (it has {', '.join(self.iotas)})"))
+        return self.iotas[iota]
+
+
+class IotaFactory:
+    """Makes instances of one IOTA: `factory(name=None, **params)`."""
+
+    def __init__(self, module: Module, info: IotaInfo, spec: IotaSpec | None, source: Source,
+                 arg_fns: dict[str, list[tuple[str, Callable, tuple]]], bindings: dict):
+        self.module, self.info, self.spec, self.source = module, info, spec, source
+        self.name = info.decl.name
+        self.params = {p: default for p, (_, default) in info.params.items()}
+        self.composite = info.decl.has_include
+        self._arg_fns, self._bindings = arg_fns, bindings
+
+    def __repr__(self) -> str:
+        return f"<ESPRIT iota {self.name}>"
+
+    def check_params(self, params: dict[str, Any]) -> dict[str, Any]:
+        """Parameter values checked against their declared types (an int param takes no 2.5)."""
+        decl = self.info.decl
+        out = dict(self.params)
+        for name, value in params.items():
+            if name not in self.info.params:
+                raise self.source.error(decl.pos, f"iota {self.name} has no parameter {name} "
+                                                  f"(it has {', '.join(self.params) or 'none'})")
+            ptype = self.info.params[name][0]
+            pos = next(p.pos for p in decl.params if p.name == name)
+            try:
+                out[name] = coerce(ptype, value)
+            except BadValue as exc:
+                raise self.source.error(pos, f"parameter {name}: {exc}") from None
+        for name, value in out.items():
+            if value is None:  # its default did not compile; already an error
+                raise self.source.error(decl.pos, f"parameter {name} has no value")
+        return out
+
+    def __call__(self, name: str | None = None, **params: Any) -> Any:
+        values = self.check_params(params)
+        instance_name = name or self.name
+        own = None
+        if self.spec is not None:
+            try:
+                own = Instance(self.spec, instance_name, **values)
+            except SpecError as exc:
+                raise self.source.error(self.info.decl.pos, str(exc)) from None
+        if not self.composite:
+            return own
+        scope = pytypes.SimpleNamespace(**values)
+        components = []
+        for inst_name, args in self._arg_fns.items():
+            inst = self.info.components[inst_name]
+            given = {}
+            for arg_name, fn, pos in args:
+                try:
+                    given[arg_name] = fn(scope, None)
+                except Exception as exc:  # noqa: BLE001 - a bad argument is the spec's error
+                    raise self.source.error(pos, f"{arg_name}: {type(exc).__name__}: {exc}") from None
+            components.append(self.module.iotas[inst.iota](inst_name, **given))
+        try:
+            return Composite(instance_name, *components, bind=self._bindings["bind"],
+                             inputs=self._bindings["inputs"], outputs=self._bindings["outputs"], own=own)
+        except SpecError as exc:
+            raise self.source.error(self.info.decl.pos, str(exc)) from None
+
+
+def coerce(ptype, value: Any) -> Any:
+    if isinstance(ptype, BoolType):
+        if not isinstance(value, bool):
+            raise BadValue(f"expected bool, got {value!r}")
+        return value
+    if isinstance(ptype, IntType):
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise BadValue(f"expected int, got {value!r}")
+    elif isinstance(ptype, FloatType):
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise BadValue(f"expected float, got {value!r}")
+        value = float(value)
+    ptype.check(value)
+    return value
+
+
+class Compiler:
+    def __init__(self, checked: Checked, source: Source):
+        self.checked, self.source = checked, source
+        self.globals: dict[str, Any] = {"ix": ix, "ix_set": ix_set, "cp": cp, "c_div": c_div, "c_mod": c_mod,
+                                        "INF": float("inf"), "__builtins__": {"range": range}}
+        for name, struct in checked.structs.items():
+            self.globals[f"T_{name}"] = struct
+        for name, (_, value) in checked.consts.items():
+            self.globals[f"k_{name}"] = value
+        for name, ext in checked.externs.items():
+            self.globals[f"x_{name}"] = _extern_wrapper(ext)
+
+    def module(self) -> Module:
+        module = Module(self.source.filename, self.source.text, structs=dict(self.checked.structs),
+                        enums=dict(self.checked.enums),
+                        consts={n: v for n, (_, v) in self.checked.consts.items()},
+                        warnings=list(self.checked.warnings))
+        for name, info in self.checked.iotas.items():
+            module.iotas[name] = self._factory(module, info)
+        return module
+
+    # ---------------------------------------------------------------- code
+    def _function(self, name: str, args: str, body: list[str]) -> Callable:
+        code = f"def {name}({args}):\n" + "\n".join("    " + line for line in body) + "\n"
+        namespace: dict[str, Any] = {}
+        exec(compile(code, f"<esprit {self.source.filename}>", "exec"), self.globals, namespace)  # noqa: S102
+        fn = namespace[name]
+        fn.esprit_source = code  # for debugging a spec: what it compiled to
+        return fn
+
+    def _expr_fn(self, name: str, node: S.Expr | None) -> Callable | None:
+        if node is None:
+            return None
+        return self._function(name, "iota, index", [f"return {codegen.expr(node)}"])
+
+    # ---------------------------------------------------------------- IOTAs
+    def _factory(self, module: Module, info: IotaInfo) -> IotaFactory:
+        decl = info.decl
+        mapped = self._mapped_channels(info)
+        spec = self._spec(info, exclude=mapped)
+        has_own = bool(spec.actions or spec.state_names or spec.channels)
+        bindings = {"bind": [], "inputs": {}, "outputs": {}}
+        arg_fns: dict[str, list] = {}
+        if decl.has_include:
+            for inst in decl.instances:
+                arg_fns[inst.name] = [(n, self._expr_fn("arg", e), pos) for n, e, pos in inst.args]
+            for bind in decl.bindings:
+                src, dst = bind.source, bind.target
+                if src.child is None and info.channels[src.channel].direction == "input":
+                    bindings["inputs"][src.channel] = str(dst)
+                elif dst.child is None and info.channels[dst.channel].direction == "output":
+                    bindings["outputs"][dst.channel] = str(src)
+                else:
+                    bindings["bind"].append((str(src), str(dst)))
+        return IotaFactory(module, info, spec if (has_own or not decl.has_include) else None, self.source,
+                           arg_fns, bindings)
+
+    def _mapped_channels(self, info: IotaInfo) -> set[str]:
+        """Interface channels that are a component's channel (no action of the IOTA's own)."""
+        out = set()
+        for bind in info.decl.bindings:
+            for side, want in ((bind.source, "input"), (bind.target, "output")):
+                if side.child is None and info.channels[side.channel].direction == want:
+                    out.add(side.channel)
+        return out
+
+    def _spec(self, info: IotaInfo, exclude: set[str]) -> IotaSpec:
+        decl = info.decl
+        channels = {}
+        for name, chan in info.channels.items():
+            if name in exclude:
+                continue
+            channels[name] = Channel(name, chan.direction, chan.type, chan.switching, chan.size)
+        actions = [self._action(info, k, a) for k, a in enumerate(decl.actions)]
+        spec = IotaSpec(decl.name, {p: d for p, (_, d) in info.params.items()}, channels, actions,
+                        init=self._init(info), state_names=tuple(info.states),
+                        source=self.source.text, source_path=self.source.filename)
+        try:
+            spec.validate()
+        except SpecError as exc:
+            raise self.source.error(decl.pos, str(exc)) from None
+        return spec
+
+    def _action(self, info: IotaInfo, number: int, action: S.ActionDecl) -> Action:
+        chan = info.channels[action.channel]
+        label = action.channel + (f"[{action.index_var}]" if action.index_var else "")
+        prefix = f"{action.channel}_{number}"
+        if chan.direction == "input":
+            binder = action.arg.id if isinstance(action.arg, S.Name) else ""
+            do = None
+            if action.do is not None:
+                do = self._function(f"{prefix}_do", "iota, index, value", codegen.stmt(action.do, 0))
+            return Action(action.channel, do=do, reads=frozenset(), writes=codegen.writes(action.do),
+                          label=f"{action.channel}({binder})", line=action.pos[0])
+        if isinstance(action.arg, (S.Name, S.Number, S.BoolLit)) and getattr(action.arg, "kind", "member") == "member":
+            label += f"({action.arg.id if isinstance(action.arg, S.Name) else action.arg.value})"
+        lower = self._expr_fn(f"{prefix}_lower", action.lower)
+        upper = lower if action.time_kind == "after" else self._expr_fn(f"{prefix}_upper", action.upper)
+        do = None
+        if action.do is not None:
+            do = self._function(f"{prefix}_do", "iota, index", codegen.stmt(action.do, 0))
+        return Action(action.channel, when=self._expr_fn(f"{prefix}_when", action.when), lower=lower, upper=upper,
+                      value=self._expr_fn(f"{prefix}_value", action.arg), do=do,
+                      reads=codegen.reads(action.when), writes=codegen.writes(action.do),
+                      label=label, line=action.pos[0])
+
+    def _init(self, info: IotaInfo) -> Callable | None:
+        steps = []
+        for name, (vtype, d, element) in info.states.items():
+            value_fn = self._expr_fn(f"init_{name}", d.init)
+            size_fn = self._expr_fn(f"size_{name}", d.size)
+            steps.append((name, vtype, element, value_fn, size_fn, d))
+        if not steps:
+            return None
+        source = self.source
+
+        def init(iota: Any) -> None:
+            for name, vtype, element, value_fn, size_fn, d in steps:
+                try:
+                    value = element.default() if value_fn is None else value_fn(iota, None)
+                    if size_fn is not None:
+                        length = size_fn(iota, None)
+                        if isinstance(length, bool) or not isinstance(length, int) or length < 0:
+                            raise ValueError(f"array length must be a whole number >= 0, got {length!r}")
+                        if isinstance(d.init, S.Aggregate):
+                            if len(value) != length:
+                                raise ValueError(f"{len(value)} initial values for {length} elements")
+                        else:
+                            value = [cp(value) for _ in range(length)]
+                except Exception as exc:  # noqa: BLE001 - reported at the declaration
+                    raise source.error(d.pos, f"initial value of {name}: {type(exc).__name__}: {exc}") from None
+                object.__setattr__(iota, name, value)
+        return init
+
+
+def _extern_wrapper(ext) -> Callable:
+    """Calls a Python function from ESPRIT: struct and array arguments are copies (the function
+    cannot change the IOTA's state behind the compiler's back), and the result is checked against
+    the declared return type (a dict becomes the declared struct)."""
+    function, returns = ext.function, ext.returns
+    copy_args = [k for k, p in enumerate(ext.params) if isinstance(p, (StructType, ArrayOf)) or hasattr(p, "element")]
+    convert = returns is not None and returns is not VOID and hasattr(returns, "from_plain")
+
+    def call(*args: Any) -> Any:
+        if function is None:
+            raise RuntimeError(f"extern {ext.name} has no implementation")
+        if copy_args:
+            args = tuple(cp(a) if k in copy_args else a for k, a in enumerate(args))
+        result = function(*args)
+        if not convert:
+            return None if returns is VOID else result
+        try:
+            return returns.from_plain(result)
+        except BadValue as exc:
+            raise BadValue(f"extern {ext.name} returned {result!r}, not {describe(returns)}: {exc}") from None
+    call.__name__ = f"x_{ext.name}"
+    return call

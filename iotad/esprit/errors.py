@@ -1,0 +1,60 @@
+"""ESPRIT diagnostics: `file:line:col: message`, then the source line and a caret under the column."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass
+class Diagnostic:
+    filename: str
+    line: int
+    col: int
+    message: str
+    source_line: str = ""
+    severity: str = "error"  # or "warning"
+
+    def __str__(self) -> str:
+        head = f"{self.filename}:{self.line}:{self.col}: "
+        if self.severity == "warning":
+            head += "warning: "
+        text = head + self.message
+        if self.source_line:
+            shown = self.source_line.expandtabs(1).rstrip("\n")
+            text += f"\n    {shown}\n    {' ' * max(self.col - 1, 0)}^"
+        return text
+
+
+class EspritError(Exception):
+    """A specification that cannot be loaded. `str()` is the first diagnostic; `diagnostics`
+    holds every error found (the static checker reports all it can, not just the first)."""
+
+    def __init__(self, diagnostic: Diagnostic, more: list[Diagnostic] | None = None):
+        super().__init__(str(diagnostic))
+        self.diagnostic = diagnostic
+        self.diagnostics = [diagnostic] + [d for d in (more or []) if d is not diagnostic]
+
+    @property
+    def line(self) -> int:
+        return self.diagnostic.line
+
+    @property
+    def col(self) -> int:
+        return self.diagnostic.col
+
+
+class Source:
+    """The text of one spec file, to turn positions into diagnostics."""
+
+    def __init__(self, text: str, filename: str):
+        self.text, self.filename = text, filename
+        self.lines = text.split("\n")
+
+    def diagnostic(self, pos: tuple[int, int] | None, message: str, severity: str = "error") -> Diagnostic:
+        line, col = pos or (1, 1)
+        if line < 1 or line > len(self.lines):  # end of file
+            line = len(self.lines)
+            col = len(self.lines[-1]) + 1
+        return Diagnostic(self.filename, line, max(col, 1), message, self.lines[line - 1], severity)
+
+    def error(self, pos: tuple[int, int] | None, message: str) -> EspritError:
+        return EspritError(self.diagnostic(pos, message))
