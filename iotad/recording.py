@@ -165,6 +165,17 @@ def channel_list(spec: Any) -> list[dict]:
              "size": c.size} for c in spec.channels.values()]
 
 
+def start_time(spec: dict | None) -> float:
+    """When the node's engine started, in its own clock: a node host stamps its `@spec` answer
+    (`started`, wall clock) just before starting the engine; in-process runs start at 0."""
+    if not spec:
+        return 0.0
+    started, origin, unit = spec.get("started"), spec.get("origin"), spec.get("time_unit") or 1.0
+    if isinstance(started, (int, float)) and isinstance(origin, (int, float)):
+        return max(0.0, (started - origin) / unit)
+    return 0.0
+
+
 def build_node(spec: dict, name: str | None = None) -> Any:
     """Rebuild a node from its stored `@spec` answer (text first; the file only if no text)."""
     source = spec.get("source") or {}
@@ -223,7 +234,7 @@ def channel_schemas(spec: dict) -> dict[str, tuple[str, dict]]:
             continue
         schema = entry.get("schema") or entry.get("json_schema")
         if isinstance(schema, dict):
-            out[entry["name"]] = (str(entry.get("type") or schema.get("title") or entry["name"]), schema)
+            out[entry["name"]] = (str(entry.get("type_name") or entry.get("type") or schema.get("title") or entry["name"]), schema)
         elif entry.get("type") is None and "type" in entry:
             out[entry["name"]] = ("null", {"type": "null"})
     if out:

@@ -15,7 +15,7 @@ from typing import Any, Callable
 from .checker import _same, align_paths, describe
 from .clock import VirtualClock
 from .engine import Engine
-from .recording import Recording, RecordingError, build_node
+from .recording import Recording, RecordingError, build_node, start_time
 
 
 @dataclass
@@ -64,7 +64,7 @@ def replay_node(recording: Recording, node: str, tolerance: float = 0.01,
     if not events:
         raise RecordingError(f"node {node!r} has no @trace events in {recording.path}")
     root = node_root(recording, node)
-    engine = Engine(root, VirtualClock())
+    engine = Engine(root, VirtualClock(start_time(recording.specs.get(node))))
     mapping = align_paths((e.get("iota", "") for e in events), list(engine.leaves))
     reverse = {}
     for recorded_name, leaf in mapping.items():

@@ -79,6 +79,7 @@ def run(args: argparse.Namespace) -> int:
     from iotad.cli import CliError
     from iotad.commands.info import load
     from iotad.recording import RecordingError
+    from iotad.recording import start_time
     from iotad.replay import default_tolerance, node_root
 
     recording = load(args.file)
@@ -92,7 +93,7 @@ def run(args: argparse.Namespace) -> int:
                            f"(nodes: {', '.join(recording.nodes()) or 'none'})")
         spec = load_spec(args.spec, args.node, args.iota, parse_params(args.param))
         report = check_implements(spec, events, node=args.node, spec_name=args.spec, tolerance=tolerance,
-                                  budget=args.budget)
+                                  budget=args.budget, start=start_time(recording.specs.get(args.node)))
         print("\n".join(report.lines()))
         return 0 if report.ok else 1
     specs = recording.specs
@@ -108,7 +109,8 @@ def run(args: argparse.Namespace) -> int:
         events = recording.trace(node)
         if args.node and not events:
             raise CliError(f"node {node!r} has no @trace events in {args.file}")
-        report = check_trace(root, events, node=node, tolerance=tolerance)
+        report = check_trace(root, events, node=node, tolerance=tolerance,
+                             start=start_time(recording.specs.get(node)))
         all_ok &= report.ok
         print("\n".join(report.lines(limit=10**9 if args.all else 20)))
     print("check: " + ("every node conforms to its spec" if all_ok else "PROBLEMS FOUND")
