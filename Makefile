@@ -15,7 +15,7 @@ $(STAMP): pyproject.toml
 install: $(STAMP)
 
 demo: $(STAMP)
-	$(BIN)/iotad demo
+	$(BIN)/iotad demo --until 20
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q -p no:cacheprovider

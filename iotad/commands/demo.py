@@ -1,41 +1,102 @@
-"""`iotad demo`: the paper's Figure 2 scheduler arbitrating two requesters (virtual time)."""
+"""`iotad demo`: the paper's Figure 2 scheduler arbitrating two requesters, each IOTA its own
+process over zenoh (examples/figure2.toml), with a summary of who got COMMIT, ABORT and REJECT.
+`--virtual` runs the same three IOTAs in one process in virtual time instead."""
 from __future__ import annotations
 
 import argparse
+import socket
 from collections import Counter
 from pathlib import Path
 
 ORDER = 90
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
+ANSWERS = ("COMMIT", "ABORT", "REJECT")
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser("demo", help="run the Figure 2 scheduler with two requesters and summarise",
-                            description=__doc__)
-    parser.add_argument("--until", type=float, default=30.0, help="virtual time to run to (default 30)")
+                            description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter,
+                            epilog="same as: iotad run examples/figure2.toml --until 20 (plus the answer check)")
+    parser.add_argument("--until", type=float, default=None,
+                        help="seconds to run (default 20; virtual time units with --virtual, default 30)")
+    parser.add_argument("--virtual", action="store_true", help="one process, virtual time, no zenoh")
+    parser.add_argument("--port", type=int, default=None,
+                        help="hub port (default 7447 when free, else any free port)")
+    parser.add_argument("--no-record", action="store_true", help="do not record to recordings/")
+    parser.add_argument("--plain", action="store_true", help="plain event lines even on a terminal")
     parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
+    return run_virtual(args) if args.virtual else run_processes(args)
+
+
+def run_processes(args: argparse.Namespace) -> int:
+    from iotad.commands.run import launch, load_checked
+    from iotad.transport import DEFAULT_HUB_ENDPOINT
+
+    system = load_checked(str(EXAMPLES / "figure2.toml"))
+    port = args.port
+    if port is None:
+        default = int(DEFAULT_HUB_ENDPOINT.rsplit(":", 1)[1])
+        port = default if _port_free(default) else 0
+    options = argparse.Namespace(host=None, until=args.until or 20.0, port=port, no_record=args.no_record,
+                                 record_to=None, origin=None, log_dir=None, plain=args.plain)
+    return launch(system, options, summary_hook=_answers)
+
+
+def _answers(launcher, code: int) -> int:
+    """Acks per requester (through the bindings), and whether all three answers happened."""
+    system = launcher.system
+    print("answers per requester:")
+    seen: set[str] = set()
+    with launcher.tally.lock:
+        values = {k: Counter(v) for k, v in launcher.tally.values.items()}
+    from iotad import wire
+    for binding in system.bindings:
+        if binding.target.channel != "ack":
+            continue
+        source = binding.source
+        counts = values.get(wire.channel_key(system.name, source.node, source.channel, source.index), Counter())
+        seen.update(k for k in counts if k in ANSWERS)
+        shown = "  ".join(f"{answer} x{counts[answer]}" for answer in ANSWERS if counts[answer])
+        print(f"  {binding.target.node:<14} {shown or 'no answer'}")
+    missing = [a for a in ANSWERS if a not in seen]
+    if code == 130:
+        return code
+    if missing:
+        print(f"missing answers: {', '.join(missing)} (a loaded machine can shift the timings)")
+        return code or 1
+    print("COMMIT, ABORT and REJECT all happened over zenoh")
+    return code
+
+
+def _port_free(port: int) -> bool:
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
+        try:
+            probe.bind(("127.0.0.1", port))
+            return True
+        except OSError:
+            return False
+
+
+def run_virtual(args: argparse.Namespace) -> int:
+    """The three IOTAs of examples/figure2.toml composed in one process, in virtual time."""
     from iotad.compose import Composite
     from iotad.engine import Engine
-    from iotad.loader import load_object
+    from iotad.commands.run import load_checked
+    from iotad.system import instantiate
 
-    Scheduler = load_object(str(EXAMPLES / "scheduler.py") + ":Scheduler")
-    Requester = load_object(str(EXAMPLES / "requesters.py") + ":Requester")
-    system = Composite(
-        "figure2",
-        Scheduler("scheduler", N=2, T=0.5),
-        Requester("vision", priority=1, epoch=3.0, timeout=4.0, start=0.0, pause=0.5, setpoint=0.2),
-        Requester("manipulation", priority=5, epoch=2.0, timeout=3.0, start=1.0, pause=4.0, setpoint=1.5),
-        bind=[("vision.req", "scheduler.req[0]"), ("manipulation.req", "scheduler.req[1]"),
-              ("scheduler.ack[0]", "vision.ack"), ("scheduler.ack[1]", "manipulation.ack")])
-    engine = Engine(system)
-    engine.run(args.until)
+    system = load_checked(str(EXAMPLES / "figure2.toml"))
+    components = [instantiate(node) for node in system.nodes.values()]
+    binds = [(str(b.source), str(b.target)) for b in system.bindings]
+    engine = Engine(Composite(system.name, *components, bind=binds))
+    engine.run(args.until or 30.0)
     acks = Counter()
+    receivers = {str(b.source): b.target.node for b in system.bindings}
     for event in engine.trace:
         if event["action"] == "ack" and event["kind"] == "output":
-            who = "vision" if event["index"] == 0 else "manipulation"
+            who = receivers.get(f"{event['iota'].rsplit('/', 1)[-1]}.ack[{event['index']}]", "?")
             acks[(who, event["value"])] += 1
             print(f"t={event['t']:6.2f}  {who:<13} <- {event['value']}")
         elif event["action"] == "mdl_command":
