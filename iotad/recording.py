@@ -53,6 +53,9 @@ GAP_SCHEMA = {
     "properties": {"key": {"type": "string"}, "expected": {"type": "integer"}, "got": {"type": "integer"},
                    "missing": {"type": "integer"}}}
 LAUNCHER_SCHEMA = {"title": "iotad launcher event", "type": "object"}
+HEARTBEAT_SCHEMA = {"title": "iotad heartbeat", "type": "object",
+                    "properties": {"t": {"type": "number"}, "firings": {"type": "integer"},
+                                   "queue": {"type": "integer"}}}
 PERMISSIVE_SCHEMA: dict = {"title": "any msgpack value"}  # unknown type: anything goes
 
 
@@ -262,6 +265,8 @@ def schema_for_topic(topic: str, specs: dict[str, dict], cache: dict[str, dict])
     _, path, channel, _ = parsed
     if channel == "@trace":
         return "iotad.trace_event", TRACE_SCHEMA
+    if channel == "@heartbeat":
+        return "iotad.heartbeat", HEARTBEAT_SCHEMA
     if path in specs:
         if path not in cache:
             cache[path] = channel_schemas(specs[path])
