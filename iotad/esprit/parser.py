@@ -6,6 +6,7 @@ from functools import lru_cache
 from pathlib import Path
 
 from lark import Lark, Token, Transformer, v_args
+from lark.lexer import PatternStr
 from lark.exceptions import LarkError, UnexpectedCharacters, UnexpectedEOF, UnexpectedInput, UnexpectedToken, VisitError
 
 from . import syntax as S
@@ -18,7 +19,8 @@ _TOKEN_NAMES = {
     "NAME": "a name", "INT": "a whole number", "NUMBER": "a number", "STRING": "a string",
     "SEMICOLON": "';'", "COMMA": "','", "LPAR": "'('", "RPAR": "')'", "LBRACE": "'{'", "RBRACE": "'}'",
     "LSQB": "'['", "RSQB": "']'", "COLON": "':'", "EQUAL": "'='", "DOT": "'.'", "ARROW": "'->'",
-    "SLASH": "'/'", "LT": "'<'", "$END": "end of file",
+    "SLASH": "'/'", "LT": "'<'", "$END": "end of file", "ARROW": "'->'", "OR": "'||'", "AND": "'&&'",
+    "NOT": "'!'", "NE": "'!='", "LE": "'<='", "GE": "'>='", "INF_SYM": "'∞'",
 }
 
 
@@ -319,8 +321,20 @@ class _Early(Exception):
         self.pos, self.message = pos, message
 
 
+def _token_name(name: str) -> str:
+    if name in _TOKEN_NAMES:
+        return _TOKEN_NAMES[name]
+    try:
+        pattern = _lark().get_terminal(name).pattern
+    except KeyError:
+        return name.lower()
+    if isinstance(pattern, PatternStr):
+        return repr(pattern.value)
+    return name.lower()
+
+
 def _expected(names) -> str:
-    shown = sorted({_TOKEN_NAMES.get(n, repr(n.lower()) if n.isupper() else n) for n in names})
+    shown = sorted({_token_name(n) for n in names})
     if len(shown) > 8:
         shown = shown[:8] + ["..."]
     return ", ".join(shown)
@@ -334,7 +348,7 @@ def parse(source: Source) -> S.Program:
             raise source.error((exc.line, exc.column) if exc.line > 0 else None,
                                f"unexpected end of file; expected {_expected(exc.expected)}") from None
         raise source.error((exc.line, exc.column),
-                           f"unexpected {exc.token!s:.40}; expected {_expected(exc.expected)}") from None
+                           f"unexpected {str(exc.token)[:40]!r}; expected {_expected(exc.expected)}") from None
     except UnexpectedCharacters as exc:
         char = source.text[exc.pos_in_stream] if 0 <= exc.pos_in_stream < len(source.text) else "?"
         raise source.error((exc.line, exc.column), f"unexpected character {char!r}") from None
