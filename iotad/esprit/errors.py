@@ -50,11 +50,16 @@ class Source:
         self.lines = text.split("\n")
 
     def diagnostic(self, pos: tuple[int, int] | None, message: str, severity: str = "error") -> Diagnostic:
-        line, col = pos or (1, 1)
-        if line < 1 or line > len(self.lines):  # end of file
-            line = len(self.lines)
-            col = len(self.lines[-1]) + 1
+        line, col = pos or self.end()
+        if line < 1 or line > len(self.lines):
+            line, col = self.end()
         return Diagnostic(self.filename, line, max(col, 1), message, self.lines[line - 1], severity)
+
+    def end(self) -> tuple[int, int]:
+        """Just after the last character that is not white space: where "end of file" points."""
+        body = self.text.rstrip()
+        line = body.count("\n") + 1
+        return line, len(body) - (body.rfind("\n") + 1) + 1
 
     def error(self, pos: tuple[int, int] | None, message: str) -> EspritError:
         return EspritError(self.diagnostic(pos, message))

@@ -345,8 +345,7 @@ def parse(source: Source) -> S.Program:
         tree = _lark().parse(source.text)
     except UnexpectedToken as exc:
         if exc.token.type == "$END":
-            raise source.error((exc.line, exc.column) if exc.line > 0 else None,
-                               f"unexpected end of file; expected {_expected(exc.expected)}") from None
+            raise source.error(None, f"unexpected end of file; expected {_expected(exc.expected)}") from None
         raise source.error((exc.line, exc.column),
                            f"unexpected {str(exc.token)[:40]!r}; expected {_expected(exc.expected)}") from None
     except UnexpectedCharacters as exc:

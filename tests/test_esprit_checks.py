@@ -1,0 +1,197 @@
+"""Every static check of `iotad spec check` has a spec that trips it and one that does not;
+errors name file:line:col, show the line with a caret, and exit 2 without a traceback."""
+import pytest
+
+from iotad import cli
+from iotad.esprit import EspritError, check_text, load_text
+
+PINGPONG = """
+iota ping: inp()/0 -> out()/0 { states int n = 0;
+  actions inp() do { n = n + 1; }  out() when n < 3 after 1 do { n = n + 1; } }
+iota pong: inp()/0 -> out()/0 { states bool got = false;
+  actions inp() do { got = true; }  out() when got after 0.5 do { got = false; } }
+"""
+
+# name -> (spec that trips the check, the same spec fixed, text the message must contain)
+CHECKS = {
+    "undeclared_name": ("iota a: -> out(int)/1 { actions out(y) }",
+                        "iota a: -> out(int)/1 { actions out(1) }", "undeclared name y"),
+    "undeclared_type": ("iota a: -> out(struct nope)/1 { }",
+                        "struct nope { int x; }; iota a: -> out(struct nope)/1 { }", "undeclared struct nope"),
+    "undeclared_channel": ("iota a: -> out()/1 { actions outt() }",
+                           "iota a: -> out()/1 { actions out() }", "undeclared channel outt"),
+    "undeclared_field": ("struct s { int x; }; iota a: -> out(int)/1 { states struct s v; actions out(v.y) }",
+                         "struct s { int x; }; iota a: -> out(int)/1 { states struct s v; actions out(v.x) }",
+                         "no field y"),
+    "undeclared_function": ("iota a: -> out(int)/1 { actions out(f(1)) }",
+                            "extern int f(int) = \"builtins:abs\"; iota a: -> out(int)/1 { actions out(f(1)) }",
+                            "undeclared function f"),
+    "type_mismatch_init": ("iota a: -> { states bool b = 3; }", "iota a: -> { states bool b = true; }",
+                           "b holds bool; the initial value is int"),
+    "type_mismatch_assign": ("iota a: -> out()/1 { states int n = 0; actions out() do n = true; }",
+                             "iota a: -> out()/1 { states int n = 0; actions out() do n = 1; }",
+                             "cannot assign bool to int"),
+    "type_mismatch_output": ("enum e { A }; iota a: -> out(int)/1 { actions out(A) }",
+                             "enum e { A }; iota a: -> out(enum e)/1 { actions out(A) }",
+                             "out carries int, not enum e"),
+    "type_mismatch_when": ("iota a: -> out()/1 { states int n = 0; actions out() when n }",
+                           "iota a: -> out()/1 { states int n = 0; actions out() when n > 0 }",
+                           "a when clause is a bool condition"),
+    "type_mismatch_logic": ("iota a: -> out()/1 { actions out() when 1 && true }",
+                            "iota a: -> out()/1 { actions out() when 1 > 0 && true }", "&& needs bool operands"),
+    "type_mismatch_compare": ("enum e { A }; iota a: -> out()/1 { actions out() when A == 1 }",
+                              "enum e { A }; iota a: -> out()/1 { actions out() when A == A }",
+                              "cannot compare enum e with int"),
+    "input_with_when": ("iota a: inp(int)/1 -> { actions inp(x) when true }",
+                        "iota a: inp(int)/1 -> { actions inp(x) }", "cannot have a when clause"),
+    "input_with_after": ("iota a: inp(int)/1 -> { actions inp(x) after 1 }",
+                         "iota a: inp(int)/1 -> { actions inp(x) }", "cannot have a after clause"),
+    "input_with_within": ("iota a: inp(int)/1 -> { actions inp(x) within [0, 1] }",
+                          "iota a: inp(int)/1 -> { actions inp(x) }", "cannot have a within clause"),
+    "within_upper_below_lower": ("iota a: -> out()/1 { actions out() within [2, 1] }",
+                                 "iota a: -> out()/1 { actions out() within [1, 2] }", "upper bound is below"),
+    "within_upper_below_lower_param": ("iota a(float T = 0.5): -> out()/1 { actions out() within [1, T] }",
+                                       "iota a(float T = 1.5): -> out()/1 { actions out() within [1, T] }",
+                                       "within [1, 0.5]"),
+    "negative_within": ("iota a: -> out()/1 { actions out() within [-1, 2] }",
+                        "iota a: -> out()/1 { actions out() within [0, 2] }", "must be >= 0, got -1"),
+    "negative_after": ("iota a: -> out()/1 { actions out() after -0.5 }",
+                       "iota a: -> out()/1 { actions out() after 0.5 }", "must be >= 0, got -0.5"),
+    "bound_twice": (PINGPONG + "iota pair: -> { include ping a; pong b; a.out -> b.inp; b.out -> b.inp; b.out -> a.inp; }",
+                    PINGPONG + "iota pair: -> { include ping a; pong b; a.out -> b.inp; b.out -> a.inp; }",
+                    "b.inp is bound twice"),
+    "input_never_bound": (PINGPONG + "iota pair: -> { include ping a; pong b; a.out -> b.inp; }",
+                          PINGPONG + "iota pair: -> { include ping a; pong b; a.out -> b.inp; b.out -> a.inp; }",
+                          "input a.inp is never bound"),
+    "interface_never_bound": (PINGPONG + "iota pair: -> served()/0 { include ping a; pong b; a.out -> b.inp; b.out -> a.inp; }",
+                              PINGPONG + "iota pair: -> served()/0 { include ping a; pong b; a.out -> b.inp; "
+                                         "b.out -> a.inp; b.out -> served; }",
+                              "output served of pair is never bound"),
+    "binding_direction": (PINGPONG + "iota pair: -> { include ping a; pong b; b.inp -> a.out; a.out -> b.inp; b.out -> a.inp; }",
+                          PINGPONG + "iota pair: -> { include ping a; pong b; a.out -> b.inp; b.out -> a.inp; }",
+                          "b.inp is an input"),
+    "include_cycle": ("iota a: -> { include a inner; }", "iota b: -> { } iota a: -> { include b inner; }",
+                      "includes itself"),
+    "assign_to_parameter": ("iota a(int N = 1): -> out()/1 { actions out() do N = 2; }",
+                            "iota a(int N = 1): -> out()/1 { states int n = 0; actions out() do n = 2; }",
+                            "N is a parameter"),
+    "family_without_index": ("iota a(int N = 2): -> out[N]()/1 { actions out() }",
+                             "iota a(int N = 2): -> out[N]()/1 { actions (i=0; i<N; i++) out[i]() }",
+                             "out is a family"),
+    "output_without_value": ("iota a: -> out(int)/1 { actions out() }",
+                             "iota a: -> out(int)/1 { actions out(0) }", "give its value"),
+    "duplicate": ("iota a: -> out()/1 { states int n, n; }", "iota a: -> out()/1 { states int n, m; }",
+                  "n is already declared"),
+    "extern_arity": ("extern int f(int) = \"builtins:abs\"; iota a: -> out(int)/1 { actions out(f(1, 2)) }",
+                     "extern int f(int) = \"builtins:abs\"; iota a: -> out(int)/1 { actions out(f(-1)) }",
+                     "f takes 1 argument(s), not 2"),
+    "extern_missing": ("extern int f(int) = \"no_such_module_xyz:f\"; iota a: -> { }",
+                       "extern int f(int) = \"builtins:abs\"; iota a: -> { }", "cannot load no_such_module_xyz:f"),
+}
+
+WARNINGS = {
+    "never_enabled_member": ("enum e { A, B }; iota a: -> out()/1 { states enum e s = A; actions out() when s == B }",
+                             "enum e { A, B }; iota a: -> out()/1 { states enum e s = A; actions out() when s == B "
+                             "do s = A; in2() do s = B; } ",
+                             "can never be enabled: nothing ever sets a value to B"),
+    "never_enabled_false": ("iota a: -> out()/1 { actions out() when 1 > 2 }",
+                            "iota a: -> out()/1 { actions out() when 2 > 1 }", "precondition is always false"),
+}
+
+
+@pytest.mark.parametrize("name", sorted(CHECKS))
+def test_check_trips_and_passes(name):
+    bad, good, message = CHECKS[name]
+    errors, _ = check_text(bad, f"{name}.iota")
+    assert errors, f"{name}: the bad spec passed"
+    assert message in errors[0].message, str(errors[0])
+    errors, warnings = check_text(good, f"{name}.iota")
+    assert errors == [], "\n".join(map(str, errors))
+
+
+@pytest.mark.parametrize("name", sorted(WARNINGS))
+def test_warning_trips_and_passes(name):
+    bad, good, message = WARNINGS[name]
+    if name == "never_enabled_member":  # the good one needs an input that sets B
+        good = "enum e { A, B }; iota a: go()/0 -> out()/1 { states enum e s = A; " \
+               "actions go() do s = B; out() when s == B do s = A; }"
+    errors, warnings = check_text(bad)
+    assert errors == [] and any(message in w.message for w in warnings), warnings
+    load_text(bad)  # a warning never stops a load
+    errors, warnings = check_text(good)
+    assert errors == [] and warnings == []
+
+
+def test_enum_arriving_on_an_input_may_hold_anything():
+    spec = ("enum e { A, B }; struct m { enum e v; }; iota a: inp(struct m)/0 -> out()/1 "
+            "{ states struct m s = { .v = A }; actions inp(x) do s = x; out() when s.v == B }")
+    assert check_text(spec) == ([], [])
+
+
+def test_unbound_component_output_is_a_warning():
+    spec = PINGPONG + "iota solo: -> { include ping a; pong b; a.out -> b.inp; b.out -> a.inp; ping c; b.out -> c.inp; }"
+    errors, warnings = check_text(spec)
+    assert errors == []
+    assert any("output c.out is bound to nothing" in w.message for w in warnings)
+
+
+def test_error_format_names_position_and_shows_caret():
+    text = "iota a: -> out(int)/1 {\n  actions\n  out(nope)\n}\n"
+    with pytest.raises(EspritError) as info:
+        load_text(text, "spec.iota")
+    lines = str(info.value).split("\n")
+    assert lines[0] == "spec.iota:3:7: undeclared name nope"
+    assert lines[1].strip() == "out(nope)"
+    assert lines[2].index("^") == lines[1].index("nope")
+    assert (info.value.line, info.value.col) == (3, 7)
+
+
+def test_all_errors_are_listed():
+    errors, _ = check_text("iota a: -> out(int)/1 { states bool b = 1; actions out(y) }")
+    assert [e.message for e in errors] == ["b holds bool; the initial value is int", "undeclared name y"]
+
+
+@pytest.mark.parametrize("text,where,message", [
+    ("iota a: -> out()/1 { actions out() when x == }", (1, 46), "unexpected '}'"),
+    ("iota a: -> out()/1 {", (1, 21), "unexpected end of file"),
+    ("iota a: -> out()/1 { $ }", (1, 22), "unexpected character '$'"),
+    ("iota a: -> out()/1 { actions out() do { for (i = 0; j < 3; i++) {} } }", (1, 53), "a for loop counts one variable"),
+])
+def test_syntax_errors(text, where, message):
+    with pytest.raises(EspritError) as info:
+        load_text(text, "s.iota")
+    assert (info.value.line, info.value.col) == where
+    assert message in str(info.value)
+
+
+def test_cli_check_exit_codes(tmp_path, capsys):
+    bad = tmp_path / "bad.iota"
+    bad.write_text("iota a: -> out()/1 {\n  actions out() within [3, 1]\n}\n")
+    assert cli.main(["spec", "check", str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert f"{bad}:2:28: within [3, 1]: the upper bound is below the lower one" in err
+    assert "Traceback" not in err and "^" in err
+    warn = tmp_path / "warn.iota"
+    warn.write_text("iota a: -> out()/1 { actions out() when false }\n")
+    assert cli.main(["spec", "check", str(warn)]) == 0
+    captured = capsys.readouterr()
+    assert "warning: out can never be enabled" in captured.err and "ok (1 warning(s))" in captured.out
+    assert cli.main(["spec", "check", str(tmp_path / "missing.iota")]) == 2
+    assert "cannot read" in capsys.readouterr().err
+
+
+def test_cli_run_errors_exit_2(tmp_path, capsys):
+    spec = tmp_path / "a.iota"
+    spec.write_text("iota a(int N = 1): -> out()/1 { actions out() after 1 }\n")
+    assert cli.main(["spec", "run", str(spec), "--until", "1", "--param", "M=3"]) == 2
+    assert "has no parameter M" in capsys.readouterr().err
+    assert cli.main(["spec", "run", str(spec), "--until", "1", "--param", "oops"]) == 2
+    assert "expected NAME=VALUE" in capsys.readouterr().err
+    script = tmp_path / "in.jsonl"
+    script.write_text("{not json\n")
+    assert cli.main(["spec", "run", str(spec), "--until", "1", "--inputs", str(script)]) == 2
+    assert "not JSON" in capsys.readouterr().err
+    assert cli.main(["spec", "run", str(spec), "--until", "2"]) == 0
+    out = capsys.readouterr().out
+    assert out.splitlines() == ['{"t": 1.0, "iota": "a", "action": "out", "index": null, "kind": "output", "value": null}',
+                                '{"t": 2.0, "iota": "a", "action": "out", "index": null, "kind": "output", "value": null}']
