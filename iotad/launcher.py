@@ -224,7 +224,7 @@ class Launcher:
             output = Path("recordings") / f"{system.name}-{stamp}.mcap"
         output.parent.mkdir(parents=True, exist_ok=True)
         ready = self.run_dir / "recorder.ready"
-        argv = [sys.executable, "-m", "iotad.cli", "record", f"{wire.PREFIX}/{system.name}/**",
+        argv = [sys.executable, "-m", "iotad", "record", f"{wire.PREFIX}/{system.name}/**",
                 "-o", str(output), "--system-file", str(system.path), "--ready-file", str(ready)]
         for endpoint in self.hub:
             argv += ["--connect", endpoint]

@@ -46,7 +46,9 @@ _SYSTEM_NAME = re.compile(r"^[A-Za-z_][\w-]*$")
 _ENDPOINT = re.compile(r"^\s*([A-Za-z_][\w/-]*)\.([A-Za-z_]\w*)(?:\[(\d+)\])?\s*$")
 
 _SYSTEM_KEYS = {"name", "time_unit", "endpoints", "hub_host", "heartbeat_period", "heartbeat_timeout",
-                "start_timeout"}
+                "start_timeout", "external"}
+# In TOML a key written after a [[node]] or [[bind]] table belongs to that table.
+_TABLE_HINT = {"external": " (a top-level key must come before the first table; or put it in [system])"}
 _NODE_KEYS = {"name", "spec", "iota", "python", "params", "restart", "max_restarts", "backoff", "host",
               "after", "policy", "seed"}
 _TOP_KEYS = {"system", "node", "bind", "external", "hosts"}
@@ -213,10 +215,14 @@ class _Parser:
             self.load_channels(system)
         raw_binds = self.table_list("bind")
         raw_external = self.data.get("external", [])
+        in_system = self.data.get("system", {}).get("external", []) if isinstance(self.data.get("system"), dict) else []
         if check and not self.errors:
             self.check_bindings(system, raw_binds)
             self.check_external(system, raw_external)
-            self.check_inputs_covered(system)
+            if in_system:
+                self.check_external(system, in_system, "[system] external")
+            if not self.errors:  # an input whose binding failed is not also "unbound"
+                self.check_inputs_covered(system)
         if self.errors:
             raise SystemFileError(self.errors)
         return system
@@ -328,7 +334,8 @@ class _Parser:
 
     def parse_node(self, raw: dict, entry: str, system: System) -> NodeSpec | None:
         for key in sorted(set(raw) - _NODE_KEYS):
-            self.error(entry, f"unknown key {key!r} (expected one of {sorted(_NODE_KEYS)})")
+            self.error(entry, f"unknown key {key!r} (expected one of {sorted(_NODE_KEYS)})"
+                              + _TABLE_HINT.get(key, ""))
         name = raw.get("name")
         if not isinstance(name, str) or not _PATH.match(name):
             self.error(entry, f"name must be an instance path such as \"vision\" or \"arm/wrist\", got {name!r}")
@@ -458,7 +465,7 @@ class _Parser:
         for number, raw in enumerate(raw_binds, 1):
             entry = f"[[bind]] #{number}" + (f" (from={raw['from']!r})".replace("'", '"') if "from" in raw else "")
             for key in sorted(set(raw) - {"from", "to"}):
-                self.error(entry, f"unknown key {key!r} (expected from, to)")
+                self.error(entry, f"unknown key {key!r} (expected from, to)" + _TABLE_HINT.get(key, ""))
             if "from" not in raw or "to" not in raw:
                 self.error(entry, "needs both from = \"node.output\" and to = \"node.input\"")
                 continue
@@ -505,12 +512,12 @@ class _Parser:
                                                f"together they can send closer than its switching time "
                                                f"{switching:g}, so the receiver would reject inputs")
 
-    def check_external(self, system: System, raw: Any) -> None:
+    def check_external(self, system: System, raw: Any, where: str = "external") -> None:
         if not isinstance(raw, list):
-            self.error("external", "must be a list such as [\"scheduler.req[1]\"]")
+            self.error(where, "must be a list such as [\"scheduler.req[1]\"]")
             return
         for number, text in enumerate(raw):
-            entry = f"external[{number}]" + (f" ({text!r})".replace("'", '"') if isinstance(text, str) else "")
+            entry = f"{where}[{number}]" + (f" ({text!r})".replace("'", '"') if isinstance(text, str) else "")
             resolved = self.resolve(system, text, entry, "input")
             if resolved is None:
                 continue

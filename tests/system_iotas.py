@@ -1,0 +1,63 @@
+"""Tiny IOTAs for the system-file and launcher tests: just enough channels to bind."""
+from iotad import Float, Input, Int, Iota, Output, Param
+
+
+class Source(Iota):
+    period = Param(1.0)
+    out = Output(Int, switching=1)
+
+    def init(self):
+        self.n = 0
+
+    @out.action(value=lambda self: self.n, after="period")
+    def sent(self):
+        self.n += 1
+
+
+class FastSource(Iota):
+    out = Output(Int, switching=0.5)
+
+
+class Sink(Iota):
+    inp = Input(Int, switching=1)
+
+    @inp.input
+    def got(self, x):
+        pass
+
+
+class FreeSink(Iota):
+    """Takes inputs at any rate: several senders may feed it."""
+    inp = Input(Int, switching=0)
+
+    @inp.input
+    def got(self, x):
+        pass
+
+
+class FloatSink(Iota):
+    inp = Input(Float, switching=1)
+
+    @inp.input
+    def got(self, x):
+        pass
+
+
+class Fan(Iota):
+    N = Param(2)
+    inp = Input(Int, size="N", switching=1)
+
+    @inp.input
+    def got(self, i, x):
+        pass
+
+
+class Sources(Iota):
+    N = Param(2)
+    out = Output(Int, size="N", switching=1)
+
+
+class Stub(Iota):
+    """Stands for a node that the stub host (launcher_stub_node.py) makes exit on cue."""
+    exit_code = Param(0)
+    exit_after = Param(0.1)
