@@ -105,7 +105,10 @@ class NodeHost:
     # ------------------------------------------------------------------ start and stop
     def start(self) -> None:
         config = self.config
-        self.session = session = open_session(config.listen, config.connect)
+        # Shared memory is off by default: it buys nothing for small messages and costs each of
+        # many node processes ~2 MB (measured with 32 nodes); a config's "zenoh" may turn it on.
+        extra = {"transport/shared_memory/enabled": False, **config.zenoh}
+        self.session = session = open_session(config.listen, config.connect, extra=extra)
         base = f"{wire.PREFIX}/{config.system}/{config.path}"
         block = zenoh.CongestionControl.BLOCK
         for port in self.table.outputs:

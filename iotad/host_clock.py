@@ -60,12 +60,16 @@ class HostClock(RealClock):
             try:
                 item = inbox.get_nowait()
             except queue.Empty:
-                self._flush()  # about to block: publish what the last steps produced
                 limit = deadline if deadline < self._next_beat else self._next_beat
                 timeout = (limit - self.now()) * self.time_unit
                 if timeout > 0:
+                    # About to block: publish the trace of the last steps now, not before an
+                    # output that is due at once (the engine calls wait(now) before firing it).
+                    if self._pending():
+                        self._flush()
+                        timeout = (limit - self.now()) * self.time_unit
                     try:
-                        item = inbox.get(timeout=timeout)
+                        item = inbox.get(timeout=timeout) if timeout > 0 else inbox.get_nowait()
                     except queue.Empty:
                         item = None
                 else:

@@ -29,6 +29,7 @@ class NodeConfig:
     heartbeat_period: float = 0.5
     policy: str = "eager"
     seed: int = 0
+    zenoh: dict[str, Any] = field(default_factory=dict)  # extra zenoh config: path -> JSON value
 
     @property
     def name(self) -> str:
@@ -37,7 +38,7 @@ class NodeConfig:
 
 
 _KNOWN = {"system", "path", "source", "params", "time_unit", "origin", "listen", "connect", "inputs",
-          "heartbeat_period", "policy", "seed"}
+          "heartbeat_period", "policy", "seed", "zenoh"}
 
 
 def load(path: str | Path) -> NodeConfig:
@@ -114,4 +115,8 @@ def from_dict(data: Any, where: str = "config") -> NodeConfig:
         if not isinstance(data["seed"], int) or isinstance(data["seed"], bool):
             raise ConfigError(f"{where}: seed must be an integer")
         config.seed = data["seed"]
+    if "zenoh" in data:
+        if not isinstance(data["zenoh"], dict):
+            raise ConfigError(f"{where}: zenoh must map config paths to values")
+        config.zenoh = dict(data["zenoh"])
     return config

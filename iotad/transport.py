@@ -14,8 +14,13 @@ DEFAULT_LISTEN = ("tcp/127.0.0.1:0",)  # port 0: the OS picks a free loopback po
 DEFAULT_HUB_ENDPOINT = "tcp/127.0.0.1:7447"
 
 
-def make_config(listen: Iterable[str] = DEFAULT_LISTEN, connect: Iterable[str] = (), mode: str = "peer") -> zenoh.Config:
+def make_config(listen: Iterable[str] = DEFAULT_LISTEN, connect: Iterable[str] = (), mode: str = "peer",
+                extra: dict | None = None) -> zenoh.Config:
+    """`extra` maps zenoh config paths (e.g. "transport/link/tx/queue/size/data") to JSON values;
+    it cannot turn multicast scouting back on."""
     config = zenoh.Config()
+    for path, value in (extra or {}).items():
+        config.insert_json5(path, json.dumps(value))
     config.insert_json5("mode", json.dumps(mode))
     config.insert_json5("scouting/multicast/enabled", "false")
     config.insert_json5("listen/endpoints", json.dumps(list(listen)))
@@ -24,13 +29,13 @@ def make_config(listen: Iterable[str] = DEFAULT_LISTEN, connect: Iterable[str] =
 
 
 def open_session(listen: Iterable[str] = DEFAULT_LISTEN, connect: Iterable[str] = (), mode: str = "peer",
-                 connect_timeout: float | None = None) -> zenoh.Session:
+                 connect_timeout: float | None = None, extra: dict | None = None) -> zenoh.Session:
     """A zenoh session; close it (or use `with`) or the interpreter hangs at exit.
 
     With `connect_timeout` (seconds), opening fails with `zenoh.ZError` when no `connect`
     endpoint answers in time; without it a peer keeps retrying in the background, which is what
     a node wants (its hub may start later) but not what a command-line tool wants."""
-    config = make_config(listen, connect, mode)
+    config = make_config(listen, connect, mode, extra)
     if connect_timeout is not None and list(connect):
         config.insert_json5("connect/timeout_ms", json.dumps(max(1, int(connect_timeout * 1000))))
         config.insert_json5("connect/exit_on_failure", "true")
