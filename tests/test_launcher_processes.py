@@ -1,0 +1,155 @@
+"""`iotad run` with real node processes on loopback: restarts after kill -9 and after a freeze,
+Ctrl-C, a launcher killed with SIGKILL, restart policies, events on @launcher."""
+import os
+import signal
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from iotad.launcher import Launcher
+from iotad.system import load_system
+from iotad.transport import free_port
+from launcher_helpers import IOTAS, Observer, children_of, gone, launcher, pair_system, wait_until
+
+STUB = Path(__file__).resolve().parent / "launcher_stub_node.py"
+
+
+def node_pid(launcher_pid: int, name: str) -> int | None:
+    for pid, cmdline in children_of(launcher_pid).items():
+        if f"/{name}.json" in cmdline:
+            return pid
+    return None
+
+
+@pytest.fixture
+def observed_pair(tmp_path):
+    """A running pair system (src -> dst), its launcher process and an observer; both nodes live."""
+    def start(extra_system: str = ""):
+        port = free_port()
+        system_file = pair_system(tmp_path, port, extra_system, extra_node='max_restarts = 3')
+        observer = Observer("pair", f"tcp/127.0.0.1:{port}")
+        started.append(observer)
+        context = launcher(system_file, "--no-record")
+        proc = context.__enter__()
+        started.append(context)
+        assert observer.wait_all_alive(("src", "dst"), 15), proc.output.read_text()
+        return proc, observer
+
+    started = []
+    yield start
+    for thing in reversed(started):
+        if isinstance(thing, Observer):
+            thing.close()
+        else:
+            thing.__exit__(None, None, None)
+
+
+def test_kill9_node_is_restarted_and_live_within_a_second(observed_pair):
+    proc, observer = observed_pair()
+    pid = node_pid(proc.pid, "dst")
+    assert pid is not None
+    killed_at = time.monotonic()
+    os.kill(pid, signal.SIGKILL)
+    lost = observer.wait_alive("dst", False, 5)
+    back = observer.wait_alive("dst", True, 5)
+    assert lost is not None and back is not None, proc.output.read_text()
+    restart_time = back - killed_at
+    print(f"\nkill -9 -> liveliness token lost after {(lost - killed_at) * 1000:.0f} ms, "
+          f"back after {restart_time * 1000:.0f} ms")
+    assert restart_time < 1.0
+    restart = observer.wait_event(lambda e: e["event"] == "restart" and e["node"] == "dst", 5)
+    assert restart is not None and restart["restarts"] == 1 and restart["pid"] != pid
+    new_pid = node_pid(proc.pid, "dst")
+    assert new_pid == restart["pid"] and not gone(new_pid)
+
+
+def test_frozen_node_is_killed_and_restarted(observed_pair):
+    """SIGSTOP keeps the process and its liveliness token (until zenoh's lease): only the stale
+    heartbeat tells the launcher that the node no longer runs."""
+    proc, observer = observed_pair("heartbeat_timeout = 1.0")
+    pid = node_pid(proc.pid, "src")
+    frozen_at = time.monotonic()
+    os.kill(pid, signal.SIGSTOP)
+    try:
+        stale = observer.wait_event(lambda e: e["event"] == "stale" and e["node"] == "src", 5)
+        assert stale is not None, proc.output.read_text()
+        back = observer.wait_alive("src", True, 5)
+        assert back is not None
+        print(f"\nfrozen node: detected and restarted, live again {back - frozen_at:.2f} s after SIGSTOP")
+        assert wait_until(lambda: gone(pid), 5)
+        assert node_pid(proc.pid, "src") not in (None, pid)
+    finally:
+        if not gone(pid):
+            os.kill(pid, signal.SIGKILL)
+
+
+def test_ctrl_c_stops_every_child(observed_pair):
+    proc, observer = observed_pair()
+    kids = children_of(proc.pid)
+    assert len(kids) == 2
+    proc.send_signal(signal.SIGINT)
+    assert proc.wait(15) == 130
+    assert all(gone(pid) for pid in kids), kids
+    output = proc.output.read_text()
+    assert "Ctrl-C: stopping every node" in output and output.count("stopped (exit 0)") == 2, output
+
+
+def test_sigkilled_launcher_leaves_no_orphans(tmp_path):
+    """The recorder too: it is a child like the nodes."""
+    port = free_port()
+    system_file = pair_system(tmp_path, port)
+    observer = Observer("pair", f"tcp/127.0.0.1:{port}")
+    try:
+        with launcher(system_file, "-o", str(tmp_path / "rec.mcap")) as proc:
+            assert observer.wait_alive("dst", True, 15) is not None, proc.output.read_text()
+            kids = children_of(proc.pid)
+            assert len(kids) == 3, kids  # two nodes and the recorder
+            assert any(" record " in cmd for cmd in kids.values())
+            proc.kill()
+            proc.wait(5)
+            assert wait_until(lambda: all(gone(pid) for pid in kids), 5), \
+                {pid: cmd for pid, cmd in kids.items() if not gone(pid)}
+    finally:
+        observer.close()
+
+
+def stub_system(tmp_path, restart: str, exit_code: int, max_restarts: int = 2) -> Path:
+    path = tmp_path / f"stub-{restart}-{exit_code}.toml"
+    path.write_text(f"""
+[system]
+name = "stub"
+[system.endpoints]
+listen = ["tcp/127.0.0.1:{free_port()}"]
+[[node]]
+name = "n"
+python = "{IOTAS}:Stub"
+params = {{ exit_code = {exit_code}, exit_after = 0.05 }}
+restart = "{restart}"
+max_restarts = {max_restarts}
+backoff = 0.01
+""")
+    return path
+
+
+@pytest.mark.parametrize("restart, exit_code, restarts, state, code", [
+    ("on-failure", 3, 2, "failed", 1),
+    ("on-failure", 0, 0, "exited", 0),
+    ("always", 0, 2, "failed", 1),
+    ("never", 3, 0, "failed", 1),
+])
+def test_restart_policies(tmp_path, restart, exit_code, restarts, state, code):
+    """With a stand-in node host that exits on cue: the launcher ends once nothing will run again."""
+    system = load_system(stub_system(tmp_path, restart, exit_code))
+    lines = []
+    run = Launcher(system, record=False, until=20, live_table=False,
+                   node_argv=lambda config: [sys.executable, str(STUB), config])
+    run.view.line = lines.append
+    started = time.monotonic()
+    assert run.run() == code, lines
+    assert time.monotonic() - started < 10
+    node = run.runs["n"]
+    assert (node.restarts, node.state) == (restarts, state), lines
+    if restarts:
+        assert any("gave up after 2 restarts" in line for line in lines), lines
