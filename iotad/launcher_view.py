@@ -52,6 +52,7 @@ class StatusView:
 
     def _table(self) -> Any:
         from rich.table import Table
+        from rich.text import Text
 
         table = Table(title=self.title, title_justify="left", expand=False)
         hosts = any(row[1] for row in self._rows)
@@ -63,6 +64,6 @@ class StatusView:
             cells = [c for i, c in enumerate(row) if hosts or i != 1]
             state = row[3]
             style = _STATE_STYLE.get(state.split(" ")[0], "")
-            cells[2 if not hosts else 3] = f"[{style}]{state}[/]" if style else state
+            cells[2 if not hosts else 3] = Text(state, style=style)
             table.add_row(*cells)
         return table
