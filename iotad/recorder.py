@@ -1,15 +1,14 @@
 """The recorder: subscribes to a running system over zenoh and writes every event to MCAP.
 
-zenoh calls back on its own threads (one per subscriber); the callbacks only copy the sample
-into a `SimpleQueue` with its receipt time, and one writer thread owns the MCAP file: it maps
-keys to channels, reads the sender's `[sequence, send_time_ns]` attachment (publish time, gap
+Samples wait in zenoh's Rust FIFOs (one per key expression; no Python callback per sample) and
+one writer thread owns the MCAP file: it takes them (log time = that moment), maps keys to
+channels, reads the sender's `[sequence, send_time_ns]` attachment (publish time, gap
 detection), asks each new node for its `@spec`, and closes the chunk in progress every
 `flush_period` seconds, so that a SIGKILLed recorder loses at most that much.
 """
 from __future__ import annotations
 
 import json
-import queue
 import threading
 import time
 import tomllib
@@ -17,13 +16,11 @@ from pathlib import Path
 from typing import Any, Iterable
 
 import msgpack
+import zenoh
 
 from . import wire
 from .recording import FORMAT, GAP_TOPIC, McapSink, channel_schemas, packb, schema_for_topic
 from .transport import DEFAULT_LISTEN, open_session
-
-_STOP = object()
-
 
 def expand_keys(keys: Iterable[str]) -> list[str]:
     """`iota/<sys>/**` does not match `@` chunks in zenoh: widen it to every key of the system."""
@@ -62,7 +59,8 @@ class Recorder:
 
     def __init__(self, keys: Iterable[str], output: str | Path, *, system_file: str | Path | None = None,
                  connect: Iterable[str] = (), listen: Iterable[str] = DEFAULT_LISTEN,
-                 flush_period: float = 0.05, spec_timeout: float = 0.5, query_specs: bool = True):
+                 flush_period: float = 0.05, spec_timeout: float = 0.5, query_specs: bool = True,
+                 fifo_capacity: int = 65536):
         self.system_text, self.system_table = (None, {})
         if system_file is not None:
             self.system_text, self.system_table = read_system_file(system_file)
@@ -81,7 +79,8 @@ class Recorder:
         self.connect, self.listen = list(connect), list(listen)
         self.flush_period, self.spec_timeout, self.query_specs = flush_period, spec_timeout, query_specs
         self.stats = {"received": 0, "written": 0, "gaps": 0, "missing": 0, "duplicates": 0, "flushes": 0}
-        self._queue: queue.SimpleQueue = queue.SimpleQueue()
+        self._stopping = threading.Event()
+        self.fifo_capacity = fifo_capacity
         self._session: Any = None
         self._subscribers: list = []
         self._thread: threading.Thread | None = None
@@ -103,16 +102,12 @@ class Recorder:
         self.sink.flush()
         self._session = open_session(self.listen, self.connect)
         try:
-            put = self._queue.put
-            now = time.time_ns
-
-            def on_sample(sample: Any) -> None:
-                attachment = sample.attachment
-                put((str(sample.key_expr), sample.payload.to_bytes(),
-                     None if attachment is None else attachment.to_bytes(), now()))
-
+            # Samples wait in zenoh's own (Rust) FIFO until the writer thread takes them: no
+            # Python callback on zenoh's threads, no GIL hand-off per sample. A full FIFO makes
+            # zenoh push back on the senders (BLOCK) rather than lose.
             for key in self.keys:
-                self._subscribers.append(self._session.declare_subscriber(key, on_sample))
+                self._subscribers.append(self._session.declare_subscriber(
+                    key, zenoh.handlers.FifoChannel(self.fifo_capacity)))
             self._thread = threading.Thread(target=self._run, name="iotad-recorder", daemon=True)
             self._thread.start()
         except BaseException:
@@ -123,13 +118,13 @@ class Recorder:
     def stop(self) -> dict:
         """Stop receiving, write what is queued, ask missing specs, and finish the file."""
         try:
+            if self._thread is not None:
+                self._stopping.set()  # the writer empties the FIFOs, then returns
+                self._thread.join()
+                self._thread = None
             for subscriber in self._subscribers:
                 subscriber.undeclare()
             self._subscribers.clear()
-            if self._thread is not None:
-                self._queue.put(_STOP)
-                self._thread.join()
-                self._thread = None
             if self._error is not None:
                 raise self._error
             self._ask_missing_specs()
@@ -157,54 +152,70 @@ class Recorder:
             self._loop()
         except BaseException as exc:  # noqa: BLE001 - reported by stop()
             self._error = exc
-            while True:  # keep the queue from growing without bound
-                if self._queue.get() is _STOP:
-                    break
 
     def _loop(self) -> None:
-        get, sink, stats = self._queue.get, self.sink, self.stats
+        sink, stats = self.sink, self.stats
+        receivers = [subscriber.handler.try_recv for subscriber in self._subscribers]
         ids: dict[str, int] = {}
         last: dict[str, tuple[int, int]] = {}
         unpack = msgpack.unpackb
-        write = sink.writer.add_message
+        write = sink.fast_writer()
+        now_ns, monotonic_ns = time.time_ns, time.monotonic_ns
         period_ns = int(self.flush_period * 1e9)
-        next_flush = time.monotonic_ns() + period_ns
+        next_flush = monotonic_ns() + period_ns
         received = written = 0
+        stopping = self._stopping.is_set
+        quiet_since = stop_at = 0
         while True:
-            try:
-                item = get(timeout=self.flush_period)
-            except queue.Empty:
-                item = None
-            if item is _STOP:
-                break
-            if item is not None:
-                key, payload, attachment, receipt_ns = item
-                received += 1
-                channel_id = ids.get(key)
-                if channel_id is None:
-                    channel_id = ids[key] = self._new_channel(key)
-                sequence, publish_ns = 0, receipt_ns
-                if attachment is not None:
-                    try:
-                        sequence, publish_ns = unpack(attachment)
-                    except Exception:  # noqa: BLE001 - a foreign publisher's attachment
-                        sequence, publish_ns = 0, receipt_ns
-                    previous = last.get(key)
-                    if previous is not None:
-                        if sequence == previous[0] and publish_ns == previous[1]:
-                            stats["duplicates"] += 1  # the same sample through two overlapping key expressions
-                            continue
-                        if sequence > previous[0] + 1:
-                            self._gap(key, previous[0] + 1, sequence, receipt_ns)
-                    last[key] = (sequence, publish_ns)
-                write(channel_id, receipt_ns, payload, publish_ns, sequence & 0xFFFFFFFF)
-                written += 1
-            now = time.monotonic_ns()  # every message: a busy stream must flush on time too
+            idle = True
+            for receive in receivers:
+                for _ in range(4096):  # then the next key expression, and a flush check
+                    sample = receive()
+                    if sample is None:
+                        break
+                    idle = False
+                    receipt_ns = now_ns()
+                    key = str(sample.key_expr)
+                    received += 1
+                    channel_id = ids.get(key)
+                    if channel_id is None:
+                        channel_id = ids[key] = self._new_channel(key)
+                    sequence, publish_ns = 0, receipt_ns
+                    attachment = sample.attachment
+                    if attachment is not None:
+                        try:
+                            sequence, publish_ns = unpack(attachment.to_bytes())
+                        except Exception:  # noqa: BLE001 - a foreign publisher's attachment
+                            sequence, publish_ns = 0, receipt_ns
+                        previous = last.get(key)
+                        if previous is not None:
+                            if sequence == previous[0] and publish_ns == previous[1]:
+                                stats["duplicates"] += 1  # one sample through two overlapping key expressions
+                                continue
+                            if sequence > previous[0] + 1:
+                                self._gap(key, previous[0] + 1, sequence, receipt_ns)
+                        last[key] = (sequence, publish_ns)
+                    write(channel_id, receipt_ns, publish_ns, sequence, sample.payload.to_bytes())
+                    written += 1
+                    if not (written & 255) and monotonic_ns() >= next_flush:
+                        break  # a busy stream must flush on time too
+            now = monotonic_ns()
             if now >= next_flush:
                 sink.flush()
                 stats["flushes"] += 1
                 next_flush = now + period_ns
                 stats["received"], stats["written"] = received, written
+            if idle:
+                if stopping():
+                    # what the senders already sent may still be on its way: stop only after
+                    # 100 ms with nothing new (or 5 s after the stop request, whatever comes)
+                    quiet_since = quiet_since or now
+                    stop_at = stop_at or now + 5_000_000_000
+                    if now - quiet_since >= 100_000_000 or now >= stop_at:
+                        break
+                time.sleep(0.002)  # idle: poll gently (the FIFOs hold what comes meanwhile)
+            else:
+                quiet_since = 0
         stats["received"], stats["written"] = received, written
 
     def _gap(self, key: str, expected: int, got: int, receipt_ns: int) -> None:

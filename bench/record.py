@@ -1,0 +1,240 @@
+"""Recording throughput and cost (prints figures and goal status; asserts nothing).
+
+    .venv/bin/python bench/record.py [--publishers 4] [--messages 100000] [--samples 2000]
+
+1. raw: the `mcap` Writer alone, in this process, writing messages like the recorder's (zstd
+   chunks, a flush every 50 ms): the ceiling of any Python recorder.
+2. record: an `iotad record` process and --publishers publisher processes (subprocess, never
+   fork), each publishing --messages events as fast as it can with BLOCK congestion control and
+   the `[sequence, send_time_ns]` attachment. Counted from the file afterwards: events/s over the
+   recorder's receive span, and loss (every sequence number of every publisher must be there).
+3. latency: round trip ping -> pong process -> ping (zenoh, loopback), p50/p99, without and
+   then with an `iotad record` process subscribed to both keys.
+Goals: >= 100,000 events/s with zero loss; recording adds <= 10% to the round-trip p50.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import signal
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+import zenoh  # noqa: E402
+from importlib.metadata import version  # noqa: E402
+
+from iotad import wire  # noqa: E402
+from iotad.transport import free_port, open_session  # noqa: E402
+
+GOAL_RATE = 100_000
+GOAL_LATENCY_COST = 0.10
+
+PUBLISHER = r"""
+import sys, time
+sys.path.insert(0, {root!r})
+import zenoh
+from iotad import wire
+from iotad.transport import open_session
+endpoint, index, count = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
+session = open_session(connect=[endpoint])
+try:
+    pub = session.declare_publisher(f"iota/bench/p{{index}}/out", congestion_control=zenoh.CongestionControl.BLOCK)
+    deadline = time.monotonic() + 20
+    while not pub.matching_status.matching and time.monotonic() < deadline:
+        time.sleep(0.01)
+    sys.stdout.write("ready\n"); sys.stdout.flush()
+    sys.stdin.readline()  # go
+    payload = wire.encode({{"t": 0.0, "iota": "p", "action": "out", "index": None, "kind": "output", "value": 1.5}})
+    put, attach, now = pub.put, wire.encode_attachment, time.time_ns
+    for seq in range(count):
+        put(payload, attachment=attach(seq, now()))
+    sys.stdout.write("done\n"); sys.stdout.flush()
+    sys.stdin.readline()
+finally:
+    session.close()
+"""
+
+PONG = r"""
+import sys
+sys.path.insert(0, {root!r})
+import zenoh
+from iotad.transport import open_session
+session = open_session(connect=[sys.argv[1]])
+try:
+    pub = session.declare_publisher("iota/bench/pong/out", express=True, congestion_control=zenoh.CongestionControl.BLOCK)
+    sub = session.declare_subscriber("iota/bench/ping/out", lambda s: pub.put(s.payload.to_bytes(), attachment=s.attachment))
+    sys.stdout.write("ready\n"); sys.stdout.flush()
+    sys.stdin.readline()
+finally:
+    session.close()
+"""
+
+
+def raw_writer(count: int) -> float:
+    """Messages per second of the bare mcap Writer (with the recorder's 50 ms flushes)."""
+    from mcap.writer import Writer
+    payload = wire.encode({"t": 0.0, "iota": "p", "action": "out", "index": None, "kind": "output", "value": 1.5})
+    with tempfile.TemporaryFile() as stream:
+        writer = Writer(stream, chunk_size=4 * 1024 * 1024)
+        writer.start()
+        schema = writer.register_schema("x", "jsonschema", b"{}")
+        channels = [writer.register_channel(f"iota/bench/p{k}/out", "msgpack", schema) for k in range(4)]
+        start = time.perf_counter()
+        next_flush = time.monotonic() + 0.05
+        for seq in range(count):
+            now = time.time_ns()
+            writer.add_message(channels[seq & 3], now, payload, now, seq)
+            if time.monotonic() >= next_flush:
+                writer.flush()
+                next_flush = time.monotonic() + 0.05
+        writer.finish()
+        return count / (time.perf_counter() - start)
+
+
+class Recorder:
+    def __init__(self, output: Path, keys: list[str], connect: str | None = None):
+        self.port = free_port()
+        self.endpoint = f"tcp/127.0.0.1:{self.port}"
+        ready = output.with_suffix(".ready")
+        argv = [sys.executable, "-m", "iotad.cli", "record", *keys, "-o", str(output), "--quiet",
+                "--listen", self.endpoint, "--ready-file", str(ready)]
+        if connect:
+            argv += ["--connect", connect]
+        self.proc = subprocess.Popen(argv, cwd=ROOT)
+        deadline = time.monotonic() + 20
+        while not ready.exists():
+            if self.proc.poll() is not None or time.monotonic() > deadline:
+                raise SystemExit("the recorder did not start")
+            time.sleep(0.02)
+
+    def stop(self) -> None:
+        self.proc.send_signal(signal.SIGINT)
+        self.proc.wait(120)
+
+
+def spawn(script: str, *args: str) -> subprocess.Popen:
+    proc = subprocess.Popen([sys.executable, "-c", script.format(root=str(ROOT)), *args], stdin=subprocess.PIPE,
+                            stdout=subprocess.PIPE, text=True, cwd=ROOT)
+    if proc.stdout.readline().strip() != "ready":
+        raise SystemExit("a helper process did not start")
+    return proc
+
+
+def throughput(publishers: int, messages: int, folder: Path) -> dict:
+    from iotad.recording import read_recording
+    output = folder / "throughput.mcap"
+    recorder = Recorder(output, ["iota/bench/**"])
+    procs = []
+    try:
+        procs = [spawn(PUBLISHER, recorder.endpoint, str(k), str(messages)) for k in range(publishers)]
+        for proc in procs:
+            proc.stdin.write("go\n")
+            proc.stdin.flush()
+        for proc in procs:
+            if proc.stdout.readline().strip() != "done":
+                raise SystemExit("a publisher failed")
+        # The recorder's clean stop drains what is still on its way (until 100 ms of quiet).
+    finally:
+        recorder.stop()
+        for proc in procs:
+            try:
+                proc.stdin.write("bye\n")
+                proc.stdin.flush()
+            except BrokenPipeError:
+                pass
+            proc.wait(20)
+    recording = read_recording(output)
+    per_key: dict[str, set] = {}
+    times = []
+    for message in recording.messages:
+        if message.topic.startswith("iota/bench/p"):
+            per_key.setdefault(message.topic, set()).add(message.sequence)
+            times.append(message.log_time)
+    got = sum(len(s) for s in per_key.values())
+    expected = publishers * messages
+    span = (max(times) - min(times)) / 1e9 if times else float("inf")
+    complete = all(per_key.get(f"iota/bench/p{k}/out", set()) == set(range(messages)) for k in range(publishers))
+    return {"events": got, "expected": expected, "lost": expected - got, "zero_loss": complete and got == expected,
+            "seconds": span, "rate": got / span if span > 0 else 0.0, "gaps": len(recording.gaps()),
+            "size_mb": output.stat().st_size / 1e6}
+
+
+def round_trips(samples: int, recorded: bool, folder: Path) -> list[float]:
+    hub_endpoint = f"tcp/127.0.0.1:{free_port()}"
+    session = open_session([hub_endpoint])
+    recorder = pong = None
+    try:
+        if recorded:
+            recorder = Recorder(folder / f"latency-{time.time_ns()}.mcap", ["iota/bench/**"], connect=hub_endpoint)
+        pong = spawn(PONG, hub_endpoint)
+        import queue
+        replies: queue.SimpleQueue = queue.SimpleQueue()
+        session.declare_subscriber("iota/bench/pong/out", lambda s: replies.put(time.perf_counter()))
+        ping = session.declare_publisher("iota/bench/ping/out", express=True,
+                                         congestion_control=zenoh.CongestionControl.BLOCK)
+        deadline = time.monotonic() + 10
+        while not ping.matching_status.matching and time.monotonic() < deadline:
+            time.sleep(0.01)
+        payload = wire.encode({"w": 1.0, "k": 0.5})
+        for _ in range(200):  # warm up: routes, recorder channels, caches
+            ping.put(payload, attachment=wire.encode_attachment(0))
+            replies.get(timeout=5)
+        out = []
+        for seq in range(samples):
+            start = time.perf_counter()
+            ping.put(payload, attachment=wire.encode_attachment(seq))
+            out.append(replies.get(timeout=5) - start)
+            time.sleep(0.0005)
+        return out
+    finally:
+        if pong is not None:
+            pong.stdin.write("bye\n")
+            pong.stdin.flush()
+            pong.wait(20)
+        if recorder is not None:
+            recorder.stop()
+        session.close()
+
+
+def quantile(values: list[float], q: float) -> float:
+    ordered = sorted(values)
+    return ordered[min(len(ordered) - 1, int(q * len(ordered)))]
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--publishers", type=int, default=4)
+    parser.add_argument("--messages", type=int, default=100_000, help="per publisher")
+    parser.add_argument("--samples", type=int, default=2000, help="round trips per latency run")
+    args = parser.parse_args()
+    print(f"bench/record.py on {os.cpu_count()} CPUs, python {sys.version.split()[0]}, zenoh {zenoh.__version__ if hasattr(zenoh, '__version__') else ''}")
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        raw = raw_writer(200_000)
+        print(f"raw mcap Writer:   {raw:>10,.0f} msgs/s (in-process, zstd, 50 ms flushes)")
+        result = throughput(args.publishers, args.messages, folder)
+        print(f"iotad record:      {result['rate']:>10,.0f} events/s from {args.publishers} publisher processes; "
+              f"{result['events']:,}/{result['expected']:,} recorded, lost {result['lost']}, "
+              f"{result['gaps']} gaps, {result['seconds']:.2f} s, {result['size_mb']:.1f} MB")
+        base = round_trips(args.samples, False, folder)
+        with_recorder = round_trips(args.samples, True, folder)
+    p50, p50_rec = statistics.median(base), statistics.median(with_recorder)
+    cost = (p50_rec - p50) / p50
+    print(f"round trip p50:    {p50 * 1e6:8.0f} us without recorder, {p50_rec * 1e6:8.0f} us with "
+          f"({cost:+.1%}); p99 {quantile(base, 0.99) * 1e6:.0f} / {quantile(with_recorder, 0.99) * 1e6:.0f} us")
+    rate_ok = result["rate"] >= GOAL_RATE and result["zero_loss"]
+    cost_ok = cost <= GOAL_LATENCY_COST
+    print(f"goal >= {GOAL_RATE:,} events/s with zero loss: {'MET' if rate_ok else 'MISSED'}")
+    print(f"goal recording adds <= {GOAL_LATENCY_COST:.0%} to p50: {'MET' if cost_ok else 'MISSED'}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
