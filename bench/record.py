@@ -214,7 +214,7 @@ def main() -> int:
     parser.add_argument("--messages", type=int, default=100_000, help="per publisher")
     parser.add_argument("--samples", type=int, default=2000, help="round trips per latency run")
     args = parser.parse_args()
-    print(f"bench/record.py on {os.cpu_count()} CPUs, python {sys.version.split()[0]}, zenoh {zenoh.__version__ if hasattr(zenoh, '__version__') else ''}")
+    print(f"bench/record.py on {os.cpu_count()} CPUs, python {sys.version.split()[0]}, zenoh {version('eclipse-zenoh')}")
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
         raw = raw_writer(200_000)
