@@ -1,5 +1,6 @@
 """Helpers for launcher tests: start `iotad run` as a process we own, find its children in /proc,
 and watch a system's liveliness tokens and launcher events from an observer session."""
+import itertools
 import os
 import queue
 import signal
@@ -16,6 +17,9 @@ from iotad.transport import open_session
 
 ROOT = Path(__file__).resolve().parents[1]
 IOTAS = Path(__file__).resolve().parent / "system_iotas.py"
+
+
+_outputs = itertools.count()  # one output file per launcher, even two started in the same instant
 
 
 def gone(pid: int) -> bool:
@@ -59,7 +63,7 @@ def wait_until(condition, timeout: float, step: float = 0.02):
 def launcher(system_file: Path, *args: str, cwd: Path | None = None, prefix: tuple = ()):
     """`iotad run SYSTEM ...` as a process of its own; killed (with its group) on the way out.
     Yields the Popen; its output (plain lines) goes to `<system_file>.out`."""
-    out = Path(str(system_file) + f".{int(time.time() * 1000)}.out")
+    out = Path(str(system_file) + f".{next(_outputs)}.out")
     with open(out, "wb") as sink:
         proc = subprocess.Popen([*prefix, sys.executable, "-m", "iotad", "run", str(system_file), "--plain", *args],
                                 stdout=sink, stderr=subprocess.STDOUT, cwd=cwd or ROOT, start_new_session=True)
