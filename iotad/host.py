@@ -95,7 +95,8 @@ class NodeHost:
                                on_heartbeat=self._heartbeat, on_malformed=self._malformed,
                                flush=self._flush_trace, pending=self._trace_buffer.__len__)
         self.engine = Engine(root, self.clock, make_policy(config.policy, config.seed), record=False,
-                             sinks=[self._publish_output, self._trace_buffer.append])
+                             sinks=[self._publish_output, self._trace_buffer.append],
+                             deadline_tolerance=config.deadline_tolerance / config.time_unit)
         self.session: zenoh.Session | None = None
         self._declared: list[Any] = []
         self._ports: dict[tuple, list] = {}  # engine (path, channel, index) -> [publisher, seq]

@@ -27,6 +27,9 @@ class NodeConfig:
     connect: list[str] = field(default_factory=list)
     inputs: dict[str, list[str]] = field(default_factory=dict)  # "chan" or "chan/k" -> bound keys
     heartbeat_period: float = 0.5
+    # Seconds a firing may come after its window's end before it counts as a deadline miss: a
+    # Python process wakes some tens of microseconds late, which is not the spec's fault.
+    deadline_tolerance: float = 0.002
     policy: str = "eager"
     seed: int = 0
     zenoh: dict[str, Any] = field(default_factory=dict)  # extra zenoh config: path -> JSON value
@@ -38,7 +41,7 @@ class NodeConfig:
 
 
 _KNOWN = {"system", "path", "source", "params", "time_unit", "origin", "listen", "connect", "inputs",
-          "heartbeat_period", "policy", "seed", "zenoh"}
+          "heartbeat_period", "deadline_tolerance", "policy", "seed", "zenoh"}
 
 
 def load(path: str | Path) -> NodeConfig:
@@ -86,7 +89,7 @@ def from_dict(data: Any, where: str = "config") -> NodeConfig:
     if not isinstance(params, dict):
         raise ConfigError(f"{where}: params must be an object")
     config.params = params
-    for key in ("time_unit", "heartbeat_period"):
+    for key in ("time_unit", "heartbeat_period", "deadline_tolerance"):
         if key in data:
             value = data[key]
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not (value > 0) or math.isinf(value):
