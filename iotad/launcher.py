@@ -177,8 +177,11 @@ class Launcher:
         try:
             self.session = open_session(listen, connect)
         except Exception as exc:  # noqa: BLE001 - zenoh says why in its message
-            raise LauncherError(f"cannot open the hub session (listen {listen}, connect {connect}): "
-                                f"{str(exc).splitlines()[0] if str(exc) else type(exc).__name__}") from None
+            text = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+            if "Address already in use" in text:
+                raise LauncherError(f"the hub endpoint {', '.join(listen)} is taken (another 'iotad run'?); "
+                                    "choose another with --port") from None
+            raise LauncherError(f"cannot open the hub session (listen {listen}, connect {connect}): {text}") from None
         session = self.session
         base = f"{wire.PREFIX}/{system.name}"
         self._publisher = session.declare_publisher(wire.launcher_key(system.name))

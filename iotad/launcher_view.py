@@ -21,8 +21,10 @@ class StatusView:
         self._live = None
         self._rows: list[tuple] = []
         self._t0 = time.monotonic()
+        self._started = False
 
     def start(self) -> None:
+        self._started = True
         if self.live_enabled and self._live is None:
             from rich.live import Live
             self._live = Live(self._table(), console=self.console, refresh_per_second=4, transient=False)
@@ -45,7 +47,7 @@ class StatusView:
             self._live.update(self._table())
             self._live.stop()
             self._live = None
-        else:
+        elif self._started:
             for row in self._rows:  # a final snapshot, since no table was on screen
                 self.console.print("  " + "  ".join(f"{c}={v}" for c, v in zip(COLUMNS, row) if v != ""),
                                    markup=False, highlight=False, soft_wrap=True)

@@ -153,3 +153,19 @@ def test_restart_policies(tmp_path, restart, exit_code, restarts, state, code):
     assert (node.restarts, node.state) == (restarts, state), lines
     if restarts:
         assert any("gave up after 2 restarts" in line for line in lines), lines
+
+
+def test_node_without_liveliness_is_killed_after_start_timeout(tmp_path):
+    """A node that runs but never declares its token (here: a stand-in that just sleeps)."""
+    path = stub_system(tmp_path, "on-failure", 0, max_restarts=1)
+    path.write_text(path.read_text().replace("exit_after = 0.05", "exit_after = 30")
+                    .replace('name = "stub"', 'name = "stub"\nstart_timeout = 0.5'))
+    lines = []
+    run = Launcher(load_system(path), record=False, until=20, live_table=False,
+                   node_argv=lambda config: [sys.executable, str(STUB), config])
+    run.view.line = lines.append
+    started = time.monotonic()
+    assert run.run() == 1, lines
+    assert time.monotonic() - started < 5, lines
+    assert sum("no liveliness token within 0.5 s: killing" in line for line in lines) == 2, lines
+    assert run.runs["n"].restarts == 1
