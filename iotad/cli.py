@@ -48,4 +48,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    # Run as `python -m iotad.cli`, this module is `__main__`, whose CliError is not the one the
+    # commands raise: delegate to the imported module so errors stay one line.
+    from iotad.cli import main as imported_main
+    sys.exit(imported_main())
