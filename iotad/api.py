@@ -26,8 +26,8 @@ from __future__ import annotations
 import itertools
 from typing import Any, Callable
 
-from .deps import cells_of
-from .model import Action, Channel, IotaSpec, SpecError, apply_params
+from .deps import cells_of, stored_attributes
+from .model import ALL_STATE, Action, Channel, IotaSpec, SpecError, apply_params
 from .types import Type
 
 _order = itertools.count()  # declaration order of actions across all channels of a class
@@ -160,20 +160,38 @@ def _params_of(cls: type) -> dict[str, Any]:
     return params
 
 
+def _union(a: frozenset, b: frozenset) -> frozenset:
+    return ALL_STATE if ALL_STATE in (a, b) else a | b
+
+
 def _build_spec(cls: type, params: dict[str, Any], state_names: tuple[str, ...]) -> IotaSpec:
     decls: list[_ChannelDecl] = []
     for klass in reversed(cls.__mro__):
         decls += [v for v in vars(klass).values() if isinstance(v, _ChannelDecl)]
     channels = {d.name: d.channel() for d in decls}
-    state = frozenset(state_names)
     ordered = sorted((order, d, clause) for d in decls for order, clause in d.decls)
+    # Every attribute is a cell, not only what `init` set: a class attribute may serve as a
+    # default that a do-block later shadows. Parameters no function assigns stay constants;
+    # attributes that run code when read (properties, methods) are opaque.
+    opaque = frozenset(name for klass in cls.__mro__[:-1] for name, v in vars(klass).items()
+                       if not isinstance(v, (Param, _ChannelDecl)) and (callable(v) or hasattr(type(v), "__get__")))
+    assigned: set = set()
+    for _, _, clause in ordered:
+        for fn in (clause["do"], clause.get("value")):
+            if callable(fn):
+                assigned |= stored_attributes(fn) or frozenset()  # None: that fn writes everything
+    constants = frozenset(params) - assigned
+
+    def cells(fn: Any) -> frozenset:
+        return cells_of(fn, None, opaque, constants) if callable(fn) else frozenset()
+
     actions = []
     for _, decl, clause in ordered:
         family = decl.size is not None
         if decl.direction == "input":
             do = clause["do"]
             actions.append(Action(decl.name, do=_as_input_do(do, family), reads=frozenset(),
-                                  writes=cells_of(do, state), label=f"{decl.name}(x)",
+                                  writes=cells(do), label=f"{decl.name}(x)",
                                   line=do.__code__.co_firstlineno))
             continue
         do = clause["do"]
@@ -183,8 +201,10 @@ def _build_spec(cls: type, params: dict[str, Any], state_names: tuple[str, ...])
         actions.append(Action(
             decl.name, when=_as_fn(clause["when"], family), lower=_as_fn(clause["lower"], family),
             upper=_as_fn(clause["upper"], family), value=_as_fn(clause["value"], family, param_names=False),
-            do=_as_do(do, family), reads=cells_of(clause["when"], state) if callable(clause["when"]) else frozenset(),
-            writes=cells_of(do, state), label=label,
+            do=_as_do(do, family), reads=cells(clause["when"]),
+            # a value function runs once per firing, just before the do-block: what it
+            # touches (`self.queue.pop(0)`) counts as written too
+            writes=_union(cells(do), cells(clause["value"])), label=label,
             line=do.__code__.co_firstlineno if do else None))
     spec = IotaSpec(cls.__name__, params, channels, actions, init=None, state_names=state_names)
     spec.validate()

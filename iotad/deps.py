@@ -4,7 +4,9 @@ The engine re-evaluates after a firing only the preconditions that read a cell t
 do-block may have changed; that is what keeps a 64-requester scheduler as cheap per firing as a
 two-node ping-pong. The analysis is conservative: `self.request[i]` (with `i` the action's
 index) is the cell at that index, any other use of `self.request` is the whole variable, and
-anything it cannot follow (no source, `self` passed along, a method call) is "everything".
+anything it cannot follow (no source, `self` passed along, a method call, `self.__dict__`,
+`super()`) is "everything". A name that a nested function, lambda, comprehension or handler
+binds again is not the action's index there, so no subscript counts as "own element" then.
 """
 from __future__ import annotations
 
@@ -53,8 +55,14 @@ def _function_nodes(fn: Callable) -> list[ast.AST]:
     return [n for n in found if tuple(a.arg for a in n.args.args) == argnames]
 
 
-def cells_of(fn: Callable | None, state_names: frozenset[str] | set[str]) -> frozenset:
-    """Cells `fn(self, index, ...)` may access; ALL_STATE when it cannot tell."""
+def cells_of(fn: Callable | None, state_names: frozenset[str] | set[str] | None,
+             opaque: frozenset[str] | set[str] = frozenset(),
+             constants: frozenset[str] | set[str] = frozenset()) -> frozenset:
+    """Cells `fn(self, index, ...)` may access; ALL_STATE when it cannot tell.
+
+    `state_names` None: every attribute of `self` but `constants` is a cell (state set outside
+    `init`, a class attribute used as a default); `opaque` names attributes that run code when
+    read (properties, methods): touching one is "everything"."""
     if fn is None:
         return frozenset()
     nodes = _function_nodes(fn)
@@ -62,14 +70,30 @@ def cells_of(fn: Callable | None, state_names: frozenset[str] | set[str]) -> fro
         return ALL_STATE
     cells: set = set()
     for node in nodes:
-        found = _cells_in(node, state_names)
+        found = _cells_in(node, state_names, opaque, constants)
         if found is ALL_STATE:
             return ALL_STATE
         cells |= found
     return frozenset(cells)
 
 
-def _cells_in(node: ast.AST, state_names) -> frozenset:
+def _binds(node: ast.AST, name: str) -> bool:
+    """Whether `node` (re)binds `name`: an assignment, a loop or comprehension target, a nested
+    function's or lambda's parameter, an `except ... as`, an import, a match capture."""
+    if isinstance(node, ast.Name):
+        return node.id == name and not isinstance(node.ctx, ast.Load)
+    if isinstance(node, ast.arg):
+        return node.arg == name
+    if isinstance(node, (ast.ExceptHandler, ast.MatchAs, ast.MatchStar)):
+        return node.name == name
+    if isinstance(node, ast.alias):
+        return (node.asname or node.name.split(".")[0]) == name
+    if isinstance(node, (ast.Global, ast.Nonlocal)):
+        return name in node.names
+    return False
+
+
+def _cells_in(node: ast.AST, state_names, opaque, constants) -> frozenset:
     args = [a.arg for a in node.args.args]
     if not args:
         return frozenset()
@@ -77,9 +101,10 @@ def _cells_in(node: ast.AST, state_names) -> frozenset:
     index_name = args[1] if len(args) > 1 else None
     body = node.body if isinstance(node.body, list) else [node.body]
     module = ast.Module(body=body, type_ignores=[])
-    if index_name and any(isinstance(n, ast.Name) and n.id == index_name and isinstance(n.ctx, ast.Store)
-                          for n in ast.walk(module)):
-        index_name = None  # the index is reassigned: its subscripts no longer mean "own element"
+    if index_name and any(_binds(n, index_name) for n in ast.walk(module)):
+        index_name = None  # the index is rebound somewhere: `x[i]` may not be the own element
+    if any(isinstance(n, ast.Name) and n.id == "super" for n in ast.walk(module)):
+        return ALL_STATE  # `super()` reaches `self` without naming it
     parents: dict[int, ast.AST] = {}
     for parent in ast.walk(module):
         for child in ast.iter_child_nodes(parent):
@@ -91,7 +116,9 @@ def _cells_in(node: ast.AST, state_names) -> frozenset:
         attribute = parents.get(id(n))
         if not isinstance(attribute, ast.Attribute):
             return ALL_STATE  # `self` escapes (passed to a function, aliased): cannot follow it
-        if attribute.attr not in state_names:
+        if attribute.attr.startswith("__") or attribute.attr in opaque:
+            return ALL_STATE  # `self.__dict__[...]`, a property: state reached by another name
+        if attribute.attr in constants if state_names is None else attribute.attr not in state_names:
             user = parents.get(id(attribute))
             if isinstance(user, ast.Call) and user.func is attribute:
                 return ALL_STATE  # a method may touch anything
@@ -103,6 +130,37 @@ def _cells_in(node: ast.AST, state_names) -> frozenset:
         else:
             cells.add((attribute.attr, ANY))
     return frozenset(cells)
+
+
+def stored_attributes(fn: Callable | None) -> frozenset | None:
+    """Attributes of `self` that `fn` may change (assigned, deleted, a method called on them or
+    passed to a function); None when it cannot tell."""
+    if fn is None:
+        return frozenset()
+    nodes = _function_nodes(fn)
+    if not nodes:
+        return None
+    stored: set = set()
+    for node in nodes:
+        args = [a.arg for a in node.args.args]
+        if not args:
+            continue
+        body = node.body if isinstance(node.body, list) else [node.body]
+        module = ast.Module(body=body, type_ignores=[])
+        parents = {id(c): p for p in ast.walk(module) for c in ast.iter_child_nodes(p)}
+        for n in ast.walk(module):
+            if not (isinstance(n, ast.Name) and n.id == args[0]):
+                continue
+            attribute = parents.get(id(n))
+            if not isinstance(attribute, ast.Attribute):
+                return None
+            top = attribute
+            while isinstance(parents.get(id(top)), (ast.Attribute, ast.Subscript)) and parents[id(top)].value is top:
+                top = parents[id(top)]
+            user = parents.get(id(top))
+            if not isinstance(getattr(top, "ctx", None), ast.Load) or isinstance(user, ast.Call):
+                stored.add(attribute.attr)
+    return frozenset(stored)
 
 
 def describe(cells: frozenset) -> str:
