@@ -207,6 +207,9 @@ class TraceChecker:
         self._leaf_paths = list(self.engine.leaves)
         self._reported_expired: set[tuple[int, int]] = set()
         self._seen_violations = 0
+        # Inputs bound to an output inside the node (a composite): firing that output delivers
+        # them, so their recorded input events are checked against it, not applied again.
+        self._bound = {id(target) for slot in self.engine.slots.values() for target in slot.targets}
 
     def check(self, events: list[dict], until: float | None = None) -> CheckReport:
         mapping = align_paths((e.get("iota", "") for e in events), self._leaf_paths)
@@ -276,6 +279,11 @@ class TraceChecker:
         slot = engine.slots.get((leaf, channel, index))
         if slot is None or slot.channel.direction != "input":
             self._find(t, "unknown_event", f"{describe(event)}: the spec has no such input channel", position)
+            return
+        if id(slot) in self._bound:
+            if slot.last != t:
+                self._find(t, "not_enabled", f"{describe(event)}: a bound input, but no output bound to it "
+                           f"fired at t={t:.6g}", position)
             return
         if t < slot.last + slot.switching - self.tolerance:
             self._find(t, "switching_time",
@@ -382,7 +390,8 @@ class ImplementsChecker:
         self.inputs = {}
         for name, (direction, endpoint) in engine.flat.external.items():
             (self.outputs if direction == "output" else self.inputs)[name] = endpoint
-        self._external = {(e.path, e.channel) for e in self.outputs.values()}
+        # (path, channel, index); index None: the whole family (or a plain channel) is external
+        self._external = {(e.path, e.channel, e.index) for e in self.outputs.values()}
         self._start = engine
         # Specs, functions and types are shared by every copy of the engine: never copy them.
         self._memo_base = {}
@@ -402,7 +411,8 @@ class ImplementsChecker:
         return copy.deepcopy(engine, dict(self._memo_base))
 
     def hidden(self, instance: ActionInstance) -> bool:
-        return (instance.leaf.path, instance.action.channel) not in self._external
+        path, channel = instance.leaf.path, instance.action.channel
+        return (path, channel, None) not in self._external and (path, channel, instance.index) not in self._external
 
     def check(self, events: list[dict], node: str = "", spec_name: str = "", until: float | None = None) -> ImplementsReport:
         events = [e for e in events if e.get("kind") in ("input", "output")]

@@ -79,8 +79,13 @@ class RealClock(Clock):
     def post(self, item: Any, t: float | None = None) -> None:
         self._inbox.put(item)
 
+    # A longer wait overflows the platform's timed lock; returning early is harmless, as the
+    # engine waits again until its deadline.
+    max_timeout = 3600.0
+
     def wait(self, deadline: float) -> Any | None:
-        timeout = None if math.isinf(deadline) else max(0.0, (deadline - self.now()) * self.time_unit)
+        timeout = None if math.isinf(deadline) else \
+            min(self.max_timeout, max(0.0, (deadline - self.now()) * self.time_unit))
         try:
             if timeout == 0.0:
                 return self._inbox.get_nowait()

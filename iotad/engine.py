@@ -272,9 +272,14 @@ class Engine:
                                 f"no external input channel {channel!r}")
                 return
             endpoint = entry[1]
+            if endpoint.index is not None and index not in (None, endpoint.index):
+                # the root's channel is one member of a family: no other member is external
+                self._violation(now, self.root.instance_name, channel, index, "unknown_input",
+                                f"{channel} is a single channel ({endpoint}); it has no index {index}")
+                return
             path, channel = endpoint.path, endpoint.channel
             if endpoint.index is not None:
-                index = endpoint.index if index is None else index
+                index = endpoint.index
         slot = self.slots.get((path, channel, index))
         if slot is None or slot.channel.direction != "input":
             self._violation(now, path, channel, index, "unknown_input",
@@ -342,10 +347,16 @@ class Engine:
             upper = INF if action.upper is None else float(action.upper(iota, index))
         except Exception as exc:  # noqa: BLE001
             self._runtime_error(now, instance, "time bound", exc)
-            return  # enabled, but with no valid window it cannot fire until re-enabled
-        if not window_ok(lower, upper):
-            self._violation(now, instance.leaf.path, action.channel, index, "bad_window",
-                            f"{action.label}: window [{lower:g}, {upper:g}] is empty or negative")
+            lower, upper = INF, INF
+        else:
+            if not window_ok(lower, upper):
+                self._violation(now, instance.leaf.path, action.channel, index, "bad_window",
+                                f"{action.label}: window [{lower:g}, {upper:g}] is empty or negative")
+                lower, upper = INF, INF
+        if lower == INF:
+            # enabled, but with no window it cannot fire until re-enabled; and no bounds of an
+            # earlier window stay behind (a checker would see that window expire)
+            instance.te, instance.lower, instance.upper = now, INF, INF
             return
         instance.te, instance.lower, instance.upper = now, now + lower, now + upper
         slot = instance.slot
@@ -387,12 +398,21 @@ class Engine:
     # ---------------------------------------------------------------- views
     def external_trace(self, events: Iterable[dict] | None = None) -> list[dict]:
         """The root's external behaviour: events on its external channels, named as the root names them."""
-        names = {(endpoint.path, endpoint.channel): name for name, (_, endpoint) in self.flat.external.items()}
+        # keyed by index too: a root channel may be one member of a component's family, which
+        # then appears as a plain channel (index None) and the other members stay hidden
+        names = {(endpoint.path, endpoint.channel, endpoint.index): name
+                 for name, (_, endpoint) in self.flat.external.items()}
         out = []
         for event in self.trace if events is None else events:
-            name = names.get((event["iota"], event["action"]))
-            if name is not None and event["kind"] in ("input", "output"):
+            if event["kind"] not in ("input", "output"):
+                continue
+            name = names.get((event["iota"], event["action"], None))
+            if name is not None:
                 out.append(dict(event, iota=self.root.instance_name, action=name))
+                continue
+            name = names.get((event["iota"], event["action"], event.get("index")))
+            if name is not None:
+                out.append(dict(event, iota=self.root.instance_name, action=name, index=None))
         return out
 
     def iota(self, path: str) -> Any:

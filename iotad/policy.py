@@ -25,8 +25,8 @@ class Random:
         self._random = random.Random(seed)
 
     def choose(self, earliest: float, latest: float) -> float:
-        if latest < earliest:
-            return earliest
+        if latest < earliest or math.isinf(earliest):
+            return earliest  # never a NaN time: inf - inf would put one on the engine's heap
         if math.isinf(latest):
             latest = earliest + self.horizon
         return self._random.uniform(earliest, latest)
