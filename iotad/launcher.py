@@ -7,6 +7,13 @@ restarts and stops them. zenoh callbacks and process waiters only put events on 
 stamp a heartbeat time). A node's death is seen three ways: its process exits (waiter thread),
 its liveliness token goes away (zenoh), or its heartbeat goes stale while the process still runs
 (a frozen Python loop): then it is killed and restarted like a crash.
+
+Failure policy. A node that exits is restarted by its restart policy (`backoff` doubling, at
+most `max_restarts`); once the policy gives up, the launcher says so with the tail of the node's
+output (its stderr) and keeps the other nodes running, unless the node is `required`, in which
+case it stops the whole system (exit status 1). The recorder is watched like a node: if it dies,
+the cut-short file is named (`iotad recover` makes it whole) and a new recorder continues in a
+new file; a recording that cannot go on is reported and makes the exit status 1, never silent.
 """
 from __future__ import annotations
 
@@ -32,6 +39,11 @@ from .system import NodeSpec, Port, System, with_port
 ALIVE = "@alive"
 HEARTBEAT = "@heartbeat"
 ORIGIN = "@origin"
+MIN_FREE_BYTES = 16 * 2**20   # refuse to start a recording on a file system with less free space
+RECORDER_RESTARTS = 3         # new recorders after the first one died, before recording stops
+VALUE_LABELS = 32             # distinct values counted per channel for the summary; then "*"
+# Exit status of `run()` by stop reason: 128 + the signal, like a shell.
+_SIGNAL_STATUS = {"interrupted": 130, "SIGTERM": 143, "SIGHUP": 129}
 
 
 @dataclass
@@ -72,7 +84,10 @@ class Tally:
     def channel(self, key: str, value: Any) -> None:
         label = value if isinstance(value, (str, bool, int)) and not isinstance(value, float) else "*"
         with self.lock:
-            self.values.setdefault(key, Counter())[label] += 1
+            counts = self.values.setdefault(key, Counter())
+            if label not in counts and len(counts) >= VALUE_LABELS:
+                label = "*"  # a counter, a sequence number...: bounded memory over a long run
+            counts[label] += 1
 
     def trace(self, path: str, event: Any) -> None:
         if isinstance(event, dict) and event.get("kind") == "violation":
@@ -114,7 +129,12 @@ class Launcher:
             policy = RestartPolicy(spec.restart, spec.max_restarts, spec.backoff)
             self.runs[spec.name] = NodeRun(spec, child, policy)
         self.recorder: Child | None = None
-        self.recording: Path | None = None
+        self.recording: Path | None = None        # the file being written now
+        self.recordings: list[Path] = []          # every file this run wrote, in order
+        self.recording_lost: str | None = None    # why recording stopped before the run did
+        self._recorder_restarts = 0
+        self._recorder_ready: Path | None = None  # a restarted recorder's ready file, until it exists
+        self._shutting_down = False
         self.session = None
         self._publisher = None
         self._event_seq = 0
@@ -143,9 +163,10 @@ class Launcher:
         finally:
             self._shutdown()
             self._restore_signals(previous)
-        if self._stop_reason == "interrupted":
-            return 130
-        return 1 if any(r.state == "failed" for r in self.runs.values()) else 0
+        if self._stop_reason in _SIGNAL_STATUS:
+            return _SIGNAL_STATUS[self._stop_reason]
+        failed = any(r.state == "failed" for r in self.runs.values())
+        return 1 if failed or self.recording_lost else 0
 
     # ------------------------------------------------------------------ set-up
     def _install_signals(self) -> dict:
@@ -153,6 +174,7 @@ class Launcher:
             return {}
 
         def on_signal(signum, frame):
+            # SIGTERM and SIGHUP stop exactly like Ctrl-C (a second one: no more patience)
             self._interrupts += 1
             self.events.put(("stop", "interrupted" if signum == signal.SIGINT else signal.Signals(signum).name))
 
@@ -214,38 +236,87 @@ class Launcher:
         return time.time()
 
     def _start_recorder(self) -> None:
+        """Start `iotad record` and wait until it has subscribed, before any node starts. A
+        recording that cannot be written (no folder, no space, the recorder fails) is an error
+        here, while nothing runs yet: --no-record runs without one."""
         if not self.record or not self.system.opens_hub(self.host):
             return
         if find_spec("iotad.commands.record") is None:
             self.view.line("warning: this iotad has no 'record' command; running without a recording")
             return
-        system = self.system
         if self.record_path:
             output = Path(self.record_path)
         else:
             stamp = time.strftime("%Y%m%d-%H%M%S", time.localtime(self.origin))
-            output = Path("recordings") / f"{system.name}-{stamp}.mcap"
-        output.parent.mkdir(parents=True, exist_ok=True)
-        ready = self.run_dir / "recorder.ready"
+            output = Path("recordings") / f"{self.system.name}-{stamp}.mcap"
+        problem = _unwritable(output)
+        if problem:
+            raise LauncherError(f"cannot record to {output}: {problem}; choose another file with -o, "
+                                "or run without a recording (--no-record)")
+        ready = self._spawn_recorder(output)
+        deadline = time.monotonic() + max(10.0, self.system.start_timeout)
+        while not ready.exists() and self.recorder.running() and time.monotonic() < deadline:
+            time.sleep(0.02)
+        if not ready.exists():
+            recorder, self.recorder = self.recorder, None
+            stop_all([recorder], 1.0, 1.0)
+            why = describe_exit(recorder.code) if recorder.code is not None else \
+                f"not subscribed after {deadline - recorder.started_at:.0f} s"
+            raise LauncherError(f"the recorder did not start ({why}){_log_tail(recorder.log)}\n"
+                                "run without a recording with --no-record")
+        self._recorder_ready = None
+        self.recording = output
+        self.recordings.append(output)
+        self.view.line(f"recording to {output} (recorder pid {self.recorder.pid})")
+
+    def _spawn_recorder(self, output: Path) -> Path:
+        system = self.system
+        ready = self.run_dir / f"recorder{len(self.recordings)}.ready"
+        ready.unlink(missing_ok=True)
         argv = [sys.executable, "-m", "iotad", "record", f"{wire.PREFIX}/{system.name}/**",
                 "-o", str(output), "--system-file", str(system.path), "--ready-file", str(ready)]
         for endpoint in self.hub:
             argv += ["--connect", endpoint]
         for endpoint in system.listen_for(self.host):
             argv += ["--listen", endpoint]
-        self.recorder = Child("recorder", argv, log=self.run_dir / "recorder.log")
-        pid = self.recorder.start()
-        deadline = time.monotonic() + 10.0
-        while not ready.exists() and self.recorder.running() and time.monotonic() < deadline:
-            time.sleep(0.02)
-        if ready.exists():
-            self.recording = output
-            self.view.line(f"recording to {output} (recorder pid {pid})")
-        else:
-            self.view.line(f"warning: the recorder did not start ({describe_exit(self.recorder.code)}); "
-                           f"see {self.recorder.log}; running without a recording")
-            stop_all([self.recorder], 1.0, 1.0)
-            self.recorder = None
+        self.recorder = Child("recorder", argv, log=self.run_dir / "recorder.log",
+                              on_exit=lambda child, code: self.events.put(("recorder", child.pid, code)))
+        self.recorder.start()
+        self._recorder_ready = ready
+        return ready
+
+    def _recorder_exited(self, pid: int, code: int) -> None:
+        """The recorder ended while the system runs: name the cut file, continue in a new one."""
+        recorder = self.recorder
+        if recorder is None or recorder.pid != pid:
+            return  # one the launcher stopped itself
+        self.recorder = None
+        cut = self.recording
+        self.recording = None
+        uptime = time.monotonic() - recorder.started_at
+        state = "is complete" if code == 0 else f"was cut short: 'iotad recover {cut}' makes it whole"
+        self._launcher_event("recorder", f"recorder: {describe_exit(code)} after {uptime:.1f} s; {cut} {state}"
+                             f"{_log_tail(recorder.log)}", code=code, file=str(cut))
+        if self._shutting_down:
+            self.recording_lost = f"the recorder ended with {describe_exit(code)} before the stop"
+            return
+        if self._recorder_restarts >= RECORDER_RESTARTS:
+            self._lose_recording(f"the recorder died {self._recorder_restarts + 1} times")
+            return
+        self._recorder_restarts += 1
+        output = _segment(self.recordings[0], self._recorder_restarts)
+        problem = _unwritable(output)
+        if problem:
+            self._lose_recording(f"cannot record to {output}: {problem}")
+            return
+        self._spawn_recorder(output)
+        self.recording = output
+        self.recordings.append(output)
+        self.view.line(f"recorder: restarting (pid {self.recorder.pid}) to record to {output}")
+
+    def _lose_recording(self, why: str) -> None:
+        self.recording_lost = why
+        self._launcher_event("recorder", f"recorder: RECORDING STOPPED: {why}; the nodes keep running", code=1)
 
     # ------------------------------------------------------------------ zenoh callbacks (their threads)
     def _path_of(self, key: str, suffix: str) -> str | None:
@@ -339,6 +410,8 @@ class Launcher:
             run = self.runs.get(name)
             if run is not None and pid == run.child.pid:
                 self._exited(run, code)
+        elif kind == "recorder":
+            self._recorder_exited(item[1], item[2])
 
     def _exited(self, run: NodeRun, code: int) -> None:
         now = time.monotonic()
@@ -347,27 +420,54 @@ class Launcher:
         uptime = now - run.child.started_at
         if run.state == "stopping":
             run.state = "stopped"
-            self._event("exit", run, f"stopped ({describe_exit(code)})", code=code)
+            self._event("exit", run, f"stopped ({describe_exit(code)}){self._stop_escalation(run, code)}", code=code)
             return
         reason = f" after {run.killed_for}" if run.killed_for else ""
         run.killed_for = None
         tail = "" if code == 0 else _log_tail(run.child.log)
-        self._event("exit", run, f"{describe_exit(code)}{reason} after {uptime:.1f} s{tail}", code=code)
+        what = f"{describe_exit(code)}{reason} after {uptime:.1f} s"
         if uptime >= run.policy.healthy_after:
             run.consecutive = 0
-        if run.policy.wants_restart(code, run.restarts):
-            delay = run.policy.delay(run.consecutive)
+        policy = run.policy
+        if policy.wants_restart(code, run.restarts):
+            delay = policy.delay(run.consecutive)
             run.consecutive += 1
             run.state, run.restart_at = "backoff", now + delay
-        elif run.policy.mode != "never" and run.restarts >= run.policy.max_restarts and (
-                code != 0 or run.policy.mode == "always"):
-            run.state = "failed"
-            self._event("giveup", run, f"gave up after {run.restarts} restarts (max_restarts)", code=code)
-        else:
+            self._event("exit", run, f"{what}; restart {run.restarts + 1}/{policy.max_restarts} "
+                                     f"in {delay:.2f} s{tail}", code=code)
+            return
+        self._event("exit", run, what, code=code)
+        if policy.mode == "never" or (code == 0 and policy.mode == "on-failure"):
             run.state = "exited" if code == 0 else "failed"
+            if code != 0:
+                self._event("giveup", run, f"failed for good: {describe_exit(code)}, and restart = "
+                                           f"\"never\"{tail}", code=code)
+        else:
+            run.state = "failed"
+            self._event("giveup", run, f"gave up after {run.restarts} restarts (max_restarts = "
+                                       f"{policy.max_restarts}); last: {describe_exit(code)}{tail}", code=code)
+        if run.spec.required and self._stop_reason is None:
+            self._stop_reason = f"required node {run.name} ended"
+            self.view.line(f"{run.name} is required and has ended for good: stopping every node")
+
+    def _stop_escalation(self, run: NodeRun, code: int) -> str:
+        """How far the stop had to go, when it went past SIGINT."""
+        interrupt, terminate = self.stop_timeouts
+        if run.child.last_signal == signal.SIGKILL:
+            return (f": it ignored SIGINT ({interrupt:g} s) and SIGTERM ({terminate:g} s), "
+                    "so it was killed with SIGKILL")
+        if run.child.last_signal == signal.SIGTERM:
+            return f": it did not stop within {interrupt:g} s of SIGINT; stopped by SIGTERM"
+        return ""
 
     def _supervise(self, now: float) -> None:
         system = self.system
+        if self._recorder_ready is not None and self._recorder_ready.exists() and self.recorder is not None:
+            # said once it listens, so that the new file holds the news of the old one's end
+            self._recorder_ready = None
+            self._launcher_event("recorder", f"recorder: restarted (pid {self.recorder.pid}), recording "
+                                 f"continues in {self.recording}; the gap since {self.recordings[-2]} "
+                                 "ended is lost", file=str(self.recording))
         for run in self.runs.values():
             if run.state == "waiting" and all(dep in self.alive_paths for dep in run.spec.after):
                 self._spawn(run, "start")
@@ -376,9 +476,11 @@ class Launcher:
                 self._spawn(run, "restart")
             elif run.state == "starting" and now - run.child.started_at > system.start_timeout:
                 self._kill(run, f"no liveliness token within {system.start_timeout:g} s")
-            elif run.state == "running" and run.last_beat is not None \
-                    and now - run.last_beat > system.heartbeat_timeout:
-                self._kill(run, f"no heartbeat for {now - run.last_beat:.1f} s")
+            elif run.state == "running" and now - (run.last_beat or run.live_since) > system.heartbeat_timeout:
+                # Counted from the token when no heartbeat came yet: a node frozen between its
+                # token and its first heartbeat is as stale as one frozen later.
+                self._kill(run, f"no heartbeat for {now - (run.last_beat or run.live_since):.1f} s"
+                                + (" (none since it went live)" if run.last_beat is None else ""))
             elif run.state == "lost" and now - run.lost_since > system.heartbeat_timeout:
                 self._kill(run, f"liveliness token gone for {now - run.lost_since:.1f} s")
 
@@ -408,10 +510,18 @@ class Launcher:
     # ------------------------------------------------------------------ reporting
     def _event(self, event: str, run: NodeRun, text: str, code: int | None = None) -> None:
         self.view.line(f"{run.name}: {text}")
+        self._publish({"event": event, "node": run.name, "pid": run.child.pid, "code": code,
+                       "t_ns": time.time_ns(), "restarts": run.restarts})
+
+    def _launcher_event(self, event: str, text: str, code: int | None = None, **extra: Any) -> None:
+        """An event of the launcher itself (node None): the recorder's fate..."""
+        self.view.line(text)
+        self._publish({"event": event, "node": None, "pid": os.getpid(), "code": code,
+                       "t_ns": time.time_ns(), "message": text.split("\n", 1)[0], **extra})
+
+    def _publish(self, payload: dict) -> None:
         if self._publisher is None:
             return
-        payload = {"event": event, "node": run.name, "pid": run.child.pid, "code": code,
-                   "t_ns": time.time_ns(), "restarts": run.restarts}
         if self.host is not None:
             payload["host"] = self.host
         try:
@@ -434,6 +544,7 @@ class Launcher:
     # ------------------------------------------------------------------ shutdown
     def _shutdown(self) -> None:
         """Nodes first (the recorder sees them go), then the recorder, then the session."""
+        self._shutting_down = True
         interrupt, terminate = self.stop_timeouts
         if self._interrupts > 1:
             interrupt = terminate = 0.0  # a second Ctrl-C: no more patience
@@ -449,17 +560,20 @@ class Launcher:
                 item = self.events.get_nowait()
             except queue.Empty:
                 break
-            if item[0] == "exit":
+            if item[0] in ("exit", "recorder"):
                 self._handle(item)
         for run in self.runs.values():
             if run.state == "stopping":
                 run.state = "stopped"
         if self.recorder is not None:
+            recorder, self.recorder = self.recorder, None  # its exit is ours, not a death
             time.sleep(0.1)  # let the last events reach the recorder before it closes its file
-            stop_all([self.recorder], 5.0, 2.0)
-            if self.recorder.code not in (0, None):
-                self.view.line(f"warning: the recorder ended with {describe_exit(self.recorder.code)}"
-                               f"{_log_tail(self.recorder.log)}")
+            stop_all([recorder], 5.0, 2.0)
+            if recorder.code not in (0, None):
+                self.recording_lost = self.recording_lost or f"the recorder ended with {describe_exit(recorder.code)}"
+                self.view.line(f"warning: the recorder ended with {describe_exit(recorder.code)}; "
+                               f"'iotad recover {self.recording}' makes the file whole"
+                               f"{_log_tail(recorder.log)}")
         self.view.update(self._rows(time.monotonic()))
         self.view.stop()
         for entity in reversed(self._declared):
@@ -498,8 +612,13 @@ class Launcher:
         for run in self.runs.values():
             if run.restarts:
                 lines.append(f"  {run.name}: restarted {run.restarts} time(s)")
-        if self.recording is not None:
-            lines.append(f"  recording: {self.recording}")
+        if len(self.recordings) == 1 and not self.recording_lost:
+            lines.append(f"  recording: {self.recordings[0]}")
+        elif self.recordings:
+            lines.append(f"  recording in {len(self.recordings)} files (the recorder died): "
+                         + ", ".join(str(p) for p in self.recordings))
+        if self.recording_lost:
+            lines.append(f"  RECORDING INCOMPLETE: {self.recording_lost}")
         if not self._own_dir or any(r.state == "failed" for r in self.runs.values()):
             lines.append(f"  configs and logs: {self.run_dir}")
         return lines
@@ -510,13 +629,47 @@ class LauncherError(Exception):
 
 
 def _log_tail(log: Path | None, lines: int = 4) -> str:
-    if log is None or not log.exists():
+    """The last lines of a child's output (its stderr, where errors go), for a report."""
+    if log is None:
         return ""
     try:
-        text = log.read_text(errors="replace").strip().splitlines()[-lines:]
+        with open(log, "rb") as stream:
+            stream.seek(max(0, stream.seek(0, os.SEEK_END) - 4096))  # a chatty log may be huge
+            text = stream.read().decode(errors="replace").strip().splitlines()[-lines:]
     except OSError:
         return ""
     return "".join(f"\n    | {line}" for line in text)
+
+
+def _unwritable(output: Path) -> str | None:
+    """Why a recording cannot be written at `output` (checked before anything starts), or None."""
+    try:
+        output.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        return f"cannot create its folder {output.parent}: {exc.strerror or exc}"
+    if output.is_dir():
+        return "it is a folder"
+    try:
+        free = shutil.disk_usage(output.parent).free
+    except OSError as exc:
+        return f"cannot see the free space of {output.parent}: {exc.strerror or exc}"
+    if free < MIN_FREE_BYTES:
+        return (f"only {free / 2**20:.1f} MiB free on its file system "
+                f"(at least {MIN_FREE_BYTES // 2**20} MiB wanted)")
+    existed = output.exists()
+    try:
+        with open(output, "ab"):
+            pass
+    except OSError as exc:
+        return exc.strerror or str(exc)
+    if not existed:
+        output.unlink(missing_ok=True)
+    return None
+
+
+def _segment(first: Path, number: int) -> Path:
+    """Where the recording goes on after its recorder died: `name.1.mcap`, `name.2.mcap`..."""
+    return first.with_name(f"{first.stem}.{number}{first.suffix}")
 
 
 __all__ = ["Launcher", "LauncherError", "NodeRun", "Tally"]

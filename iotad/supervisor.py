@@ -23,9 +23,14 @@ from typing import Callable, Sequence
 
 # argv: ppid, death signal, command... . If the parent died before prctl took effect, getppid()
 # has changed: exit rather than run an orphan. Without prctl (not Linux) just exec.
+# An ignored signal stays ignored across exec, and a launcher started from a script's background
+# job (`iotad run ... &`, nohup) inherits SIGINT ignored: give the child the default disposition
+# of the signals that stop it, or a child without its own handlers would shrug off SIGINT.
 _DEATH_WRAPPER = """
-import os, sys
+import os, signal, sys
 expected_parent, death_signal = int(sys.argv[1]), int(sys.argv[2])
+for stop_signal in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP, signal.SIGQUIT):
+    signal.signal(stop_signal, signal.SIG_DFL)
 try:
     import ctypes
     libc = ctypes.CDLL(None, use_errno=True)
@@ -62,6 +67,7 @@ class Child:
         self.proc: subprocess.Popen | None = None
         self.started_at = 0.0       # time.monotonic() of the last start
         self.code: int | None = None  # exit status of the last run (negative: killed by signal)
+        self.last_signal: int | None = None  # the last signal sent to the current run (how it was stopped)
         self._waiter: threading.Thread | None = None
 
     @property
@@ -85,6 +91,7 @@ class Child:
             if out is not subprocess.DEVNULL:
                 out.close()  # the child has its own copy
         self.code = None
+        self.last_signal = None
         self.started_at = time.monotonic()
         proc = self.proc
         self._waiter = threading.Thread(target=self._wait, args=(proc,), name=f"wait-{self.name}", daemon=True)
@@ -103,6 +110,7 @@ class Child:
         proc = self.proc
         if proc is None or proc.poll() is not None:
             return
+        self.last_signal = signum
         try:
             os.killpg(proc.pid, signum)
         except (ProcessLookupError, PermissionError):

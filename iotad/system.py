@@ -15,6 +15,7 @@ the hub is. Parsed with tomllib and checked whole before anything starts.
     restart = "on-failure"               # never | on-failure | always
     max_restarts = 5
     backoff = 0.1                        # seconds before the first restart, doubling after
+    required = false                     # true: when it fails for good, stop the whole system
 
     [[bind]]
     from = "vision.req"
@@ -50,7 +51,7 @@ _SYSTEM_KEYS = {"name", "time_unit", "endpoints", "hub_host", "heartbeat_period"
 # In TOML a key written after a [[node]] or [[bind]] table belongs to that table.
 _TABLE_HINT = {"external": " (a top-level key must come before the first table; or put it in [system])"}
 _NODE_KEYS = {"name", "spec", "iota", "python", "params", "restart", "max_restarts", "backoff", "host",
-              "after", "policy", "seed"}
+              "after", "policy", "seed", "required"}
 _TOP_KEYS = {"system", "node", "bind", "external", "hosts"}
 
 
@@ -89,6 +90,7 @@ class NodeSpec:
     after: list[str] = field(default_factory=list)
     policy: str | None = None
     seed: int | None = None
+    required: bool = False           # when it ends for good, the launcher stops the whole system
     channels: dict[str, ChannelInfo] = field(default_factory=dict)
 
 
@@ -413,6 +415,11 @@ class _Parser:
                 node.seed = raw["seed"]
             else:
                 self.error(entry, f"seed must be an integer, got {raw['seed']!r}")
+        if "required" in raw:
+            if isinstance(raw["required"], bool):
+                node.required = raw["required"]
+            else:
+                self.error(entry, f"required must be true or false, got {raw['required']!r}")
         return node
 
     def load_channels(self, system: System) -> None:

@@ -61,9 +61,14 @@ def wait_until(condition, timeout: float, step: float = 0.02):
 
 @contextmanager
 def launcher(system_file: Path, *args: str, cwd: Path | None = None, prefix: tuple = ()):
-    """`iotad run SYSTEM ...` as a process of its own; killed (with its group) on the way out.
-    Yields the Popen; its output (plain lines) goes to `<system_file>.out`."""
-    out = Path(str(system_file) + f".{next(_outputs)}.out")
+    """`iotad run SYSTEM ...` as a process of its own, stopped on the way out: SIGINT (a clean
+    stop that removes what it made), then SIGKILL to its group if it has not ended in 15 s.
+    Yields the Popen; its output (plain lines) goes to `<system_file>.N.out`, and its node
+    configs and logs to `<system_file>.N.logs` (unless the args say --log-dir), never /tmp."""
+    number = next(_outputs)
+    out = Path(str(system_file) + f".{number}.out")
+    if "--log-dir" not in args:
+        args = (*args, "--log-dir", str(system_file) + f".{number}.logs")
     with open(out, "wb") as sink:
         proc = subprocess.Popen([*prefix, sys.executable, "-m", "iotad", "run", str(system_file), "--plain", *args],
                                 stdout=sink, stderr=subprocess.STDOUT, cwd=cwd or ROOT, start_new_session=True)
@@ -71,13 +76,22 @@ def launcher(system_file: Path, *args: str, cwd: Path | None = None, prefix: tup
     try:
         yield proc
     finally:
-        if proc.poll() is None:
-            kids = children_of(proc.pid)
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait(10)
-            for pid in kids:  # the parent-death signal should have done it; be sure anyway
-                if not gone(pid):
-                    os.kill(pid, signal.SIGKILL)
+        stop_launcher(proc)
+
+
+def stop_launcher(proc: subprocess.Popen, patience: float = 15.0) -> None:
+    if proc.poll() is not None:
+        return
+    kids = children_of(proc.pid)
+    proc.send_signal(signal.SIGINT)
+    try:
+        proc.wait(patience)
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait(10)
+    for pid in kids:  # the launcher (or the parent-death signal) should have done it; be sure
+        if not gone(pid):
+            os.kill(pid, signal.SIGKILL)
 
 
 class Observer:

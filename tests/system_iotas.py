@@ -61,3 +61,16 @@ class Stub(Iota):
     """Stands for a node that the stub host (launcher_stub_node.py) makes exit on cue."""
     exit_code = Param(0)
     exit_after = Param(0.1)
+
+
+class Rogue(Iota):
+    """Stands for a node that the stub host plays badly: a token but no heartbeat, signals
+    ignored, an output flooded past its switching time (see launcher_stub_node.py)."""
+    exit_code = Param(0)
+    exit_after = Param(0.1)
+    stderr = Param("")
+    token = Param(False)
+    beat = Param(False)
+    ignore_signals = Param(False)
+    flood_hz = Param(0.0)
+    out = Output(Int, switching=1)

@@ -85,15 +85,45 @@ def test_frozen_node_is_killed_and_restarted(observed_pair):
             os.kill(pid, signal.SIGKILL)
 
 
-def test_ctrl_c_stops_every_child(observed_pair):
+@pytest.mark.parametrize("signum, status, said", [(signal.SIGINT, 130, "Ctrl-C"), (signal.SIGTERM, 143, "SIGTERM")],
+                         ids=["ctrl-c", "sigterm"])
+def test_signal_stops_every_child(observed_pair, signum, status, said):
+    """SIGTERM (a service manager, `kill`) stops exactly like Ctrl-C; the status says which."""
     proc, observer = observed_pair()
     kids = children_of(proc.pid)
     assert len(kids) == 2
-    proc.send_signal(signal.SIGINT)
-    assert proc.wait(15) == 130
+    proc.send_signal(signum)
+    assert proc.wait(15) == status
     assert all(gone(pid) for pid in kids), kids
     output = proc.output.read_text()
-    assert "Ctrl-C: stopping every node" in output and output.count("stopped (exit 0)") == 2, output
+    assert f"{said}: stopping every node" in output and output.count("stopped (exit 0)") == 2, output
+
+
+def test_node_frozen_before_its_first_heartbeat_is_killed(tmp_path):
+    """The race behind a once-flaky frozen-node test: a node whose token is up but whose first
+    heartbeat never comes (frozen in between) was never judged stale. A stand-in plays it."""
+    path = tmp_path / "mute.toml"
+    path.write_text(f"""
+[system]
+name = "mute"
+heartbeat_timeout = 0.5
+[system.endpoints]
+listen = ["tcp/127.0.0.1:{free_port()}"]
+[[node]]
+name = "n"
+python = "{IOTAS}:Rogue"
+params = {{ token = true, exit_after = 60 }}
+max_restarts = 1
+backoff = 0.01
+""")
+    lines = []
+    run = Launcher(load_system(path), record=False, until=30, live_table=False, log_dir=str(tmp_path / "logs"),
+                   node_argv=lambda config: [sys.executable, str(STUB), config])
+    run.view.line = lines.append
+    assert run.run() == 1, lines
+    kills = [line for line in lines if "none since it went live" in line and "killing" in line]
+    assert len(kills) == 2 and run.runs["n"].restarts == 1, lines
+    assert any("gave up after 1 restarts" in line for line in lines), lines
 
 
 def test_sigkilled_launcher_leaves_no_orphans(tmp_path):
@@ -143,7 +173,7 @@ def test_restart_policies(tmp_path, restart, exit_code, restarts, state, code):
     """With a stand-in node host that exits on cue: the launcher ends once nothing will run again."""
     system = load_system(stub_system(tmp_path, restart, exit_code))
     lines = []
-    run = Launcher(system, record=False, until=20, live_table=False,
+    run = Launcher(system, record=False, until=20, live_table=False, log_dir=str(tmp_path / "logs"),
                    node_argv=lambda config: [sys.executable, str(STUB), config])
     run.view.line = lines.append
     started = time.monotonic()
@@ -161,7 +191,7 @@ def test_node_without_liveliness_is_killed_after_start_timeout(tmp_path):
     path.write_text(path.read_text().replace("exit_after = 0.05", "exit_after = 30")
                     .replace('name = "stub"', 'name = "stub"\nstart_timeout = 0.5'))
     lines = []
-    run = Launcher(load_system(path), record=False, until=20, live_table=False,
+    run = Launcher(load_system(path), record=False, until=20, live_table=False, log_dir=str(tmp_path / "logs"),
                    node_argv=lambda config: [sys.executable, str(STUB), config])
     run.view.line = lines.append
     started = time.monotonic()
