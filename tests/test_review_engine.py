@@ -270,3 +270,31 @@ def test_an_eager_run_implements_its_own_spec(inputs, window, switching):
     if not violations(engine):
         report = check_implements(system(*window, switching), engine.external_trace(), until=12)
         assert report.ok, report.lines()
+
+
+class Tight(Iota):
+    """Two firings on `out`; the second's window [0, 1] ends before the switching time allows."""
+    out = Output(switching=2.0)
+
+    def init(self):
+        self.n = 0
+
+    @out.action(when=lambda self: self.n < 2, within=(0, 1))
+    def sent(self):
+        self.n += 1
+
+
+def test_an_unreachable_window_is_one_violation_not_also_a_deadline_miss():
+    engine = Engine(Tight("t"))
+    engine.run(10)
+    assert [e["t"] for e in engine.trace if e["kind"] == "output"] == [0.0, 2.0]
+    assert violations(engine) == [(0.0, "out", "unreachable_window")]
+
+
+def test_a_late_process_is_still_a_deadline_miss():
+    engine = Engine(Tight("t"))
+    engine.start()
+    instance = engine.instances[0]
+    engine.fire_instance(instance, 0.5)
+    engine.fire_instance(instance, 5.0)  # enabled at 0.5, window [0.5, 1.5]: 5.0 is late
+    assert violations(engine) == [(0.5, "out", "unreachable_window"), (5.0, "out", "deadline_miss")]
