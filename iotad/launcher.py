@@ -603,7 +603,11 @@ class Launcher:
                     counts = values.get(wire.channel_key(system.name, node.name, channel.name, index), Counter())
                     receivers = ", ".join(str(p) for p in system.receivers_of(port))
                     total = sum(counts.values())
-                    shown = ", ".join(f"{v} x{n}" for v, n in sorted(counts.items()) if v != "*")
+                    labelled = [(v, n) for v, n in counts.items() if v != "*"]
+                    if len(labelled) >= VALUE_LABELS:
+                        shown = f"{len(labelled)}+ distinct values"
+                    else:
+                        shown = ", ".join(f"{v} x{n}" for v, n in sorted(labelled, key=_label_order))
                     lines.append(f"  {str(port):<24} {'-> ' + receivers if receivers else '':<22} "
                                  f"{total:>4} events{': ' + shown if shown else ''}")
         lines.append(f"  violations: {sum(violations.values())}"
@@ -639,6 +643,10 @@ def _log_tail(log: Path | None, lines: int = 4) -> str:
     except OSError:
         return ""
     return "".join(f"\n    | {line}" for line in text)
+
+
+def _label_order(item: tuple) -> tuple:
+    return (type(item[0]).__name__, item[0])
 
 
 def _unwritable(output: Path) -> str | None:

@@ -199,3 +199,17 @@ def test_node_without_liveliness_is_killed_after_start_timeout(tmp_path):
     assert time.monotonic() - started < 5, lines
     assert sum("no liveliness token within 0.5 s: killing" in line for line in lines) == 2, lines
     assert run.runs["n"].restarts == 1
+
+
+def test_summary_counters_stay_bounded(tmp_path):
+    """A counter output carries a new value each time: the launcher counts a bounded set of
+    labels per channel over a long run, and the summary still reads."""
+    run = Launcher(load_system(pair_system(tmp_path, free_port())), record=False, log_dir=str(tmp_path / "logs"),
+                   live_table=False)
+    for n in range(10_000):
+        run.tally.channel("iota/pair/src/out", n)
+    run.tally.channel("iota/pair/src/out", "<malformed>")
+    counts = run.tally.values["iota/pair/src/out"]
+    assert len(counts) <= 33 and sum(counts.values()) == 10_001
+    (line,) = [line for line in run.summary() if "src.out" in line]
+    assert "10001 events: 32+ distinct values" in line, line
