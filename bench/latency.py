@@ -3,7 +3,9 @@
     .venv/bin/python bench/latency.py [--samples 2000] [--nodes 32]
 
 1. raw: zenoh ping-pong between this process and a bare Python pong process;
-2. echo: the same ping through an echo IOTA node process (input action -> output action);
+2. echo: the same ping through an echo IOTA node process (input action -> output action); then
+   again while an `iotad record` process records the system (unless --no-record), and once more
+   without it: the recording cost is the p50 with it against the mean p50 of the runs around it;
 3. figure2: a request -> mdl_command through the Figure 2 scheduler node process;
 4. crowd: with --nodes echo node processes running, pings spread over all of them: p99, and each
    node's resident memory (VmRSS from /proc).
@@ -14,9 +16,11 @@ from __future__ import annotations
 import argparse
 import json
 import queue
+import signal
 import statistics
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -30,7 +34,8 @@ from iotad.transport import free_port, open_session  # noqa: E402
 
 ECHO = f"{ROOT / 'examples' / 'echo.py'}:Echo"
 SCHEDULER = f"{ROOT / 'examples' / 'scheduler.py'}:Scheduler"
-GOALS = {"echo_overhead_p50_us": 100.0, "echo_p99_ms": 2.0, "crowd_p99_ms": 5.0, "crowd_rss_mb": 40.0}
+GOALS = {"echo_overhead_p50_us": 100.0, "echo_p99_ms": 2.0, "crowd_p99_ms": 5.0, "crowd_rss_mb": 40.0,
+         "echo_record_cost": 0.10}
 
 
 def pong(endpoint: str) -> None:
@@ -127,6 +132,7 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--samples", type=int, default=2000)
     parser.add_argument("--nodes", type=int, default=32)
+    parser.add_argument("--no-record", action="store_true", help="skip the echo-with-recorder rows")
     parser.add_argument("--pong", metavar="ENDPOINT", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.pong:
@@ -153,6 +159,19 @@ def main() -> int:
         echo = bench.publisher("iota/bench/echo/inp")
         _wait_match(echo)
         results["echo"] = bench.ping([echo], [wire.encode(7)], args.samples)
+
+        # 2b. the same echo while `iotad record` records the system (its input, output, @trace),
+        # then once more without: the cost of recording, against the mean of the two baselines.
+        if not args.no_record:
+            with tempfile.TemporaryDirectory() as folder:
+                recorder = start_recorder(bench.endpoint, Path(folder) / "echo.mcap")
+                try:
+                    time.sleep(0.5)  # the recorder has asked the node for its @spec
+                    results["echo+rec"] = bench.ping([echo], [wire.encode(7)], args.samples)
+                finally:
+                    recorder.send_signal(signal.SIGINT)
+                    recorder.wait(60)
+            results["echo again"] = bench.ping([echo], [wire.encode(7)], args.samples)
 
         # 3. Figure 2: req -> mdl_command. Each request outbids the last (priority k+1), so the
         # scheduler schedules it at once; switching times of 1 unit are 0.1 ms here.
@@ -194,11 +213,31 @@ def main() -> int:
     figures = {"echo_overhead_p50_us": statistics.median(results["echo"]) - raw_p50,
                "echo_p99_ms": quantile(results["echo"], 0.99) / 1000,
                "crowd_p99_ms": quantile(results["crowd"], 0.99) / 1000, "crowd_rss_mb": max(rss)}
+    if "echo+rec" in results:
+        baseline = (statistics.median(results["echo"]) + statistics.median(results["echo again"])) / 2
+        figures["echo_record_cost"] = statistics.median(results["echo+rec"]) / baseline - 1
+        print(f"recording cost on the echo round trip: p50 {statistics.median(results['echo+rec']):.0f} us with "
+              f"`iotad record`, {baseline:.0f} us without (mean of the runs before and after): "
+              f"{figures['echo_record_cost']:+.1%}")
     print("goals:")
     for name, limit in GOALS.items():
+        if name not in figures:
+            continue
         value = figures[name]
         print(f"  {name:<22} {value:9.3f} <= {limit:<6g} {'met' if value <= limit else 'MISSED'}")
     return 0
+
+
+def start_recorder(hub: str, output: Path) -> subprocess.Popen:
+    ready = output.with_suffix(".ready")
+    process = subprocess.Popen([sys.executable, "-m", "iotad.cli", "record", "iota/bench/**", "-o", str(output),
+                                "--quiet", "--connect", hub, "--ready-file", str(ready)], cwd=ROOT)
+    deadline = time.monotonic() + 30
+    while not ready.exists():
+        if process.poll() is not None or time.monotonic() > deadline:
+            raise SystemExit("the recorder did not start")
+        time.sleep(0.02)
+    return process
 
 
 def _wait_match(publisher, timeout: float = 10.0) -> None:

@@ -25,6 +25,7 @@ from typing import Any, Iterable
 from .clock import VirtualClock
 from .engine import ActionInstance, Engine
 from .types import to_plain
+from .wire import START_KIND
 
 INF = math.inf
 
@@ -347,8 +348,19 @@ def _value_of_safe(instance: ActionInstance) -> Any:
 
 def check_trace(root: Any, events: list[dict], *, node: str = "", tolerance: float = 0.0,
                 until: float | None = None, start: float = 0.0) -> CheckReport:
-    """`start`: when the node's engine started, in its clock (`recording.start_time`)."""
+    """`start`: when the node's engine started, in its clock (`recording.start_time`); a node
+    host's `start` event among `events` says it exactly and wins."""
+    events, start = split_start(events, start)
     return TraceChecker(root, node, tolerance, start).check(events, until)
+
+
+def split_start(events: list[dict], start: float = 0.0) -> tuple[list[dict], float]:
+    """(the events without engine-start records, the start time): a node host's first @trace
+    event (kind `start`) is when its engine evaluated every precondition first."""
+    found = [e for e in events if e.get("kind") == START_KIND]
+    if not found:
+        return events, start
+    return [e for e in events if e.get("kind") != START_KIND], float(found[0]["t"])
 
 
 # ------------------------------------------------------------------------------------ implements
@@ -556,4 +568,5 @@ class ImplementsChecker:
 def check_implements(spec_root: Any, events: list[dict], *, node: str = "", spec_name: str = "",
                      tolerance: float = 0.0, budget: int = 20_000, until: float | None = None,
                      start: float = 0.0) -> ImplementsReport:
+    events, start = split_start(events, start)
     return ImplementsChecker(spec_root, tolerance, budget, start=start).check(events, node, spec_name, until)

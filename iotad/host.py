@@ -2,7 +2,8 @@
 
 One engine thread runs the IOTA under a `HostClock`; zenoh callbacks only enqueue raw samples.
 Outputs go out from an engine sink on pre-declared publishers (msgpack payload, attachment
-`[seq, send_time_ns]`); every event goes to `@trace`; a liveliness token, a heartbeat driven by
+`[seq, send_time_ns]`); every event goes to `@trace` (in bursts, at a lower zenoh priority than
+outputs, after an explicit `start` event that says when the engine started); a liveliness token, a heartbeat driven by
 the engine thread and an `@spec` queryable let tools see the node. `close()` stops the engine
 and closes the session: an unclosed session with callback subscribers hangs the interpreter.
 """
@@ -93,7 +94,8 @@ class NodeHost:
         self._trace_buffer: list[dict] = []
         self.clock = HostClock(config.time_unit, config.origin, heartbeat_period=config.heartbeat_period,
                                on_heartbeat=self._heartbeat, on_malformed=self._malformed,
-                               flush=self._flush_trace, pending=self._trace_buffer.__len__)
+                               flush=self._flush_trace, pending=self._trace_buffer.__len__,
+                               trace_period=config.trace_period)
         self.engine = Engine(root, self.clock, make_policy(config.policy, config.seed), record=False,
                              sinks=[self._publish_output, self._trace_buffer.append],
                              deadline_tolerance=config.deadline_tolerance / config.time_unit)
@@ -116,8 +118,9 @@ class NodeHost:
             publisher = session.declare_publisher(port.key, express=True, congestion_control=block)
             self._declared.append(publisher)
             self._ports[port.source] = [publisher, 0]
+        # The trace is for the recorder and tools: below the outputs, which real-time peers wait on.
         self._trace_pub = session.declare_publisher(wire.trace_key(config.system, config.path),
-                                                    congestion_control=block)
+                                                    congestion_control=block, priority=zenoh.Priority.DATA_LOW)
         self._trace_seq = 0
         self._beat_pub = session.declare_publisher(f"{base}/@heartbeat")
         self._declared += [self._trace_pub, self._beat_pub]
@@ -136,6 +139,7 @@ class NodeHost:
 
     def _run(self) -> None:
         try:
+            self._start_engine()
             self.engine.run()
         except BaseException as exc:  # noqa: BLE001 - reported by the main thread
             self.error = exc
@@ -144,6 +148,19 @@ class NodeHost:
                 self._flush_trace()
             except Exception:  # noqa: BLE001 - the session may be closing
                 pass
+
+    def _start_engine(self) -> None:
+        """Evaluate every precondition at one instant t0 and say so first on @trace: the `start`
+        event gives checker and replay the exact start of the first windows."""
+        clock = self.clock
+        t0 = clock.now()
+        clock.now = lambda: t0  # the engine's start reads the clock: let it read exactly t0
+        try:
+            self.engine.start()
+        finally:
+            del clock.now
+        self._trace_buffer.insert(0, wire.start_event(t0, self.root.instance_name, time.time(), os.getpid()))
+        self._flush_trace()
 
     def alive(self) -> bool:
         return self._thread is not None and self._thread.is_alive()

@@ -4,8 +4,11 @@ raw zenoh payloads, beats the application heartbeat and flushes the buffered tra
 Doing that work on the engine thread rather than on zenoh's callback threads is the point: a
 heartbeat then proves that the engine loop itself is alive (not only the process), a malformed
 payload is reported in order with the node's other events, and only one thread ever publishes
-on `@trace`. Trace events are flushed only when the engine is about to block (or the buffer is
-full), so an output is never delayed behind the trace of the input that caused it.
+on `@trace`. Trace events are flushed `trace_period` after the first of them was buffered (or
+when the buffer is full, or at a heartbeat, or at the stop), never in the middle of a step: an
+output is never delayed behind the trace of the input that caused it, and a recorder is woken
+once per period and node, not once per event (on a machine with few cores its wake-ups are what
+recording costs the nodes). A node killed with SIGKILL loses at most that period of its trace.
 """
 from __future__ import annotations
 
@@ -34,8 +37,11 @@ class HostClock(RealClock):
                  heartbeat_period: float = 0.5,
                  on_heartbeat: Callable[[float, int], None] = lambda t, backlog: None,
                  on_malformed: Callable[[float, RawInput, str], None] = lambda t, raw, message: None,
-                 flush: Callable[[], None] = lambda: None, pending: Callable[[], int] = lambda: 0):
+                 flush: Callable[[], None] = lambda: None, pending: Callable[[], int] = lambda: 0,
+                 trace_period: float = 0.0):
         super().__init__(time_unit, origin)
+        self._trace_period = trace_period / time_unit  # in clock units; 0: flush before blocking
+        self._trace_due = math.inf  # when the oldest buffered trace event must be out
         self._inbox = queue.SimpleQueue()  # C-implemented: cheaper put/get than queue.Queue
         self._period = heartbeat_period / time_unit  # in clock units
         self._next_beat = -math.inf
@@ -53,41 +59,42 @@ class HostClock(RealClock):
         while True:
             now = self.now()
             if now >= self._next_beat:
-                self._flush()
+                self._flush_trace()
                 self._on_heartbeat(now, inbox.qsize())
                 # skip missed beats rather than bursting them after a stall
                 self._next_beat = max(self._next_beat + self._period, now + self._period * 0.5)
+            pending = self._pending()
+            if pending:
+                if self._trace_due == math.inf:
+                    self._trace_due = now + self._trace_period
+                elif pending >= self.TRACE_BATCH or (self._trace_period and now >= self._trace_due + self._trace_period):
+                    self._flush_trace()  # a flood of inputs or of due firings: do not wait to block
             try:
                 item = inbox.get_nowait()
             except queue.Empty:
-                limit = deadline if deadline < self._next_beat else self._next_beat
+                if deadline <= now:
+                    return None  # a firing is due: its output goes out before any trace
+                if now >= self._trace_due:
+                    self._flush_trace()  # due, and about to block: now is the moment
+                limit = min(deadline, self._next_beat, self._trace_due)
                 timeout = (limit - self.now()) * self.time_unit
-                if timeout > 0:
-                    # About to block: publish the trace of the last steps now, not before an
-                    # output that is due at once (the engine calls wait(now) before firing it).
-                    if self._pending():
-                        self._flush()
-                        timeout = (limit - self.now()) * self.time_unit
-                    try:
-                        item = inbox.get(timeout=timeout) if timeout > 0 else inbox.get_nowait()
-                    except queue.Empty:
-                        item = None
-                else:
-                    item = None
-                if item is None:
+                try:
+                    item = inbox.get(timeout=timeout) if timeout > 0 else inbox.get_nowait()
+                except queue.Empty:
                     if self.now() >= deadline:
                         return None
-                    continue  # woke for a heartbeat
-            else:
-                if self._pending() >= self.TRACE_BATCH:
-                    self._flush()
+                    continue  # woke for a heartbeat or a trace flush
             if item.__class__ is RawInput:
                 item = self._decode(item)
                 if item is None:
                     continue
             elif item is STOP:
-                self._flush()
+                self._flush_trace()
             return item
+
+    def _flush_trace(self) -> None:
+        self._trace_due = math.inf
+        self._flush()
 
     def _decode(self, raw: RawInput) -> tuple | None:
         try:

@@ -30,6 +30,10 @@ class NodeConfig:
     # Seconds a firing may come after its window's end before it counts as a deadline miss: a
     # Python process wakes some tens of microseconds late, which is not the spec's fault.
     deadline_tolerance: float = 0.002
+    # Seconds a node may hold its trace events before publishing them on @trace in one burst:
+    # one recorder wake-up per period instead of one per event (and at most this much of the
+    # trace lost if the node is killed). 0: publish whenever the engine is about to block.
+    trace_period: float = 0.02
     policy: str = "eager"
     seed: int = 0
     zenoh: dict[str, Any] = field(default_factory=dict)  # extra zenoh config: path -> JSON value
@@ -41,7 +45,7 @@ class NodeConfig:
 
 
 _KNOWN = {"system", "path", "source", "params", "time_unit", "origin", "listen", "connect", "inputs",
-          "heartbeat_period", "deadline_tolerance", "policy", "seed", "zenoh"}
+          "heartbeat_period", "deadline_tolerance", "trace_period", "policy", "seed", "zenoh"}
 
 
 def load(path: str | Path) -> NodeConfig:
@@ -89,6 +93,11 @@ def from_dict(data: Any, where: str = "config") -> NodeConfig:
     if not isinstance(params, dict):
         raise ConfigError(f"{where}: params must be an object")
     config.params = params
+    if "trace_period" in data:
+        value = data["trace_period"]
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not (0 <= value <= 1):
+            raise ConfigError(f"{where}: trace_period must be a number of seconds in [0, 1], got {value!r}")
+        config.trace_period = float(value)
     for key in ("time_unit", "heartbeat_period", "deadline_tolerance"):
         if key in data:
             value = data[key]

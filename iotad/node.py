@@ -6,6 +6,7 @@ exits with code 2; a clean stop exits 0; an engine that dies or halts exits 1.
 from __future__ import annotations
 
 import argparse
+import gc
 import signal
 import sys
 import threading
@@ -59,6 +60,10 @@ def main(argv: list[str] | None = None) -> int:
             host.start()
         except Exception as exc:  # noqa: BLE001 - zenoh rejects an endpoint, a port is taken...
             return _fail(f"{config.path}: cannot start on zenoh: {exc}".splitlines()[0])
+        # Everything made so far (modules, the spec, zenoh objects) lives as long as the node: keep
+        # it out of the collector's full passes, which would otherwise stall the engine thread.
+        gc.collect()
+        gc.freeze()
         while not stop.wait(0.25):
             if not host.alive():
                 break

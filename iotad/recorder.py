@@ -9,6 +9,7 @@ detection), asks each new node for its `@spec`, and closes the chunk in progress
 from __future__ import annotations
 
 import json
+import os
 import threading
 import time
 import tomllib
@@ -21,6 +22,33 @@ import zenoh
 from . import wire
 from .recording import FORMAT, GAP_TOPIC, McapSink, channel_schemas, packb, schema_for_topic
 from .transport import DEFAULT_LISTEN, open_session
+
+NICENESS = 10  # a tenth of a normal process's CPU share when both want the CPU
+
+
+def yield_cpu(threads: Iterable[int] | None = None, niceness: int = NICENESS) -> str:
+    """Lower the CPU priority of this process (every thread of it, zenoh's included) to
+    `niceness`. Returns what was done, for the log.
+
+    A logger should give way to the real-time nodes: on a machine with few cores the recorder
+    is woken for every event it records and competes with the nodes' own wake-ups. Not
+    SCHED_IDLE, and not the weakest nice level: a recorder starved by busy nodes would keep
+    events in memory for longer than a kill may lose (`flush_period`), so it keeps a share."""
+    if threads is None:
+        try:
+            threads = [int(name) for name in os.listdir("/proc/self/task")]
+        except OSError:
+            threads = [0]
+    done = "unchanged"
+    for tid in threads:
+        try:
+            if os.getpriority(os.PRIO_PROCESS, tid) < niceness:
+                os.setpriority(os.PRIO_PROCESS, tid, niceness)  # Linux: per thread
+            done = f"nice {niceness}"
+        except OSError:
+            pass
+    return done
+
 
 def expand_keys(keys: Iterable[str]) -> list[str]:
     """`iota/<sys>/**` does not match `@` chunks in zenoh: widen it to every key of the system."""
@@ -60,7 +88,7 @@ class Recorder:
     def __init__(self, keys: Iterable[str], output: str | Path, *, system_file: str | Path | None = None,
                  connect: Iterable[str] = (), listen: Iterable[str] = DEFAULT_LISTEN,
                  flush_period: float = 0.05, spec_timeout: float = 0.5, query_specs: bool = True,
-                 fifo_capacity: int = 65536):
+                 fifo_capacity: int = 65536, background: bool = False):
         self.system_text, self.system_table = (None, {})
         if system_file is not None:
             self.system_text, self.system_table = read_system_file(system_file)
@@ -81,6 +109,9 @@ class Recorder:
         self.stats = {"received": 0, "written": 0, "gaps": 0, "missing": 0, "duplicates": 0, "flushes": 0}
         self._stopping = threading.Event()
         self.fifo_capacity = fifo_capacity
+        # `iotad record` runs as its own process and sets this: see `yield_cpu`. Off for a
+        # recorder inside another program, whose threads are not ours to slow down.
+        self.background = background
         self._session: Any = None
         self._subscribers: list = []
         self._thread: threading.Thread | None = None
@@ -110,6 +141,8 @@ class Recorder:
                     key, zenoh.handlers.FifoChannel(self.fifo_capacity)))
             self._thread = threading.Thread(target=self._run, name="iotad-recorder", daemon=True)
             self._thread.start()
+            if self.background:
+                self.priority = yield_cpu()  # after zenoh and the writer have started their threads
         except BaseException:
             self._close_session()
             raise

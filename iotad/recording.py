@@ -42,12 +42,13 @@ PROFILE = "iotad"
 GAP_TOPIC = "@recorder/gaps"
 FORMAT = "iotad-mcap/1"
 
-# Every message on a `@trace` key is one event in the trace JSONL shape (DESIGN section 5).
+# Every message on a `@trace` key is one event in the trace JSONL shape (DESIGN section 5); a
+# node host's first one is its engine-start record (kind `start`, `wire.start_event`).
 TRACE_SCHEMA = {
     "title": "iotad trace event", "type": "object",
     "properties": {"t": {"type": "number"}, "iota": {"type": "string"}, "action": {"type": "string"},
                    "index": {"type": ["integer", "null"]},
-                   "kind": {"enum": ["input", "output", "internal", "violation"]}, "value": {}},
+                   "kind": {"enum": ["input", "output", "internal", "violation", "start"]}, "value": {}},
     "required": ["t", "iota", "action", "kind"]}
 GAP_SCHEMA = {
     "title": "iotad sequence gap", "type": "object",
@@ -217,10 +218,15 @@ def channel_list(spec: Any) -> list[dict]:
 
 
 def start_time(spec: dict | None) -> float:
-    """When the node's engine started, in its own clock: a node host stamps its `@spec` answer
-    (`started`, wall clock) just before starting the engine; in-process runs start at 0."""
+    """When the node's engine started, in its own clock. `Recording.specs` adds `engine_start`
+    from the node's `start` event on @trace (exact); a recording older than that event has only
+    the `started` wall-clock stamp of the `@spec` answer (taken just before the engine started);
+    in-process runs start at 0."""
     if not spec:
         return 0.0
+    exact = spec.get("engine_start")
+    if isinstance(exact, (int, float)):
+        return float(exact)
     started, origin, unit = spec.get("started"), spec.get("origin"), spec.get("time_unit") or 1.0
     if isinstance(started, (int, float)) and isinstance(origin, (int, float)):
         return max(0.0, (started - origin) / unit)
@@ -446,7 +452,30 @@ class Recording:
                 except ValueError:
                     continue
                 out[attachment.name[5:-5]] = spec
+        for node, t in self.start_times().items():
+            if node in out and isinstance(out[node], dict):
+                out[node]["engine_start"] = t
         return out
+
+    def start_times(self) -> dict[str, float]:
+        """node -> when its engine started (its `start` event on @trace; the first one if a
+        restarted node has several, since the first windows are those of the first run)."""
+        cached = self.__dict__.get("_start_times")
+        if cached is not None and cached[0] == len(self.messages):
+            return dict(cached[1])
+        out: dict[str, float] = {}
+        marker = packb(wire.START_KIND)
+        for message in self.messages:
+            # cheap test first: only a start record holds the packed string "start"
+            if not message.topic.endswith("/@trace") or marker not in message.data:
+                continue
+            parsed = wire.parse_key(message.topic)
+            event = message.value
+            if parsed and isinstance(event, dict) and event.get("kind") == wire.START_KIND \
+                    and isinstance(event.get("t"), (int, float)):
+                out.setdefault(parsed[1], float(event["t"]))
+        self.__dict__["_start_times"] = (len(self.messages), out)
+        return dict(out)
 
     @property
     def system_text(self) -> str | None:
@@ -480,8 +509,9 @@ class Recording:
                 found.add(parsed[1])
         return sorted(found)
 
-    def trace(self, node: str | None = None) -> list[dict]:
-        """Trace events (from `@trace` keys) of one node or of all, in recorded order."""
+    def trace(self, node: str | None = None, starts: bool = False) -> list[dict]:
+        """Trace events (from `@trace` keys) of one node or of all, in recorded order; the
+        engine-start records (kind `start`) only with `starts`."""
         out = []
         for message in self.messages:
             if not message.topic.endswith("/@trace"):
@@ -491,6 +521,8 @@ class Recording:
                 continue
             event = message.value
             if isinstance(event, dict):
+                if not starts and event.get("kind") == wire.START_KIND:
+                    continue
                 event.setdefault("node", parsed[1])
                 out.append(event)
         return out

@@ -3,6 +3,8 @@
 - Channel keys: `iota/<system>/<instance path>/<channel>[/<index>]`.
 - A node's own events (all of them: inputs, outputs, internal actions, violations, as trace
   dicts in the node's clock) go on `iota/<system>/<instance path>/@trace`.
+- The first event a node host puts on `@trace` is `start_event(...)` (kind `start`): the engine's
+  start time `t` in the node's clock, when every precondition was first evaluated.
 - Launcher events (node start, exit, restart) go on `iota/<system>/@launcher`.
 - Payload: msgpack of the plain value (None for a channel without a value).
 - Attachment: msgpack `[sequence, send_time_ns]`: a per-publisher counter from 0 (a receiver or
@@ -32,6 +34,15 @@ def channel_key(system: str, path: str, channel: str, index: int | None = None) 
 
 def trace_key(system: str, path: str) -> str:
     return f"{PREFIX}/{system}/{path}/@trace"
+
+
+START_KIND = "start"
+
+
+def start_event(t: float, iota: str, wall: float, pid: int) -> dict:
+    """A node's engine-start record on its `@trace` (trace-event shape, kind `start`)."""
+    return {"t": t, "iota": iota, "action": "@start", "index": None, "kind": START_KIND,
+            "value": {"wall": wall, "pid": pid}}
 
 
 def launcher_key(system: str) -> str:

@@ -159,3 +159,15 @@ def test_spec_that_fails_to_load_is_reported(tmp_path):
     config["inputs"] = {"nope": ["iota/s/x/y"]}
     result = run_node("--config-json", json.dumps(config))
     assert result.returncode == 2 and "unknown input channel" in result.stderr
+
+
+def test_trace_opens_with_the_engine_start_event(hub, start_node):
+    node = start_node("echo", f"{ECHO}:Echo")
+    publish(hub, f"{node.base}/inp", wire.encode(5))
+    trace = wait_for(lambda: len(hub.values(f"{node.base}/@trace")) >= 3 and hub.values(f"{node.base}/@trace"),
+                     what="start, input and output on @trace")
+    first = trace[0]
+    assert (first["kind"], first["action"], first["iota"]) == ("start", "@start", "echo")
+    assert first["value"]["pid"] == node.process.pid
+    assert 0 < first["t"] <= trace[1]["t"]
+    assert [e["kind"] for e in trace[1:3]] == ["input", "output"]

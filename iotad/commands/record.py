@@ -48,7 +48,8 @@ def run(args: argparse.Namespace) -> int:
         raise CliError("--flush-period must be in (0, 10] seconds")
     try:
         recorder = Recorder(args.keys, args.output, system_file=args.system_file, connect=args.connect,
-                            listen=args.listen or DEFAULT_LISTEN, flush_period=args.flush_period)
+                            listen=args.listen or DEFAULT_LISTEN, flush_period=args.flush_period,
+                            background=True)  # a process of its own: yield the CPU to the nodes
     except (OSError, ValueError) as exc:
         raise CliError(str(exc)) from None
     stop = threading.Event()
