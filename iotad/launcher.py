@@ -360,7 +360,7 @@ class Launcher:
         last_view = 0.0
         while True:
             try:
-                item = self.events.get(timeout=0.05)
+                item = self.events.get(timeout=self._next_wake(time.monotonic()))
             except queue.Empty:
                 item = None
             while item is not None:
@@ -384,6 +384,11 @@ class Launcher:
             if now - last_view >= 0.25:
                 last_view = now
                 self.view.update(self._rows(now))
+
+    def _next_wake(self, now: float) -> float:
+        """At most 50 ms, less when a restart is due sooner: the backoff is all a restart waits."""
+        due = [run.restart_at for run in self.runs.values() if run.state == "backoff"]
+        return max(0.0, min([0.05, *(when - now for when in due)]))
 
     def _handle(self, item: tuple) -> None:
         kind = item[0]

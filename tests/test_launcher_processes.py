@@ -50,17 +50,22 @@ def test_kill9_node_is_restarted_and_live_within_a_second(observed_pair):
     proc, observer = observed_pair()
     pid = node_pid(proc.pid, "dst")
     assert pid is not None
-    killed_at = time.monotonic()
+    killed_at, killed_ns = time.monotonic(), time.time_ns()
     os.kill(pid, signal.SIGKILL)
     lost = observer.wait_alive("dst", False, 5)
     back = observer.wait_alive("dst", True, 5)
     assert lost is not None and back is not None, proc.output.read_text()
     restart_time = back - killed_at
-    print(f"\nkill -9 -> liveliness token lost after {(lost - killed_at) * 1000:.0f} ms, "
-          f"back after {restart_time * 1000:.0f} ms")
-    assert restart_time < 1.0
     restart = observer.wait_event(lambda e: e["event"] == "restart" and e["node"] == "dst", 5)
     assert restart is not None and restart["restarts"] == 1 and restart["pid"] != pid
+    # what the launcher contributes (exit seen, backoff 0.1 s, spawn) and what the node's own
+    # start-up takes (interpreter, imports, zenoh session, token), so a slow box shows which
+    spawned = (restart["t_ns"] - killed_ns) / 1e9
+    split = (f"kill -9 -> liveliness token lost after {(lost - killed_at) * 1000:.0f} ms, new process spawned "
+             f"after {spawned * 1000:.0f} ms (launcher, 100 ms backoff included), live again after "
+             f"{restart_time * 1000:.0f} ms (node start-up {(restart_time - spawned) * 1000:.0f} ms)")
+    print("\n" + split)
+    assert restart_time < 1.0, split
     new_pid = node_pid(proc.pid, "dst")
     assert new_pid == restart["pid"] and not gone(new_pid)
 
