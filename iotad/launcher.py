@@ -309,7 +309,12 @@ class Launcher:
         if problem:
             self._lose_recording(f"cannot record to {output}: {problem}")
             return
-        self._spawn_recorder(output)
+        try:
+            self._spawn_recorder(output)
+        except OSError as exc:  # out of processes, of file descriptors...
+            self.recorder = None
+            self._lose_recording(f"cannot start a new recorder: {exc}")
+            return
         self.recording = output
         self.recordings.append(output)
         self.view.line(f"recorder: restarting (pid {self.recorder.pid}) to record to {output}")
