@@ -628,6 +628,8 @@ class Launcher:
                 lines.append(f"  {run.name}: restarted {run.restarts} time(s)")
         if len(self.recordings) == 1 and not self.recording_lost:
             lines.append(f"  recording: {self.recordings[0]}")
+        elif len(self.recordings) == 1:
+            lines.append(f"  recording (cut short: 'iotad recover' it): {self.recordings[0]}")
         elif self.recordings:
             lines.append(f"  recording in {len(self.recordings)} files (the recorder died): "
                          + ", ".join(str(p) for p in self.recordings))

@@ -168,6 +168,11 @@ class Recorder:
             self._close_session()
         return self.stats
 
+    @property
+    def failed(self) -> BaseException | None:
+        """What ended the writer thread early (a full disk...), or None while it records."""
+        return self._error
+
     def _close_session(self) -> None:
         if self._session is not None:
             self._session.close()

@@ -252,6 +252,45 @@ def test_full_disk_is_an_error_before_any_node_starts(tmp_path):
     assert "started" not in result.stdout
 
 
+FILL_DURING_RUN = """
+mount -t tmpfs -o size=20m iotad-test {disk} || exit 77
+{python} -m iotad run {system} -o {disk}/rec.mcap --plain --until 6 --log-dir {logs} > {out} 2>&1 &
+launcher=$!
+i=0
+while ! grep -q "recording to" {out} && [ $i -lt 400 ]; do sleep 0.05; i=$((i+1)); done
+dd if=/dev/zero of={disk}/fill bs=1M count=40 2>/dev/null
+wait $launcher
+status=$?
+cp {disk}/rec.mcap {cut}
+exit $status
+"""
+
+
+def test_disk_filling_up_mid_run_stops_the_recording_loudly(tmp_path):
+    """The recording's file system fills up while the system runs: the recorder exits with the
+    reason, the launcher names the cut file, cannot start another (no space), says RECORDING
+    STOPPED, keeps the nodes running to the end, and exits 1. The cut file is recoverable."""
+    disk, out, cut = tmp_path / "disk", tmp_path / "launcher.out", tmp_path / "cut.mcap"
+    disk.mkdir()
+    script = FILL_DURING_RUN.format(disk=disk, python=sys.executable, system=pair_system(tmp_path, free_port()),
+                                    logs=tmp_path / "logs", out=out, cut=cut)
+    try:
+        result = subprocess.run(["unshare", "-m", "sh", "-c", script], cwd=ROOT, capture_output=True,
+                                text=True, timeout=90)
+    except FileNotFoundError:
+        pytest.skip("no unshare here")
+    if result.returncode == 77 or "unshare:" in result.stderr:
+        pytest.skip(f"cannot mount a private tmpfs here: {result.stderr.strip()}")
+    output = out.read_text()
+    assert result.returncode == 1, output + result.stderr
+    assert "No space left on device" in output and f"'iotad recover {disk}/rec.mcap' makes it whole" in output, output
+    assert "RECORDING STOPPED: cannot record to" in output and "MiB free" in output, output
+    assert "--until 6 s reached" in output and output.count("stopped (exit 0)") == 2, output
+    assert "RECORDING INCOMPLETE" in output
+    assert main(["recover", str(cut), "-o", str(tmp_path / "recovered.mcap")]) == 0
+    assert read_recording(tmp_path / "recovered.mcap").complete
+
+
 # ---------------------------------------------------------------------------- stopping
 
 def test_node_ignoring_sigint_and_sigterm_is_killed_after_the_timeouts(tmp_path):

@@ -8,7 +8,21 @@ import threading
 import time
 from pathlib import Path
 
+from iotad.cli import endpoint, key_expression, positive_float
+
 ORDER = 30
+
+EPILOG = """\
+examples:
+  iotad record 'iota/figure2/**' -o recordings/fig2.mcap            (quote '**' for the shell)
+  iotad record --system-file examples/figure2.toml -o fig2.mcap --duration 30
+  iotad record 'iota/figure2/**' -o fig2.mcap --connect tcp/127.0.0.1:7447
+
+'iotad run' starts a recorder by itself (-o FILE, or --no-record); use this command to record
+a system started elsewhere, or only some keys. Missing folders of -o are created. On a terminal
+a status line shows what has been written so far. Ctrl-C (SIGINT) or SIGTERM stops it cleanly
+(exit 0). Then: 'iotad info FILE', 'iotad check FILE', 'iotad replay FILE --node PATH';
+a killed recorder's file: 'iotad recover FILE'."""
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -19,20 +33,21 @@ def register(sub: argparse._SubParsersAction) -> None:
                     "so that 'iotad replay' and 'iotad check' need nothing else. Stops cleanly on "
                     "SIGINT/SIGTERM; a killed recording loses at most the last --flush-period seconds "
                     "and is made whole by 'iotad recover'.",
-        epilog="example: iotad record 'iota/figure2/**' -o recordings/fig2.mcap")
-    parser.add_argument("keys", nargs="*", metavar="KEYEXPR",
+        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("keys", nargs="*", metavar="KEYEXPR", type=key_expression,
                         help="zenoh key expressions; 'iota/SYS/**' also covers SYS's @trace, @launcher "
                              "and @heartbeat keys (default: every key of the system file's system)")
     parser.add_argument("-o", "--output", required=True, metavar="FILE", help="MCAP file to write")
     parser.add_argument("--system-file", metavar="SYSTEM.toml", help="system file to store in the recording")
-    parser.add_argument("--connect", action="append", default=[], metavar="EP",
-                        help="zenoh endpoint to connect to, e.g. tcp/127.0.0.1:7447 (repeatable)")
-    parser.add_argument("--listen", action="append", default=None, metavar="EP",
-                        help="zenoh endpoint to listen on (default tcp/127.0.0.1:0)")
-    parser.add_argument("--flush-period", type=float, default=0.05, metavar="S",
-                        help="close the MCAP chunk in progress this often (default 0.05 s)")
-    parser.add_argument("--duration", type=float, default=None, metavar="S",
-                        help="stop by itself after S seconds")
+    parser.add_argument("--connect", action="append", default=[], metavar="EP", type=endpoint,
+                        help="zenoh endpoint to connect to, e.g. tcp/127.0.0.1:7447 (repeatable; default: "
+                             "none, peers find the recorder through --listen and gossip)")
+    parser.add_argument("--listen", action="append", default=None, metavar="EP", type=endpoint,
+                        help="zenoh endpoint to listen on (default tcp/127.0.0.1:0: any free loopback port)")
+    parser.add_argument("--flush-period", type=positive_float, default=0.05, metavar="S",
+                        help="close the MCAP chunk in progress every S seconds (default 0.05)")
+    parser.add_argument("--duration", type=positive_float, default=None, metavar="S",
+                        help="stop by itself after S seconds (default: until Ctrl-C or SIGTERM)")
     parser.add_argument("--ready-file", metavar="PATH",
                         help="create PATH once subscribed (for launchers and tests to wait on)")
     parser.add_argument("--quiet", action="store_true", help="print nothing but errors")
@@ -46,26 +61,41 @@ def run(args: argparse.Namespace) -> int:
 
     if args.flush_period <= 0 or args.flush_period > 10:
         raise CliError("--flush-period must be in (0, 10] seconds")
+    output = Path(args.output)
+    if output.is_dir():
+        raise CliError(f"-o {args.output}: is a directory; name the .mcap file to write")
+    if args.system_file is not None:
+        if Path(args.system_file).is_dir():
+            raise CliError(f"--system-file {args.system_file}: is a directory")
+        if not Path(args.system_file).is_file():
+            raise CliError(f"--system-file {args.system_file}: no such file")
     try:
         recorder = Recorder(args.keys, args.output, system_file=args.system_file, connect=args.connect,
                             listen=args.listen or DEFAULT_LISTEN, flush_period=args.flush_period,
                             background=True)  # a process of its own: yield the CPU to the nodes
-    except (OSError, ValueError) as exc:
+    except UnicodeDecodeError:
+        raise CliError(f"--system-file {args.system_file}: not UTF-8 text") from None
+    except OSError as exc:
+        raise CliError(f"{exc.filename or args.output}: {exc.strerror or exc}") from None
+    except ValueError as exc:
         raise CliError(str(exc)) from None
     stop = threading.Event()
     for signum in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signum, lambda *_: stop.set())
     try:
         recorder.start()
-    except Exception as exc:  # noqa: BLE001 - zenoh or the file system said no
-        raise CliError(f"cannot start recording: {exc}") from None
+    except OSError as exc:
+        raise CliError(f"cannot start recording: {exc.filename or args.output}: {exc.strerror or exc}") from None
+    except Exception as exc:  # noqa: BLE001 - zenoh said no
+        reason = str(exc).split(" at /", 1)[0]  # zenoh appends its Rust source location
+        raise CliError(f"cannot start recording: {reason}") from None
     try:
         if args.ready_file:
             Path(args.ready_file).write_text(str(recorder.output))
         if not args.quiet:
             print(f"recording {' '.join(recorder.keys)} -> {recorder.output} (Ctrl-C to stop)", file=sys.stderr)
         deadline = None if args.duration is None else time.monotonic() + args.duration
-        while not stop.is_set():
+        while not stop.is_set() and recorder.failed is None:  # a write error ends the recording: exit, say why
             timeout = 0.5 if deadline is None else min(0.5, max(0.0, deadline - time.monotonic()))
             stop.wait(timeout)
             if deadline is not None and time.monotonic() >= deadline:
