@@ -3,6 +3,8 @@ and watch a system's liveliness tokens and launcher events from an observer sess
 import itertools
 import os
 import queue
+import random
+import socket
 import signal
 import subprocess
 import sys
@@ -20,6 +22,32 @@ IOTAS = Path(__file__).resolve().parent / "system_iotas.py"
 
 
 _outputs = itertools.count()  # one output file per launcher, even two started in the same instant
+
+
+def _ephemeral_low() -> int:
+    try:
+        with open("/proc/sys/net/ipv4/ip_local_port_range") as ports:
+            return int(ports.read().split()[0])
+    except (OSError, ValueError, IndexError):
+        return 32768
+
+
+def free_port() -> int:
+    """A free loopback port below the kernel's ephemeral range, for a hub that another process
+    will listen on a moment later. `iotad.transport.free_port` returns an ephemeral port, which
+    any outgoing connection (a node, a recorder, another test's peer) may take as its source
+    port before the hub binds it; ports below the range are only ever taken by listeners."""
+    low = _ephemeral_low()
+    chooser = random.Random()
+    for _ in range(200):
+        port = chooser.randrange(max(1024, low - 12000), low)
+        with socket.socket() as probe:
+            try:
+                probe.bind(("127.0.0.1", port))
+            except OSError:
+                continue
+            return port
+    raise RuntimeError("no free loopback port below the ephemeral range")
 
 
 def gone(pid: int) -> bool:

@@ -2,8 +2,7 @@
 import subprocess
 import sys
 
-from launcher_helpers import ROOT
-from iotad.transport import free_port
+from launcher_helpers import ROOT, free_port
 
 
 def test_demo_produces_commit_abort_and_reject(tmp_path):

@@ -10,8 +10,7 @@ import pytest
 
 from iotad.launcher import Launcher
 from iotad.system import load_system
-from iotad.transport import free_port
-from launcher_helpers import IOTAS, Observer, children_of, gone, launcher, pair_system, wait_until
+from launcher_helpers import IOTAS, Observer, children_of, free_port, gone, launcher, pair_system, wait_until
 
 STUB = Path(__file__).resolve().parent / "launcher_stub_node.py"
 

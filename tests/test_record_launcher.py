@@ -9,6 +9,7 @@ import pytest
 from iotad.cli import main
 from iotad.recording import read_recording
 from iotad.replay import replay_node
+from launcher_helpers import free_port
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -17,7 +18,7 @@ ROOT = Path(__file__).resolve().parents[1]
 def recorded(tmp_path_factory):
     out = tmp_path_factory.mktemp("fig2") / "figure2.mcap"
     run = subprocess.run([sys.executable, "-m", "iotad.cli", "run", str(ROOT / "examples/figure2.toml"),
-                          "--until", "8", "--port", "0", "-o", str(out), "--plain"],
+                          "--until", "8", "--port", str(free_port()), "-o", str(out), "--plain"],
                          cwd=ROOT, capture_output=True, text=True, timeout=90)
     assert run.returncode == 0, run.stdout[-2000:] + run.stderr[-2000:]
     return out

@@ -14,7 +14,8 @@ import zenoh
 from iotad import wire
 from iotad.cli import main
 from iotad.recording import read_recording
-from iotad.transport import free_port, open_session
+from iotad.transport import open_session
+from launcher_helpers import free_port
 
 ROOT = Path(__file__).resolve().parents[1]
 
