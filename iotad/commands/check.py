@@ -5,7 +5,20 @@ from __future__ import annotations
 import argparse
 import json
 
-ORDER = 34
+from iotad.cli import nonnegative_float, positive_int
+
+ORDER = 33
+
+EPILOG = """\
+examples:
+  iotad check recordings/fig2.mcap                           every node against its own spec
+  iotad check recordings/fig2.mcap --node scheduler --all    one node, every problem listed
+  iotad check recordings/fig2.mcap --node scheduler \\
+      --spec nodes/scheduler/scheduler.iota --param N=2 --param T=0.5
+
+--tolerance is in spec time units (time_unit seconds each). docs/checking.md explains the
+algorithm, the slack columns and the limits of the search. See also: 'iotad replay FILE
+--node PATH' (re-run a node and compare its outputs), 'iotad info FILE'."""
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -17,17 +30,17 @@ def register(sub: argparse._SubParsersAction) -> None:
                     "With --spec: check that the external trace of --node is a trace of SPEC (the paper's "
                     "'implements'), by bounded search over the spec's hidden choices; reports the first event "
                     "the spec cannot explain. Exit 0: conforms; 1: a problem found; 2: bad input.",
-        epilog="examples: iotad check run.mcap; iotad check run.mcap --node scheduler --spec sched.iota")
-    parser.add_argument("file", metavar="FILE", help="an MCAP recording")
+        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("file", metavar="FILE", help="an MCAP recording (from 'iotad run' or 'iotad record')")
     parser.add_argument("--node", metavar="PATH", help="check only this node (required with --spec)")
     parser.add_argument("--spec", metavar="SPEC", help="another spec: an ESPRIT file (.iota) or file.py:Class")
     parser.add_argument("--iota", metavar="NAME", help="which IOTA of an ESPRIT file (default: the last)")
     parser.add_argument("--param", action="append", default=[], metavar="K=V",
                         help="a parameter of --spec (value parsed as JSON when it can be)")
-    parser.add_argument("--tolerance", type=float, default=None, metavar="T",
+    parser.add_argument("--tolerance", type=nonnegative_float, default=None, metavar="T",
                         help="slack allowed on times, in spec time units (default: exact for virtual-time "
                              "recordings, 10 ms for real ones)")
-    parser.add_argument("--budget", type=int, default=20_000, metavar="N",
+    parser.add_argument("--budget", type=positive_int, default=20_000, metavar="N",
                         help="search steps allowed for --spec (default 20000)")
     parser.add_argument("--all", action="store_true", help="list every problem, not the first 20")
     parser.set_defaults(func=run)
@@ -87,6 +100,8 @@ def run(args: argparse.Namespace) -> int:
     if args.spec:
         if not args.node:
             raise CliError("--spec needs --node PATH: whose trace to check against it")
+        if not args.spec.endswith(".iota") and ":" not in args.spec:
+            raise CliError(f"--spec {args.spec}: expected an ESPRIT file (.iota) or file.py:Class")
         events = recording.trace(args.node)
         if not events:
             raise CliError(f"node {args.node!r} has no @trace events in {args.file} "
@@ -97,6 +112,12 @@ def run(args: argparse.Namespace) -> int:
         print("\n".join(report.lines()))
         return 0 if report.ok else 1
     specs = recording.specs
+    if args.node and args.node not in specs:
+        raise CliError(f"no spec of node {args.node!r} in {args.file} "
+                       f"(nodes with specs: {', '.join(sorted(specs)) or 'none'})")
+    if args.iota or args.param:
+        raise CliError("--iota and --param apply to --spec; without --spec each node is checked against "
+                       "its own spec, with the parameters it ran with")
     nodes = [args.node] if args.node else sorted(specs)
     if not nodes:
         raise CliError(f"{args.file} holds no node specs: nothing to check against")

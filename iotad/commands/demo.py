@@ -8,19 +8,31 @@ import socket
 from collections import Counter
 from pathlib import Path
 
-ORDER = 90
+from iotad.cli import port, positive_float
+
+ORDER = 5
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 ANSWERS = ("COMMIT", "ABORT", "REJECT")
+
+EPILOG = """\
+examples:
+  iotad demo                  20 s over zenoh, recorded to recordings/ (what 'make demo' runs)
+  iotad demo --virtual        the same IOTAs in virtual time: instant, deterministic
+
+Exit 0 when COMMIT, ABORT and REJECT all happened. Same as 'iotad run examples/figure2.toml
+--until 20' plus that answer check. Then look at the recording the summary names:
+'iotad info FILE', 'iotad check FILE', 'iotad plot FILE -o fig2.png'."""
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser("demo", help="run the Figure 2 scheduler with two requesters and summarise",
                             description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter,
-                            epilog="same as: iotad run examples/figure2.toml --until 20 (plus the answer check)")
-    parser.add_argument("--until", type=float, default=None,
-                        help="seconds to run (default 20; virtual time units with --virtual, default 30)")
+                            epilog=EPILOG)
+    parser.add_argument("--until", type=positive_float, default=None, metavar="T",
+                        help="how long to run: wall-clock seconds (default 20); with --virtual, virtual "
+                             "time units (default 30)")
     parser.add_argument("--virtual", action="store_true", help="one process, virtual time, no zenoh")
-    parser.add_argument("--port", type=int, default=None,
+    parser.add_argument("--port", type=port, default=None,
                         help="hub port (default 7447 when free, else any free port)")
     parser.add_argument("--no-record", action="store_true", help="do not record to recordings/")
     parser.add_argument("--plain", action="store_true", help="plain event lines even on a terminal")

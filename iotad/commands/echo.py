@@ -8,18 +8,32 @@ import json
 import queue
 import time
 
+from iotad.cli import key_expression, positive_float, positive_int
+
 from .ls import add_connect, tool_session
 
 ORDER = 41
 
+EPILOG = """\
+examples (with 'iotad run examples/figure2.toml' running in another terminal):
+  iotad echo 'iota/figure2/scheduler/ack/*'           the scheduler's answers, as they come
+  iotad echo iota/figure2/scheduler/@trace --json     every event of the node, one JSON a line
+  iotad echo 'iota/figure2/**' --count 10 --timeout 30
+
+Each line: key, #sequence number, value as JSON; [GAP: n missed] when the sender's sequence
+numbers skip. Ctrl-C stops (exit 130); --count N exits 0 after N messages; --timeout exits 1.
+See also: 'iotad ls' (what keys exist), 'iotad hz KEY' (rates), 'iotad record'."""
+
 
 def register(sub: argparse._SubParsersAction) -> None:
-    parser = sub.add_parser("echo", help="print the values published on a key expression", description=__doc__)
-    parser.add_argument("keyexpr", help="e.g. iota/figure2/scheduler/ack/* or iota/figure2/scheduler/@trace")
-    parser.add_argument("--count", type=int, metavar="N", help="exit after N messages")
+    parser = sub.add_parser("echo", help="print the values published on a key expression, as they arrive",
+                            description=__doc__, epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("keyexpr", metavar="KEYEXPR", type=key_expression,
+                        help="e.g. 'iota/figure2/scheduler/ack/*' or iota/figure2/scheduler/@trace")
+    parser.add_argument("--count", type=positive_int, metavar="N", help="exit after N messages (default: never)")
     parser.add_argument("--json", action="store_true", help="one JSON object per message")
-    parser.add_argument("--timeout", type=float, metavar="S", help="exit (code 1) if S seconds pass without "
-                                                                   "--count messages")
+    parser.add_argument("--timeout", type=positive_float, metavar="S",
+                        help="exit with status 1 when S seconds pass before --count messages (default: wait forever)")
     add_connect(parser)
     parser.set_defaults(func=run)
 
@@ -53,6 +67,11 @@ def run(args: argparse.Namespace) -> int:
         while args.count is None or seen < args.count:
             wait = 0.2 if end is None else min(0.2, end - time.monotonic())
             if wait <= 0:
+                import sys
+
+                wanted = f"{args.count} messages" if args.count else "a message"
+                print(f"iotad echo: timeout: {seen} of {wanted} on {args.keyexpr} within {args.timeout:g} s",
+                      file=sys.stderr)
                 return 1
             try:
                 key, payload, attachment = inbox.get(timeout=wait)
@@ -82,8 +101,6 @@ def run(args: argparse.Namespace) -> int:
             shown = f"<{malformed}>" if malformed else json.dumps(value, default=repr)
             seq = "" if sequence is None else f"#{sequence} "
             print(f"{key} {seq}{shown}{flag}", flush=True)
-        return 0
-    except KeyboardInterrupt:
         return 0
     finally:
         session.close()

@@ -7,18 +7,31 @@ import math
 import queue
 import time
 
+from iotad.cli import key_expression, positive_float, positive_int
+
 from .ls import add_connect, tool_session
 
 ORDER = 43
 
+EPILOG = """\
+examples (with 'iotad run examples/figure2.toml' running in another terminal):
+  iotad hz iota/figure2/scheduler/@heartbeat          about 5 Hz (heartbeat_period 0.2 s)
+  iotad hz 'iota/figure2/*/req' --every 5 --count 3
+
+Rates are messages per second of wall-clock time, periods in seconds, measured on arrival.
+Ctrl-C stops (exit 130). See also: 'iotad echo KEY', 'iotad ls'."""
+
 
 def register(sub: argparse._SubParsersAction) -> None:
-    parser = sub.add_parser("hz", help="measure the publishing rate on a key expression", description=__doc__)
-    parser.add_argument("keyexpr")
+    parser = sub.add_parser("hz", help="measure the publishing rate on a key expression (like ros2 topic hz)",
+                            description=__doc__, epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("keyexpr", metavar="KEYEXPR", type=key_expression,
+                        help="e.g. iota/figure2/scheduler/@heartbeat or 'iota/figure2/**'")
     parser.add_argument("--window", type=int, default=1000, metavar="W",
-                        help="periods of the last W messages (default 1000)")
-    parser.add_argument("--count", type=int, metavar="N", help="exit after N reports")
-    parser.add_argument("--every", type=float, default=1.0, metavar="S", help="seconds between reports (default 1)")
+                        help="statistics over the periods of the last W messages (default 1000, at least 2)")
+    parser.add_argument("--count", type=positive_int, metavar="N", help="exit after N reports (default: never)")
+    parser.add_argument("--every", type=positive_float, default=1.0, metavar="S",
+                        help="seconds between reports (default 1)")
     add_connect(parser)
     parser.set_defaults(func=run)
 
@@ -64,8 +77,6 @@ def run(args: argparse.Namespace) -> int:
                 continue
             print(f"average rate: {stats['rate']:.3f}\n\tmin: {stats['min']:.6f}s max: {stats['max']:.6f}s "
                   f"std dev: {stats['std']:.6f}s window: {stats['window']}", flush=True)
-        return 0
-    except KeyboardInterrupt:
         return 0
     finally:
         session.close()

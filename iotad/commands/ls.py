@@ -4,16 +4,27 @@ from __future__ import annotations
 import argparse
 import json
 
+from iotad.cli import endpoint, positive_float
+
 ORDER = 40
+
+EPILOG = """\
+examples (with a system running, e.g. 'iotad run examples/figure2.toml' in another terminal):
+  iotad ls                              every live node and its channels
+  iotad ls --system figure2 --json      one JSON object per node
+
+Each channel line: <- input or -> output, name, type, switching time s (spec time units) and
+its zenoh keys. See also: 'iotad echo KEY', 'iotad hz KEY', 'iotad pub KEY VALUE'."""
 
 
 def add_connect(parser: argparse.ArgumentParser) -> None:
     """The options every introspection command shares."""
     from iotad.transport import DEFAULT_HUB_ENDPOINT
 
-    parser.add_argument("--connect", action="append", metavar="ENDPOINT",
-                        help=f"zenoh endpoint of the system's hub (default {DEFAULT_HUB_ENDPOINT}); repeatable")
-    parser.add_argument("--connect-timeout", type=float, default=3.0, metavar="S",
+    parser.add_argument("--connect", action="append", metavar="ENDPOINT", type=endpoint,
+                        help=f"zenoh endpoint of the system's hub (default {DEFAULT_HUB_ENDPOINT}, where "
+                             "'iotad run' puts it); repeatable")
+    parser.add_argument("--connect-timeout", type=positive_float, default=3.0, metavar="S",
                         help="give up when no peer answers within S seconds (default 3)")
 
 
@@ -28,10 +39,12 @@ def tool_session(args: argparse.Namespace):
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    parser = sub.add_parser("ls", help="list live IOTA nodes and their channels", description=__doc__)
-    parser.add_argument("--system", help="only the nodes of this system")
+    parser = sub.add_parser("ls", help="list the live nodes of running systems and their channels",
+                            description=__doc__, epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--system", metavar="NAME", help="only the nodes of this system (default: every system)")
     parser.add_argument("--json", action="store_true", help="one JSON object per node")
-    parser.add_argument("--timeout", type=float, default=2.0, help="seconds to wait for answers (default 2)")
+    parser.add_argument("--timeout", type=positive_float, default=2.0, metavar="S",
+                        help="seconds to wait for answers (default 2)")
     add_connect(parser)
     parser.set_defaults(func=run)
 
@@ -63,8 +76,6 @@ def run(args: argparse.Namespace) -> int:
     session = tool_session(args)
     try:
         nodes = list_nodes(session, args.system, args.timeout)
-    except KeyboardInterrupt:
-        return 0
     finally:
         session.close()
     if args.json:

@@ -6,18 +6,34 @@ import argparse
 import json
 import time
 
+from iotad.cli import key_expression, nonnegative_float, nonnegative_int, positive_float
+
 from .ls import add_connect, tool_session
 
 ORDER = 42
 
+EPILOG = """\
+examples (with 'iotad run examples/figure2.toml' running in another terminal):
+  iotad pub iota/figure2/scheduler/req/1 \\
+      '{"control": {"w": 0.7, "k": 1.0}, "epoch": 1.0, "timeout": 1.0, "priority": 9}'
+  iotad pub iota/some/node/tick null --count 0 --rate 10       10 Hz until Ctrl-C
+
+An input channel's key is iota/<system>/<node>/<channel>[/<index>] ('iotad ls' lists them);
+the node applies the value as an input event at the time it arrives, checking its type and
+switching time (a violation otherwise). See also: 'iotad echo KEY' to watch the answer."""
+
 
 def register(sub: argparse._SubParsersAction) -> None:
-    parser = sub.add_parser("pub", help="publish a JSON value on a key", description=__doc__)
-    parser.add_argument("key")
-    parser.add_argument("value", help="the value as JSON ('null' for a channel without a value)")
-    parser.add_argument("--count", type=int, default=1, metavar="N", help="publish N times (default 1; 0: forever)")
-    parser.add_argument("--rate", type=float, default=1.0, metavar="HZ", help="messages per second (default 1)")
-    parser.add_argument("--wait", type=float, default=2.0, metavar="S",
+    parser = sub.add_parser("pub", help="publish a JSON value on a key, e.g. to inject an input into a node",
+                            description=__doc__, epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("key", metavar="KEY", type=key_expression,
+                        help="where to publish, e.g. iota/figure2/scheduler/req/1 (no wildcards)")
+    parser.add_argument("value", metavar="VALUE", help="the value as JSON ('null' for a channel without a value)")
+    parser.add_argument("--count", type=nonnegative_int, default=1, metavar="N",
+                        help="publish N times (default 1; 0: until Ctrl-C)")
+    parser.add_argument("--rate", type=positive_float, default=1.0, metavar="HZ",
+                        help="messages per second when --count is not 1 (default 1)")
+    parser.add_argument("--wait", type=nonnegative_float, default=2.0, metavar="S",
                         help="wait up to S seconds for a subscriber before the first message (default 2)")
     add_connect(parser)
     parser.set_defaults(func=run)
@@ -37,6 +53,8 @@ def run(args: argparse.Namespace) -> int:
         raise CliError(f"value is not JSON: {exc.msg} (quote it for the shell: '{{\"w\": 1.0}}')") from None
     if args.rate <= 0:
         raise CliError("--rate must be positive")
+    if "*" in args.key:
+        raise CliError(f"{args.key}: a key to publish on has no wildcards ('*', '**')")
     payload = wire.encode(value)
     session = tool_session(args)
     try:
@@ -57,8 +75,6 @@ def run(args: argparse.Namespace) -> int:
             if delay > 0:
                 time.sleep(delay)
         publisher.undeclare()
-        return 0
-    except KeyboardInterrupt:
         return 0
     finally:
         session.close()

@@ -22,7 +22,16 @@ examples:
 a system started elsewhere, or only some keys. Missing folders of -o are created. On a terminal
 a status line shows what has been written so far. Ctrl-C (SIGINT) or SIGTERM stops it cleanly
 (exit 0). Then: 'iotad info FILE', 'iotad check FILE', 'iotad replay FILE --node PATH';
-a killed recorder's file: 'iotad recover FILE'."""
+a killed recorder's file: 'iotad recover FILE'.
+
+direct or trace-sourced: by default every sample on the keys is recorded as it arrives, so every
+message also wakes the recorder, which costs the nodes latency on a machine with few cores.
+--from-traces (what 'iotad run' uses) subscribes only to the nodes' @trace, @launcher and
+@heartbeat keys and writes each output (and each input no node sent, e.g. from 'iotad pub') on
+its own key from the trace event that describes it, with the sender's sequence number and send
+time: one wake-up per trace burst. It records what the nodes sent and saw: a message that no
+node received is only recorded in direct mode; a node killed with SIGKILL loses its last trace
+period (20 ms) of messages as well."""
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -44,6 +53,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                              "none, peers find the recorder through --listen and gossip)")
     parser.add_argument("--listen", action="append", default=None, metavar="EP", type=endpoint,
                         help="zenoh endpoint to listen on (default tcp/127.0.0.1:0: any free loopback port)")
+    parser.add_argument("--from-traces", action="store_true",
+                        help="record a whole system from its nodes' @trace bursts, not every sample "
+                             "(see below; needs 'iota/SYS/**' or --system-file)")
     parser.add_argument("--flush-period", type=positive_float, default=0.05, metavar="S",
                         help="close the MCAP chunk in progress every S seconds (default 0.05)")
     parser.add_argument("--duration", type=positive_float, default=None, metavar="S",
@@ -72,7 +84,8 @@ def run(args: argparse.Namespace) -> int:
     try:
         recorder = Recorder(args.keys, args.output, system_file=args.system_file, connect=args.connect,
                             listen=args.listen or DEFAULT_LISTEN, flush_period=args.flush_period,
-                            background=True)  # a process of its own: yield the CPU to the nodes
+                            background=True,  # a process of its own: yield the CPU to the nodes
+                            from_traces=args.from_traces)
     except UnicodeDecodeError:
         raise CliError(f"--system-file {args.system_file}: not UTF-8 text") from None
     except OSError as exc:

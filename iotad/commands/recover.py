@@ -4,7 +4,16 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-ORDER = 32
+from iotad.cli import output_file
+
+ORDER = 36
+
+EPILOG = """\
+example:
+  iotad recover recordings/fig2.mcap                 writes recordings/fig2.recovered.mcap
+
+'iotad info FILE' says INCOMPLETE for a recording whose recorder was killed; 'iotad check'
+and 'iotad replay' read such a file as it is, but other MCAP tools want the summary."""
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -12,7 +21,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         "recover", help="rewrite a killed recording as a complete MCAP (summary, indexes)",
         description="Read what a killed recorder left (sequentially, up to where it stopped) and write a "
                     "complete MCAP file with summary, statistics and indexes. Everything flushed before "
-                    "the kill comes back: at most the recorder's last --flush-period is lost.")
+                    "the kill comes back: at most the recorder's last --flush-period is lost.",
+        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("file", metavar="FILE", help="the cut-short recording")
     parser.add_argument("-o", "--output", metavar="OUT",
                         help="where to write (default: FILE with .recovered.mcap)")
@@ -28,6 +38,7 @@ def run(args: argparse.Namespace) -> int:
     output = Path(args.output) if args.output else source.with_suffix(".recovered.mcap")
     if output.resolve() == source.resolve():
         raise CliError("-o must name another file than the recording")
+    output_file(str(output))
     recording = load(args.file)
     count = copy_recording(recording, output, extra_metadata={"iotad.recovered": {
         "from": str(source), "was_complete": recording.complete, "messages": len(recording.messages),

@@ -3,7 +3,20 @@ from __future__ import annotations
 
 import argparse
 
-ORDER = 33
+from iotad.cli import endpoint, nonnegative_float, positive_float
+
+ORDER = 32
+
+EPILOG = """\
+examples:
+  iotad replay recordings/fig2.mcap --node scheduler              re-run and compare its outputs
+  iotad replay recordings/fig2.mcap --node scheduler --internal   internal events too
+  iotad replay recordings/fig2.mcap --live --rate 2               republish at twice the pace
+  iotad replay recordings/fig2.mcap --live --loop --connect tcp/127.0.0.1:7447
+
+--tolerance is in spec time units; --rate is a speed factor; --start is seconds into the
+recording. --live shows a progress bar; watch it with 'iotad echo' or Foxglove. See also:
+'iotad check FILE' (conformance to the specs), 'iotad info FILE'."""
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -14,20 +27,23 @@ def register(sub: argparse._SubParsersAction) -> None:
                     "times within --tolerance); print the first divergence with the events around it; "
                     "exit 0 only when they agree. With --live: republish every message on its zenoh key at "
                     "the recorded pace.",
-        epilog="examples: iotad replay run.mcap --node scheduler; iotad replay run.mcap --live --rate 2 --loop")
-    parser.add_argument("file", metavar="FILE", help="an MCAP recording")
+        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("file", metavar="FILE", help="an MCAP recording (from 'iotad run' or 'iotad record')")
     what = parser.add_mutually_exclusive_group(required=True)
     what.add_argument("--node", metavar="PATH", help="the node to re-run and compare")
     what.add_argument("--live", action="store_true", help="republish the recording on zenoh")
-    parser.add_argument("--tolerance", type=float, default=None, metavar="T",
+    parser.add_argument("--tolerance", type=nonnegative_float, default=None, metavar="T",
                         help="allowed time difference, spec time units (default: exact for virtual-time "
                              "recordings, 10 ms for real ones)")
     parser.add_argument("--internal", action="store_true", help="compare internal events too, not only outputs")
-    parser.add_argument("--rate", type=float, default=1.0, metavar="R", help="--live: speed factor (default 1)")
-    parser.add_argument("--start", type=float, default=0.0, metavar="S", help="--live: skip the first S seconds")
+    parser.add_argument("--rate", type=positive_float, default=1.0, metavar="R",
+                        help="--live: speed factor, 2 = twice as fast (default 1)")
+    parser.add_argument("--start", type=nonnegative_float, default=0.0, metavar="S",
+                        help="--live: skip the first S seconds of the recording (default 0)")
     parser.add_argument("--loop", action="store_true", help="--live: start again at the end (Ctrl-C stops)")
-    parser.add_argument("--connect", action="append", default=[], metavar="EP", help="--live: zenoh endpoint")
-    parser.add_argument("--listen", action="append", default=None, metavar="EP",
+    parser.add_argument("--connect", action="append", default=[], metavar="EP", type=endpoint,
+                        help="--live: zenoh endpoint to connect to, e.g. tcp/127.0.0.1:7447 (repeatable)")
+    parser.add_argument("--listen", action="append", default=None, metavar="EP", type=endpoint,
                         help="--live: zenoh endpoint to listen on (default tcp/127.0.0.1:0)")
     parser.set_defaults(func=run)
 
@@ -38,9 +54,14 @@ def run(args: argparse.Namespace) -> int:
     from iotad.recording import RecordingError
     from iotad.replay import default_tolerance, replay_node
 
+    if args.live and (args.internal or args.tolerance is not None):
+        raise CliError("--internal and --tolerance apply to --node, not --live")
     recording = load(args.file)
     if args.live:
         return live(args, recording)
+    nodes = recording.nodes()
+    if args.node not in nodes and args.node not in recording.specs:
+        raise CliError(f"no node {args.node!r} in {args.file} (nodes: {', '.join(nodes) or 'none'})")
     tolerance = default_tolerance(recording) if args.tolerance is None else args.tolerance
     kinds = ("output", "internal") if args.internal else ("output",)
     try:
@@ -60,7 +81,14 @@ def live(args: argparse.Namespace, recording) -> int:
 
     if args.rate <= 0:
         raise CliError("--rate must be > 0")
-    session = open_session(args.listen or DEFAULT_LISTEN, args.connect)
+    try:
+        # A peer named with --connect must answer: publishing into the void is not a replay.
+        session = open_session(args.listen or DEFAULT_LISTEN, args.connect,
+                               connect_timeout=3.0 if args.connect else None)
+    except Exception as exc:  # noqa: BLE001 - zenoh.ZError: no peer there, or a port taken
+        reason = str(exc).split(" at /", 1)[0]
+        raise CliError(f"cannot open a zenoh session (listen {args.listen or list(DEFAULT_LISTEN)}, "
+                       f"connect {args.connect}): {reason}") from None
     try:
         with Progress(TextColumn("replaying"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
                       TimeRemainingColumn()) as progress:

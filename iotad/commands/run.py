@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+from iotad.cli import port, positive_float
+
 ORDER = 20
 
 EPILOG = """\
@@ -12,29 +14,42 @@ examples:
   iotad run examples/figure2.toml --until 20     run the Figure 2 demo for 20 s, then summarise
   iotad run --check examples/figure2.toml        only check the file (exit 2 on an error)
   iotad run sys.toml --host arm --port 7500      run the nodes of host "arm" of a multi-host system
+  iotad run examples/figure2.toml --until 20 -o recordings/fig2.mcap --plain
+
+The system file format (nodes, bindings, endpoints, time_unit, restart policies, hosts) is
+docs/system-file.md. --until is wall-clock seconds; spec times are in the spec's time units,
+time_unit seconds each. Exit status: 0 when every node stopped cleanly, 1 when a node failed or
+the recording was lost, 2 for a bad system file or option, 130 on Ctrl-C.
 
 A node whose process exits, whose liveliness token vanishes or whose heartbeat stops is
 restarted by its restart policy (never | on-failure | always, backoff doubling, max_restarts).
 Ctrl-C sends SIGINT to every node, then SIGTERM, then SIGKILL; nodes also die with the launcher
-if it is killed. Events go to iota/<system>/@launcher; the recording to recordings/."""
+if it is killed. Events go to iota/<system>/@launcher; the recording to recordings/.
+
+While it runs: 'iotad ls', 'iotad echo KEY', 'iotad hz KEY', 'iotad pub KEY VALUE' (another
+terminal). Afterwards: 'iotad info FILE', 'iotad check FILE', 'iotad replay FILE --node PATH',
+'iotad plot FILE -o OUT.png'. One process, virtual time, no zenoh: 'iotad demo --virtual'."""
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser("run", help="run a system file: one process per IOTA, supervised",
                             description=__doc__, epilog=EPILOG,
                             formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("system_file", metavar="SYSTEM.toml", help="the system file (see examples/figure2.toml)")
+    parser.add_argument("system_file", metavar="SYSTEM.toml",
+                        help="the system file (docs/system-file.md; example: examples/figure2.toml)")
     parser.add_argument("--check", action="store_true",
                         help="check the file (nodes, channels, bindings) and exit: 0 fine, 2 errors")
-    parser.add_argument("--until", type=float, metavar="SECONDS", help="stop everything after SECONDS")
-    parser.add_argument("--port", type=int, metavar="PORT",
-                        help="hub port instead of the system file's (0: any free port)")
+    parser.add_argument("--until", type=positive_float, metavar="SECONDS",
+                        help="stop everything after SECONDS of wall-clock time (default: run until Ctrl-C)")
+    parser.add_argument("--port", type=port, metavar="PORT",
+                        help="hub port instead of the system file's (0: any free port; default: the file's "
+                             "[system.endpoints] listen, else 7447)")
     parser.add_argument("--host", metavar="NAME",
                         help="run only the nodes with host = NAME (multi-host systems; one launcher per host)")
     parser.add_argument("--no-record", action="store_true", help="do not start 'iotad record'")
     parser.add_argument("-o", "--record-to", metavar="FILE",
                         help="recording file (default recordings/<system>-<time>.mcap)")
-    parser.add_argument("--origin", type=float, metavar="WALLTIME",
+    parser.add_argument("--origin", type=positive_float, metavar="WALLTIME",
                         help="wall-clock time (time.time()) that is t=0 for every node (default: now, "
                              "or the hub launcher's for a --host that does not hold the hub)")
     parser.add_argument("--log-dir", metavar="DIR",
@@ -66,6 +81,9 @@ def run(args: argparse.Namespace) -> int:
 
 
 def launch(system, args: argparse.Namespace, summary_hook=None) -> int:
+    import os
+    from pathlib import Path
+
     from iotad.cli import CliError
     from iotad.launcher import Launcher, LauncherError
     from iotad.transport import free_port
@@ -75,6 +93,16 @@ def launch(system, args: argparse.Namespace, summary_hook=None) -> int:
         raise CliError(f"{system.file}: no node has host = {args.host!r} (hosts: {', '.join(hosts)})")
     if args.until is not None and args.until <= 0:
         raise CliError("--until must be a positive number of seconds")
+    if getattr(args, "log_dir", None):
+        log_dir = Path(args.log_dir)
+        try:
+            log_dir.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise CliError(f"--log-dir {args.log_dir}: cannot create it: {exc.strerror or exc}") from None
+        if not os.access(log_dir, os.W_OK):
+            raise CliError(f"--log-dir {args.log_dir}: not writable")
+    if getattr(args, "record_to", None) and Path(args.record_to).is_dir():
+        raise CliError(f"-o {args.record_to}: is a directory; name the .mcap file to write")
     port = args.port
     if port == 0:
         port = free_port()
