@@ -321,7 +321,7 @@ class _Parser:
                 continue
             system.nodes[node.name] = node
         hosts_used = {n.host for n in system.nodes.values() if n.host is not None}
-        if hosts_used and len(hosts_used) < len(system.nodes):
+        if hosts_used and any(n.host is None for n in system.nodes.values()):
             self.error("[[node]]", "either every node names its host or none does")
         for node in system.nodes.values():
             for other in node.after:
