@@ -5,7 +5,8 @@
 1. raw: zenoh ping-pong between this process and a bare Python pong process;
 2. echo: the same ping through an echo IOTA node process (input action -> output action); then
    again while an `iotad record` process records the system (unless --no-record), and once more
-   without it: the recording cost is the p50 with it against the mean p50 of the runs around it;
+   without it: the recording cost is the p50 with it against the mean p50 of the runs around it.
+   The recorder runs as `iotad run` starts it (--from-traces), or on every key (--record-mode direct);
 3. figure2: a request -> mdl_command through the Figure 2 scheduler node process;
 4. crowd: with --nodes echo node processes running, pings spread over all of them: p99, and each
    node's resident memory (VmRSS from /proc).
@@ -133,6 +134,8 @@ def main() -> int:
     parser.add_argument("--samples", type=int, default=2000)
     parser.add_argument("--nodes", type=int, default=32)
     parser.add_argument("--no-record", action="store_true", help="skip the echo-with-recorder rows")
+    parser.add_argument("--record-mode", choices=["traces", "direct"], default="traces",
+                        help="traces: the recorder as 'iotad run' starts it (--from-traces); direct: every key")
     parser.add_argument("--pong", metavar="ENDPOINT", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.pong:
@@ -164,7 +167,7 @@ def main() -> int:
         # then once more without: the cost of recording, against the mean of the two baselines.
         if not args.no_record:
             with tempfile.TemporaryDirectory() as folder:
-                recorder = start_recorder(bench.endpoint, Path(folder) / "echo.mcap")
+                recorder = start_recorder(bench.endpoint, Path(folder) / "echo.mcap", args.record_mode)
                 try:
                     time.sleep(0.5)  # the recorder has asked the node for its @spec
                     results["echo+rec"] = bench.ping([echo], [wire.encode(7)], args.samples)
@@ -216,7 +219,7 @@ def main() -> int:
     if "echo+rec" in results:
         baseline = (statistics.median(results["echo"]) + statistics.median(results["echo again"])) / 2
         figures["echo_record_cost"] = statistics.median(results["echo+rec"]) / baseline - 1
-        print(f"recording cost on the echo round trip: p50 {statistics.median(results['echo+rec']):.0f} us with "
+        print(f"recording cost ({args.record_mode}) on the echo round trip: p50 {statistics.median(results['echo+rec']):.0f} us with "
               f"`iotad record`, {baseline:.0f} us without (mean of the runs before and after): "
               f"{figures['echo_record_cost']:+.1%}")
     print("goals:")
@@ -228,10 +231,11 @@ def main() -> int:
     return 0
 
 
-def start_recorder(hub: str, output: Path) -> subprocess.Popen:
+def start_recorder(hub: str, output: Path, mode: str = "traces") -> subprocess.Popen:
     ready = output.with_suffix(".ready")
     process = subprocess.Popen([sys.executable, "-m", "iotad.cli", "record", "iota/bench/**", "-o", str(output),
-                                "--quiet", "--connect", hub, "--ready-file", str(ready)], cwd=ROOT)
+                                "--quiet", "--connect", hub, "--ready-file", str(ready),
+                                *(["--from-traces"] if mode == "traces" else [])], cwd=ROOT)
     deadline = time.monotonic() + 30
     while not ready.exists():
         if process.poll() is not None or time.monotonic() > deadline:

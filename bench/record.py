@@ -5,13 +5,19 @@
 1. raw: the `mcap` Writer alone, in this process, writing messages like the recorder's (zstd
    chunks, a flush every 50 ms): the ceiling of any Python recorder.
 2. record: an `iotad record` process and --publishers publisher processes (subprocess, never
-   fork), each publishing --messages events as fast as it can with BLOCK congestion control and
-   the `[sequence, send_time_ns]` attachment. Counted from the file afterwards: events/s over the
-   recorder's receive span, and loss (every sequence number of every publisher must be there).
+   fork), each publishing --messages events as fast as it can with BLOCK congestion control.
+   --mode traces (default; what `iotad run` uses): each event is an output event on the
+   publisher's `@trace` key carrying key, seq and send_ns, as a node host sends it, and the
+   recorder (`--from-traces`) writes the trace event and the output message it describes;
+   --mode direct: the event goes on the output key with the `[sequence, send_time_ns]`
+   attachment and the recorder subscribes to every key. Counted from the file afterwards: output
+   messages per second over the recorder's receive span, and loss (every sequence number of every
+   publisher must be on its output key).
 3. latency: round trip ping -> pong process -> ping (zenoh, loopback), p50/p99, alternately
-   without and with an `iotad record` process subscribed to both keys (--rounds times); the
-   cost is the median over the alternations. Two bare processes, so every message of the round
-   trip also wakes the recorder: the worst case (bench/latency.py measures it on a node).
+   without and with an `iotad record` process (--rounds times); the cost is the median over the
+   alternations. In direct mode every message of the round trip also wakes the recorder; in traces
+   mode the pong process also sends its input and output events on its `@trace` in bursts every
+   20 ms, as a node host does (bench/latency.py measures it on a real node).
 Goals: >= 100,000 events/s with zero loss; recording adds <= 10% to the round-trip p50.
 """
 from __future__ import annotations
@@ -45,19 +51,28 @@ sys.path.insert(0, {root!r})
 import zenoh
 from iotad import wire
 from iotad.transport import open_session
-endpoint, index, count = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
+endpoint, index, count, mode = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), sys.argv[4]
 session = open_session(connect=[endpoint])
 try:
-    pub = session.declare_publisher(f"iota/bench/p{{index}}/out", congestion_control=zenoh.CongestionControl.BLOCK)
+    key = f"iota/bench/p{{index}}/out"
+    pub = session.declare_publisher(key if mode == "direct" else f"iota/bench/p{{index}}/@trace",
+                                    congestion_control=zenoh.CongestionControl.BLOCK)
     deadline = time.monotonic() + 20
     while not pub.matching_status.matching and time.monotonic() < deadline:
         time.sleep(0.01)
     sys.stdout.write("ready\n"); sys.stdout.flush()
     sys.stdin.readline()  # go
     payload = wire.encode({{"t": 0.0, "iota": "p", "action": "out", "index": None, "kind": "output", "value": 1.5}})
-    put, attach, now = pub.put, wire.encode_attachment, time.time_ns
-    for seq in range(count):
-        put(payload, attachment=attach(seq, now()))
+    put, attach, now, encode = pub.put, wire.encode_attachment, time.time_ns, wire.encode
+    if mode == "direct":
+        for seq in range(count):
+            put(payload, attachment=attach(seq, now()))
+    else:
+        event = {{"t": 0.0, "iota": "p", "action": "out", "index": None, "kind": "output", "value": 1.5, "key": key}}
+        for seq in range(count):
+            send_ns = now()
+            event["seq"], event["send_ns"] = seq, send_ns
+            put(encode(event), attachment=attach(seq, send_ns))
     sys.stdout.write("done\n"); sys.stdout.flush()
     sys.stdin.readline()
 finally:
@@ -65,14 +80,39 @@ finally:
 """
 
 PONG = r"""
-import sys
+import sys, threading, time
 sys.path.insert(0, {root!r})
 import zenoh
+from iotad import wire
 from iotad.transport import open_session
 session = open_session(connect=[sys.argv[1]])
+traced = sys.argv[2] == "traces"
 try:
     pub = session.declare_publisher("iota/bench/pong/out", express=True, congestion_control=zenoh.CongestionControl.BLOCK)
-    sub = session.declare_subscriber("iota/bench/ping/out", lambda s: pub.put(s.payload.to_bytes(), attachment=s.attachment))
+    trace = session.declare_publisher("iota/bench/pong/@trace", congestion_control=zenoh.CongestionControl.BLOCK,
+                                      priority=zenoh.Priority.DATA_LOW)
+    buffer, seqs = [], [0, 0]
+    def answer(sample):
+        attachment = sample.attachment.to_bytes() if sample.attachment is not None else None
+        send_ns = time.time_ns()
+        pub.put(sample.payload.to_bytes(), attachment=wire.encode_attachment(seqs[0], send_ns))
+        if traced:  # what a node host's trace holds: the input (sender's attachment) and the output
+            seq, sent = wire.decode_attachment(attachment) or (0, 0)
+            value = wire.decode(sample.payload.to_bytes())
+            buffer.append({{"t": 0.0, "iota": "pong", "action": "inp", "index": None, "kind": "input", "value": value,
+                           "key": "iota/bench/ping/out", "seq": seq, "send_ns": sent}})
+            buffer.append({{"t": 0.0, "iota": "pong", "action": "out", "index": None, "kind": "output", "value": value,
+                           "key": "iota/bench/pong/out", "seq": seqs[0], "send_ns": send_ns}})
+        seqs[0] += 1
+    def flush():  # every 20 ms, as a node host's trace_period
+        while True:
+            time.sleep(0.02)
+            events, buffer[:] = list(buffer), []
+            for event in events:
+                trace.put(wire.encode(event), attachment=wire.encode_attachment(seqs[1]))
+                seqs[1] += 1
+    threading.Thread(target=flush, daemon=True).start()
+    sub = session.declare_subscriber("iota/bench/ping/out", answer)
     sys.stdout.write("ready\n"); sys.stdout.flush()
     sys.stdin.readline()
 finally:
@@ -102,12 +142,14 @@ def raw_writer(count: int) -> float:
 
 
 class Recorder:
-    def __init__(self, output: Path, keys: list[str], connect: str | None = None):
+    def __init__(self, output: Path, keys: list[str], connect: str | None = None, mode: str = "traces"):
         self.port = free_port()
         self.endpoint = f"tcp/127.0.0.1:{self.port}"
         ready = output.with_suffix(".ready")
         argv = [sys.executable, "-m", "iotad.cli", "record", *keys, "-o", str(output), "--quiet",
                 "--listen", self.endpoint, "--ready-file", str(ready)]
+        if mode == "traces":
+            argv.append("--from-traces")
         if connect:
             argv += ["--connect", connect]
         self.proc = subprocess.Popen(argv, cwd=ROOT)
@@ -130,13 +172,13 @@ def spawn(script: str, *args: str) -> subprocess.Popen:
     return proc
 
 
-def throughput(publishers: int, messages: int, folder: Path) -> dict:
+def throughput(publishers: int, messages: int, folder: Path, mode: str) -> dict:
     from iotad.recording import read_recording
     output = folder / "throughput.mcap"
-    recorder = Recorder(output, ["iota/bench/**"])
+    recorder = Recorder(output, ["iota/bench/**"], mode=mode)
     procs = []
     try:
-        procs = [spawn(PUBLISHER, recorder.endpoint, str(k), str(messages)) for k in range(publishers)]
+        procs = [spawn(PUBLISHER, recorder.endpoint, str(k), str(messages), mode) for k in range(publishers)]
         for proc in procs:
             proc.stdin.write("go\n")
             proc.stdin.flush()
@@ -157,7 +199,7 @@ def throughput(publishers: int, messages: int, folder: Path) -> dict:
     per_key: dict[str, set] = {}
     times = []
     for message in recording.messages:
-        if message.topic.startswith("iota/bench/p"):
+        if message.topic.startswith("iota/bench/p") and message.topic.endswith("/out"):
             per_key.setdefault(message.topic, set()).add(message.sequence)
             times.append(message.log_time)
     got = sum(len(s) for s in per_key.values())
@@ -169,14 +211,15 @@ def throughput(publishers: int, messages: int, folder: Path) -> dict:
             "size_mb": output.stat().st_size / 1e6}
 
 
-def round_trips(samples: int, recorded: bool, folder: Path) -> list[float]:
+def round_trips(samples: int, recorded: bool, folder: Path, mode: str) -> list[float]:
     hub_endpoint = f"tcp/127.0.0.1:{free_port()}"
     session = open_session([hub_endpoint])
     recorder = pong = None
     try:
         if recorded:
-            recorder = Recorder(folder / f"latency-{time.time_ns()}.mcap", ["iota/bench/**"], connect=hub_endpoint)
-        pong = spawn(PONG, hub_endpoint)
+            recorder = Recorder(folder / f"latency-{time.time_ns()}.mcap", ["iota/bench/**"], connect=hub_endpoint,
+                                mode=mode)
+        pong = spawn(PONG, hub_endpoint, mode)
         replies: queue.SimpleQueue = queue.SimpleQueue()
         session.declare_subscriber("iota/bench/pong/out", lambda s: replies.put(time.perf_counter()))
         ping = session.declare_publisher("iota/bench/ping/out", express=True,
@@ -226,23 +269,26 @@ def main() -> int:
     parser.add_argument("--messages", type=int, default=100_000, help="per publisher")
     parser.add_argument("--samples", type=int, default=2000, help="round trips per latency run")
     parser.add_argument("--rounds", type=int, default=3, help="latency runs with the recorder, each between two without")
+    parser.add_argument("--mode", choices=["traces", "direct"], default="traces",
+                        help="traces: the recorder as 'iotad run' starts it (--from-traces); direct: every key")
     args = parser.parse_args()
-    print(f"bench/record.py on {os.cpu_count()} CPUs, python {sys.version.split()[0]}, zenoh {version('eclipse-zenoh')}")
+    print(f"bench/record.py on {os.cpu_count()} CPUs, python {sys.version.split()[0]}, zenoh {version('eclipse-zenoh')}, "
+          f"recorder mode {args.mode}")
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
         raw = raw_writer(200_000)
         print(f"raw mcap Writer:   {raw:>10,.0f} msgs/s (in-process, zstd, 50 ms flushes)")
-        result = throughput(args.publishers, args.messages, folder)
+        result = throughput(args.publishers, args.messages, folder, args.mode)
         print(f"iotad record:      {result['rate']:>10,.0f} events/s from {args.publishers} publisher processes; "
               f"{result['events']:,}/{result['expected']:,} recorded, lost {result['lost']}, "
               f"{result['gaps']} gaps, {result['seconds']:.2f} s, {result['size_mb']:.1f} MB")
         # Alternate runs without and with the recorder: the machine's load drifts (other processes),
         # and each cost is taken against the mean of the baselines just before and after it.
-        bases = [round_trips(args.samples, False, folder)]
+        bases = [round_trips(args.samples, False, folder, args.mode)]
         recorded = []
         for _ in range(args.rounds):
-            recorded.append(round_trips(args.samples, True, folder))
-            bases.append(round_trips(args.samples, False, folder))
+            recorded.append(round_trips(args.samples, True, folder, args.mode))
+            bases.append(round_trips(args.samples, False, folder, args.mode))
     costs = []
     for k, with_recorder in enumerate(recorded):
         p50 = (statistics.median(bases[k]) + statistics.median(bases[k + 1])) / 2

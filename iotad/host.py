@@ -101,7 +101,7 @@ class NodeHost:
                              deadline_tolerance=config.deadline_tolerance / config.time_unit)
         self.session: zenoh.Session | None = None
         self._declared: list[Any] = []
-        self._ports: dict[tuple, list] = {}  # engine (path, channel, index) -> [publisher, seq]
+        self._ports: dict[tuple, list] = {}  # engine (path, channel, index) -> [publisher, seq, key]
         self._thread: threading.Thread | None = None
         self.error: BaseException | None = None
 
@@ -117,7 +117,7 @@ class NodeHost:
         for port in self.table.outputs:
             publisher = session.declare_publisher(port.key, express=True, congestion_control=block)
             self._declared.append(publisher)
-            self._ports[port.source] = [publisher, 0]
+            self._ports[port.source] = [publisher, 0, port.key]
         # The trace is for the recorder and tools: below the outputs, which real-time peers wait on.
         self._trace_pub = session.declare_publisher(wire.trace_key(config.system, config.path),
                                                     congestion_control=block, priority=zenoh.Priority.DATA_LOW)
@@ -127,7 +127,7 @@ class NodeHost:
         post = self.clock.post
         for port in self.table.inputs:
             for key in port.keys:
-                self._declared.append(session.declare_subscriber(key, _receiver(post, port.name, port.index)))
+                self._declared.append(session.declare_subscriber(key, _receiver(post, port.name, port.index, key)))
         spec_key = f"{base}/@spec"
         spec_payload = wire.encode(self.describe())
         self._declared.append(session.declare_queryable(
@@ -182,14 +182,29 @@ class NodeHost:
 
     # ------------------------------------------------------------------ engine-thread work
     def _publish_output(self, event: dict) -> None:
-        if event["kind"] != "output":
+        """Publish an output; note on the event (which the trace sink gets next) what went on the
+        wire: key, sequence and send time of an output; of an input from outside, the key it
+        arrived on and the sender's attachment. A recorder rebuilds every message from these."""
+        kind = event["kind"]
+        if kind == "input":
+            raw = self.clock.current_input
+            if raw is not None:
+                self.clock.current_input = None  # the one external input event of this step
+                event["key"] = raw.key
+                attachment = wire.decode_attachment(raw.attachment)
+                if attachment is not None:
+                    event["seq"], event["send_ns"] = attachment
+            return
+        if kind != "output":
             return
         port = self._ports.get((event["iota"], event["action"], event["index"]))
         if port is None:
             return  # an output of a component that the root does not expose
         seq = port[1]
         port[1] = seq + 1
-        port[0].put(wire.encode(event["value"]), attachment=wire.encode_attachment(seq))
+        send_ns = time.time_ns()
+        port[0].put(wire.encode(event["value"]), attachment=wire.encode_attachment(seq, send_ns))
+        event["key"], event["seq"], event["send_ns"] = port[2], seq, send_ns
 
     def _flush_trace(self) -> None:
         buffer = self._trace_buffer
@@ -222,12 +237,12 @@ class NodeHost:
                 "trace": wire.trace_key(config.system, config.path), "started": time.time()}
 
 
-def _receiver(post, name: str, index: int | None):
-    """A zenoh callback for one input: copy the bytes out and enqueue; decoding is the engine's."""
+def _receiver(post, name: str, index: int | None, key: str):
+    """A zenoh callback for one input key: copy the bytes out and enqueue; decoding is the engine's."""
     def receive(sample: zenoh.Sample) -> None:
         attachment = sample.attachment
         post(RawInput(name, index, sample.payload.to_bytes(),
-                      None if attachment is None else attachment.to_bytes()))
+                      None if attachment is None else attachment.to_bytes(), key))
     return receive
 
 

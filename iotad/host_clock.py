@@ -24,10 +24,12 @@ from .engine import STOP
 class RawInput:
     """A sample as a zenoh callback hands it over: undecoded, so the callback stays short."""
 
-    __slots__ = ("name", "index", "payload", "attachment")
+    __slots__ = ("name", "index", "payload", "attachment", "key")
 
-    def __init__(self, name: str, index: int | None, payload: bytes, attachment: bytes | None):
+    def __init__(self, name: str, index: int | None, payload: bytes, attachment: bytes | None,
+                 key: str | None = None):
         self.name, self.index, self.payload, self.attachment = name, index, payload, attachment
+        self.key = key  # the key it arrived on (the node's own input key, or a bound output's)
 
 
 class HostClock(RealClock):
@@ -47,6 +49,9 @@ class HostClock(RealClock):
         self._next_beat = -math.inf
         self._on_heartbeat, self._on_malformed = on_heartbeat, on_malformed
         self._flush, self._pending = flush, pending
+        # The input the engine is handling now (set when `wait` hands it over, cleared at the next
+        # `wait`): the host adds its key and the sender's attachment to the input's trace event.
+        self.current_input: RawInput | None = None
 
     def post(self, item: Any, t: float | None = None) -> None:
         self._inbox.put(item)
@@ -55,6 +60,7 @@ class HostClock(RealClock):
         return self._inbox.qsize()
 
     def wait(self, deadline: float) -> Any | None:
+        self.current_input = None
         inbox = self._inbox
         while True:
             now = self.now()
@@ -102,5 +108,6 @@ class HostClock(RealClock):
         except wire.WireError as exc:
             self._on_malformed(self.now(), raw, str(exc))
             return None
+        self.current_input = raw
         # the engine's item: (path None = root's external channel, channel, index, value, meta)
         return (None, raw.name, raw.index, value, raw.attachment)

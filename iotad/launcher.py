@@ -211,7 +211,6 @@ class Launcher:
         self._declared.append(session.liveliness().declare_subscriber(
             f"{base}/**/{ALIVE}", self._on_liveliness, history=True))
         self._declared.append(session.declare_subscriber(f"{base}/**/{HEARTBEAT}", self._on_heartbeat))
-        self._declared.append(session.declare_subscriber(f"{base}/**", self._on_channel))
         self._declared.append(session.declare_subscriber(f"{base}/**/@trace", self._on_trace))
         if system.opens_hub(self.host):
             if self.origin is None:
@@ -274,7 +273,8 @@ class Launcher:
         ready = self.run_dir / f"recorder{len(self.recordings)}.ready"
         ready.unlink(missing_ok=True)
         argv = [sys.executable, "-m", "iotad", "record", f"{wire.PREFIX}/{system.name}/**",
-                "-o", str(output), "--system-file", str(system.path), "--ready-file", str(ready)]
+                "-o", str(output), "--system-file", str(system.path), "--ready-file", str(ready),
+                "--from-traces"]  # one wake-up per trace burst, not per message: see iotad.recorder
         for endpoint in self.hub:
             argv += ["--connect", endpoint]
         for endpoint in system.listen_for(self.host):
@@ -343,19 +343,17 @@ class Launcher:
         if run is not None and run.state in ("starting", "running", "lost"):
             run.last_beat = time.monotonic()  # one attribute store: safe across threads
 
-    def _on_channel(self, sample: Any) -> None:
-        try:
-            value = wire.decode(sample.payload.to_bytes())
-        except wire.WireError:
-            value = "<malformed>"
-        self.tally.channel(str(sample.key_expr), value)
-
     def _on_trace(self, sample: Any) -> None:
+        # Outputs are counted from the nodes' traces, not from their keys: a subscriber to every
+        # channel key would wake this process for every message, which the nodes pay for.
         path = self._path_of(sample.key_expr, "@trace")
         try:
-            self.tally.trace(path or "?", wire.decode(sample.payload.to_bytes()))
+            event = wire.decode(sample.payload.to_bytes())
         except wire.WireError:
-            pass
+            return
+        self.tally.trace(path or "?", event)
+        if isinstance(event, dict) and event.get("kind") == "output" and isinstance(event.get("key"), str):
+            self.tally.channel(event["key"], event.get("value"))
 
     def _on_exit(self, child: Child, code: int) -> None:  # a waiter thread
         self.events.put(("exit", child.name, child.pid, code))

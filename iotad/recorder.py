@@ -5,6 +5,16 @@ one writer thread owns the MCAP file: it takes them (log time = that moment), ma
 channels, reads the sender's `[sequence, send_time_ns]` attachment (publish time, gap
 detection), asks each new node for its `@spec`, and closes the chunk in progress every
 `flush_period` seconds, so that a SIGKILLed recorder loses at most that much.
+
+Two modes. Direct: subscribe to the keys given and record every sample on its key; on a machine
+with few cores every message then also wakes the recorder's process, which the real-time nodes
+pay for in latency. Trace-sourced (`from_traces`, what `iotad run` uses): subscribe only to the
+nodes' `@trace` keys (bursts, one wake-up per node and trace period), `@launcher` and
+`@heartbeat`, and write each message from the trace event that describes it: an output on its
+key with the sequence number and send time the node published it with; an input that no node's
+output explains (`iotad pub`, a foreign publisher) on the key it arrived on, with the sender's
+attachment. It records what the nodes sent and saw: a message nobody received is only recorded
+in direct mode, and a message reaches the file one trace period (20 ms by default) late.
 """
 from __future__ import annotations
 
@@ -14,7 +24,7 @@ import threading
 import time
 import tomllib
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any, Callable, Iterable
 
 import msgpack
 import zenoh
@@ -23,7 +33,10 @@ from . import wire
 from .recording import FORMAT, GAP_TOPIC, McapSink, channel_schemas, packb, schema_for_topic
 from .transport import DEFAULT_LISTEN, open_session
 
-NICENESS = 10  # a tenth of a normal process's CPU share when both want the CPU
+NICENESS = 10
+# The msgpack bytes of `"kind": "output"` / `"kind": "input"` in a trace event: only those are
+# decoded (a substring test is ~30 times cheaper than unpacking every event).
+OUTPUT_MARK, INPUT_MARK = wire.encode("kind") + wire.encode("output"), wire.encode("kind") + wire.encode("input")  # a tenth of a normal process's CPU share when both want the CPU
 
 
 def yield_cpu(threads: Iterable[int] | None = None, niceness: int = NICENESS) -> str:
@@ -63,6 +76,11 @@ def expand_keys(keys: Iterable[str]) -> list[str]:
     return out
 
 
+def trace_keys(system: str) -> list[str]:
+    """What a trace-sourced recorder subscribes to: no channel key, so no wake-up per message."""
+    return [f"{wire.PREFIX}/{system}/**/@trace", wire.launcher_key(system), f"{wire.PREFIX}/{system}/**/@heartbeat"]
+
+
 def read_system_file(path: str | Path) -> tuple[str, dict]:
     """(text, parsed table) of a system TOML file."""
     text = Path(path).read_text()
@@ -88,7 +106,7 @@ class Recorder:
     def __init__(self, keys: Iterable[str], output: str | Path, *, system_file: str | Path | None = None,
                  connect: Iterable[str] = (), listen: Iterable[str] = DEFAULT_LISTEN,
                  flush_period: float = 0.05, spec_timeout: float = 0.5, query_specs: bool = True,
-                 fifo_capacity: int = 65536, background: bool = False):
+                 fifo_capacity: int = 65536, background: bool = False, from_traces: bool = False):
         self.system_text, self.system_table = (None, {})
         if system_file is not None:
             self.system_text, self.system_table = read_system_file(system_file)
@@ -103,6 +121,18 @@ class Recorder:
             parsed = self.keys[0].split("/")
             if len(parsed) > 1 and parsed[0] == wire.PREFIX and "*" not in parsed[1]:
                 self.system = parsed[1]
+        self.from_traces = from_traces
+        if from_traces:
+            whole = [f"{wire.PREFIX}/{self.system}/**"]
+            if self.system is None or any(expand_keys([k]) != expand_keys(whole) for k in keys):
+                raise ValueError("a trace-sourced recording records one whole system: give 'iota/SYS/**' "
+                                 "or a system file, not single keys")
+            self.keys = trace_keys(self.system)
+        # trace-sourced: node paths whose outputs their own traces record (the system file's
+        # nodes, every node seen on @trace) and every key a node published an output on
+        self._nodes: set[str] = {n["name"] for n in self.system_table.get("node") or []
+                                 if isinstance(n, dict) and isinstance(n.get("name"), str)}
+        self._output_keys: set[str] = set()
         self.output = Path(output)
         self.connect, self.listen = list(connect), list(listen)
         self.flush_period, self.spec_timeout, self.query_specs = flush_period, spec_timeout, query_specs
@@ -126,6 +156,7 @@ class Recorder:
         self.started_ns = time.time_ns()
         self.sink.add_metadata("iotad.recording", {
             "format": FORMAT, "system": self.system or "", "keys": self.keys, "started_ns": self.started_ns,
+            "source": "traces" if self.from_traces else "direct",
             "clock": "real", "writer": "iotad record",
             "time_unit": self._system_time_unit()})
         if self.system_text is not None:
@@ -193,7 +224,9 @@ class Recorder:
 
     def _loop(self) -> None:
         sink, stats = self.sink, self.stats
-        receivers = [subscriber.handler.try_recv for subscriber in self._subscribers]
+        receivers = [(subscriber.handler.try_recv, self.from_traces and key.endswith("/@trace"))
+                     for subscriber, key in zip(self._subscribers, self.keys)]
+        traced = self._traced
         ids: dict[str, int] = {}
         last: dict[str, tuple[int, int]] = {}
         unpack = msgpack.unpackb
@@ -206,7 +239,7 @@ class Recorder:
         quiet_since = stop_at = 0
         while True:
             idle = True
-            for receive in receivers:
+            for receive, from_trace in receivers:
                 for _ in range(4096):  # then the next key expression, and a flush check
                     sample = receive()
                     if sample is None:
@@ -233,8 +266,11 @@ class Recorder:
                             if sequence > previous[0] + 1:
                                 self._gap(key, previous[0] + 1, sequence, receipt_ns)
                         last[key] = (sequence, publish_ns)
-                    write(channel_id, receipt_ns, publish_ns, sequence, sample.payload.to_bytes())
+                    data = sample.payload.to_bytes()
+                    write(channel_id, receipt_ns, publish_ns, sequence, data)
                     written += 1
+                    if from_trace and (OUTPUT_MARK in data or INPUT_MARK in data):
+                        written += traced(key, data, receipt_ns, write, ids, last)
                     if not (written & 255) and monotonic_ns() >= next_flush:
                         break  # a busy stream must flush on time too
             now = monotonic_ns()
@@ -256,6 +292,49 @@ class Recorder:
                 quiet_since = 0
         stats["received"], stats["written"] = received, written
 
+    def _traced(self, trace_key: str, data: bytes, receipt_ns: int, write: Callable, ids: dict[str, int],
+                last: dict[str, tuple[int, int]]) -> int:
+        """Trace-sourced: write the message that an output or input event on `trace_key` describes
+        (on its key, publish time and sequence from the sender), unless another node's output
+        records it. Returns how many messages were written (0 or 1)."""
+        event = msgpack.unpackb(data, raw=False, strict_map_key=False)
+        key = event.get("key") if isinstance(event, dict) else None
+        if not isinstance(key, str):
+            return 0  # a node host older than these fields: its trace holds its events still
+        if event.get("kind") == "output":
+            self._output_keys.add(key)
+        elif not self._unexplained(key, trace_key):
+            return 0
+        sequence, publish_ns = event.get("seq"), event.get("send_ns")
+        if not (isinstance(sequence, int) and isinstance(publish_ns, int)):
+            sequence, publish_ns = 0, receipt_ns  # an input from a publisher without the attachment
+        else:
+            previous = last.get(key)
+            if previous is not None:
+                if sequence == previous[0] and publish_ns == previous[1]:
+                    self.stats["duplicates"] += 1  # one injected message that two nodes received
+                    return 0
+                if sequence > previous[0] + 1:
+                    self._gap(key, previous[0] + 1, sequence, receipt_ns)
+            last[key] = (sequence, publish_ns)
+        channel_id = ids.get(key)
+        if channel_id is None:
+            channel_id = ids[key] = self._new_channel(key)
+        write(channel_id, receipt_ns, publish_ns, sequence, packb(event.get("value")))
+        return 1
+
+    def _unexplained(self, key: str, trace_key: str) -> bool:
+        """Whether an input that arrived on `key` (seen on `trace_key`) is no node's output: a
+        key of the receiving node itself that it never published on (`iotad pub` into its input),
+        or a key of a node that neither the system file names nor has a trace."""
+        parsed = wire.parse_key(key)
+        if parsed is None:
+            return True
+        receiver = trace_key[:-len("/@trace")].split("/", 2)[2]
+        if parsed[1] == receiver:
+            return key not in self._output_keys
+        return parsed[1] not in self._nodes
+
     def _gap(self, key: str, expected: int, got: int, receipt_ns: int) -> None:
         missing = got - expected
         self.stats["gaps"] += 1
@@ -266,6 +345,8 @@ class Recorder:
 
     def _new_channel(self, key: str) -> int:
         parsed = wire.parse_key(key)
+        if parsed is not None and parsed[2] == "@trace":
+            self._nodes.add(parsed[1])
         if parsed is not None and parsed[1] and self.query_specs:
             self._ask_spec(parsed[0], parsed[1])
         name, schema = schema_for_topic(key, self.specs, self._schema_cache)

@@ -154,3 +154,120 @@ def test_sigkill_then_recover_loses_at_most_100ms(tmp_path, session_for, capsys)
     assert len(must_have) > 1500
     assert not missing, f"{len(missing)} messages older than 100 ms before the kill were lost: {missing[:5]}..."
     assert got <= set(before_kill)
+
+
+# ------------------------------------------------------------------ trace-sourced (iotad run's mode)
+def output_event(key, seq, send_ns, value, iota="pub"):
+    channel = key.split("/")[3]
+    return {"t": 0.1 * seq, "iota": iota, "action": channel, "index": None, "kind": "output", "value": value,
+            "key": key, "seq": seq, "send_ns": send_ns}
+
+
+def test_trace_sourced_messages_gaps_and_injected_inputs(tmp_path, session_for):
+    recorder = RecorderProcess(tmp_path, ["iota/t/**"], "--from-traces")
+    try:
+        session = session_for(recorder.port)
+        trace = session.declare_publisher("iota/t/pub/@trace")
+        other = session.declare_publisher("iota/t/src/@trace")
+        matched(trace)
+        matched(other)
+        sent, trace_seq = {}, 0
+        for seq in [0, 1, 2, 5, 6]:  # 3 and 4 never sent: a gap of two on the output key
+            sent[seq] = time.time_ns() - 1000
+            trace.put(wire.encode(output_event("iota/t/pub/ack/0", seq, sent[seq], "COMMIT")),
+                      attachment=wire.encode_attachment(trace_seq))
+            trace_seq += 1
+        # src's output, received by pub: recorded once, from src's trace
+        other.put(wire.encode(output_event("iota/t/src/out", 0, 111, 3, iota="src")), attachment=wire.encode_attachment(0))
+        received = {"t": 1.0, "iota": "pub", "action": "inp", "index": None, "kind": "input", "value": 3,
+                    "key": "iota/t/src/out", "seq": 0, "send_ns": 111}
+        injected = dict(received, key="iota/t/pub/inp", seq=4, send_ns=222, value=9)  # `iotad pub` into pub
+        trace_seq += 1  # one @trace event lost on the way: a gap on the trace stream
+        for event in (received, injected):
+            trace.put(wire.encode(event), attachment=wire.encode_attachment(trace_seq))
+            trace_seq += 1
+        wait_for(lambda: len(read_recording(recorder.output).messages) >= 8 + 7, 10, "the messages in the file")
+    finally:
+        assert recorder.stop() == 0
+    recording = read_recording(recorder.output)
+    assert recording.info["source"] == "traces"
+    assert "iota/t/**" not in recording.info["keys"]  # no channel key subscribed: no wake-up per message
+    acks = [m for m in recording.messages if m.topic == "iota/t/pub/ack/0"]
+    assert [(m.sequence, m.publish_time, m.value) for m in acks] == [(s, sent[s], "COMMIT") for s in [0, 1, 2, 5, 6]]
+    assert all(m.log_time >= m.publish_time for m in acks)
+    assert [(m.sequence, m.publish_time, m.value) for m in recording.messages if m.topic == "iota/t/src/out"] == [(0, 111, 3)]
+    assert [(m.sequence, m.publish_time, m.value) for m in recording.messages if m.topic == "iota/t/pub/inp"] == [(4, 222, 9)]
+    assert recording.gaps() == [{"key": "iota/t/pub/ack/0", "expected": 3, "got": 5, "missing": 2},
+                                {"key": "iota/t/pub/@trace", "expected": 5, "got": 6, "missing": 1}]
+    assert len(recording.trace("pub")) == 7
+
+
+def test_trace_sourced_records_a_node_and_iotad_pub_into_its_input(tmp_path, session_for):
+    from iotad.replay import replay_node
+
+    recorder = RecorderProcess(tmp_path, ["iota/t/**"], "--from-traces")
+    config = {"system": "t", "path": "echo", "source": {"kind": "python", "ref": str(ROOT / "examples/echo.py") + ":Echo"},
+              "listen": ["tcp/127.0.0.1:0"], "connect": [f"tcp/127.0.0.1:{recorder.port}"], "heartbeat_period": 0.2}
+    node = subprocess.Popen([sys.executable, "-m", "iotad.node", "--config-json", json.dumps(config)], cwd=ROOT)
+    try:
+        session = session_for(recorder.port)
+        beats = session.declare_subscriber("iota/t/echo/@heartbeat", zenoh.handlers.FifoChannel(16))
+        beats.handler.recv()  # the node runs
+        assert main(["pub", "iota/t/echo/inp", "7", "--count", "3", "--rate", "50", "--wait", "10",
+                     "--connect", f"tcp/127.0.0.1:{recorder.port}"]) == 0
+        wait_for(lambda: sum(m.topic == "iota/t/echo/out" for m in read_recording(recorder.output).messages) >= 3,
+                 10, "the echo's answers in the file")
+    finally:
+        node.send_signal(signal.SIGINT)
+        node.wait(20)
+        assert recorder.stop() == 0
+    recording = read_recording(recorder.output)
+    inputs = [e for e in recording.trace("echo") if e["kind"] == "input"]
+    injected = [m for m in recording.messages if m.topic == "iota/t/echo/inp"]
+    assert [(m.value, m.sequence, m.publish_time) for m in injected] == [(7, e["seq"], e["send_ns"]) for e in inputs]
+    assert [m.sequence for m in injected] == [0, 1, 2]
+    answers = [m for m in recording.messages if m.topic == "iota/t/echo/out"]
+    assert [(m.value, m.sequence) for m in answers] == [(7, 0), (7, 1), (7, 2)]
+    assert all(m.log_time >= m.publish_time > 0 for m in answers + injected)
+    assert recording.schema_of("iota/t/echo/out").name != "any"
+    assert replay_node(recording, "echo").ok
+
+
+def test_trace_sourced_sigkill_loses_at_most_100ms_of_what_arrived(tmp_path, session_for, capsys):
+    """Trace bursts every 20 ms (as a node host sends them), 2000 output events a second: after a
+    SIGKILL, every event that reached the recorder more than 100 ms before the kill is on its key."""
+    recorder = RecorderProcess(tmp_path, ["iota/k/**"], "--from-traces")
+    session = session_for(recorder.port)
+    trace = session.declare_publisher("iota/k/src/@trace", congestion_control=zenoh.CongestionControl.BLOCK,
+                                      priority=zenoh.Priority.DATA_LOW)
+    matched(trace)
+    put_ns: list[int] = []  # when each event left in its burst
+    start = time.monotonic()
+    killed_ns = None
+    while time.monotonic() - start < 1.5:
+        if killed_ns is None and time.monotonic() - start >= 1.0:
+            killed_ns = time.time_ns()
+            os.kill(recorder.proc.pid, signal.SIGKILL)
+        time.sleep(0.02)
+        due = int((time.monotonic() - start) * 2000)
+        for seq in range(len(put_ns), due):
+            now = time.time_ns()
+            trace.put(wire.encode(output_event("iota/k/src/out", seq, now, seq, iota="src")),
+                      attachment=wire.encode_attachment(seq, now))
+            put_ns.append(now)
+    recorder.stop()
+    assert recorder.proc.returncode == -signal.SIGKILL
+    recovered = tmp_path / "recovered.mcap"
+    assert main(["recover", str(recorder.output), "-o", str(recovered)]) == 0
+    recording = read_recording(recovered)
+    got = {m.sequence for m in recording.messages if m.topic == "iota/k/src/out"}
+    assert got == {e["seq"] for e in recording.trace("src")}  # each output with its trace event
+    before_kill = [seq for seq, ns in enumerate(put_ns) if ns < killed_ns]
+    must_have = [seq for seq, ns in enumerate(put_ns) if ns < killed_ns - 100_000_000]
+    missing = [seq for seq in must_have if seq not in got]
+    lost = [seq for seq in before_kill if seq not in got]
+    window = (killed_ns - put_ns[lost[0]]) / 1e6 if lost else 0.0
+    print(f"sent {len(before_kill)} events before the kill, recovered {len(got)}; lost {len(lost)}, "
+          f"all from the last {window:.1f} ms")
+    assert len(must_have) > 1500
+    assert not missing, f"{len(missing)} events older than 100 ms before the kill were lost: {missing[:5]}..."
