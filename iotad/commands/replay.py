@@ -61,7 +61,7 @@ def run(args: argparse.Namespace) -> int:
         return live(args, recording)
     nodes = recording.nodes()
     if args.node not in nodes and args.node not in recording.specs:
-        raise CliError(f"no node {args.node!r} in {args.file} (nodes: {', '.join(nodes) or 'none'})")
+        raise CliError(f"node {args.node!r} is not in {args.file} (nodes: {', '.join(nodes) or 'none'})")
     tolerance = default_tolerance(recording) if args.tolerance is None else args.tolerance
     kinds = ("output", "internal") if args.internal else ("output",)
     try:
