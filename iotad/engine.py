@@ -74,6 +74,7 @@ class Engine:
     def __init__(self, root: Any, clock: Clock | None = None, policy: Any = None, *, record: bool = True,
                  sinks: Iterable[Callable[[dict], None]] = (), max_firings_per_instant: int = 10_000,
                  deadline_tolerance: float = 0.0, reject_early_inputs: bool = True,
+                 input_tolerance: float = 0.0,
                  track_dependencies: bool = True):
         self.root = root
         self.clock = clock or VirtualClock()
@@ -85,6 +86,9 @@ class Engine:
         self.max_firings_per_instant = max_firings_per_instant
         self.deadline_tolerance = deadline_tolerance
         self.reject_early_inputs = reject_early_inputs
+        # How much sooner than its switching time an input may arrive and still be accepted: in
+        # a real system arrival times carry network and scheduling jitter the sender never had.
+        self.input_tolerance = input_tolerance
         # False re-evaluates every precondition of a leaf after each of its firings: slower, and
         # the reference the dependency analysis is tested against.
         self.track_dependencies = track_dependencies
@@ -293,7 +297,7 @@ class Engine:
     def _deliver(self, slot: Slot, plain: Any, now: float) -> None:
         """An input event: always enabled, never blocked; rejected only if it breaks its contract."""
         leaf, channel, index = slot.leaf, slot.channel, slot.index
-        if now < slot.last + slot.switching and self.reject_early_inputs:
+        if now < slot.last + slot.switching - self.input_tolerance and self.reject_early_inputs:
             self._violation(now, leaf.path, channel.name, index, "switching_time",
                             f"input {channel.name} at {now:.6g} is sooner than its switching time "
                             f"{slot.switching:g} after the last one at {slot.last:.6g}; rejected")

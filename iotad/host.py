@@ -98,7 +98,8 @@ class NodeHost:
                                trace_period=config.trace_period)
         self.engine = Engine(root, self.clock, make_policy(config.policy, config.seed), record=False,
                              sinks=[self._publish_output, self._trace_buffer.append],
-                             deadline_tolerance=config.deadline_tolerance / config.time_unit)
+                             deadline_tolerance=config.deadline_tolerance / config.time_unit,
+                             input_tolerance=config.arrival_tolerance / config.time_unit)
         self.session: zenoh.Session | None = None
         self._declared: list[Any] = []
         self._ports: dict[tuple, list] = {}  # engine (path, channel, index) -> [publisher, seq, key]

@@ -30,6 +30,9 @@ class NodeConfig:
     # Seconds a firing may come after its window's end before it counts as a deadline miss: a
     # Python process wakes some tens of microseconds late, which is not the spec's fault.
     deadline_tolerance: float = 0.002
+    # Seconds an input may arrive sooner than its switching time and still be accepted: arrival
+    # times carry transport jitter that the sender's paced send times did not have.
+    arrival_tolerance: float = 0.002
     # Seconds a node may hold its trace events before publishing them on @trace in one burst:
     # one recorder wake-up per period instead of one per event (and at most this much of the
     # trace lost if the node is killed). 0: publish whenever the engine is about to block.
@@ -45,7 +48,7 @@ class NodeConfig:
 
 
 _KNOWN = {"system", "path", "source", "params", "time_unit", "origin", "listen", "connect", "inputs",
-          "heartbeat_period", "deadline_tolerance", "trace_period", "policy", "seed", "zenoh"}
+          "heartbeat_period", "deadline_tolerance", "arrival_tolerance", "trace_period", "policy", "seed", "zenoh"}
 
 
 def load(path: str | Path) -> NodeConfig:
@@ -98,7 +101,7 @@ def from_dict(data: Any, where: str = "config") -> NodeConfig:
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not (0 <= value <= 1):
             raise ConfigError(f"{where}: trace_period must be a number of seconds in [0, 1], got {value!r}")
         config.trace_period = float(value)
-    for key in ("time_unit", "heartbeat_period", "deadline_tolerance"):
+    for key in ("time_unit", "heartbeat_period", "deadline_tolerance", "arrival_tolerance"):
         if key in data:
             value = data[key]
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not (value > 0) or math.isinf(value):

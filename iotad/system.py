@@ -47,7 +47,7 @@ _SYSTEM_NAME = re.compile(r"^[A-Za-z_][\w-]*$")
 _ENDPOINT = re.compile(r"^\s*([A-Za-z_][\w/-]*)\.([A-Za-z_]\w*)(?:\[(\d+)\])?\s*$")
 
 _SYSTEM_KEYS = {"name", "time_unit", "endpoints", "hub_host", "heartbeat_period", "heartbeat_timeout",
-                "start_timeout", "external"}
+                "start_timeout", "external", "deadline_tolerance", "arrival_tolerance"}
 # In TOML a key written after a [[node]] or [[bind]] table belongs to that table.
 _TABLE_HINT = {"external": " (a top-level key must come before the first table; or put it in [system])"}
 _NODE_KEYS = {"name", "spec", "iota", "python", "params", "restart", "max_restarts", "backoff", "host",
@@ -130,6 +130,8 @@ class System:
     heartbeat_period: float = 0.2
     heartbeat_timeout: float = 3.0
     start_timeout: float = 15.0
+    deadline_tolerance: float = 0.002  # seconds a firing may be late before it is a deadline miss
+    arrival_tolerance: float = 0.002   # seconds an input may be early (jitter) against its switching time
     nodes: dict[str, NodeSpec] = field(default_factory=dict)
     bindings: list[Binding] = field(default_factory=list)  # concrete: one per (source, target) member
     external: set[Port] = field(default_factory=set)
@@ -171,7 +173,8 @@ class System:
         config = {"system": self.name, "path": spec.name, "source": spec.source, "params": spec.params,
                   "time_unit": self.time_unit, "origin": origin, "listen": self.listen_for(spec.host),
                   "connect": list(hub), "inputs": self.inputs_of(node),
-                  "heartbeat_period": self.heartbeat_period}
+                  "heartbeat_period": self.heartbeat_period,
+                  "deadline_tolerance": self.deadline_tolerance, "arrival_tolerance": self.arrival_tolerance}
         if spec.policy is not None:
             config["policy"] = spec.policy
         if spec.seed is not None:
@@ -246,7 +249,8 @@ class _Parser:
                 self.error(entry, f"name must be one key chunk (letters, digits, _ and -), got {raw['name']!r}")
         elif not _SYSTEM_NAME.match(system.name):
             self.error(entry, f"no name given and the file name {system.name!r} is not a valid one")
-        for key in ("time_unit", "heartbeat_period", "heartbeat_timeout", "start_timeout"):
+        for key in ("time_unit", "heartbeat_period", "heartbeat_timeout", "start_timeout",
+                    "deadline_tolerance", "arrival_tolerance"):
             if key in raw:
                 value = raw[key]
                 if _positive(value):

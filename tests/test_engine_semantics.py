@@ -476,3 +476,12 @@ def test_input_action_with_when_clause_is_refused():
                     actions=[Action("i", when=lambda s, i: True)])
     with pytest.raises(SpecError, match="cannot have when"):
         spec.validate()
+
+
+def test_input_tolerance_accepts_jitter_but_not_a_flood():
+    inputs = [(0.0, "go", 1), (0.499, "go", 2), (0.9, "go", 3)]
+    strict = run(Latch("latch", L=5, U=5), inputs, 1)
+    assert [v["t"] for v in violations(strict, "switching_time")] == [0.499]
+    tolerant = run(Latch("latch", L=5, U=5), inputs, 1, input_tolerance=0.002)
+    assert [e["value"] for e in events(tolerant, "input")] == [1, 2]  # 0.499 is jitter, accepted
+    assert [v["t"] for v in violations(tolerant, "switching_time")] == [0.9]  # 0.401 after: a flood
