@@ -48,8 +48,9 @@ class StatusView:
             self._live.stop()
             self._live = None
         elif self._started:
-            for row in self._rows:  # a final snapshot, since no table was on screen
-                self.console.print("  " + "  ".join(f"{c}={v}" for c, v in zip(COLUMNS, row) if v != ""),
+            # A final snapshot, since no table was on screen; dashes (nothing to say) left out.
+            for row in self._rows:
+                self.console.print("  " + "  ".join(f"{c}={v}" for c, v in zip(COLUMNS, row) if v not in ("", "-")),
                                    markup=False, highlight=False, soft_wrap=True)
 
     def _table(self) -> Any:
