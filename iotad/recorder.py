@@ -18,6 +18,7 @@ in direct mode, and a message reaches the file one trace period (20 ms by defaul
 """
 from __future__ import annotations
 
+import functools
 import json
 import os
 import threading
@@ -133,6 +134,8 @@ class Recorder:
         self._nodes: set[str] = {n["name"] for n in self.system_table.get("node") or []
                                  if isinstance(n, dict) and isinstance(n.get("name"), str)}
         self._output_keys: set[str] = set()
+        self._pack = msgpack.Packer(use_bin_type=True).pack  # the writer thread's alone
+        self._unpack = functools.partial(msgpack.unpackb, raw=False, strict_map_key=False)
         self.output = Path(output)
         self.connect, self.listen = list(connect), list(listen)
         self.flush_period, self.spec_timeout, self.query_specs = flush_period, spec_timeout, query_specs
@@ -297,7 +300,7 @@ class Recorder:
         """Trace-sourced: write the message that an output or input event on `trace_key` describes
         (on its key, publish time and sequence from the sender), unless another node's output
         records it. Returns how many messages were written (0 or 1)."""
-        event = msgpack.unpackb(data, raw=False, strict_map_key=False)
+        event = self._unpack(data)
         key = event.get("key") if isinstance(event, dict) else None
         if not isinstance(key, str):
             return 0  # a node host older than these fields: its trace holds its events still
@@ -320,7 +323,7 @@ class Recorder:
         channel_id = ids.get(key)
         if channel_id is None:
             channel_id = ids[key] = self._new_channel(key)
-        write(channel_id, receipt_ns, publish_ns, sequence, packb(event.get("value")))
+        write(channel_id, receipt_ns, publish_ns, sequence, self._pack(event.get("value")))
         return 1
 
     def _unexplained(self, key: str, trace_key: str) -> bool:

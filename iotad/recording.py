@@ -29,7 +29,8 @@ from pathlib import Path
 from typing import IO, Any, Callable, Iterable, Iterator
 
 import msgpack
-from mcap.records import Attachment, Channel as McapChannel, Footer, Message, Metadata, Schema
+from mcap.opcode import Opcode
+from mcap.records import Attachment, Channel as McapChannel, Footer, Message, MessageIndex, Metadata, Schema
 from mcap.stream_reader import StreamReader
 from mcap.writer import CompressionType, Writer
 
@@ -125,7 +126,6 @@ class McapSink:
         record_writer = getattr(builder, "record_writer", None)
         if builder is None or stats is None or finalize is None or not hasattr(record_writer, "_buffer"):
             return self.write
-        from mcap.records import MessageIndex
         pack = struct.Struct("<BQHIQQ").pack
         indices = builder.message_indices
         channel_counts = stats.channel_message_counts
@@ -140,7 +140,7 @@ class McapSink:
                 builder.message_end_time = log_ns
             index = indices.get(channel_id)
             if index is None:
-                index = indices[channel_id] = MessageIndex(channel_id=channel_id, records=[])
+                index = indices[channel_id] = _MessageIndex(channel_id=channel_id, records=[])
             buffer = record_writer._buffer  # replaced by a new one after every chunk
             offset = buffer.tell()
             index.records.append((log_ns, offset))
@@ -180,6 +180,18 @@ class McapSink:
         self._file.flush()
         if self._owns_file:
             self._file.close()
+
+
+class _MessageIndex(MessageIndex):
+    """The same record, written with one `struct.pack` rather than two small writes per message
+    (those cost ~1.5 us a message when a chunk is closed)."""
+
+    def write(self, stream: Any) -> None:
+        records = self.records
+        stream.start_record(Opcode.MESSAGE_INDEX)
+        stream.write(struct.pack(f"<HI{2 * len(records)}Q", self.channel_id, len(records) * 16,
+                                 *[n for record in records for n in record]))
+        stream.finish_record()
 
 
 def _plain(value: Any) -> Any:

@@ -3,6 +3,9 @@
 - Channel keys: `iota/<system>/<instance path>/<channel>[/<index>]`.
 - A node's own events (all of them: inputs, outputs, internal actions, violations, as trace
   dicts in the node's clock) go on `iota/<system>/<instance path>/@trace`.
+- On `@trace` a node host adds to each output event the `key`, `seq` and `send_ns` it published
+  with, and to each input from outside the `key` it arrived on and the sender's `seq`/`send_ns`
+  (when it had the attachment): a trace-sourced recorder rebuilds every message from these.
 - The first event a node host puts on `@trace` is `start_event(...)` (kind `start`): the engine's
   start time `t` in the node's clock, when every precondition was first evaluated.
 - Launcher events (node start, exit, restart) go on `iota/<system>/@launcher`.
