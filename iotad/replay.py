@@ -109,11 +109,16 @@ def republish(recording: Recording, session: Any, *, rate: float = 1.0, start: f
     seconds into the recording. Attachments are fresh `[sequence, send_time_ns]`. Returns the count."""
     from . import wire
 
-    messages = sorted((m for m in recording.messages if not m.topic.startswith("@")), key=lambda m: m.log_time)
+    # Paced by the senders' send times where the recording has them: a trace-sourced recording's
+    # log times are burst arrivals (20 ms lumps), not when the messages were sent.
+    def sent_at(message: Any) -> int:
+        return message.publish_time or message.log_time
+
+    messages = sorted((m for m in recording.messages if not m.topic.startswith("@")), key=sent_at)
     if not messages:
         return 0
-    first = messages[0].log_time + int(start * 1e9)
-    messages = [m for m in messages if m.log_time >= first]
+    first = sent_at(messages[0]) + int(start * 1e9)
+    messages = [m for m in messages if sent_at(m) >= first]
     publishers: dict[str, Any] = {}
     sequences: dict[str, int] = {}
     sent = 0
@@ -123,7 +128,7 @@ def republish(recording: Recording, session: Any, *, rate: float = 1.0, start: f
             for k, message in enumerate(messages):
                 if stop():
                     return sent
-                due = t0 + (message.log_time - first) / 1e9 / rate
+                due = t0 + (sent_at(message) - first) / 1e9 / rate
                 delay = due - time.monotonic()
                 if delay > 0:
                     time.sleep(delay)

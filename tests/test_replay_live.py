@@ -45,3 +45,45 @@ def test_republish_everything_in_order(tmp_path):
     finally:
         talker.close()
         listener.close()
+
+
+class _Recorded:
+    def __init__(self, topic, log_time, publish_time, data):
+        self.topic, self.log_time, self.publish_time, self.data = topic, log_time, publish_time, data
+
+
+class _FakeSession:
+    """Collects what republish puts, in order, without a network."""
+
+    def __init__(self):
+        self.put_order = []
+
+    def declare_publisher(self, topic):
+        session = self
+
+        class Publisher:
+            def put(self, data, attachment=None):
+                session.put_order.append((topic, data))
+
+            def undeclare(self):
+                pass
+
+        return Publisher()
+
+
+def test_republish_paces_by_send_time_not_burst_arrival():
+    # A trace-sourced recording logs a whole 20 ms burst at one arrival time; the senders' send
+    # times (publish_time) keep the real order and spacing.
+    burst = 5_000_000_000
+    messages = [_Recorded("iota/s/a/out", burst, 4_980_000_000, b"late-logged-first-sent"),
+                _Recorded("iota/s/b/out", burst - 1, 4_990_000_000, b"second"),
+                _Recorded("iota/s/c/out", burst + 1, 0, b"no-send-time")]
+
+    class Recording:
+        pass
+
+    recording = Recording()
+    recording.messages = messages
+    session = _FakeSession()
+    assert republish(recording, session, rate=1000.0) == 3
+    assert [data for _, data in session.put_order] == [b"late-logged-first-sent", b"second", b"no-send-time"]
