@@ -663,7 +663,7 @@ class Checker:
             if isinstance(node, (S.Name, S.Null)) and isinstance(node.type, EnumType):
                 if isinstance(node, S.Null) or node.kind == "member":
                     produced.setdefault(node.type.name, set()).add("NULL" if isinstance(node, S.Null) else node.id)
-            for child in _children(node):
+            for child in S.children(node):
                 walk(child)
 
         for _, d, element in info.states.values():
@@ -926,22 +926,6 @@ def _conjuncts(expr):
     if isinstance(expr, S.Binary) and expr.op == "&&":
         return _conjuncts(expr.left) + _conjuncts(expr.right)
     return [expr]
-
-
-def _children(node):
-    if isinstance(node, S.FieldOf):
-        return [node.obj]
-    if isinstance(node, S.IndexOf):
-        return [node.obj, node.index]
-    if isinstance(node, S.Call):
-        return list(node.args)
-    if isinstance(node, S.Unary):
-        return [node.operand]
-    if isinstance(node, S.Binary):
-        return [node.left, node.right]
-    if isinstance(node, S.Aggregate):
-        return [item for _, item in node.items]
-    return []
 
 
 def _assigned_values(stmt):

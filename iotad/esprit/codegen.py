@@ -131,24 +131,8 @@ def _reads(node: S.Expr, found: set) -> None:
         if node.kind == "state":
             found.add((node.id, ANY))
         return
-    for child in _children(node):
+    for child in S.children(node):
         _reads(child, found)
-
-
-def _children(node: S.Expr) -> list:
-    if isinstance(node, S.FieldOf):
-        return [node.obj]
-    if isinstance(node, S.IndexOf):
-        return [node.obj, node.index]
-    if isinstance(node, S.Call):
-        return list(node.args)
-    if isinstance(node, S.Unary):
-        return [node.operand]
-    if isinstance(node, S.Binary):
-        return [node.left, node.right]
-    if isinstance(node, S.Aggregate):
-        return [item for _, item in node.items]
-    return []
 
 
 def writes(node: S.Node | None) -> frozenset:

@@ -232,3 +232,20 @@ class IotaDecl(Node):
 @dataclass
 class Program:
     decls: list[Node]
+
+
+def children(node: Node) -> list:
+    """The sub-expressions of an expression, for walks that look for names or calls."""
+    if isinstance(node, FieldOf):
+        return [node.obj]
+    if isinstance(node, IndexOf):
+        return [node.obj, node.index]
+    if isinstance(node, Call):
+        return list(node.args)
+    if isinstance(node, Unary):
+        return [node.operand]
+    if isinstance(node, Binary):
+        return [node.left, node.right]
+    if isinstance(node, Aggregate):
+        return [item for _, item in node.items]
+    return []
