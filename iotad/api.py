@@ -182,8 +182,8 @@ def _build_spec(cls: type, params: dict[str, Any], state_names: tuple[str, ...])
                 assigned |= stored_attributes(fn) or frozenset()  # None: that fn writes everything
     constants = frozenset(params) - assigned
 
-    def cells(fn: Any) -> frozenset:
-        return cells_of(fn, None, opaque, constants) if callable(fn) else frozenset()
+    def cells(fn: Any, writes: bool = False) -> frozenset:
+        return cells_of(fn, None, opaque, constants, writes=writes) if callable(fn) else frozenset()
 
     actions = []
     for _, decl, clause in ordered:
@@ -191,7 +191,7 @@ def _build_spec(cls: type, params: dict[str, Any], state_names: tuple[str, ...])
         if decl.direction == "input":
             do = clause["do"]
             actions.append(Action(decl.name, do=_as_input_do(do, family), reads=frozenset(),
-                                  writes=cells(do), label=f"{decl.name}(x)",
+                                  writes=cells(do, True), label=f"{decl.name}(x)",
                                   line=do.__code__.co_firstlineno))
             continue
         do = clause["do"]
@@ -204,7 +204,7 @@ def _build_spec(cls: type, params: dict[str, Any], state_names: tuple[str, ...])
             do=_as_do(do, family), reads=cells(clause["when"]),
             # a value function runs once per firing, just before the do-block: what it
             # touches (`self.queue.pop(0)`) counts as written too
-            writes=_union(cells(do), cells(clause["value"])), label=label,
+            writes=_union(cells(do, True), cells(clause["value"], True)), label=label,
             line=do.__code__.co_firstlineno if do else None))
     spec = IotaSpec(cls.__name__, params, channels, actions, init=None, state_names=state_names)
     spec.validate()

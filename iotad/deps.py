@@ -16,7 +16,7 @@ import linecache
 from functools import lru_cache
 from typing import Callable
 
-from .model import ALL_STATE, ANY, INDEX
+from .model import ALL_STATE, ANY, INDEX, by_state
 
 
 @lru_cache(maxsize=None)
@@ -57,12 +57,13 @@ def _function_nodes(fn: Callable) -> list[ast.AST]:
 
 def cells_of(fn: Callable | None, state_names: frozenset[str] | set[str] | None,
              opaque: frozenset[str] | set[str] = frozenset(),
-             constants: frozenset[str] | set[str] = frozenset()) -> frozenset:
+             constants: frozenset[str] | set[str] = frozenset(), *, writes: bool = False) -> frozenset:
     """Cells `fn(self, index, ...)` may access; ALL_STATE when it cannot tell.
 
     `state_names` None: every attribute of `self` but `constants` is a cell (state set outside
     `init`, a class attribute used as a default); `opaque` names attributes that run code when
-    read (properties, methods): touching one is "everything"."""
+    read (properties, methods): touching one is "everything". With `writes`, `self.x[self.k]`
+    is the cell `(x, by_state(k))` when `k` is assigned at most once and not in a loop."""
     if fn is None:
         return frozenset()
     nodes = _function_nodes(fn)
@@ -70,7 +71,7 @@ def cells_of(fn: Callable | None, state_names: frozenset[str] | set[str] | None,
         return ALL_STATE
     cells: set = set()
     for node in nodes:
-        found = _cells_in(node, state_names, opaque, constants)
+        found = _cells_in(node, state_names, opaque, constants, writes)
         if found is ALL_STATE:
             return ALL_STATE
         cells |= found
@@ -93,7 +94,28 @@ def _binds(node: ast.AST, name: str) -> bool:
     return False
 
 
-def _cells_in(node: ast.AST, state_names, opaque, constants) -> frozenset:
+def _stable_attributes(module: ast.Module, self_name: str, parents: dict[int, ast.AST]) -> set[str]:
+    """Attributes of `self` assigned at most once, and not inside a loop, comprehension or
+    nested function: an index read from one takes at most two values during the call."""
+    stores: dict[str, int] = {}
+    unstable: set[str] = set()
+    loops = (ast.For, ast.AsyncFor, ast.While, ast.comprehension, ast.Lambda, ast.FunctionDef,
+             ast.AsyncFunctionDef, ast.ListComp, ast.SetComp, ast.DictComp, ast.GeneratorExp)
+    for n in ast.walk(module):
+        if (isinstance(n, ast.Attribute) and isinstance(n.value, ast.Name) and n.value.id == self_name
+                and not isinstance(n.ctx, ast.Load)):
+            stores[n.attr] = stores.get(n.attr, 0) + 1
+            above = parents.get(id(n))
+            while above is not None:
+                if isinstance(above, loops):
+                    unstable.add(n.attr)
+                above = parents.get(id(above))
+    every = {n.attr for n in ast.walk(module) if isinstance(n, ast.Attribute)
+             and isinstance(n.value, ast.Name) and n.value.id == self_name}
+    return {name for name in every if stores.get(name, 0) <= 1 and name not in unstable}
+
+
+def _cells_in(node: ast.AST, state_names, opaque, constants, writes: bool = False) -> frozenset:
     args = [a.arg for a in node.args.args]
     if not args:
         return frozenset()
@@ -109,6 +131,7 @@ def _cells_in(node: ast.AST, state_names, opaque, constants) -> frozenset:
     for parent in ast.walk(module):
         for child in ast.iter_child_nodes(parent):
             parents[id(child)] = parent
+    stable = _stable_attributes(module, self_name, parents) if writes else set()
     cells: set = set()
     for n in ast.walk(module):
         if not (isinstance(n, ast.Name) and n.id == self_name):
@@ -127,6 +150,11 @@ def _cells_in(node: ast.AST, state_names, opaque, constants) -> frozenset:
         if (index_name and isinstance(subscript, ast.Subscript) and subscript.value is attribute
                 and isinstance(subscript.slice, ast.Name) and subscript.slice.id == index_name):
             cells.add((attribute.attr, INDEX))
+        elif (isinstance(subscript, ast.Subscript) and subscript.value is attribute
+              and isinstance(subscript.slice, ast.Attribute) and isinstance(subscript.slice.value, ast.Name)
+              and subscript.slice.value.id == self_name and subscript.slice.attr in stable
+              and subscript.slice.attr not in opaque and not subscript.slice.attr.startswith("__")):
+            cells.add((attribute.attr, by_state(subscript.slice.attr)))
         else:
             cells.add((attribute.attr, ANY))
     return frozenset(cells)
@@ -166,5 +194,9 @@ def stored_attributes(fn: Callable | None) -> frozenset | None:
 def describe(cells: frozenset) -> str:
     if cells is ALL_STATE or cells == ALL_STATE:
         return "everything"
-    return ", ".join(sorted(f"{v}[i]" if k == INDEX else v for v, k in cells)) or "nothing"
+    def one(var: str, key: object) -> str:
+        if key == INDEX:
+            return f"{var}[i]"
+        return f"{var}[{key[1]}]" if isinstance(key, tuple) else var
+    return ", ".join(sorted(one(v, k) for v, k in cells)) or "nothing"
 

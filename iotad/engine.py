@@ -17,7 +17,7 @@ from typing import Any, Callable, Iterable
 
 from .clock import Clock, VirtualClock
 from .compose import Endpoint, Flat, Leaf, expand, flatten
-from .model import ALL_STATE, ANY, INDEX, Action, Channel, window_ok
+from .model import ALL_STATE, ANY, INDEX, Action, Channel, is_by_state, window_ok
 from .policy import Eager
 from .types import BadValue
 
@@ -43,7 +43,7 @@ class ActionInstance:
     """One locally controlled action at one index: its window while enabled."""
 
     __slots__ = ("leaf", "action", "index", "slot", "rank", "enabled", "gen", "te", "lower", "upper",
-                 "fire_at", "affects", "iota", "when", "reads")
+                 "fire_at", "affects", "iota", "when", "reads", "dynamic", "failing")
 
     def __init__(self, leaf: Leaf, action: Action, index: int | None, slot: Slot, rank: int):
         self.leaf, self.action, self.index, self.slot, self.rank = leaf, action, index, slot, rank
@@ -51,7 +51,16 @@ class ActionInstance:
         self.enabled, self.gen = False, 0
         self.te = self.lower = self.upper = self.fire_at = 0.0
         self.affects: list[ActionInstance] | None = None  # computed on first firing
+        self.dynamic = _dynamic_writes(action)
+        self.failing = False  # its precondition raised at its last evaluation
         self.reads = _concrete(action.reads, index)
+
+
+def _dynamic_writes(action: Action) -> tuple:
+    """(variable, index variable) of the writes `x[k]` whose element depends on state `k`."""
+    if action.writes is ALL_STATE:
+        return ()
+    return tuple(sorted((var, key[1]) for var, key in action.writes if is_by_state(key)))
 
 
 def _concrete(cells: frozenset, index: int | None) -> frozenset:
@@ -149,11 +158,34 @@ class Engine:
         found: dict[int, ActionInstance] = {}
         for var, key in writes:
             own_element = key == INDEX and index is not None
+            # an element chosen by state (`x[k]`) is added at firing time (`_with_dynamic`);
+            # here only the readers of the whole variable
+            by_state = is_by_state(key)
             for (name, where), group in self._readers[leaf.path].items():
-                if name == "*" or (name == var and (not own_element or where in (index, ANY))):
+                if name == "*" or (name == var and (where == ANY if by_state
+                                                    else not own_element or where in (index, ANY))):
                     for instance in group:
                         found[instance.rank] = instance
         return [found[rank] for rank in sorted(found)]
+
+    def _with_dynamic(self, leaf: Leaf, static: list, dynamic: tuple, before: list) -> list:
+        """`static` plus the readers of the elements `x[k]` a firing wrote, with `k` taken
+        before and after it (the do-block assigns `k` at most once: it indexed with one of them)."""
+        readers = self._readers[leaf.path]
+        extra: dict[int, ActionInstance] = {}
+        for (var, source), old in zip(dynamic, before):
+            for key in (old, getattr(leaf.iota, source, None)):
+                try:
+                    group = readers.get((var, key), ())
+                except TypeError:  # an unhashable index: any element may have been written
+                    group = [i for (name, _), g in readers.items() if name == var for i in g]
+                for instance in group:
+                    extra[instance.rank] = instance
+        if not extra:
+            return static
+        for instance in static:
+            extra[instance.rank] = instance
+        return [extra[rank] for rank in sorted(extra)]
 
     # ---------------------------------------------------------------- running
     def now(self) -> float:
@@ -236,6 +268,9 @@ class Engine:
                             f"{action.label} fired at {now:.6g}, after its deadline {deadline:.6g}")
         plain = None
         emit = True
+        dynamic = instance.dynamic if self.track_dependencies else ()
+        if dynamic:
+            before = [getattr(iota, source, None) for _, source in dynamic]
         if action.value is not None:
             try:
                 value = action.value(iota, index)
@@ -262,6 +297,8 @@ class Engine:
         affects = instance.affects
         if affects is None:
             affects = instance.affects = self._affected(leaf, action.writes, index)
+        if dynamic:
+            affects = self._with_dynamic(leaf, affects, dynamic, before)
         self._evaluate(instance, now)
         for other in affects:
             if other is not instance:
@@ -315,6 +352,9 @@ class Engine:
         action = slot.input_action
         if action is None:
             return
+        dynamic = _dynamic_writes(action) if self.track_dependencies else ()
+        if dynamic:
+            before = [getattr(leaf.iota, source, None) for _, source in dynamic]
         if action.do is not None:
             try:
                 action.do(leaf.iota, index, value)
@@ -325,6 +365,8 @@ class Engine:
         affects = self._input_affects.get(key)
         if affects is None:
             affects = self._input_affects[key] = self._affected(leaf, action.writes, index)
+        if dynamic:
+            affects = self._with_dynamic(leaf, affects, dynamic, before)
         for other in affects:
             self._evaluate(other, now)
 
@@ -335,8 +377,13 @@ class Engine:
         else:
             try:
                 holds = when(instance.iota, instance.index)
+                instance.failing = False
             except Exception as exc:  # noqa: BLE001
-                self._runtime_error(now, instance, "when", exc)
+                # Reported when it starts failing, not at every evaluation: how often a
+                # precondition is evaluated is the engine's business, not part of the trace.
+                if not instance.failing:
+                    self._runtime_error(now, instance, "when", exc)
+                    instance.failing = True
                 holds = False
         if holds:
             if not instance.enabled:

@@ -25,6 +25,18 @@ ANY = "*"
 ALL_STATE = frozenset({("*", ANY)})
 
 
+def by_state(name: str) -> tuple[str, str]:
+    """A write key "the element indexed by state variable `name`" (`request[current_master]`).
+    Only for writes, and only where the do-block assigns `name` at most once outside loops: the
+    element written is then the one at its value before or after the firing, which the engine
+    reads on both sides of the firing."""
+    return ("state", name)
+
+
+def is_by_state(key: object) -> bool:
+    return isinstance(key, tuple)
+
+
 class SpecError(Exception):
     """A specification is inconsistent (unknown channel, bad size, two input actions...)."""
 

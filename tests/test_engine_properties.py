@@ -4,7 +4,7 @@ the preconditions a firing can affect gives the same trace as re-evaluating all 
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from iotad import Composite, Eager, Engine, Input, Int, Iota, Output, Param, Random
+from iotad import Composite, Eager, Engine, Input, Int, Internal, Iota, Output, Param, Random
 
 from scheduler import Scheduler
 
@@ -147,3 +147,57 @@ def test_dependency_tracking_matches_on_a_composite_with_bindings():
         assert tracked.trace == full.trace
         assert {e["value"] for e in tracked.trace if e["action"] == "ack" and e["kind"] == "output"} \
             >= {"COMMIT"}
+
+
+class Ring(Iota):
+    """Writes the element a state pointer selects (`slots[self.k]`) and moves the pointer once,
+    before or after the write: the element-by-state write tracking must find both elements."""
+    N = Param(3)
+    poke = Input(Int, size="N")
+    take = Internal(size="N")
+    write_then_move = Internal()
+    move_then_write = Internal()
+
+    def init(self):
+        self.slots = [0] * self.N
+        self.k = 0
+        self.moves = 0
+
+    @poke.input
+    def on_poke(self, i, x):
+        self.slots[i] = x
+
+    @take.action(when=lambda self, i: self.slots[i] > 0, within=(0.1, 0.4))
+    def on_take(self, i):
+        self.slots[i] -= 1
+
+    @write_then_move.action(when=lambda self: self.moves % 2 == 0 and self.moves < 40, within=(0.2, 0.6))
+    def on_write_then_move(self):
+        self.slots[self.k] += 2          # the element at the pointer's old value
+        self.k = (self.k + 1) % self.N
+        self.moves += 1
+
+    @move_then_write.action(when=lambda self: self.moves % 2 == 1 and self.moves < 40, within=(0.2, 0.6))
+    def on_move_then_write(self):
+        self.k = (self.k + 2) % self.N
+        self.slots[self.k] += 1          # the element at its new value
+        self.moves += 1
+
+
+@settings(max_examples=60, deadline=None)
+@given(pokes=st.lists(st.tuples(st.floats(0, 10).map(lambda t: round(t, 2)), st.integers(0, 2),
+                                st.integers(0, 3)), max_size=8).map(sorted),
+       seed=st.integers(0, 2**16))
+def test_writes_to_an_element_chosen_by_state_are_tracked(pokes, seed):
+    from iotad.model import by_state
+    for action in Ring("r").iota_spec.actions[2:]:
+        assert ("slots", by_state("k")) in action.writes and ("slots", "*") not in action.writes
+
+    def run(track):
+        engine = Engine(Ring("r"), policy=Random(seed), track_dependencies=track)
+        for t, i, x in pokes:
+            engine.post(None, "poke", x, index=i, t=t)
+        engine.run(30)
+        return engine.trace
+
+    assert run(True) == run(False)

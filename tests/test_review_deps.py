@@ -186,7 +186,8 @@ def esprit_program(assignments, guards):
     }}"""
 
 
-cells = st.sampled_from(["a[i]", "a[0]", "a[1]", "b[i]", "b[0]", "b[1]", "c"])
+# `a[c]` is an element chosen by state: the engine finds it from c before and after a firing
+cells = st.sampled_from(["a[i]", "a[0]", "a[1]", "b[i]", "b[0]", "b[1]", "c", "a[c]", "b[c]"])
 guards = st.builds(lambda x, op, n: f"{x} {op} {n}", cells, st.sampled_from(["<", "==", ">", "!="]),
                    st.integers(0, 3))
 writes = st.lists(st.one_of(

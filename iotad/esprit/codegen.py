@@ -7,7 +7,7 @@ index variable is `index`, loop variables are `l_<name>`, constants `k_<name>`, 
 """
 from __future__ import annotations
 
-from iotad.model import ANY, INDEX
+from iotad.model import ANY, INDEX, by_state
 from iotad.types import ArrayType, StructType
 
 from . import syntax as S
@@ -140,25 +140,57 @@ def writes(node: S.Node | None) -> frozenset:
     writes nothing."""
     found: set = set()
     if node is not None:
-        _writes(node, found)
+        counts: dict[str, int] = {}
+        _count_assigns(node, counts, False)
+        unstable = {name for name, n in counts.items() if n > 1}
+        _writes(node, found, unstable)
     return frozenset(found)
 
 
-def _writes(node: S.Node, found: set) -> None:
+def _assigned_root(target: S.Expr) -> tuple[S.Expr, S.Expr | None]:
+    """The variable an assignment target lands in, and the access just above it."""
+    chain, above = target, None
+    while isinstance(chain, (S.FieldOf, S.IndexOf)):
+        above, chain = chain, chain.obj
+    return chain, above
+
+
+def _count_assigns(node: S.Node, counts: dict[str, int], in_loop: bool) -> None:
+    """How often each state variable is assigned; in a loop counts as many times."""
     if isinstance(node, S.Assign):
-        chain = node.target
-        above = None
-        while isinstance(chain, (S.FieldOf, S.IndexOf)):
-            above, chain = chain, chain.obj
-        if isinstance(chain, S.Name) and chain.kind == "state":
-            own = isinstance(above, S.IndexOf) and _is_family_index(above.index)
-            found.add((chain.id, INDEX if own else ANY))
+        root, _ = _assigned_root(node.target)
+        if isinstance(root, S.Name) and root.kind == "state":
+            counts[root.id] = counts.get(root.id, 0) + (2 if in_loop else 1)
     elif isinstance(node, S.Block):
         for item in node.body:
-            _writes(item, found)
+            _count_assigns(item, counts, in_loop)
     elif isinstance(node, S.If):
-        _writes(node.then, found)
+        _count_assigns(node.then, counts, in_loop)
         if node.orelse is not None:
-            _writes(node.orelse, found)
+            _count_assigns(node.orelse, counts, in_loop)
     elif isinstance(node, S.For):
-        _writes(node.body, found)
+        _count_assigns(node.body, counts, True)
+
+
+def _writes(node: S.Node, found: set, unstable: set) -> None:
+    if isinstance(node, S.Assign):
+        chain, above = _assigned_root(node.target)
+        if isinstance(chain, S.Name) and chain.kind == "state":
+            if isinstance(above, S.IndexOf) and _is_family_index(above.index):
+                found.add((chain.id, INDEX))
+            elif (isinstance(above, S.IndexOf) and isinstance(above.index, S.Name)
+                  and above.index.kind == "state" and above.index.id not in unstable):
+                # `x[k] = ...` with k assigned at most once here: the engine reads k before
+                # and after the firing to know which element changed (model.by_state)
+                found.add((chain.id, by_state(above.index.id)))
+            else:
+                found.add((chain.id, ANY))
+    elif isinstance(node, S.Block):
+        for item in node.body:
+            _writes(item, found, unstable)
+    elif isinstance(node, S.If):
+        _writes(node.then, found, unstable)
+        if node.orelse is not None:
+            _writes(node.orelse, found, unstable)
+    elif isinstance(node, S.For):
+        _writes(node.body, found, unstable)
