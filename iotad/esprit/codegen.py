@@ -138,12 +138,28 @@ def _reads(node: S.Expr, found: set) -> None:
 def writes(node: S.Node | None) -> frozenset:
     """State cells a do-block may change. Externs get copies of what they are passed, so a call
     writes nothing."""
+    if node is None:
+        return frozenset()
+    assigns = list(_assignments(node, False))
+    counts: dict[str, int] = {}
+    for assign, in_loop in assigns:
+        root, _ = _assigned_root(assign.target)
+        if isinstance(root, S.Name) and root.kind == "state":
+            counts[root.id] = counts.get(root.id, 0) + (2 if in_loop else 1)  # a loop: many times
     found: set = set()
-    if node is not None:
-        counts: dict[str, int] = {}
-        _count_assigns(node, counts, False)
-        unstable = {name for name, n in counts.items() if n > 1}
-        _writes(node, found, unstable)
+    for assign, _ in assigns:
+        chain, above = _assigned_root(assign.target)
+        if not (isinstance(chain, S.Name) and chain.kind == "state"):
+            continue
+        if isinstance(above, S.IndexOf) and _is_family_index(above.index):
+            found.add((chain.id, INDEX))
+        elif (isinstance(above, S.IndexOf) and isinstance(above.index, S.Name)
+              and above.index.kind == "state" and counts.get(above.index.id, 0) <= 1):
+            # `x[k] = ...` with k assigned at most once here: the engine reads k before and
+            # after the firing to know which element changed (model.by_state)
+            found.add((chain.id, by_state(above.index.id)))
+        else:
+            found.add((chain.id, ANY))
     return frozenset(found)
 
 
@@ -155,42 +171,16 @@ def _assigned_root(target: S.Expr) -> tuple[S.Expr, S.Expr | None]:
     return chain, above
 
 
-def _count_assigns(node: S.Node, counts: dict[str, int], in_loop: bool) -> None:
-    """How often each state variable is assigned; in a loop counts as many times."""
+def _assignments(node: S.Node, in_loop: bool):
+    """Every assignment in a statement, with whether it sits in a loop."""
     if isinstance(node, S.Assign):
-        root, _ = _assigned_root(node.target)
-        if isinstance(root, S.Name) and root.kind == "state":
-            counts[root.id] = counts.get(root.id, 0) + (2 if in_loop else 1)
+        yield node, in_loop
     elif isinstance(node, S.Block):
         for item in node.body:
-            _count_assigns(item, counts, in_loop)
+            yield from _assignments(item, in_loop)
     elif isinstance(node, S.If):
-        _count_assigns(node.then, counts, in_loop)
+        yield from _assignments(node.then, in_loop)
         if node.orelse is not None:
-            _count_assigns(node.orelse, counts, in_loop)
+            yield from _assignments(node.orelse, in_loop)
     elif isinstance(node, S.For):
-        _count_assigns(node.body, counts, True)
-
-
-def _writes(node: S.Node, found: set, unstable: set) -> None:
-    if isinstance(node, S.Assign):
-        chain, above = _assigned_root(node.target)
-        if isinstance(chain, S.Name) and chain.kind == "state":
-            if isinstance(above, S.IndexOf) and _is_family_index(above.index):
-                found.add((chain.id, INDEX))
-            elif (isinstance(above, S.IndexOf) and isinstance(above.index, S.Name)
-                  and above.index.kind == "state" and above.index.id not in unstable):
-                # `x[k] = ...` with k assigned at most once here: the engine reads k before
-                # and after the firing to know which element changed (model.by_state)
-                found.add((chain.id, by_state(above.index.id)))
-            else:
-                found.add((chain.id, ANY))
-    elif isinstance(node, S.Block):
-        for item in node.body:
-            _writes(item, found, unstable)
-    elif isinstance(node, S.If):
-        _writes(node.then, found, unstable)
-        if node.orelse is not None:
-            _writes(node.orelse, found, unstable)
-    elif isinstance(node, S.For):
-        _writes(node.body, found, unstable)
+        yield from _assignments(node.body, True)
