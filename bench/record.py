@@ -87,6 +87,7 @@ from iotad import wire
 from iotad.transport import open_session
 session = open_session(connect=[sys.argv[1]])
 traced = sys.argv[2] == "traces"
+stop, flusher = threading.Event(), None
 try:
     pub = session.declare_publisher("iota/bench/pong/out", express=True, congestion_control=zenoh.CongestionControl.BLOCK)
     trace = session.declare_publisher("iota/bench/pong/@trace", congestion_control=zenoh.CongestionControl.BLOCK,
@@ -104,18 +105,22 @@ try:
             buffer.append({{"t": 0.0, "iota": "pong", "action": "out", "index": None, "kind": "output", "value": value,
                            "key": "iota/bench/pong/out", "seq": seqs[0], "send_ns": send_ns}})
         seqs[0] += 1
-    def flush():  # every 20 ms, as a node host's trace_period
-        while True:
-            time.sleep(0.02)
+    def flush():  # every 20 ms, as a node host's trace_period, until the stop
+        while not stop.wait(0.02):
             events, buffer[:] = list(buffer), []
             for event in events:
                 trace.put(wire.encode(event), attachment=wire.encode_attachment(seqs[1]))
                 seqs[1] += 1
-    threading.Thread(target=flush, daemon=True).start()
+    flusher = threading.Thread(target=flush, daemon=True)
+    flusher.start()
     sub = session.declare_subscriber("iota/bench/ping/out", answer)
     sys.stdout.write("ready\n"); sys.stdout.flush()
     sys.stdin.readline()
+    sub.undeclare()  # no more answers, then no more trace
 finally:
+    stop.set()  # the flush thread ends before the session it puts on closes
+    if flusher is not None:
+        flusher.join()
     session.close()
 """
 

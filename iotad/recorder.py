@@ -232,8 +232,10 @@ class Recorder:
         traced = self._traced
         ids: dict[str, int] = {}
         last: dict[str, tuple[int, int]] = {}
-        unpack = msgpack.unpackb
+        unpack, pack, unpack_attachment = self._unpack, self._pack, msgpack.unpackb
+        output_keys = self._output_keys
         write = sink.fast_writer()
+        write_pair = sink.write_pair
         now_ns, monotonic_ns = time.time_ns, time.monotonic_ns
         period_ns = int(self.flush_period * 1e9)
         next_flush = monotonic_ns() + period_ns
@@ -258,7 +260,7 @@ class Recorder:
                     attachment = sample.attachment
                     if attachment is not None:
                         try:
-                            sequence, publish_ns = unpack(attachment.to_bytes())
+                            sequence, publish_ns = unpack_attachment(attachment.to_bytes())
                         except Exception:  # noqa: BLE001 - a foreign publisher's attachment
                             sequence, publish_ns = 0, receipt_ns
                         previous = last.get(key)
@@ -270,12 +272,43 @@ class Recorder:
                                 self._gap(key, previous[0] + 1, sequence, receipt_ns)
                         last[key] = (sequence, publish_ns)
                     data = sample.payload.to_bytes()
-                    write(channel_id, receipt_ns, publish_ns, sequence, data)
-                    written += 1
                     if from_trace and (OUTPUT_MARK in data or INPUT_MARK in data):
-                        written += traced(key, data, receipt_ns, write, ids, last)
-                    if not (written & 255) and monotonic_ns() >= next_flush:
+                        # an output event of a node host (the common case) is written with its
+                        # message in one go; the rest, and anything unexpected, in `_traced`
+                        event = None
+                        try:
+                            event = unpack(data)
+                            out_key, out_seq, out_ns = event["key"], event["seq"], event["send_ns"]
+                            fast = (event["kind"] == "output" and out_key.__class__ is str
+                                    and out_seq.__class__ is int and out_ns.__class__ is int)
+                        except Exception:  # noqa: BLE001 - not a host's output event: see _traced
+                            fast = False
+                        if fast:
+                            if out_key not in output_keys:
+                                output_keys.add(out_key)
+                            previous = last.get(out_key)
+                            if previous is not None:
+                                if out_seq == previous[0] and out_ns == previous[1]:
+                                    fast = False  # a duplicate: _traced counts it
+                                elif out_seq > previous[0] + 1:
+                                    self._gap(out_key, previous[0] + 1, out_seq, receipt_ns)
+                        if fast:
+                            last[out_key] = (out_seq, out_ns)
+                            out_id = ids.get(out_key)
+                            if out_id is None:
+                                out_id = ids[out_key] = self._new_channel(out_key)
+                            write_pair(channel_id, receipt_ns, publish_ns, sequence, data,
+                                       out_id, out_ns, out_seq, pack(event["value"]))
+                            written += 2
+                        else:
+                            write(channel_id, receipt_ns, publish_ns, sequence, data)
+                            written += 1 + traced(key, event, receipt_ns, write, ids, last)
+                    else:
+                        write(channel_id, receipt_ns, publish_ns, sequence, data)
+                        written += 1
+                    if not (received & 255) and monotonic_ns() >= next_flush:
                         break  # a busy stream must flush on time too
+            sink.commit()  # into the chunk in progress, at most 4096 samples a key expression
             now = monotonic_ns()
             if now >= next_flush:
                 sink.flush()
@@ -295,12 +328,11 @@ class Recorder:
                 quiet_since = 0
         stats["received"], stats["written"] = received, written
 
-    def _traced(self, trace_key: str, data: bytes, receipt_ns: int, write: Callable, ids: dict[str, int],
+    def _traced(self, trace_key: str, event: Any, receipt_ns: int, write: Callable, ids: dict[str, int],
                 last: dict[str, tuple[int, int]]) -> int:
-        """Trace-sourced: write the message that an output or input event on `trace_key` describes
-        (on its key, publish time and sequence from the sender), unless another node's output
-        records it. Returns how many messages were written (0 or 1)."""
-        event = self._unpack(data)
+        """Trace-sourced: write the message that an output or input event (decoded) on `trace_key`
+        describes (on its key, publish time and sequence from the sender), unless another node's
+        output records it. Returns how many messages were written (0 or 1)."""
         key = event.get("key") if isinstance(event, dict) else None
         if not isinstance(key, str):
             return 0  # a node host older than these fields: its trace holds its events still

@@ -24,7 +24,9 @@ import linecache
 import struct
 import sys
 import time
+from collections import Counter
 from dataclasses import dataclass, field
+from itertools import accumulate
 from pathlib import Path
 from typing import IO, Any, Callable, Iterable, Iterator
 
@@ -92,6 +94,8 @@ class McapSink:
         self.channels: dict[str, int] = {}
         self.counts: dict[str, int] = {}
         self.finished = False
+        self._commit: Callable[[], None] = lambda: None  # a fast writer's batch into the chunk
+        self.write_pair = self._write_pair  # replaced by the fast writer's
 
     def schema(self, name: str, schema: dict) -> int:
         text = json.dumps(schema, sort_keys=True)
@@ -110,15 +114,20 @@ class McapSink:
         return channel_id
 
     def write(self, channel_id: int, log_ns: int, publish_ns: int, sequence: int, data: bytes) -> None:
+        self._commit()  # after what a batch writer holds: the file keeps the order of the writes
         self.writer.add_message(channel_id, log_ns, data, publish_ns, sequence & 0xFFFFFFFF)
 
     def fast_writer(self) -> Callable[[int, int, int, int, bytes], None]:
-        """`write` for the recorder's hot loop: one struct.pack straight into the open chunk.
+        """`write` for the recorder's hot loop: a message costs one struct.pack and three list
+        appends; what it wrote goes into the chunk in progress at the next `flush` (or `write`,
+        `finish`, or `commit()`), all at once.
 
         The mcap Writer builds a Message object and five small writes per message (~6 us); this
-        appends the same bytes and index entry itself (~1 us) and keeps the Writer's statistics,
-        so `flush`/`finish` write the chunk, its indexes and the summary as usual. It relies on
-        the Writer's private fields (mcap 1.x); if they are not there it is plain `write`."""
+        appends the same bytes and index entries itself, a batch at a time, and keeps the
+        Writer's statistics, so `flush`/`finish` write the chunk, its indexes and the summary as
+        usual. It relies on the Writer's private fields (mcap 1.x); if they are not there it is
+        plain `write`. The caller should `commit()` every few thousand messages: a chunk is
+        closed at `chunk_size` only when a batch goes in."""
         writer = self.writer
         builder = getattr(writer, "_Writer__chunk_builder", None)
         stats = getattr(writer, "_Writer__statistics", None)
@@ -126,37 +135,78 @@ class McapSink:
         record_writer = getattr(builder, "record_writer", None)
         if builder is None or stats is None or finalize is None or not hasattr(record_writer, "_buffer"):
             return self.write
-        pack = struct.Struct("<BQHIQQ").pack
+        self._commit()
+        pack = struct.Struct("<BQHIQQ").pack  # opcode, record length, channel, sequence, log, publish
+        parts: list[bytes] = []  # header, data, header, data...
+        channels: list[int] = []
+        logs: list[int] = []
         indices = builder.message_indices
         channel_counts = stats.channel_message_counts
-        limit = getattr(writer, "_Writer__chunk_size", 1 << 20)
+        add_parts, add_channel, add_log = parts.extend, channels.append, logs.append
+        add_channels, add_logs = channels.extend, logs.extend
 
         def write(channel_id: int, log_ns: int, publish_ns: int, sequence: int, data: bytes) -> None:
-            if builder.num_messages == 0:
-                builder.message_start_time = builder.message_end_time = log_ns
-            elif log_ns < builder.message_start_time:
-                builder.message_start_time = log_ns
-            elif log_ns > builder.message_end_time:
-                builder.message_end_time = log_ns
-            index = indices.get(channel_id)
-            if index is None:
-                index = indices[channel_id] = _MessageIndex(channel_id=channel_id, records=[])
-            buffer = record_writer._buffer  # replaced by a new one after every chunk
-            offset = buffer.tell()
-            index.records.append((log_ns, offset))
-            buffer.write(pack(5, 22 + len(data), channel_id, sequence & 0xFFFFFFFF, log_ns, publish_ns))
-            buffer.write(data)
-            builder.num_messages += 1
-            if stats.message_count == 0 or log_ns < stats.message_start_time:
-                stats.message_start_time = log_ns
-            if log_ns > stats.message_end_time:
-                stats.message_end_time = log_ns
-            stats.message_count += 1
-            channel_counts[channel_id] += 1
-            if offset > limit:
-                finalize()
+            add_parts((pack(5, 22 + len(data), channel_id, sequence & 0xFFFFFFFF, log_ns, publish_ns), data))
+            add_channel(channel_id)
+            add_log(log_ns)
 
+        def write_pair(channel_id: int, log_ns: int, publish_ns: int, sequence: int, data: bytes,
+                       channel_id2: int, publish_ns2: int, sequence2: int, data2: bytes) -> None:
+            """Two messages with the same log time (a trace event and the message it describes)."""
+            add_parts((pack(5, 22 + len(data), channel_id, sequence & 0xFFFFFFFF, log_ns, publish_ns), data,
+                       pack(5, 22 + len(data2), channel_id2, sequence2 & 0xFFFFFFFF, log_ns, publish_ns2), data2))
+            add_channels((channel_id, channel_id2))
+            add_logs((log_ns, log_ns))
+
+        def commit() -> None:
+            if not logs:
+                return
+            buffer = record_writer._buffer  # replaced by a new one after every chunk
+            # where each message starts in the chunk: every other running total of the parts
+            starts = list(accumulate(map(len, parts), initial=buffer.tell()))[:-1:2]
+            buffer.write(b"".join(parts))
+            first, last, count = min(logs), max(logs), len(logs)
+            appenders = {}  # channel -> its index records' append
+            for channel_id, record in zip(channels, zip(logs, starts)):
+                try:
+                    appenders[channel_id](record)
+                except KeyError:
+                    index = indices.get(channel_id)
+                    if index is None:
+                        index = indices[channel_id] = _MessageIndex(channel_id=channel_id, records=[])
+                    appenders[channel_id] = index.records.append
+                    index.records.append(record)
+            for channel_id, n in Counter(channels).items():
+                channel_counts[channel_id] += n
+            if builder.num_messages == 0:
+                builder.message_start_time, builder.message_end_time = first, last
+            else:
+                builder.message_start_time = min(builder.message_start_time, first)
+                builder.message_end_time = max(builder.message_end_time, last)
+            builder.num_messages += count
+            if stats.message_count == 0:
+                stats.message_start_time, stats.message_end_time = first, last
+            else:
+                stats.message_start_time = min(stats.message_start_time, first)
+                stats.message_end_time = max(stats.message_end_time, last)
+            stats.message_count += count
+            parts.clear()
+            channels.clear()
+            logs.clear()
+            finalize()  # closes the chunk if it has reached chunk_size
+
+        self._commit = commit
+        self.write_pair = write_pair
         return write
+
+    def _write_pair(self, channel_id: int, log_ns: int, publish_ns: int, sequence: int, data: bytes,
+                    channel_id2: int, publish_ns2: int, sequence2: int, data2: bytes) -> None:
+        self.write(channel_id, log_ns, publish_ns, sequence, data)
+        self.write(channel_id2, log_ns, publish_ns2, sequence2, data2)
+
+    def commit(self) -> None:
+        """Put what the fast writer holds into the chunk in progress (in memory)."""
+        self._commit()
 
     def attach(self, name: str, media_type: str, data: bytes, log_ns: int | None = None) -> None:
         now = time.time_ns() if log_ns is None else log_ns
@@ -170,12 +220,14 @@ class McapSink:
                                         for k, v in data.items()})
 
     def flush(self) -> None:
+        self._commit()
         self.writer.flush()
 
     def finish(self) -> None:
         if self.finished:
             return
         self.finished = True
+        self._commit()
         self.writer.finish()
         self._file.flush()
         if self._owns_file:
