@@ -56,7 +56,7 @@ def build(config: NodeConfig, flat: Flat) -> ChannelTable:
                  "type": None if channel.type is None else repr(channel.type),
                  "type_name": None if channel.type is None else channel.type.name,
                  "schema": None if channel.type is None else channel.type.json_schema(),
-                 "switching_time": channel.switching_time, "size": size, "keys": [], "bound": {}}
+                 "switching_time": leaf.switching[endpoint.channel], "size": size, "keys": [], "bound": {}}
         for index in members:
             key = wire.channel_key(config.system, config.path, name, index)
             entry["keys"].append(key)

@@ -571,13 +571,14 @@ def channel_table(instance: Any) -> dict[str, ChannelInfo]:
         for name, (direction, endpoint) in flat.external.items():
             leaf, channel = leaf_channel(flat, endpoint)
             size = leaf.sizes[endpoint.channel] if endpoint.index is None else None
-            table[name] = ChannelInfo(name, direction, channel.type, channel.switching_time, size)
+            table[name] = ChannelInfo(name, direction, channel.type, leaf.switching[endpoint.channel], size)
         return table
     spec = instance.iota_spec
     params = param_values(instance)
     for name, channel in spec.channels.items():
         if channel.external:
-            table[name] = ChannelInfo(name, channel.direction, channel.type, channel.switching_time,
+            # switching times may name a parameter: the table holds this instance's numbers
+            table[name] = ChannelInfo(name, channel.direction, channel.type, spec.switching_of(channel, params),
                                       spec.size_of(channel, params))
     return table
 

@@ -201,3 +201,25 @@ def test_cli_check_exits_2_without_traceback(tmp_path):
     good = subprocess.run([sys.executable, "-m", "iotad", "run", "--check", str(ROOT / "examples" / "figure2.toml")],
                           capture_output=True, text=True, timeout=60)
     assert good.returncode == 0 and "ok" in good.stdout
+
+
+ECHOES = """
+[[node]]
+name = "fast"
+python = "{echo}:Echo"
+params = {{ S = {sender} }}
+[[node]]
+name = "slow"
+python = "{echo}:PacedEcho"
+[[bind]]
+from = "fast.out"
+to = "slow.inp"
+"""
+
+
+def test_switching_times_that_name_a_parameter_are_checked_with_the_nodes_values(tmp_path):
+    echo = ROOT / "examples" / "echo.py"
+    ok = load_system(write(tmp_path, '[system]\nname = "t"\nexternal = ["fast.inp"]\n' + ECHOES.format(echo=echo, sender=1.0), "ok.toml"))
+    assert ok.nodes["slow"].channels["inp"].switching_time == 1.0
+    with pytest.raises(SystemFileError, match="may send every 0.5 time units"):
+        load_system(write(tmp_path, '[system]\nname = "t"\nexternal = ["fast.inp"]\n' + ECHOES.format(echo=echo, sender=0.5), "bad.toml"))
