@@ -301,6 +301,10 @@ class TraceChecker:
         if not candidates:
             self._find(t, "unknown_event", f"{describe(event)}: the spec has no such action", position)
             return
+        direction = candidates[0].slot.channel.direction
+        if direction != event.get("kind"):  # the kernel records a firing with its channel's direction
+            self._find(t, "unknown_event", f"{describe(event)}: {channel} is an {direction} channel of the spec",
+                       position)
         enabled = [i for i in candidates if i.enabled]
         if not enabled:
             self._find(t, "not_enabled", f"{describe(event)}: no action on {channel} was enabled "

@@ -165,8 +165,8 @@ class Recorder:
         if self.system_text is not None:
             self.sink.attach("system.toml", "application/toml", self.system_text.encode())
         self.sink.flush()
-        self._session = open_session(self.listen, self.connect)
         try:
+            self._session = open_session(self.listen, self.connect)
             # Samples wait in zenoh's own (Rust) FIFO until the writer thread takes them: no
             # Python callback on zenoh's threads, no GIL hand-off per sample. A full FIFO makes
             # zenoh push back on the senders (BLOCK) rather than lose.
@@ -179,6 +179,7 @@ class Recorder:
                 self.priority = yield_cpu()  # after zenoh and the writer have started their threads
         except BaseException:
             self._close_session()
+            self.sink.finish()  # a whole (empty) recording, and no open file left behind
             raise
         return self
 

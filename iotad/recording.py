@@ -272,13 +272,17 @@ def spec_record(iota: Any, path: str, time_unit: float = 1.0) -> dict:
         source = {"kind": "python", "ref": f"{file}:{cls.__name__}"}
         text = Path(file).read_text() if file and Path(file).is_file() else None
     return {"path": path, "source": source, "text": text, "params": to_plain(param_values(iota)),
-            "channels": channel_list(spec), "time_unit": time_unit}
+            "channels": channel_list(spec, param_values(iota)), "time_unit": time_unit}
 
 
-def channel_list(spec: Any) -> list[dict]:
+def channel_list(spec: Any, params: dict | None = None) -> list[dict]:
+    """The channel table of an instance: switching times and sizes that name a parameter are
+    resolved with `params` (as a node host's @spec answer gives them)."""
+    params = {} if params is None else params
     return [{"name": c.name, "direction": c.direction, "type": None if c.type is None else c.type.name,
-             "schema": None if c.type is None else c.type.json_schema(), "switching_time": c.switching_time,
-             "size": c.size} for c in spec.channels.values()]
+             "schema": None if c.type is None else c.type.json_schema(),
+             "switching_time": spec.switching_of(c, params) if isinstance(c.switching_time, str) else c.switching_time,
+             "size": spec.size_of(c, params) if isinstance(c.size, str) else c.size} for c in spec.channels.values()]
 
 
 def start_time(spec: dict | None) -> float:

@@ -69,8 +69,14 @@ def replay_node(recording: Recording, node: str, tolerance: float = 0.01,
     reverse = {}
     for recorded_name, leaf in mapping.items():
         reverse.setdefault(leaf, recorded_name)
+    # Inputs bound to an output inside the node (a composite) are delivered by that output's
+    # firing in the replay too: their recorded input events are not posted again.
+    bound = {id(target) for slot in engine.slots.values() for target in slot.targets}
     for event in events:
         if event.get("kind") == "input":
+            slot = engine.slots.get((mapping[event.get("iota", "")], event["action"], event.get("index")))
+            if slot is not None and id(slot) in bound:
+                continue
             engine.post(mapping[event.get("iota", "")], event["action"], event.get("value"), event.get("index"),
                         t=float(event["t"]))
     end = max(float(e["t"]) for e in events)
