@@ -56,6 +56,7 @@ def timeline(recording: Recording, scheduler: str) -> dict:
     end = max((float(e["t"]) for e in events), default=0.0)
     for event in events:
         t, action, index, kind = float(event["t"]), event.get("action"), event.get("index"), event.get("kind")
+        index = 0 if index is None else index  # a scheduler of one requester: plain req, ack channels
         if action == "schedule" and kind == "internal":
             if holder is not None:
                 holds.append((holder, since, t, "pre-empted"))
@@ -97,7 +98,7 @@ def plot(recording: Recording, output: str | Path, scheduler: str | None = None,
     for index, t in data["requests"]:
         ax.plot([t, t], [rows[index] - 0.32, rows[index] + 0.32], color="0.3", linewidth=1.2)
     for index, t, value in data["acks"]:
-        marker, color = ACK_STYLE.get(value, ("s", "0.4"))
+        marker, color = ACK_STYLE.get(value if isinstance(value, str) else None, ("s", "0.4"))  # struct acks too
         ax.plot(t, rows[index] + 0.42, marker=marker, color=color, markersize=9, markeredgecolor="black",
                 markeredgewidth=0.5, linestyle="none")
     codes: dict[str, int] = {}

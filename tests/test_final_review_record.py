@@ -124,3 +124,18 @@ def test_recorder_that_cannot_open_its_session_closes_its_file(tmp_path):
         recorder.start()
     assert recorder.sink._file.closed
     assert read_recording(tmp_path / "r.mcap").complete
+
+
+def test_plot_of_a_scheduler_with_plain_channels_and_struct_acks(tmp_path):
+    from iotad.plot import plot
+    path = tmp_path / "plain.mcap"
+    sink = McapSink(path)
+    channel = sink.channel("iota/s/sch/@trace", "iotad.trace_event", TRACE_SCHEMA)
+    events = [{"t": 0.0, "iota": "sch", "action": "req", "index": None, "kind": "input", "value": {"a": 1}},
+              {"t": 0.5, "iota": "sch", "action": "schedule", "index": None, "kind": "internal", "value": None},
+              {"t": 1.0, "iota": "sch", "action": "ack", "index": None, "kind": "output", "value": {"code": "COMMIT"}}]
+    for k, event in enumerate(events):
+        ns = int(event["t"] * 1e9)
+        sink.write(channel, ns, ns, k, packb(event))
+    sink.finish()
+    assert plot(read_recording(path), tmp_path / "plain.png").stat().st_size > 0
