@@ -141,6 +141,8 @@ class Launcher:
         self._declared: list[Any] = []
         self._stop_reason: str | None = None
         self._interrupts = 0
+        self._stop_asked = threading.Event()  # a stop was asked for (signal or request_stop)
+        self._hurry = threading.Event()       # a second signal: skip the waiting of the stop
         self._started = 0.0
         from .launcher_view import StatusView
         self.view = StatusView(console, live_table, title=f"iotad run {system.file}")
@@ -148,6 +150,7 @@ class Launcher:
     # ------------------------------------------------------------------ public
     def request_stop(self, reason: str = "stop requested") -> None:
         """Thread-safe: ask the run loop to stop everything and return."""
+        self._stop_asked.set()
         self.events.put(("stop", reason))
 
     def run(self) -> int:
@@ -176,6 +179,9 @@ class Launcher:
         def on_signal(signum, frame):
             # SIGTERM and SIGHUP stop exactly like Ctrl-C (a second one: no more patience)
             self._interrupts += 1
+            self._stop_asked.set()
+            if self._interrupts > 1:
+                self._hurry.set()  # also cuts short a stop already under way
             self.events.put(("stop", "interrupted" if signum == signal.SIGINT else signal.Signals(signum).name))
 
         previous = {}
@@ -226,11 +232,13 @@ class Launcher:
         node's `t` counts from one instant; if the hub does not answer, its own (with a warning)."""
         deadline = time.monotonic() + self.system.start_timeout
         key = f"{wire.PREFIX}/{self.system.name}/{ORIGIN}"
-        while time.monotonic() < deadline:
+        while time.monotonic() < deadline and not self._stop_asked.is_set():
             for reply in self.session.get(key, timeout=1.0):
                 if reply.ok is not None:
                     return float(wire.decode(reply.ok.payload.to_bytes())["origin"])
-            time.sleep(0.2)
+            self._stop_asked.wait(0.2)
+        if self._stop_asked.is_set():
+            return time.time()  # stopping before anything started: the origin no longer matters
         self.view.line(f"warning: no hub launcher answered on {key}; this host's nodes use its own clock origin")
         return time.time()
 
@@ -461,6 +469,8 @@ class Launcher:
     def _stop_escalation(self, run: NodeRun, code: int) -> str:
         """How far the stop had to go, when it went past SIGINT."""
         interrupt, terminate = self.stop_timeouts
+        if self._hurry.is_set() and run.child.last_signal in (signal.SIGKILL, signal.SIGTERM):
+            return f": a second signal skipped the waiting; stopped by {signal.Signals(run.child.last_signal).name}"
         if run.child.last_signal == signal.SIGKILL:
             return (f": it ignored SIGINT ({interrupt:g} s) and SIGTERM ({terminate:g} s), "
                     "so it was killed with SIGKILL")
@@ -556,12 +566,13 @@ class Launcher:
         interrupt, terminate = self.stop_timeouts
         if self._interrupts > 1:
             interrupt = terminate = 0.0  # a second Ctrl-C: no more patience
+            self._hurry.set()
         for run in self.runs.values():
             if run.child.running():
                 run.state = "stopping"
             elif run.state in ("waiting", "backoff", "starting", "running", "lost"):
                 run.state = "stopped"
-        stop_all([r.child for r in self.runs.values()], interrupt, terminate)
+        stop_all([r.child for r in self.runs.values()], interrupt, terminate, hurry=self._hurry)
         # Report the exits now: the waiters queued them, and the recorder is still listening.
         while True:
             try:

@@ -132,8 +132,10 @@ class Child:
         return self.code if self.proc is None else self.proc.returncode
 
 
-def stop_all(children: Sequence[Child], interrupt_timeout: float = 3.0, terminate_timeout: float = 2.0) -> None:
-    """Stop children together: SIGINT to all, wait; SIGTERM to the rest, wait; SIGKILL, reap."""
+def stop_all(children: Sequence[Child], interrupt_timeout: float = 3.0, terminate_timeout: float = 2.0,
+             hurry: threading.Event | None = None) -> None:
+    """Stop children together: SIGINT to all, wait; SIGTERM to the rest, wait; SIGKILL, reap.
+    Once `hurry` is set (a second Ctrl-C), what is left of the SIGINT and SIGTERM waits is skipped."""
     steps = ((signal.SIGINT, interrupt_timeout), (signal.SIGTERM, terminate_timeout), (signal.SIGKILL, 5.0))
     for signum, timeout in steps:
         alive = [c for c in children if c.running()]
@@ -143,7 +145,12 @@ def stop_all(children: Sequence[Child], interrupt_timeout: float = 3.0, terminat
             child.signal(signum)
         deadline = time.monotonic() + timeout
         for child in alive:
-            child.wait(deadline - time.monotonic())
+            if hurry is None or signum == signal.SIGKILL:
+                child.wait(deadline - time.monotonic())
+                continue
+            while not hurry.is_set() and not child.wait(min(0.05, deadline - time.monotonic())):
+                if time.monotonic() >= deadline:
+                    break
 
 
 @dataclass
