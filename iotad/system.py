@@ -257,6 +257,10 @@ class _Parser:
                     setattr(system, key, float(value))
                 else:
                     self.error(entry, f"{key} must be a positive number of seconds, got {value!r}")
+        if system.heartbeat_period >= system.heartbeat_timeout:
+            self.error(entry, f"heartbeat_period ({system.heartbeat_period:g} s) must be below heartbeat_timeout "
+                              f"({system.heartbeat_timeout:g} s), or every node is killed as frozen between "
+                              "two of its heartbeats")
         endpoints = raw.get("endpoints", {})
         if not isinstance(endpoints, dict):
             self.error(entry, "endpoints must be a table: { listen = [...], connect = [...] }")

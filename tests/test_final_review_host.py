@@ -99,3 +99,22 @@ params = {{ ignore_signals = true, exit_after = 60 }}
     assert len(signals) == 2, texts
     assert ended - signals[1] < 2.0, f"ended {ended - signals[1]:.1f} s after the second Ctrl-C: {texts}"
     assert gone(run.runs["n"].child.pid)
+
+
+def test_a_heartbeat_period_not_below_the_heartbeat_timeout_is_a_check_error(tmp_path):
+    """Every node would be killed as frozen between two of its heartbeats, over and over."""
+    import pytest
+
+    from iotad.system import SystemFileError
+
+    def system(period: float, timeout: float) -> Path:
+        path = tmp_path / "beat.toml"
+        path.write_text(f'[system]\nname = "beat"\nheartbeat_period = {period}\nheartbeat_timeout = {timeout}\n'
+                        f'[[node]]\nname = "d"\npython = "{IOTAS}:Stub"\n')
+        return path
+
+    with pytest.raises(SystemFileError, match="heartbeat_period"):
+        load_system(system(5.0, 3.0))
+    with pytest.raises(SystemFileError, match="heartbeat_period"):
+        load_system(system(3.0, 3.0))
+    assert load_system(system(1.0, 3.0)).heartbeat_period == 1.0
