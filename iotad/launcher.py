@@ -489,6 +489,15 @@ class Launcher:
         for run in self.runs.values():
             if run.state == "waiting" and all(dep in self.alive_paths for dep in run.spec.after):
                 self._spawn(run, "start")
+            elif run.state == "waiting" and (failed := [dep for dep in run.spec.after if dep in self.runs
+                                                        and self.runs[dep].state == "failed"]):
+                # it can never start: say so, and let a run whose other nodes have ended end
+                run.state = "failed"
+                self._event("giveup", run, f"will not start: it starts after {', '.join(failed)}, "
+                                           "which failed for good")
+                if run.spec.required and self._stop_reason is None:
+                    self._stop_reason = f"required node {run.name} cannot start"
+                    self.view.line(f"{run.name} is required and cannot start: stopping every node")
             elif run.state == "backoff" and now >= run.restart_at:
                 run.restarts += 1
                 self._spawn(run, "restart")
@@ -553,7 +562,7 @@ class Launcher:
         for run in self.runs.values():
             uptime = f"{now - run.live_since:.1f}s" if run.live_since and run.state == "running" else "-"
             beat = f"{now - run.last_beat:.2f}s" if run.last_beat and not run.finished else "-"
-            state = run.state if run.state not in ("exited", "failed") else \
+            state = run.state if run.state not in ("exited", "failed") or run.last_code is None else \
                 f"{run.state} ({describe_exit(run.last_code)})"
             pid = str(run.child.pid) if run.child.pid and not run.finished else "-"
             rows.append((run.name, run.spec.host or "", pid, state, str(run.restarts), uptime, beat))

@@ -118,3 +118,42 @@ def test_a_heartbeat_period_not_below_the_heartbeat_timeout_is_a_check_error(tmp
     with pytest.raises(SystemFileError, match="heartbeat_period"):
         load_system(system(3.0, 3.0))
     assert load_system(system(1.0, 3.0)).heartbeat_period == 1.0
+
+
+def test_a_node_waiting_on_a_node_that_failed_for_good_is_reported_and_the_run_ends(tmp_path):
+    """`after = ["a"]` with `a` given up on: `b` can never start. It used to wait silently, and
+    a run whose every other node had ended never ended itself."""
+    path = tmp_path / "deps.toml"
+    path.write_text(f"""
+[system]
+name = "deps"
+[system.endpoints]
+listen = ["tcp/127.0.0.1:{free_port()}"]
+
+[[node]]
+name = "a"
+python = "{IOTAS}:Stub"
+params = {{ exit_code = 2, exit_after = 0.05 }}
+restart = "never"
+
+[[node]]
+name = "b"
+python = "{IOTAS}:Stub"
+after = ["a"]
+
+[[node]]
+name = "c"
+python = "{IOTAS}:Stub"
+after = ["b"]
+""")
+    run = Launcher(load_system(path), live_table=False, log_dir=str(tmp_path / "logs"), record=False, until=20,
+                   node_argv=lambda config: [sys.executable, str(STUB), config])
+    lines: list[str] = []
+    run.view.line = lines.append
+    started = time.monotonic()
+    assert run.run() == 1, lines
+    assert time.monotonic() - started < 10, lines
+    assert run._stop_reason == "all nodes ended", lines
+    assert run.runs["b"].state == run.runs["c"].state == "failed", lines
+    assert any(line.startswith("b: ") and "will not start" in line and "a" in line for line in lines), lines
+    assert any(line.startswith("c: ") and "will not start" in line for line in lines), lines
