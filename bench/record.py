@@ -7,7 +7,8 @@
 2. record: an `iotad record` process and --publishers publisher processes (subprocess, never
    fork), each publishing --messages events as fast as it can with BLOCK congestion control.
    --mode traces (default; what `iotad run` uses): each event is an output event on the
-   publisher's `@trace` key carrying key, seq and send_ns, as a node host sends it, and the
+   publisher's `@trace` key carrying key, seq and send_ns, sent as a node host sends its trace
+   (bursts of 64 events, one zenoh sample each, as under a flood of inputs), and the
    recorder (`--from-traces`) writes the trace event and the output message it describes;
    --mode direct: the event goes on the output key with the `[sequence, send_time_ns]`
    attachment and the recorder subscribes to every key. Counted from the file afterwards: output
@@ -68,11 +69,17 @@ try:
         for seq in range(count):
             put(payload, attachment=attach(seq, now()))
     else:
-        event = {{"t": 0.0, "iota": "p", "action": "out", "index": None, "kind": "output", "value": 1.5, "key": key}}
+        # as a node host: each output event notes its key, seq and send_ns; the trace goes out in
+        # bursts of TRACE_BATCH events, one sample each (attachment: seq of the burst's first event)
+        from iotad.host_clock import HostClock
+        batch, buffer, first = HostClock.TRACE_BATCH, [], 0
         for seq in range(count):
-            send_ns = now()
-            event["seq"], event["send_ns"] = seq, send_ns
-            put(encode(event), attachment=attach(seq, send_ns))
+            buffer.append({{"t": 0.0, "iota": "p", "action": "out", "index": None, "kind": "output", "value": 1.5,
+                           "key": key, "seq": seq, "send_ns": now()}})
+            if len(buffer) >= batch or seq == count - 1:
+                put(wire.encode_burst(buffer), attachment=attach(first, now()))
+                first += len(buffer)
+                buffer = []
     sys.stdout.write("done\n"); sys.stdout.flush()
     sys.stdin.readline()
 finally:
@@ -108,9 +115,9 @@ try:
     def flush():  # every 20 ms, as a node host's trace_period, until the stop
         while not stop.wait(0.02):
             events, buffer[:] = list(buffer), []
-            for event in events:
-                trace.put(wire.encode(event), attachment=wire.encode_attachment(seqs[1]))
-                seqs[1] += 1
+            if events:  # one sample per burst, as a node host
+                trace.put(wire.encode_burst(events), attachment=wire.encode_attachment(seqs[1]))
+                seqs[1] += len(events)
     flusher = threading.Thread(target=flush, daemon=True)
     flusher.start()
     sub = session.declare_subscriber("iota/bench/ping/out", answer)

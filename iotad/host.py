@@ -2,7 +2,7 @@
 
 One engine thread runs the IOTA under a `HostClock`; zenoh callbacks only enqueue raw samples.
 Outputs go out from an engine sink on pre-declared publishers (msgpack payload, attachment
-`[seq, send_time_ns]`); every event goes to `@trace` (in bursts, at a lower zenoh priority than
+`[seq, send_time_ns]`); every event goes to `@trace` (in bursts, one sample each, at a lower zenoh priority than
 outputs, after an explicit `start` event that says when the engine started); a liveliness token, a heartbeat driven by
 the engine thread and an `@spec` queryable let tools see the node. `close()` stops the engine
 and closes the session: an unclosed session with callback subscribers hangs the interpreter.
@@ -211,11 +211,11 @@ class NodeHost:
         buffer = self._trace_buffer
         if not buffer:
             return
-        put, seq = self._trace_pub.put, self._trace_seq
-        for event in buffer:
-            put(wire.encode(event), attachment=wire.encode_attachment(seq))
-            seq += 1
-        self._trace_seq = seq
+        # One sample per burst (docs/internals.md "Wire"): a receiver is woken once per burst, not
+        # per event; seq counts events, so a receiver sees how many it missed.
+        seq = self._trace_seq
+        self._trace_pub.put(wire.encode_burst(buffer), attachment=wire.encode_attachment(seq))
+        self._trace_seq = seq + len(buffer)
         buffer.clear()
 
     def _heartbeat(self, t: float, backlog: int) -> None:

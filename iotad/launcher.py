@@ -356,12 +356,13 @@ class Launcher:
         # channel key would wake this process for every message, which the nodes pay for.
         path = self._path_of(sample.key_expr, "@trace")
         try:
-            event = wire.decode(sample.payload.to_bytes())
+            events = wire.trace_events(wire.decode(sample.payload.to_bytes()))  # a burst, or one event
         except wire.WireError:
             return
-        self.tally.trace(path or "?", event)
-        if isinstance(event, dict) and event.get("kind") == "output" and isinstance(event.get("key"), str):
-            self.tally.channel(event["key"], event.get("value"))
+        for event in events:
+            self.tally.trace(path or "?", event)
+            if isinstance(event, dict) and event.get("kind") == "output" and isinstance(event.get("key"), str):
+                self.tally.channel(event["key"], event.get("value"))
 
     def _on_exit(self, child: Child, code: int) -> None:  # a waiter thread
         self.events.put(("exit", child.name, child.pid, code))

@@ -9,7 +9,8 @@ detection), asks each new node for its `@spec`, and closes the chunk in progress
 Two modes. Direct: subscribe to the keys given and record every sample on its key; on a machine
 with few cores every message then also wakes the recorder's process, which the real-time nodes
 pay for in latency. Trace-sourced (`from_traces`, what `iotad run` uses): subscribe only to the
-nodes' `@trace` keys (bursts, one wake-up per node and trace period), `@launcher` and
+nodes' `@trace` keys (bursts, one sample and one wake-up per node and trace period; each
+burst is split into one message per event, so a recording is the same as if each had come alone), `@launcher` and
 `@heartbeat`, and write each message from the trace event that describes it: an output on its
 key with the sequence number and send time the node published it with; an input that no node's
 output explains (`iotad pub`, a foreign publisher) on the key it arrived on, with the sender's
@@ -31,13 +32,11 @@ import msgpack
 import zenoh
 
 from . import wire
-from .recording import FORMAT, GAP_TOPIC, McapSink, channel_schemas, packb, schema_for_topic
+from .recording import FORMAT, GAP_TOPIC, MALFORMED_TOPIC, McapSink, channel_schemas, packb, schema_for_topic
 from .transport import DEFAULT_LISTEN, open_session
 
-NICENESS = 10
-# The msgpack bytes of `"kind": "output"` / `"kind": "input"` in a trace event: only those are
-# decoded (a substring test is ~30 times cheaper than unpacking every event).
-OUTPUT_MARK, INPUT_MARK = wire.encode("kind") + wire.encode("output"), wire.encode("kind") + wire.encode("input")  # a tenth of a normal process's CPU share when both want the CPU
+NICENESS = 10  # a tenth of a normal process's CPU share when both want the CPU
+_NEVER = 1 << 62  # the next `seq` of a stream whose last burst could not be counted: no gap is seen
 
 
 def yield_cpu(threads: Iterable[int] | None = None, niceness: int = NICENESS) -> str:
@@ -139,7 +138,7 @@ class Recorder:
         self.output = Path(output)
         self.connect, self.listen = list(connect), list(listen)
         self.flush_period, self.spec_timeout, self.query_specs = flush_period, spec_timeout, query_specs
-        self.stats = {"received": 0, "written": 0, "gaps": 0, "missing": 0, "duplicates": 0, "flushes": 0}
+        self.stats = {"received": 0, "written": 0, "gaps": 0, "missing": 0, "duplicates": 0, "malformed": 0, "flushes": 0}
         self._stopping = threading.Event()
         self.fifo_capacity = fifo_capacity
         # `iotad record` runs as its own process and sets this: see `yield_cpu`. Off for a
@@ -228,15 +227,14 @@ class Recorder:
 
     def _loop(self) -> None:
         sink, stats = self.sink, self.stats
-        receivers = [(subscriber.handler.try_recv, self.from_traces and key.endswith("/@trace"))
-                     for subscriber, key in zip(self._subscribers, self.keys)]
-        traced = self._traced
+        receivers = [subscriber.handler.try_recv for subscriber in self._subscribers]
         ids: dict[str, int] = {}
         last: dict[str, tuple[int, int]] = {}
-        unpack, pack, unpack_attachment = self._unpack, self._pack, msgpack.unpackb
-        output_keys = self._output_keys
-        write = sink.fast_writer()
-        write_pair = sink.write_pair
+        # per @trace key: the `seq` its next burst should have (the last one's + its length)
+        following: dict[str, int] = {}
+        unpack_attachment = msgpack.unpackb
+        write = sink.fast_writer()  # one per sink: it sets sink.write_pair and sink.commit
+        burst = functools.partial(self._burst, write, sink.write_pair)
         now_ns, monotonic_ns = time.time_ns, time.monotonic_ns
         period_ns = int(self.flush_period * 1e9)
         next_flush = monotonic_ns() + period_ns
@@ -245,7 +243,7 @@ class Recorder:
         quiet_since = stop_at = 0
         while True:
             idle = True
-            for receive, from_trace in receivers:
+            for receive in receivers:
                 for _ in range(4096):  # then the next key expression, and a flush check
                     sample = receive()
                     if sample is None:
@@ -269,44 +267,21 @@ class Recorder:
                             if sequence == previous[0] and publish_ns == previous[1]:
                                 stats["duplicates"] += 1  # one sample through two overlapping key expressions
                                 continue
-                            if sequence > previous[0] + 1:
-                                self._gap(key, previous[0] + 1, sequence, receipt_ns)
+                            expected = following.get(key, previous[0] + 1)
+                            if sequence > expected:
+                                self._gap(key, expected, sequence, receipt_ns)
                         last[key] = (sequence, publish_ns)
                     data = sample.payload.to_bytes()
-                    if from_trace and (OUTPUT_MARK in data or INPUT_MARK in data):
-                        # an output event of a node host (the common case) is written with its
-                        # message in one go; the rest, and anything unexpected, in `_traced`
-                        event = None
-                        try:
-                            event = unpack(data)
-                            out_key, out_seq, out_ns = event["key"], event["seq"], event["send_ns"]
-                            fast = (event["kind"] == "output" and out_key.__class__ is str
-                                    and out_seq.__class__ is int and out_ns.__class__ is int)
-                        except Exception:  # noqa: BLE001 - not a host's output event: see _traced
-                            fast = False
-                        if fast:
-                            if out_key not in output_keys:
-                                output_keys.add(out_key)
-                            previous = last.get(out_key)
-                            if previous is not None:
-                                if out_seq == previous[0] and out_ns == previous[1]:
-                                    fast = False  # a duplicate: _traced counts it
-                                elif out_seq > previous[0] + 1:
-                                    self._gap(out_key, previous[0] + 1, out_seq, receipt_ns)
-                        if fast:
-                            last[out_key] = (out_seq, out_ns)
-                            out_id = ids.get(out_key)
-                            if out_id is None:
-                                out_id = ids[out_key] = self._new_channel(out_key)
-                            write_pair(channel_id, receipt_ns, publish_ns, sequence, data,
-                                       out_id, out_ns, out_seq, pack(event["value"]))
-                            written += 2
-                        else:
-                            write(channel_id, receipt_ns, publish_ns, sequence, data)
-                            written += 1 + traced(key, event, receipt_ns, write, ids, last)
-                    else:
-                        write(channel_id, receipt_ns, publish_ns, sequence, data)
-                        written += 1
+                    if key.endswith("/@trace"):
+                        # a burst of events (or one event, the old form): one message per event
+                        count, n = burst(key, channel_id, data, receipt_ns, publish_ns, sequence, ids, last)
+                        following[key] = sequence + n if attachment is not None else _NEVER
+                        written += count
+                        if monotonic_ns() >= next_flush:
+                            break  # a busy stream must flush on time too
+                        continue
+                    write(channel_id, receipt_ns, publish_ns, sequence, data)
+                    written += 1
                     if not (received & 255) and monotonic_ns() >= next_flush:
                         break  # a busy stream must flush on time too
             sink.commit()  # into the chunk in progress, at most 4096 samples a key expression
@@ -328,6 +303,78 @@ class Recorder:
             else:
                 quiet_since = 0
         stats["received"], stats["written"] = received, written
+
+    def _burst(self, write: Callable, write_pair: Callable, key: str, channel_id: int, data: bytes,
+               receipt_ns: int, publish_ns: int, sequence: int, ids: dict[str, int],
+               last: dict[str, tuple[int, int]]) -> tuple[int, int]:
+        """One `@trace` sample: write each of its events as one message on `key` (sequence: the
+        burst's `seq` plus the event's place in it, as if each had come alone) and, trace-sourced,
+        the message each output or input event describes. A payload that is no event and no
+        burst, or an element that is no event, is a recorded problem (`MALFORMED_TOPIC`), never
+        an error. Returns (messages written, events the burst held: its length in `seq`)."""
+        try:
+            value = self._unpack(data)
+        except Exception as exc:  # noqa: BLE001 - msgpack raises several unrelated types
+            detail = str(exc) or f"starts {data[:16].hex(' ')}"  # some msgpack errors say nothing
+            self._malformed(key, sequence, f"undecodable msgpack ({len(data)} bytes): {type(exc).__name__}: {detail}",
+                            data, receipt_ns)
+            return 0, _NEVER - sequence
+        if value.__class__ is dict:
+            events, single = (value,), True
+        elif value.__class__ is list:
+            events, single = value, False
+        else:
+            self._malformed(key, sequence, f"a {type(value).__name__}, neither an event dict nor a burst (list)",
+                            data, receipt_ns)
+            return 0, _NEVER - sequence
+        pack, derive, output_keys, traced = self._pack, self.from_traces, self._output_keys, self._traced
+        written = 0
+        for position, event in enumerate(events):
+            seq = sequence + position
+            if event.__class__ is not dict:
+                self._malformed(key, seq, f"element {position} of the burst is a {type(event).__name__}, "
+                                f"not an event dict", pack(event), receipt_ns)
+                continue
+            event_data = data if single else pack(event)
+            kind = event.get("kind")
+            if not derive or (kind != "output" and kind != "input"):
+                write(channel_id, receipt_ns, publish_ns, seq, event_data)
+                written += 1
+                continue
+            # an output event of a node host (the common case) is written with its message in
+            # one go; the rest, and anything unexpected, in `_traced`
+            out_key, out_seq, out_ns = event.get("key"), event.get("seq"), event.get("send_ns")
+            fast = (kind == "output" and out_key.__class__ is str and out_seq.__class__ is int
+                    and out_ns.__class__ is int)
+            if fast:
+                if out_key not in output_keys:
+                    output_keys.add(out_key)
+                previous = last.get(out_key)
+                if previous is not None:
+                    if out_seq == previous[0] and out_ns == previous[1]:
+                        fast = False  # a duplicate: _traced counts it
+                    elif out_seq > previous[0] + 1:
+                        self._gap(out_key, previous[0] + 1, out_seq, receipt_ns)
+            if fast:
+                last[out_key] = (out_seq, out_ns)
+                out_id = ids.get(out_key)
+                if out_id is None:
+                    out_id = ids[out_key] = self._new_channel(out_key)
+                write_pair(channel_id, receipt_ns, publish_ns, seq, event_data,
+                           out_id, out_ns, out_seq, pack(event["value"]))
+                written += 2
+            else:
+                write(channel_id, receipt_ns, publish_ns, seq, event_data)
+                written += 1 + traced(key, event, receipt_ns, write, ids, last)
+        return written, len(events)
+
+    def _malformed(self, key: str, sequence: int, message: str, data: bytes, receipt_ns: int) -> None:
+        """Record what could not be read as trace events: on `MALFORMED_TOPIC` (key, seq, why, and
+        the bytes themselves, up to 4 KiB), counted in the stats; the rest of the stream goes on."""
+        self.stats["malformed"] += 1
+        channel_id = self.sink.channel(MALFORMED_TOPIC, "iotad.malformed", schema_for_topic(MALFORMED_TOPIC, {}, {})[1])
+        self.sink.write(channel_id, receipt_ns, receipt_ns, self.stats["malformed"] - 1,
+                        packb({"key": key, "seq": sequence, "message": message, "data": bytes(data[:4096])}))
 
     def _traced(self, trace_key: str, event: Any, receipt_ns: int, write: Callable, ids: dict[str, int],
                 last: dict[str, tuple[int, int]]) -> int:

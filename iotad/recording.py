@@ -9,7 +9,12 @@ A recording carries what replay and check need and nothing else must be found:
 - attachment `system.toml` (or `system.json` for an in-process run): the system file;
 - metadata `iotad.recording`: system name, time unit, clock origin, who wrote it;
 - messages on `@recorder/gaps`: sequence gaps the recorder saw (they survive a kill),
-  and metadata `iotad.gaps` with their total at a clean finish.
+  and metadata `iotad.gaps` with their total at a clean finish;
+- messages on `@recorder/malformed` (only if any): what came on a `@trace` key that was neither
+  an event nor a burst of events, or an element of a burst that was no event.
+
+Every message on a `@trace` channel is one trace event, whether the node sent it alone or in a
+burst (the recorder splits bursts).
 
 Reading goes through one sequential pass of `mcap.stream_reader.StreamReader`, which also reads
 a file that a killed writer left without a footer; `complete` says whether the footer was there.
@@ -43,6 +48,7 @@ MESSAGE_ENCODING = "msgpack"
 SCHEMA_ENCODING = "jsonschema"
 PROFILE = "iotad"
 GAP_TOPIC = "@recorder/gaps"
+MALFORMED_TOPIC = "@recorder/malformed"  # what a recorder got on @trace that is no event (nor burst)
 FORMAT = "iotad-mcap/1"
 
 # Every message on a `@trace` key is one event in the trace JSONL shape (DESIGN section 5); a
@@ -57,6 +63,10 @@ GAP_SCHEMA = {
     "title": "iotad sequence gap", "type": "object",
     "properties": {"key": {"type": "string"}, "expected": {"type": "integer"}, "got": {"type": "integer"},
                    "missing": {"type": "integer"}}}
+MALFORMED_SCHEMA = {
+    "title": "iotad malformed trace sample", "type": "object",
+    "properties": {"key": {"type": "string"}, "seq": {"type": "integer"}, "message": {"type": "string"},
+                   "data": {}}}
 LAUNCHER_SCHEMA = {"title": "iotad launcher event", "type": "object"}
 HEARTBEAT_SCHEMA = {"title": "iotad heartbeat", "type": "object",
                     "properties": {"t": {"type": "number"}, "firings": {"type": "integer"},
@@ -380,6 +390,8 @@ def schema_for_topic(topic: str, specs: dict[str, dict], cache: dict[str, dict])
     parsed = wire.parse_key(topic)
     if topic == GAP_TOPIC:
         return "iotad.gap", GAP_SCHEMA
+    if topic == MALFORMED_TOPIC:
+        return "iotad.malformed", MALFORMED_SCHEMA
     if topic.endswith("/@launcher"):
         return "iotad.launcher_event", LAUNCHER_SCHEMA
     if parsed is None:
@@ -600,6 +612,10 @@ class Recording:
 
     def gaps(self) -> list[dict]:
         return [m.value for m in self.messages if m.topic == GAP_TOPIC]
+
+    def malformed(self) -> list[dict]:
+        """What the recorder got on `@trace` keys that was no trace event (see `MALFORMED_TOPIC`)."""
+        return [m.value for m in self.messages if m.topic == MALFORMED_TOPIC]
 
     def launcher_events(self) -> list[dict]:
         return [dict(m.value, log_time=m.log_time) for m in self.messages

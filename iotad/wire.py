@@ -2,7 +2,12 @@
 
 - Channel keys: `iota/<system>/<instance path>/<channel>[/<index>]`.
 - A node's own events (all of them: inputs, outputs, internal actions, violations, as trace
-  dicts in the node's clock) go on `iota/<system>/<instance path>/@trace`.
+  dicts in the node's clock) go on `iota/<system>/<instance path>/@trace`, in bursts: one sample
+  is a msgpack array of event dicts (`encode_burst`), its attachment `[seq, send_time_ns]` where
+  `seq` is the node's count of trace events before the burst's first (so the next burst's `seq`
+  is `seq + len(burst)`; a receiver that sees a higher one missed events). A sample holding one
+  event dict (older node hosts, third-party publishers) is a burst of one: read `@trace` with
+  `trace_events`, which takes both.
 - On `@trace` a node host adds to each output event the `key`, `seq` and `send_ns` it published
   with, and to each input from outside the `key` it arrived on and the sender's `seq`/`send_ns`
   (when it had the attachment): a trace-sourced recorder rebuilds every message from these.
@@ -82,6 +87,21 @@ def decode(payload: bytes) -> Any:
     except Exception as exc:  # noqa: BLE001 - msgpack raises several unrelated types
         detail = str(exc) or f"starts {payload[:16].hex(' ')}"  # some msgpack errors say nothing
         raise WireError(f"malformed msgpack payload ({len(payload)} bytes): {type(exc).__name__}: {detail}") from None
+
+
+def encode_burst(events: list) -> bytes:
+    """One `@trace` sample: the events of a burst, oldest first."""
+    return msgpack.packb(events, use_bin_type=True)
+
+
+def trace_events(value: Any) -> list:
+    """The events of a decoded `@trace` payload: a burst (list) or one event (dict, the old form).
+    Elements are returned as they are: a consumer must skip (and report) what is not a dict."""
+    if isinstance(value, list):
+        return value
+    if isinstance(value, dict):
+        return [value]
+    raise WireError(f"malformed @trace payload: {type(value).__name__}, neither an event dict nor a burst (list)")
 
 
 def encode_attachment(sequence: int, send_time_ns: int | None = None) -> bytes:

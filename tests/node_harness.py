@@ -45,7 +45,12 @@ class Hub:
         except wire.WireError:
             value = "<malformed>"
         meta = None if sample.attachment is None else wire.decode_attachment(sample.attachment.to_bytes())
-        self.samples.put((str(sample.key_expr), value, meta))
+        key = str(sample.key_expr)
+        if key.endswith("/@trace") and isinstance(value, list):  # a burst: one entry per event
+            for event in value:
+                self.samples.put((key, event, meta))
+            return
+        self.samples.put((key, value, meta))
 
     def drain(self) -> list:
         while True:

@@ -64,6 +64,27 @@ def test_echo_flags_gaps():
 
     gaps = GapTracker()
     assert [gaps.see("k", s) for s in (0, 1, 4, 5, 0)] == [0, 0, 2, 0, -1]
+    # @trace bursts: a sequence number counts events, a burst of n takes n of them
+    assert [gaps.see("t", s, n) for s, n in ((0, 3), (3, 2), (5, 1), (9, 4), (2, 1))] == [0, 0, 0, 3, -1]
+
+
+def test_echo_prints_each_event_of_a_trace_burst(live):
+    hub, node = live
+    echo = subprocess.Popen([sys.executable, "-m", "iotad", "echo", f"{node.base}/@trace", "--count", "4", "--json",
+                             "--timeout", "20", "--connect", hub.endpoint],
+                            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        pub = iotad("pub", f"{node.base}/inp", "6", "--count", "40", "--rate", "20", "--connect", hub.endpoint)
+        assert pub.returncode == 0, pub.stderr
+        out, err = echo.communicate(timeout=25)
+    finally:
+        if echo.poll() is None:
+            echo.kill()
+            echo.wait()
+    assert echo.returncode == 0, err
+    records = [json.loads(line) for line in out.splitlines()]
+    assert len(records) == 4 and all(isinstance(r["value"], dict) and r["value"]["iota"] == "echo" for r in records)
+    assert [r["seq"] for r in records] == list(range(records[0]["seq"], records[0]["seq"] + 4))
 
 
 def test_hz_reports_the_heartbeat_rate(live):

@@ -217,3 +217,28 @@ def test_summary_counters_stay_bounded(tmp_path):
     assert len(counts) <= 33 and sum(counts.values()) == 10_001
     (line,) = [line for line in run.summary() if "src.out" in line]
     assert "10001 events: 32+ distinct values" in line, line
+
+
+def test_summary_reads_trace_bursts_and_single_events(tmp_path):
+    """A @trace sample is a burst (list of events) or one event (dict): the launcher counts the
+    outputs and violations of both, and skips what is malformed (a bad element, a bad payload)."""
+    from types import SimpleNamespace
+
+    from iotad import wire
+
+    run = Launcher(load_system(pair_system(tmp_path, free_port())), record=False, log_dir=str(tmp_path / "logs"),
+                   live_table=False)
+
+    def sample(payload):
+        return SimpleNamespace(key_expr="iota/pair/src/@trace", payload=SimpleNamespace(to_bytes=lambda: payload))
+
+    out = {"t": 0.1, "iota": "src", "action": "out", "index": None, "kind": "output", "value": 1,
+           "key": "iota/pair/src/out", "seq": 0, "send_ns": 1}
+    bad = {"t": 0.2, "iota": "src", "action": "x", "index": None, "kind": "violation",
+           "value": {"violation": "v", "message": "m"}}
+    run._on_trace(sample(wire.encode_burst([wire.start_event(0.0, "src", 1.0, 1), out, 7, out, bad])))
+    run._on_trace(sample(wire.encode(out)))  # the old form: one event a sample
+    run._on_trace(sample(b"\xc1"))
+    run._on_trace(sample(wire.encode("neither")))
+    assert sum(run.tally.values["iota/pair/src/out"].values()) == 3
+    assert run.tally.violations["src"] == 1

@@ -250,11 +250,11 @@ def test_trace_sourced_sigkill_loses_at_most_100ms_of_what_arrived(tmp_path, ses
             os.kill(recorder.proc.pid, signal.SIGKILL)
         time.sleep(0.02)
         due = int((time.monotonic() - start) * 2000)
-        for seq in range(len(put_ns), due):
-            now = time.time_ns()
-            trace.put(wire.encode(output_event("iota/k/src/out", seq, now, seq, iota="src")),
-                      attachment=wire.encode_attachment(seq, now))
-            put_ns.append(now)
+        first, now = len(put_ns), time.time_ns()
+        burst = [output_event("iota/k/src/out", seq, now, seq, iota="src") for seq in range(first, due)]
+        if burst:  # one sample per burst, as a node host sends its trace
+            trace.put(wire.encode_burst(burst), attachment=wire.encode_attachment(first, now))
+            put_ns += [now] * len(burst)
     recorder.stop()
     assert recorder.proc.returncode == -signal.SIGKILL
     recovered = tmp_path / "recovered.mcap"
@@ -271,3 +271,51 @@ def test_trace_sourced_sigkill_loses_at_most_100ms_of_what_arrived(tmp_path, ses
           f"all from the last {window:.1f} ms")
     assert len(must_have) > 1500
     assert not missing, f"{len(missing)} events older than 100 ms before the kill were lost: {missing[:5]}..."
+
+
+def test_trace_bursts_are_split_into_events_and_malformed_ones_are_recorded(tmp_path, session_for):
+    """A @trace sample is a burst (list of events) or one event (dict, the old form): each event
+    is one message on the @trace channel, numbered from the burst's seq; a gap on the @trace
+    stream counts events; an undecodable burst, a payload that is no burst, and an element that
+    is no event are recorded on @recorder/malformed, and the rest of the stream is recorded."""
+    recorder = RecorderProcess(tmp_path, ["iota/t/**"], "--from-traces")
+    try:
+        session = session_for(recorder.port)
+        trace = session.declare_publisher("iota/t/pub/@trace")
+        matched(trace)
+        start = wire.start_event(0.0, "pub", 1.0, 1)
+        burst = [start] + [output_event("iota/t/pub/ack/0", seq, 100 + seq, "COMMIT") for seq in range(3)]
+        trace.put(wire.encode_burst(burst), attachment=wire.encode_attachment(0, 50))       # seq 0..3
+        trace.put(wire.encode(output_event("iota/t/pub/ack/0", 3, 103, "ABORT")),           # seq 4, old form
+                  attachment=wire.encode_attachment(4, 51))
+        # seq 5 and 6 lost on the way: a gap of two events on the trace stream
+        trace.put(wire.encode_burst([output_event("iota/t/pub/ack/0", 4, 104, "COMMIT"), 17,
+                                     output_event("iota/t/pub/ack/0", 5, 105, "COMMIT")]),
+                  attachment=wire.encode_attachment(7, 52))                                  # seq 7..9
+        trace.put(b"\xc1\xc1", attachment=wire.encode_attachment(10, 53))                  # undecodable
+        trace.put(wire.encode("no burst"), attachment=wire.encode_attachment(11, 54))       # neither
+        trace.put(wire.encode_burst([output_event("iota/t/pub/ack/0", 6, 106, "COMMIT")]),
+                  attachment=wire.encode_attachment(40, 55))  # after what could not be counted: no gap
+        wait_for(lambda: len(read_recording(recorder.output).malformed()) >= 3
+                 and sum(m.topic == "iota/t/pub/ack/0" for m in read_recording(recorder.output).messages) >= 7,
+                 10, "the messages in the file")
+    finally:
+        assert recorder.stop() == 0
+    recording = read_recording(recorder.output)
+    traced = [m for m in recording.messages if m.topic == "iota/t/pub/@trace"]
+    assert [(m.sequence, m.publish_time) for m in traced] == [(0, 50), (1, 50), (2, 50), (3, 50), (4, 51),
+                                                              (7, 52), (9, 52), (40, 55)]
+    assert all(isinstance(m.value, dict) for m in traced)  # one event a message: the format is unchanged
+    assert recording.start_times() == {"pub": 0.0}
+    assert [e["kind"] for e in recording.trace("pub", starts=True)] == ["start"] + ["output"] * 7
+    acks = [(m.sequence, m.publish_time, m.value) for m in recording.messages if m.topic == "iota/t/pub/ack/0"]
+    assert acks == [(0, 100, "COMMIT"), (1, 101, "COMMIT"), (2, 102, "COMMIT"), (3, 103, "ABORT"),
+                    (4, 104, "COMMIT"), (5, 105, "COMMIT"), (6, 106, "COMMIT")]
+    assert recording.gaps() == [{"key": "iota/t/pub/@trace", "expected": 5, "got": 7, "missing": 2}]
+    malformed = recording.malformed()
+    assert [(p["key"], p["seq"]) for p in malformed] == [("iota/t/pub/@trace", 8), ("iota/t/pub/@trace", 10),
+                                                         ("iota/t/pub/@trace", 11)]
+    assert "element 1" in malformed[0]["message"] and malformed[0]["data"] == wire.encode(17)
+    assert "undecodable" in malformed[1]["message"] and malformed[1]["data"] == b"\xc1\xc1"
+    assert "neither" in malformed[2]["message"]
+    assert recording.metadata["iotad.stats"]["malformed"] == "3"

@@ -21,7 +21,8 @@ examples (with 'iotad run examples/figure2.toml' running in another terminal):
   iotad echo 'iota/figure2/**' --count 10 --timeout 30
 
 Each line: key, #sequence number, value as JSON; [GAP: n missed] when the sender's sequence
-numbers skip. Ctrl-C stops (exit 130); --count N exits 0 after N messages; --timeout exits 1.
+numbers skip. A @trace sample is a burst of events: one line each, numbered from the burst's
+sequence number. Ctrl-C stops (exit 130); --count N exits 0 after N lines; --timeout exits 1.
 See also: 'iotad ls' (what keys exist), 'iotad hz KEY' (rates), 'iotad record'."""
 
 
@@ -44,14 +45,15 @@ class GapTracker:
     def __init__(self):
         self.last: dict[str, int] = {}
 
-    def see(self, key: str, sequence: int | None) -> int:
+    def see(self, key: str, sequence: int | None, count: int = 1) -> int:
+        """`count`: how many sequence numbers the sample takes (the events of a `@trace` burst)."""
         if sequence is None:
             return 0
-        previous = self.last.get(key)
-        self.last[key] = sequence
-        if previous is None or sequence == previous + 1:
+        expected = self.last.get(key)
+        self.last[key] = sequence + count
+        if expected is None or sequence == expected:
             return 0
-        return sequence - previous - 1 if sequence > previous else -1  # -1: the sender restarted
+        return sequence - expected if sequence > expected else -1  # -1: the sender restarted
 
 
 def run(args: argparse.Namespace) -> int:
@@ -77,30 +79,37 @@ def run(args: argparse.Namespace) -> int:
                 key, payload, attachment = inbox.get(timeout=wait)
             except queue.Empty:
                 continue
-            seen += 1
             meta = wire.decode_attachment(attachment)
             sequence, send_ns = meta if meta else (None, None)
-            gap = gaps.see(key, sequence)
             try:
                 value, malformed = wire.decode(payload), None
             except wire.WireError as exc:
                 value, malformed = None, str(exc)
-            if args.json:
-                record = {"key": key, "seq": sequence, "send_ns": send_ns, "value": value}
-                if gap:
-                    record["gap"] = gap
-                if malformed:
-                    record["malformed"] = malformed
-                print(json.dumps(record, default=repr), flush=True)
-                continue
-            flag = ""
-            if gap > 0:
-                flag = f"  [GAP: {gap} missed]"
-            elif gap < 0:
-                flag = "  [sequence restarted]"
-            shown = f"<{malformed}>" if malformed else json.dumps(value, default=repr)
-            seq = "" if sequence is None else f"#{sequence} "
-            print(f"{key} {seq}{shown}{flag}", flush=True)
+            values = [value]
+            if key.endswith("/@trace") and isinstance(value, list):
+                values = value  # a burst: one line per event, numbered from the burst's seq
+            gap = gaps.see(key, sequence, len(values))
+            for position, value in enumerate(values):
+                if args.count is not None and seen >= args.count:
+                    break
+                seen += 1
+                number = None if sequence is None else sequence + position
+                if args.json:
+                    record = {"key": key, "seq": number, "send_ns": send_ns, "value": value}
+                    if gap and not position:
+                        record["gap"] = gap
+                    if malformed:
+                        record["malformed"] = malformed
+                    print(json.dumps(record, default=repr), flush=True)
+                    continue
+                flag = ""
+                if gap > 0 and not position:
+                    flag = f"  [GAP: {gap} missed]"
+                elif gap < 0 and not position:
+                    flag = "  [sequence restarted]"
+                shown = f"<{malformed}>" if malformed else json.dumps(value, default=repr)
+                seq = "" if number is None else f"#{number} "
+                print(f"{key} {seq}{shown}{flag}", flush=True)
         return 0
     finally:
         session.close()
