@@ -11,34 +11,8 @@ from iotad.engine import Eager, Engine
 from iotad.esprit import load_iota
 from iotad.recording import TRACE_SCHEMA, McapSink, packb, read_recording, record_run
 from iotad.replay import node_root, replay_node
+from test_esprit_language import COMPOSITE  # the clocked counter/doubler composite
 from test_record_engine import figure2
-
-COMPOSITE = """
-iota counter: tick()/0 -> count(int)/0 {
-  states int n = 0; bool dirty = false;
-  actions
-  tick() do { n = n + 1; dirty = true; }
-  count(n) when dirty do dirty = false;
-}
-iota doubler: inp(int)/0 -> out(int)/0 {
-  states int v = 0; bool full = false;
-  actions
-  inp(x) do { v = x * 2; full = true; }
-  out(v) when full after 0.5 do full = false;
-}
-iota clocked(float P = 1.0, int TIMES = 3): go()/0 -> tick()/0, total(int)/0 {
-  states int sent = 0; bool running = false;
-  include
-    counter c;
-    doubler d;
-    tick -> c.tick;
-    c.count -> d.inp;
-    d.out -> total;
-  actions
-  go() do running = true;
-  tick() when running && sent < TIMES after P do sent = sent + 1;
-}
-"""
 
 
 class Family(Iota):
