@@ -41,7 +41,7 @@ import zenoh  # noqa: E402
 from importlib.metadata import version  # noqa: E402
 
 from iotad import wire  # noqa: E402
-from iotad.transport import free_port, open_session  # noqa: E402
+from iotad.host.transport import free_port, open_session  # noqa: E402
 
 GOAL_RATE = 100_000
 GOAL_LATENCY_COST = 0.10
@@ -50,8 +50,8 @@ PUBLISHER = r"""
 import sys, time
 sys.path.insert(0, {root!r})
 import zenoh
-from iotad import wire
-from iotad.transport import open_session
+from iotad.host import wire
+from iotad.host.transport import open_session
 endpoint, index, count, mode = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), sys.argv[4]
 session = open_session(connect=[endpoint])
 try:
@@ -71,7 +71,7 @@ try:
     else:
         # as a node host: each output event notes its key, seq and send_ns; the trace goes out in
         # bursts of TRACE_BATCH events, one sample each (attachment: seq of the burst's first event)
-        from iotad.host_clock import HostClock
+        from iotad.host.host_clock import HostClock
         batch, buffer, first = HostClock.TRACE_BATCH, [], 0
         for seq in range(count):
             buffer.append({{"t": 0.0, "iota": "p", "action": "out", "index": None, "kind": "output", "value": 1.5,
@@ -90,8 +90,8 @@ PONG = r"""
 import sys, threading, time
 sys.path.insert(0, {root!r})
 import zenoh
-from iotad import wire
-from iotad.transport import open_session
+from iotad.host import wire
+from iotad.host.transport import open_session
 session = open_session(connect=[sys.argv[1]])
 traced = sys.argv[2] == "traces"
 stop, flusher = threading.Event(), None
@@ -185,7 +185,7 @@ def spawn(script: str, *args: str) -> subprocess.Popen:
 
 
 def throughput(publishers: int, messages: int, folder: Path, mode: str) -> dict:
-    from iotad.recording import read_recording
+    from iotad.recording.mcap_io import read_recording
     output = folder / "throughput.mcap"
     recorder = Recorder(output, ["iota/bench/**"], mode=mode)
     procs = []

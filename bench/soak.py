@@ -126,8 +126,8 @@ def main() -> int:
     parser.add_argument("--no-record", action="store_true", help="run without the recorder")
     args = parser.parse_args()
 
-    from iotad.recording import read_recording
-    from iotad.transport import free_port
+    from iotad.recording.mcap_io import read_recording
+    from iotad.host.transport import free_port
 
     with tempfile.TemporaryDirectory(prefix="iotad-soak-") as tmp:
         tmp = Path(tmp)

@@ -1,18 +1,23 @@
 """Message types carried on channels, shared by Python IOTAs, ESPRIT specs and the recorder.
 
 One definition per type: `REGISTRY` maps the type's name (as an ESPRIT struct or a recording
-names it) to the `iotad.types` type; `encode`/`decode` are the msgpack codec; `schema_json(name)`
+names it) to the `iotad.kernel.types` type; `encode`/`decode` are the msgpack codec; `schema_json(name)`
 is its JSON Schema, as written in channels/schemas/.
 """
-from iotad.types import Type
+from iotad.kernel.types import Type
 
+from .can import CAN_FRAME
 from .codec import decode, encode
 from .joints import (JOINT_SETPOINT, JOINT_SETPOINTS, JOINT_STATE, JOINT_STATES, joint_setpoints,
                      joint_states)
 from .messages import ACK, MDL_REQ, MODE
+from .motor import BAD_FRAME, JOINT_STATUS
+from .mdl import TYPES as MDL_TYPES
 
 REGISTRY: dict[str, Type] = {t.name: t for t in (MODE, MDL_REQ, ACK, JOINT_SETPOINT, JOINT_STATE,
-                                                 JOINT_SETPOINTS, JOINT_STATES)}
+                                                 JOINT_SETPOINTS, JOINT_STATES, CAN_FRAME)}
+REGISTRY.update({t.name: t for t in (JOINT_STATUS, BAD_FRAME)})  # the CAN motor node (channels/motor.py)
+REGISTRY.update({t.name: t for t in MDL_TYPES})  # MDL programs, sensor readings, reports (channels/mdl.py)
 
 
 def lookup(name: str) -> Type:
@@ -48,6 +53,6 @@ def write_schemas(folder=None):
     return write(SCHEMA_DIR if folder is None else folder)
 
 
-__all__ = ["ACK", "JOINT_SETPOINT", "JOINT_SETPOINTS", "JOINT_STATE", "JOINT_STATES", "MDL_REQ", "MODE",
+__all__ = ["ACK", "BAD_FRAME", "CAN_FRAME", "JOINT_SETPOINT", "JOINT_SETPOINTS", "JOINT_STATE", "JOINT_STATES", "JOINT_STATUS", "MDL_REQ", "MODE",
            "REGISTRY", "decode", "encode", "joint_setpoints", "joint_states", "lookup", "schema",
            "schema_json", "write_schemas"]

@@ -2,14 +2,14 @@
 
 `encode(type, value)` checks the value and packs `type.to_plain(value)`; `decode(type, payload)`
 unpacks and rebuilds it with `type.from_plain` (ranges checked). Both raise `BadValue` for a
-value that does not fit and `decode` raises `iotad.wire.WireError` for bytes that are not msgpack.
+value that does not fit and `decode` raises `iotad.host.wire.WireError` for bytes that are not msgpack.
 """
 from __future__ import annotations
 
 from typing import Any
 
-from iotad import wire
-from iotad.types import Type
+from iotad.host import wire
+from iotad.kernel.types import Type
 
 
 def encode(type: Type | None, value: Any) -> bytes:

@@ -7,7 +7,7 @@ joint), velocities per second, efforts newton-metres; `stamp` is seconds on the 
 """
 from __future__ import annotations
 
-from iotad.types import Array, Float, Int, StructType, Struct
+from iotad.kernel.types import Array, Float, Int, StructType, Struct
 
 # One joint: what a motor controller needs (ODrive Set_Input_Pos carries exactly these three).
 JOINT_SETPOINT = Struct("jointSetpoint", joint=Int(0, None), position=Float, velocity_ff=Float, torque_ff=Float)

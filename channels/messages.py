@@ -1,7 +1,7 @@
 """The paper's message types (Figure 2): the MDL mode, the MDL request and the ack values."""
 from __future__ import annotations
 
-from iotad.types import Enum, Float, Int, Struct, Type
+from iotad.kernel.types import Enum, Float, Int, Struct, Type
 
 # struct mode { float w, k; }: w the control input (setpoint), k the feedback gain.
 MODE = Struct("mode", w=Float, k=Float)

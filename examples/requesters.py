@@ -3,6 +3,11 @@
 A vision requester and a manipulation requester are the same IOTA with other parameters:
 priority, how long the motion takes (epoch), how long it may wait (timeout), when it first asks
 and how long it pauses after each answer.
+
+If the scheduler restarts while a request is in flight, the restarted scheduler knows nothing of
+it and would never answer: the node host tells the requester through its `peer_restart` input
+(iotad/host/peer_restart.py), and the requester takes that as the ABORT it is (the motors were
+taken from it) and goes on with its next request after its pause (docs/failures.md).
 """
 from iotad import Input, Iota, Output, Param
 
@@ -20,6 +25,7 @@ class Requester(Iota):
 
     req = Output(MDL_REQ, switching=1)
     ack = Input(ACK, switching=1)
+    peer_restart = Input()  # fed by the node host: the scheduler restarted (no binding needed)
 
     def init(self):
         self.waiting = False
@@ -38,3 +44,9 @@ class Requester(Iota):
     def answered(self, x):
         self.waiting = False
         self.answers.append(x)
+
+    @peer_restart.input
+    def scheduler_restarted(self, x):
+        if self.waiting:  # our request died with the old scheduler: an ABORT, then our next one
+            self.waiting = False
+            self.answers.append(ACK.ABORT)

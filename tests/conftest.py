@@ -1,8 +1,9 @@
-"""Shared test set-up: the examples folder is importable (its IOTAs are used as fixtures)."""
+"""Shared test set-up for every folder: the examples folder and this folder's helper modules
+(launcher_helpers, node_harness, recorded_systems, system_iotas) are importable."""
 import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-EXAMPLES = ROOT / "examples"
-if str(EXAMPLES) not in sys.path:
-    sys.path.insert(0, str(EXAMPLES))
+for folder in (ROOT / "examples", ROOT / "tests"):
+    if str(folder) not in sys.path:
+        sys.path.insert(0, str(folder))

@@ -11,7 +11,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any, Callable
 
-from .checker import Checker
+from .static_checks import Checker
 from .compiler import Compiler, IotaFactory, Module
 from .errors import Diagnostic, EspritError, Source
 from .parser import parse
@@ -65,7 +65,7 @@ def load_file(path: str | Path, externs: dict[str, Callable] | None = None) -> M
 def load_iota(path_or_text: str | Path, iota: str | None = None, name: str | None = None,
               externs: dict[str, Callable] | None = None, **params: Any) -> Any:
     """A ready instance of `iota` (default: the last IOTA of the file) from a file path or spec
-    text: an `iotad.model.Instance`, or a `Composite` when the IOTA has an inclusion part."""
+    text: an `iotad.kernel.model.Instance`, or a `Composite` when the IOTA has an inclusion part."""
     if isinstance(path_or_text, Path) or ("\n" not in path_or_text and "{" not in path_or_text):
         module = load_file(path_or_text, externs)
     else:
@@ -80,7 +80,7 @@ def _check(source: Source, externs: dict[str, Callable] | None):
 
 
 def _extern_resolver(source: Source, given: dict[str, Callable], base: Path):
-    from iotad.loader import load_object
+    from iotad.kernel.python_loader import load_object
 
     def resolve(decl) -> Callable | None:
         if decl.name in given:

@@ -7,8 +7,8 @@ index variable is `index`, loop variables are `l_<name>`, constants `k_<name>`, 
 """
 from __future__ import annotations
 
-from iotad.model import ANY, INDEX, by_state
-from iotad.types import ArrayType, StructType
+from iotad.kernel.model import ALL_STATE, ANY, INDEX, by_state
+from iotad.kernel.types import ArrayType, StructType
 
 from . import syntax as S
 from .typesys import ArrayOf, has_null_member, is_int
@@ -50,6 +50,8 @@ def expr(node: S.Expr) -> str:
             return f"{expr(node.obj)}[index]"  # the engine's index is always in range and >= 0
         return f"ix({expr(node.obj)}, {expr(node.index)})"
     if isinstance(node, S.Call):
+        if node.builtin:
+            return _builtin(node)
         return f"x_{node.func}({', '.join(expr(a) for a in node.args)})"
     if isinstance(node, S.Unary):
         return f"(not {expr(node.operand)})" if node.op == "!" else f"(-{expr(node.operand)})"
@@ -74,7 +76,21 @@ def expr(node: S.Expr) -> str:
             args = ", ".join(f"{name or names[k]}={code}" for k, (name, code) in enumerate(items))
             return f"T_{node.type.name}({args})"
         return f"[{', '.join(code for _, code in items)}]"
+    if isinstance(node, S.Quantifier):
+        # bounds evaluated once, the body for each int in [start, stop), stopping at the first
+        # counter-example (forall) or witness (exists)
+        helper = "all_of" if node.kind == "forall" else "any_of"
+        return f"{helper}({expr(node.start)}, {expr(node.stop)}, lambda l_{node.var}: {expr(node.body)})"
     raise AssertionError(f"unknown expression {node!r}")  # pragma: no cover
+
+
+def _builtin(node: S.Call) -> str:
+    """now() reads the firing's time; reset() and inhibit(d) act on the whole IOTA (runtime.py)."""
+    if node.func == "now":
+        return "esprit_now()"
+    if node.func == "reset":
+        return "esprit_reset(iota)"
+    return f"esprit_inhibit(iota, {expr(node.args[0])})"
 
 
 def _fresh(node: S.Expr) -> str:
@@ -140,6 +156,9 @@ def writes(node: S.Node | None) -> frozenset:
     writes nothing."""
     if node is None:
         return frozenset()
+    builtins = {call.func for call in _builtin_statements(node)}
+    if "reset" in builtins:
+        return ALL_STATE  # every state variable goes back to its initial value
     assigns = list(_assignments(node, False))
     counts: dict[str, int] = {}
     for assign, in_loop in assigns:
@@ -160,7 +179,30 @@ def writes(node: S.Node | None) -> frozenset:
             found.add((chain.id, by_state(above.index.id)))
         else:
             found.add((chain.id, ANY))
+    if "inhibit" in builtins:
+        found |= INHIBIT_CELLS
     return frozenset(found)
+
+
+# The hidden state cells inhibit(d) writes and every gated output action reads (runtime.py).
+INHIBIT_CELLS = frozenset({("_inhibited", ANY), ("_inhibit_until", ANY), ("_inhibit_phase", ANY)})
+RESET_CELLS = frozenset({("_resetting", ANY)})
+
+
+def _builtin_statements(node: S.Node):
+    """The built-in calls (reset(), inhibit(d)) a statement makes."""
+    if isinstance(node, S.CallStmt):
+        if isinstance(node.call, S.Call) and node.call.builtin:
+            yield node.call
+    elif isinstance(node, S.Block):
+        for item in node.body:
+            yield from _builtin_statements(item)
+    elif isinstance(node, S.If):
+        yield from _builtin_statements(node.then)
+        if node.orelse is not None:
+            yield from _builtin_statements(node.orelse)
+    elif isinstance(node, S.For):
+        yield from _builtin_statements(node.body)
 
 
 def _assigned_root(target: S.Expr) -> tuple[S.Expr, S.Expr | None]:

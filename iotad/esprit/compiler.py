@@ -8,15 +8,16 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
-from iotad.compose import Composite
-from iotad.model import Action, Channel, Instance, IotaSpec, SpecError
-from iotad.types import BadValue, BoolType, EnumType, FloatType, IntType, StructType
+from iotad.kernel.compose import Composite
+from iotad.kernel.model import Action, Channel, Instance, IotaSpec, SpecError
+from iotad.kernel.types import BadValue, BoolType, EnumType, FloatType, IntType, StructType
 
 from . import codegen
 from . import syntax as S
-from .checker import Checked, IotaInfo
+from .static_checks import Checked, IotaInfo
 from .errors import EspritError, Source
-from .runtime import c_div, c_mod, cp, ix, ix_set
+from .runtime import (all_of, any_of, c_div, c_mod, cp, esprit_inhibit, esprit_now, esprit_reset, inhibit_left,
+                      ix, ix_set, restarted, uninhibit)
 from .typesys import VOID, ArrayOf, describe
 
 
@@ -125,6 +126,8 @@ class Compiler:
     def __init__(self, checked: Checked, source: Source):
         self.checked, self.source = checked, source
         self.globals: dict[str, Any] = {"ix": ix, "ix_set": ix_set, "cp": cp, "c_div": c_div, "c_mod": c_mod,
+                                        "all_of": all_of, "any_of": any_of, "esprit_now": esprit_now,
+                                        "esprit_reset": esprit_reset, "esprit_inhibit": esprit_inhibit,
                                         "INF": float("inf"), "__builtins__": {"range": range}}
         for name, struct in checked.structs.items():
             self.globals[f"T_{name}"] = struct
@@ -195,8 +198,12 @@ class Compiler:
                 continue
             channels[name] = Channel(name, chan.direction, chan.type, chan.switching, chan.size)
         actions = [self._action(info, k, a) for k, a in enumerate(decl.actions)]
+        hidden = _hidden_actions(info)
+        for action in hidden:
+            channels[action.channel] = Channel(action.channel, "internal")
+        actions += hidden
         spec = IotaSpec(decl.name, {p: d for p, (_, d) in info.params.items()}, channels, actions,
-                        init=self._init(info), state_names=tuple(info.states),
+                        init=self._init(info), state_names=tuple(info.states) + _hidden_state(info),
                         source=self.source.text, source_path=self.source.filename)
         try:
             spec.validate()
@@ -222,9 +229,22 @@ class Compiler:
         do = None
         if action.do is not None:
             do = self._function(f"{prefix}_do", "iota, index", codegen.stmt(action.do, 0))
-        return Action(action.channel, when=self._expr_fn(f"{prefix}_when", action.when), lower=lower, upper=upper,
+        # reset() and inhibit(d) hold actions back through hidden state (docs/esprit.md)
+        gates, gated_reads = [], frozenset()
+        if info.uses_reset:
+            gates.append("not iota._resetting")
+            gated_reads |= codegen.RESET_CELLS
+        if info.uses_inhibit and chan.direction == "output":
+            gates.append("not iota._inhibited")
+            gated_reads |= codegen.INHIBIT_CELLS
+        if gates:
+            condition = " and ".join(gates + ([f"({codegen.expr(action.when)})"] if action.when is not None else []))
+            when = self._function(f"{prefix}_when", "iota, index", [f"return {condition}"])
+        else:
+            when = self._expr_fn(f"{prefix}_when", action.when)
+        return Action(action.channel, when=when, lower=lower, upper=upper,
                       value=self._expr_fn(f"{prefix}_value", action.arg), do=do,
-                      reads=codegen.reads(action.when), writes=codegen.writes(action.do),
+                      reads=codegen.reads(action.when) | gated_reads, writes=codegen.writes(action.do),
                       label=label, line=action.pos[0])
 
     def _init(self, info: IotaInfo) -> Callable | None:
@@ -233,11 +253,14 @@ class Compiler:
             value_fn = self._expr_fn(f"init_{name}", d.init)
             size_fn = self._expr_fn(f"size_{name}", d.size)
             steps.append((name, vtype, element, value_fn, size_fn, d))
-        if not steps:
+        hidden = _hidden_initial_state(info)
+        if not steps and not hidden:
             return None
         source = self.source
 
         def init(iota: Any) -> None:
+            for name, value in hidden.items():
+                object.__setattr__(iota, name, value)
             for name, vtype, element, value_fn, size_fn, d in steps:
                 try:
                     value = element.default() if value_fn is None else value_fn(iota, None)
@@ -254,6 +277,40 @@ class Compiler:
                     raise source.error(d.pos, f"initial value of {name}: {type(exc).__name__}: {exc}") from None
                 object.__setattr__(iota, name, value)
         return init
+
+
+def _hidden_initial_state(info: IotaInfo) -> dict[str, Any]:
+    """The state reset() and inhibit(d) keep, with its initial values (names a spec cannot use)."""
+    state: dict[str, Any] = {}
+    if info.uses_reset:
+        state["_resetting"] = False
+    if info.uses_inhibit:
+        state.update(_inhibited=False, _inhibit_until=float("-inf"), _inhibit_phase=0)
+    return state
+
+
+def _hidden_state(info: IotaInfo) -> tuple[str, ...]:
+    return tuple(_hidden_initial_state(info))
+
+
+def _hidden_actions(info: IotaInfo) -> list[Action]:
+    """The internal actions reset() and inhibit(d) need: `restarted` fires at the instant of a
+    reset and lets every action start a new window; `uninhibit` fires when an inhibition ends."""
+    actions = []
+    if info.uses_inhibit:
+        for phase in (0, 1):  # two, so that a new inhibit(d) restarts the window (runtime.esprit_inhibit)
+            actions.append(Action("uninhibit", when=_inhibited_in_phase(phase), lower=inhibit_left,
+                                  upper=inhibit_left, do=uninhibit, reads=codegen.INHIBIT_CELLS,
+                                  writes=codegen.INHIBIT_CELLS, label="uninhibit"))
+    if info.uses_reset:
+        actions.append(Action("restarted", when=lambda iota, index: iota._resetting, do=restarted,
+                              lower=lambda iota, index: 0.0, upper=lambda iota, index: 0.0,
+                              reads=codegen.RESET_CELLS, writes=codegen.RESET_CELLS, label="restarted"))
+    return actions
+
+
+def _inhibited_in_phase(phase: int) -> Callable:
+    return lambda iota, index: iota._inhibited and iota._inhibit_phase == phase
 
 
 def _extern_wrapper(ext) -> Callable:

@@ -107,6 +107,26 @@ class _Build(Transformer):
     def init_item(self, c):
         return (None if c[0] is None else str(c[0]), c[1])
 
+    @v_args(meta=True)
+    def quant_range(self, meta, c):
+        var, start, var2, _lt, stop, var3 = c
+        for other in (var2, var3):
+            if str(other) != str(var):
+                raise _Early(_pos(other), f"a quantifier counts one variable: expected {var}, found {other}")
+        return (str(var), start, stop, _pos(meta, c))
+
+    def _quantifier(self, kind, meta, c):
+        (var, start, stop, pos), body = c
+        return S.Quantifier(_pos(meta) if not getattr(meta, "empty", True) else pos, kind, var, start, stop, body)
+
+    @v_args(meta=True)
+    def forall(self, meta, c):
+        return self._quantifier("forall", meta, c)
+
+    @v_args(meta=True)
+    def exists(self, meta, c):
+        return self._quantifier("exists", meta, c)
+
     # ---------------- statements
     @v_args(meta=True)
     def assign(self, meta, c):
@@ -185,6 +205,9 @@ class _Build(Transformer):
         params = [p for p in rest[:-1] if p is not None]
         return S.ExternDecl(_pos(name), returns, str(name), params,
                             None if target is None else str(target)[1:-1])
+
+    def extern_type_decl(self, c):
+        return S.ExternTypeDecl(_pos(c[0]), str(c[0]), str(c[1])[1:-1])
 
     def size(self, c):
         token = c[0]

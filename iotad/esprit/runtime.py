@@ -3,9 +3,10 @@ fault (index out of range, NULL index, division by zero), which the engine turns
 `runtime_error` violation while the IOTA goes on."""
 from __future__ import annotations
 
+import sys
 from typing import Any
 
-from iotad.types import Record
+from iotad.kernel.types import Record
 
 
 def ix(sequence: Any, index: Any) -> Any:
@@ -54,3 +55,82 @@ def field_of(value: Any, name: str) -> Any:  # pragma: no cover - kept for reada
     if value is None:
         raise AttributeError(f"field {name} of NULL")
     return getattr(value, name)
+
+
+# ---------------------------------------------------------------- quantifiers
+def all_of(start: int, stop: int, body: Any) -> bool:
+    """`forall (j=start; j<stop; j++) (body)`."""
+    return all(body(j) for j in range(start, stop))
+
+
+def any_of(start: int, stop: int, body: Any) -> bool:
+    """`exists (j=start; j<stop; j++) (body)`."""
+    return any(body(j) for j in range(start, stop))
+
+
+# ---------------------------------------------------------------- time, reset, inhibit
+def esprit_now() -> float:
+    """`now()`: the time of the firing (or enabling) in progress, in spec time units.
+
+    The kernel calls an action's functions as `f(iota, index)` and passes no time: time is the
+    engine's. Every call that can reach a do-block or a time bound comes from an `Engine` method
+    that holds the instant being executed in its local `now` (`_fire`, `_deliver`, `_enable`),
+    so the innermost engine frame on the stack says what time it is; `Engine.now()` (the
+    clock) is the fallback. The static checks keep now() out of preconditions and output
+    values, which the trace checker also evaluates outside any engine firing.
+    """
+    from iotad.kernel.engine import Engine
+
+    frame = sys._getframe(1)
+    while frame is not None:
+        owner = frame.f_locals.get("self")
+        if isinstance(owner, Engine):
+            instant = frame.f_locals.get("now")
+            if isinstance(instant, (int, float)) and not isinstance(instant, bool):
+                return float(instant)
+            return float(owner.now())
+        frame = frame.f_back
+    raise RuntimeError("now() is defined only while an engine runs the IOTA")
+
+
+def esprit_reset(iota: Any) -> None:
+    """`reset()`: every state variable back to its initial value, and every locally controlled
+    action disabled until the hidden `restarted` action fires at this same instant, so that each
+    window starts again as if the IOTA had just started (Brooks' reset input)."""
+    init = iota.iota_spec.init
+    if init is not None:
+        init(iota)
+    object.__setattr__(iota, "_resetting", True)
+
+
+def esprit_inhibit(iota: Any, duration: float) -> None:
+    """`inhibit(d)`: every output action of the IOTA disabled from now for `d` time units; an
+    inhibition already running ends at the later of the two ends (the union of both).
+
+    The hidden `uninhibit` action must then start a new window to the new end. A window starts
+    again only when its precondition turns false and true, which one firing cannot do to one
+    action: so `uninhibit` is two actions, enabled by the parity of `_inhibit_phase`, and each
+    inhibit(d) flips it, dropping the old window and opening the new one."""
+    if not duration >= 0:
+        raise ValueError(f"inhibit({duration!r}): the time must be >= 0")
+    until = esprit_now() + duration
+    if iota._inhibited:
+        until = max(until, iota._inhibit_until)
+    object.__setattr__(iota, "_inhibit_until", until)
+    object.__setattr__(iota, "_inhibited", True)
+    object.__setattr__(iota, "_inhibit_phase", 1 - iota._inhibit_phase)
+
+
+def inhibit_left(iota: Any, index: Any = None) -> float:
+    """The hidden `uninhibit` action's window: it fires when the inhibition ends."""
+    return max(0.0, iota._inhibit_until - esprit_now())
+
+
+def uninhibit(iota: Any, index: Any = None) -> None:
+    """The hidden `uninhibit` action: the inhibition is over."""
+    object.__setattr__(iota, "_inhibited", False)
+
+
+def restarted(iota: Any, index: Any = None) -> None:
+    """The hidden `restarted` action, right after a reset(): the IOTA's actions may start again."""
+    object.__setattr__(iota, "_resetting", False)

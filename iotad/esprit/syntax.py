@@ -56,6 +56,9 @@ class IndexOf(Expr):
 class Call(Expr):
     func: str
     args: list[Expr]
+    # Set by the checker: a built-in function (now, reset, inhibit; docs/esprit.md) rather
+    # than an extern.
+    builtin: bool = field(default=False, init=False, repr=False, compare=False)
 
 
 @dataclass
@@ -75,6 +78,16 @@ class Binary(Expr):
 class Aggregate(Expr):
     """`{a, b}` or `{.f = a}`: a struct or array value, typed by where it goes."""
     items: list[tuple[str | None, Expr]]
+
+
+@dataclass
+class Quantifier(Expr):
+    """`forall (j=a; j<b; j++) (P)` or `exists (...) (P)`: P over the ints a..b-1."""
+    kind: str  # "forall" or "exists"
+    var: str
+    start: Expr
+    stop: Expr
+    body: Expr
 
 
 # ---------------------------------------------------------------- statements
@@ -155,6 +168,14 @@ class ExternDecl(Node):
     name: str
     params: list[TypeRef]
     target: str | None   # "module:function" or "file.py:function"; None: given to load_text
+
+
+@dataclass
+class ExternTypeDecl(Node):
+    """`extern struct NAME = "module:OBJECT";`: a value type defined in Python (an
+    `iotad.kernel.types.Type`), opaque to the spec."""
+    name: str
+    target: str
 
 
 @dataclass
@@ -248,4 +269,6 @@ def children(node: Node) -> list:
         return [node.left, node.right]
     if isinstance(node, Aggregate):
         return [item for _, item in node.items]
+    if isinstance(node, Quantifier):
+        return [node.start, node.stop, node.body]
     return []

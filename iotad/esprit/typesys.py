@@ -1,8 +1,8 @@
-"""ESPRIT's view of value types: the kernel's types (iotad.types) plus what only the compiler
+"""ESPRIT's view of value types: the kernel's types (iotad.kernel.types) plus what only the compiler
 needs: arrays whose length is a parameter, the type of NULL, and `void` for externs."""
 from __future__ import annotations
 
-from iotad.types import ArrayType, BoolType, EnumType, FloatType, IntType, StructType, Type
+from iotad.kernel.types import ArrayType, BoolType, EnumType, FloatType, IntType, StructType, Type
 
 
 class ArrayOf:

@@ -1,0 +1,229 @@
+"""`open_bus`: a CAN bus of real time by interface name: python-can's BusABC, and `Frame`s too.
+
+    with open_bus("socketcan", "vcan0") as bus:
+        bus.send(odrive.encode(3, "Estop"))     # a Frame, or a can.Message
+        message = bus.recv(timeout=0.1)         # a can.Message, or None after the timeout (BusABC)
+        got = bus.recv_frame(timeout=0.1)       # (time, Frame), or None
+
+Interfaces: `socketcan` (a Linux CAN device: vcan0, can0), `udp_multicast` (an IP multicast group
+standing for a bus, allowed only inside a private network namespace), `virtual` (python-can's
+in-process bus, for one process). Every `RealTimeBus` is the same small interface, python-can's
+BusABC (`send`, `recv`, `fileno`, `shutdown`), plus `send_frame`/`recv_frame`, a `name` and
+`describe()`. A bus never hands back a frame it sent itself (python-can's udp_multicast does, so
+the frames it sent are filtered out).
+Failures to open say why and what to do (`BusUnavailable`).
+"""
+from __future__ import annotations
+
+import errno
+import os
+import socket
+import time
+from collections import deque
+
+from .frame import Frame, FrameError
+
+INTERFACES = ("socketcan", "udp_multicast", "virtual")
+UDP_GROUP = "239.74.163.2"   # the project's IPv4 group for udp_multicast buses
+UDP_PORT = 43113
+VIRTUAL_CHANNEL = "iotad"
+
+ENV_INTERFACE, ENV_CHANNEL, ENV_TIER = "IOTAD_CAN_INTERFACE", "IOTAD_CAN_CHANNEL", "IOTAD_CAN_TIER"
+
+TIER_HINT = ("run it with a CAN bus: `python -m iotad.can.tiers run -- CMD...` (vcan0 in a private "
+             "network namespace, or in user-mode Linux where the kernel has no CAN; docs/can.md)")
+
+
+class BusUnavailable(RuntimeError):
+    """A bus that cannot be opened here; the message says why and what to do instead."""
+
+
+class RealTimeBus:
+    """One open CAN bus with python-can's BusABC interface (`send(msg)`, `recv(timeout)` of
+    `can.Message`s, `fileno`, `shutdown`), plus `send_frame`/`recv_frame` in `Frame`s. `send`
+    takes a `Frame` too. Never hands back a frame it sent itself."""
+
+    def __init__(self, bus, interface: str, channel: str, filter_own: bool = False):
+        self.bus = bus                   # the python-can BusABC underneath
+        self.interface, self.channel = interface, channel
+        self.name = f"{interface}:{channel}"
+        self.sent = self.received = 0
+        # udp_multicast hands every frame back to its sender: remember what was sent and drop
+        # one matching frame per send. Equal frames are interchangeable, so counting is enough.
+        self._own: deque | None = deque() if filter_own else None
+
+    def describe(self) -> str:
+        return f"{self.interface} bus on {self.channel}"
+
+    def send(self, msg, timeout: float | None = None) -> None:
+        """Send a `can.Message` or a `Frame`."""
+        if isinstance(msg, Frame):
+            frame, msg = msg, msg.to_can_message()
+        elif hasattr(msg, "arbitration_id"):
+            frame = Frame.from_can_message(msg) if self._own is not None else None
+        else:
+            raise FrameError(f"send needs a can.Message or a Frame, got {type(msg).__name__} {msg!r}")
+        if self._own is not None:
+            now = time.monotonic()
+            self._own.append((now, frame))
+            while self._own and (len(self._own) > 4096 or now - self._own[0][0] > 2.0):
+                self._own.popleft()  # lost in a socket buffer: it will never come back
+        self.bus.send(msg, timeout=timeout)
+        self.sent += 1
+
+    def recv(self, timeout: float | None = None):
+        """The next `can.Message` from another station, or None after `timeout` s (None: wait)."""
+        deadline = None if timeout is None else time.monotonic() + timeout
+        while True:
+            left = None if deadline is None else max(0.0, deadline - time.monotonic())
+            message = self.bus.recv(timeout=left)
+            if message is None:
+                return None
+            if self._own is not None and not message.is_error_frame and self._drop_own(message):
+                continue
+            self.received += 1
+            return message
+
+    def send_frame(self, frame: Frame, timeout: float | None = None) -> None:
+        if not isinstance(frame, Frame):
+            raise FrameError(f"send_frame needs a Frame, got {type(frame).__name__} {frame!r}")
+        self.send(frame, timeout)
+
+    def recv_frame(self, timeout: float | None = None) -> tuple[float, Frame] | None:
+        """(receive time, Frame) of the next classic frame from another station, or None after
+        `timeout`; error frames and CAN FD frames are skipped."""
+        deadline = None if timeout is None else time.monotonic() + timeout
+        while True:
+            left = None if deadline is None else max(0.0, deadline - time.monotonic())
+            message = self.recv(left)
+            if message is None:
+                return None
+            try:
+                return message.timestamp, Frame.from_can_message(message)
+            except FrameError:
+                continue
+
+    def _drop_own(self, message) -> bool:
+        try:
+            frame = Frame.from_can_message(message)
+        except FrameError:
+            return False
+        for k, (_, mine) in enumerate(self._own):
+            if mine == frame:
+                del self._own[k]
+                return True
+        return False
+
+    def fileno(self) -> int:
+        return self.bus.fileno()
+
+    def shutdown(self) -> None:
+        self.bus.shutdown()
+
+    def __enter__(self) -> "RealTimeBus":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.shutdown()
+
+    def __repr__(self) -> str:
+        return f"<RealTimeBus {self.name}>"
+
+
+def open_bus(interface: str, channel: str | None = None, **kw) -> RealTimeBus:
+    """Open a bus by python-can interface name. Extra keywords go to python-can's bus
+    (e.g. `bitrate`, `port`; None values are dropped). `udp_multicast` refuses to run where the
+    network has real interfaces."""
+    kw = {key: value for key, value in kw.items() if value is not None}
+    if interface not in INTERFACES:
+        raise BusUnavailable(f"unknown CAN interface {interface!r}; choose one of {', '.join(INTERFACES)}")
+    import can
+
+    if interface == "socketcan":
+        channel = channel or "vcan0"
+        _check_socketcan(channel)
+        try:
+            bus = can.Bus(interface="socketcan", channel=channel, receive_own_messages=False, **kw)
+        except OSError as exc:
+            raise BusUnavailable(f"socketcan {channel}: {exc}") from None
+        return RealTimeBus(bus, interface, channel)
+    if interface == "udp_multicast":
+        channel = channel or UDP_GROUP
+        real = real_interfaces()
+        if real and not kw.pop("allow_real_interfaces", False):
+            raise BusUnavailable(
+                f"udp_multicast would put CAN frames on real network interfaces ({', '.join(real)}); run in a "
+                f"private network namespace: `python -m iotad.can.tiers run --tier udp_multicast -- CMD...`")
+        kw.pop("allow_real_interfaces", None)
+        kw.setdefault("port", UDP_PORT)
+        kw.setdefault("hop_limit", 1)
+        kw.setdefault("fd", False)
+        try:
+            bus = can.Bus(interface="udp_multicast", channel=channel, **kw)
+        except OSError as exc:
+            raise BusUnavailable(f"udp_multicast group {channel}: {exc}; in a private network namespace the "
+                                 f"loopback needs multicast and a route: `ip link set lo up && ip link set lo "
+                                 f"multicast on && ip route add 224.0.0.0/4 dev lo`") from None
+        return RealTimeBus(bus, interface, channel, filter_own=True)
+    channel = channel or VIRTUAL_CHANNEL
+    bus = can.Bus(interface="virtual", channel=channel, receive_own_messages=False, **kw)
+    return RealTimeBus(bus, interface, channel)
+
+
+def open_env_bus(**kw) -> RealTimeBus:
+    """The bus a tier gives a command (`python -m iotad.can.tiers run`): IOTAD_CAN_INTERFACE and
+    IOTAD_CAN_CHANNEL name it."""
+    interface = os.environ.get(ENV_INTERFACE)
+    if not interface:
+        raise BusUnavailable(f"{ENV_INTERFACE} is not set: this command was not started with a CAN bus; {TIER_HINT}")
+    return open_bus(interface, os.environ.get(ENV_CHANNEL) or None, **kw)
+
+
+def _check_socketcan(channel: str) -> None:
+    """Say clearly why socketcan cannot work here, before python-can says 'errno 97'."""
+    family = getattr(socket, "AF_CAN", None)
+    if family is None:
+        raise BusUnavailable(f"socketcan is not available on this platform (Python has no AF_CAN); {TIER_HINT}")
+    try:
+        probe = socket.socket(family, socket.SOCK_RAW, socket.CAN_RAW)
+    except OSError as exc:
+        if exc.errno in (errno.EAFNOSUPPORT, errno.EPROTONOSUPPORT):
+            raise BusUnavailable(f"socketcan is not available on this kernel (no AF_CAN: {exc.strerror}); "
+                                 f"{TIER_HINT}") from None
+        raise BusUnavailable(f"socketcan: cannot open a CAN socket: {exc}") from None
+    probe.close()
+    if channel not in interface_names():
+        raise BusUnavailable(f"no CAN device {channel!r} here; create a virtual one with `ip link add dev {channel} "
+                             f"type vcan && ip link set up {channel}` (root, or inside `unshare -rn`), or {TIER_HINT}")
+
+
+def interface_names() -> list[str]:
+    """Network interfaces of this process's network namespace (not /sys, which shows the
+    namespace that mounted it)."""
+    try:
+        return [name for _, name in socket.if_nameindex()]
+    except OSError:
+        return []
+
+
+def real_interfaces() -> list[str]:
+    """Network interfaces other than loopback that are up (where multicast could leave the host)."""
+    import fcntl
+    import struct
+
+    found = []
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+        for name in interface_names():
+            if name == "lo":
+                continue
+            try:
+                request = struct.pack("16sh", name.encode()[:15], 0)
+                flags = struct.unpack("16sh", fcntl.ioctl(probe, 0x8913, request)[:18])[1]  # SIOCGIFFLAGS
+            except OSError:
+                flags = 1  # cannot tell: count it as up
+            if flags & 0x1:  # IFF_UP
+                found.append(name)
+    return found
+
+
+BusLike = RealTimeBus  # the name the robot interfaces use for what open_bus returns

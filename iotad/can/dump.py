@@ -1,0 +1,97 @@
+"""candump-like lines for CAN frames, with the ODrive CAN Simple message and signals by name.
+
+    format_frame(1.25, frame, "rx")
+    '    1.250000  rx  06C  [8]  00 00 C0 3F C8 00 00 00  Set_Input_Pos node=3 Input_Pos=1.5 Vel_FF=0.2 Torque_FF=0'
+
+A remote frame shows `R` for its data; a frame CAN Simple does not know ends in `unknown`, a
+known command of the wrong shape in `malformed: ...`. `python -m iotad.can.dump` prints a live bus
+(the tier's bus by default: run it under `python -m iotad.can.tiers run -- ...`).
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+
+from . import odrive
+from .frame import Frame, FrameError
+
+
+def format_frame(t: float, frame, direction: str = "") -> str:
+    """One line: time (s), direction, id in hex, [dlc], data bytes, the decoded message."""
+    try:
+        frame = frame if isinstance(frame, Frame) else Frame.from_value(frame)
+    except FrameError as exc:
+        return f"{t:12.6f}  {direction:>3}  not a CAN frame: {exc}"
+    ident = f"{frame.id:08X}" if frame.extended else f"{frame.id:03X}"
+    data = "R" if frame.rtr else frame.data.hex(" ").upper()
+    return f"{t:12.6f}  {direction:>3}  {ident:>8}  [{frame.dlc}]  {data:<23}  {decoded(frame)}".rstrip()
+
+
+def decoded(frame: Frame) -> str:
+    """The ODrive message a frame carries, in words; `unknown` or `malformed: why` otherwise."""
+    if frame.extended:
+        return "unknown"  # CAN Simple uses 11-bit ids: another protocol shares the bus
+    try:
+        return odrive.describe(odrive.decode(frame))
+    except odrive.UnknownFrame:
+        return "unknown"
+    except FrameError as exc:
+        return f"malformed: {exc}"
+
+
+def frame_fields(t: float, frame, direction: str) -> dict:
+    """A frame as a record for recordings: time, id, extended, rtr, dlc, data (list of bytes),
+    direction, and the ODrive message name (None where CAN Simple does not know the frame)."""
+    frame = frame if isinstance(frame, Frame) else Frame.from_value(frame)
+    try:
+        name = None if frame.extended else odrive.decode(frame).name
+    except FrameError:
+        name = None
+    return {"t": t, "id": frame.id, "extended": frame.extended, "rtr": frame.rtr, "dlc": frame.dlc,
+            "data": list(frame.data), "direction": direction, "name": name}
+
+
+def format_event(event: dict) -> str | None:
+    """The line of a trace event carrying a CAN frame (a bus's tx/rx, a node's can_tx/can_rx);
+    None for other events. The direction is the event's action and index: `rx[2]`, `can_tx`."""
+    value = event.get("value")
+    if not isinstance(value, dict) or "dlc" not in value or "data" not in value:
+        return None
+    action = event.get("action", "")
+    index = event.get("index")
+    direction = action if index is None else f"{action}[{index}]"
+    return f"{event.get('iota', '')}  " + format_frame(float(event.get("t", 0.0)), value, direction).lstrip()
+
+
+def main(argv: list[str] | None = None) -> int:
+    from .bus import BusUnavailable, open_bus, open_env_bus
+
+    parser = argparse.ArgumentParser(prog="python -m iotad.can.dump",
+                                     description="Print a live CAN bus's frames, decoded as ODrive CAN Simple.")
+    parser.add_argument("--interface", help="socketcan | udp_multicast | virtual (default: the tier's, "
+                                            "from IOTAD_CAN_INTERFACE)")
+    parser.add_argument("--channel", help="vcan0, can0, a multicast group... (default: the interface's)")
+    parser.add_argument("--count", type=int, default=0, help="stop after this many frames (0: never)")
+    parser.add_argument("--timeout", type=float, default=0.0, help="stop after this many quiet seconds (0: never)")
+    args = parser.parse_args(argv)
+    try:
+        bus = open_bus(args.interface, args.channel) if args.interface else open_env_bus()
+    except BusUnavailable as exc:
+        print(f"iotad.can.dump: {exc}", file=sys.stderr)
+        return 2
+    seen = 0
+    try:
+        with bus:
+            while not args.count or seen < args.count:
+                got = bus.recv_frame(timeout=args.timeout or None)
+                if got is None:
+                    break
+                print(format_frame(got[0], got[1], "rx"), flush=True)
+                seen += 1
+    except KeyboardInterrupt:
+        pass
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,42 @@
+"""`iotad export`: a JSON-encoded copy of a recording that Foxglove displays."""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from iotad.cli import output_file
+
+ORDER = 35
+
+EPILOG = """\
+example:
+  iotad export recordings/fig2.mcap -o fig2-json.mcap --json     then open it in Foxglove Studio
+
+See also: 'iotad plot FILE -o OUT.png' (the motor arbitration timeline), 'iotad info FILE'."""
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    parser = sub.add_parser("export", help="write a JSON-encoded MCAP copy of a recording (for Foxglove)",
+                            description="Re-encode every message of a recording as JSON (message encoding "
+                                        "'json', JSON Schema kept), so that Foxglove Studio shows and plots "
+                                        "it; attachments (specs, system file) and metadata are copied.",
+                            epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("file", metavar="FILE", help="an MCAP recording (from 'iotad run' or 'iotad record')")
+    parser.add_argument("-o", "--output", required=True, metavar="OUT.mcap", help="file to write")
+    parser.add_argument("--json", action="store_true", required=True,
+                        help="encode messages as JSON (the only export format, required to say so)")
+    parser.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from iotad.cli import CliError
+    from iotad.cli.commands.info import load
+    from iotad.recording.foxglove_export import export_json
+
+    if Path(args.output).resolve() == Path(args.file).resolve():
+        raise CliError("-o must name another file than the recording")
+    output_file(args.output)
+    recording = load(args.file)
+    count = export_json(recording, args.output)
+    print(f"wrote {count} JSON messages to {args.output}")
+    return 0

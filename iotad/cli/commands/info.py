@@ -1,0 +1,119 @@
+"""`iotad info`: what a recording holds: nodes, channels, message counts, duration, violations, gaps."""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from iotad.cli import nonnegative_int
+
+ORDER = 31
+
+EPILOG = """\
+example:
+  iotad info recordings/fig2.mcap
+
+Durations are seconds of wall-clock time (virtual time units for an in-process recording).
+See also: 'iotad check FILE' (conformance), 'iotad replay FILE --node PATH',
+'iotad plot FILE -o OUT.png', 'iotad export FILE -o OUT.mcap --json' (Foxglove),
+'iotad recover FILE' (a recording marked INCOMPLETE)."""
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    parser = sub.add_parser("info", help="summarise a recording: nodes, channels, counts, violations, gaps",
+                            description=__doc__, epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("file", metavar="FILE", help="an MCAP recording (from 'iotad run' or 'iotad record')")
+    parser.add_argument("--violations", type=nonnegative_int, default=10, metavar="N",
+                        help="list at most N violations, gaps and launcher events each (default 10)")
+    parser.set_defaults(func=run)
+
+
+def load(path: str):
+    """Read a recording for a command; a bad file is a one-line error."""
+    import os
+
+    from iotad.cli import CliError
+    from iotad.recording.mcap_io import RecordingError, read_recording
+    if os.path.isdir(path):
+        raise CliError(f"{path}: is a directory, not an MCAP recording")
+    if not os.path.exists(path):
+        raise CliError(f"{path}: no such file")
+    if os.path.getsize(path) == 0:
+        raise CliError(f"{path}: empty file, not an MCAP recording")
+    try:
+        with open(path, "rb") as handle:
+            magic = handle.read(5)
+    except OSError as exc:
+        raise CliError(f"{path}: {exc.strerror or exc}") from None
+    if magic != b"\x89MCAP":
+        raise CliError(f"{path}: not an MCAP recording (it does not start with the MCAP magic bytes)")
+    try:
+        return read_recording(path)
+    except RecordingError as exc:
+        raise CliError(str(exc)) from None
+    except OSError as exc:
+        raise CliError(f"{path}: {exc.strerror or exc}") from None
+
+
+def _launcher_line(event: dict, first_ns: int) -> str:
+    """`   0.334 s  live     scheduler      pid 26749` (seconds from the recording's start)."""
+    t_ns = event.get("t_ns") or event.get("log_time") or first_ns
+    what = event.get("event", "?")
+    node = event.get("node") or "(launcher)"
+    parts = [f"{(t_ns - first_ns) / 1e9:8.3f} s  {what:<8} {node:<14}"]
+    if event.get("pid") is not None:
+        parts.append(f"pid {event['pid']}")
+    if event.get("code") is not None:
+        parts.append(f"exit code {event['code']}")
+    if event.get("restarts"):
+        parts.append(f"restarts {event['restarts']}")
+    if event.get("host"):
+        parts.append(f"host {event['host']}")
+    if event.get("message"):
+        parts.append(f"- {event['message']}")
+    return "  ".join(parts)
+
+
+def run(args: argparse.Namespace) -> int:
+    from iotad.recording.conformance import describe
+
+    recording = load(args.file)
+    info = recording.info
+    state = "complete" if recording.complete else f"INCOMPLETE (no footer: {recording.truncated_reason or 'cut short'}; " \
+                                                  f"run 'iotad recover {args.file}')"
+    print(f"{args.file}: {state}")
+    print(f"  system: {recording.system or '?'}   clock: {info.get('clock', '?')}   writer: {info.get('writer', '?')}")
+    print(f"  duration: {recording.duration():.3f} s   messages: {len(recording.messages)}   "
+          f"attachments: {', '.join(a.name for a in recording.attachments) or 'none'}")
+    specs = recording.specs
+    trace_counts: dict[str, int] = {}
+    for event in recording.trace():
+        trace_counts[event["node"]] = trace_counts.get(event["node"], 0) + 1
+    print("  nodes:")
+    for node in recording.nodes():
+        spec = specs.get(node)
+        source = spec.get("source", {}) if spec else {}
+        what = (source.get("iota") or source.get("ref", "").rpartition(":")[2]
+                or Path(source.get("file") or "?").name) if spec else "no spec"
+        print(f"    {node:<24} {what:<20} {trace_counts.get(node, 0):>7} trace events")
+    print("  channels (key, messages, type):")
+    for topic, count in sorted(recording.topics().items()):
+        schema = recording.schema_of(topic)
+        print(f"    {topic:<48} {count:>8}  {schema.name if schema else '-'}")
+    violations = recording.violations()
+    print(f"  violations: {len(violations)}")
+    for event in violations[:args.violations]:
+        value = event.get("value") or {}
+        print(f"    {event['node']}: {describe(event)}: {value.get('violation')}: {value.get('message')}")
+    gaps = recording.gaps()
+    print(f"  sequence gaps: {len(gaps)} ({sum(g.get('missing', 0) for g in gaps)} messages missing)")
+    for gap in gaps[:args.violations]:
+        print(f"    {gap['key']}: expected #{gap['expected']}, got #{gap['got']}")
+    launcher = recording.launcher_events()
+    if launcher:
+        print(f"  launcher events: {len(launcher)}")
+        first = min([m.log_time for m in recording.messages] + [e["t_ns"] for e in launcher if e.get("t_ns")])
+        for event in launcher[:args.violations]:
+            print("    " + _launcher_line(event, first))
+        if len(launcher) > args.violations:
+            print(f"    ... {len(launcher) - args.violations} more (--violations N lists more)")
+    return 0

@@ -1,0 +1,108 @@
+"""`iotad ls`: the live nodes (from their liveliness tokens) and their channels (from `@spec`)."""
+from __future__ import annotations
+
+import argparse
+import json
+
+from iotad.cli import endpoint, positive_float
+
+ORDER = 40
+
+EPILOG = """\
+examples (with a system running, e.g. 'iotad run examples/figure2.toml' in another terminal):
+  iotad ls                              every live node and its channels
+  iotad ls --system figure2 --json      one JSON object per node
+
+Each channel line: <- input or -> output, name, type, switching time s (spec time units) and
+its zenoh keys. See also: 'iotad echo KEY', 'iotad hz KEY', 'iotad pub KEY VALUE'."""
+
+
+def add_connect(parser: argparse.ArgumentParser) -> None:
+    """The options every introspection command shares."""
+    from iotad.host.transport import DEFAULT_HUB_ENDPOINT
+
+    parser.add_argument("--connect", action="append", metavar="ENDPOINT", type=endpoint,
+                        help=f"zenoh endpoint of the system's hub (default {DEFAULT_HUB_ENDPOINT}, where "
+                             "'iotad run' puts it); repeatable")
+    parser.add_argument("--connect-timeout", type=positive_float, default=3.0, metavar="S",
+                        help="give up when no peer answers within S seconds (default 3)")
+
+
+def tool_session(args: argparse.Namespace):
+    from iotad.cli import CliError
+    from iotad.host.transport import DEFAULT_HUB_ENDPOINT, PeerUnreachable, open_tool_session
+
+    try:
+        return open_tool_session(args.connect or [DEFAULT_HUB_ENDPOINT], args.connect_timeout)
+    except PeerUnreachable as exc:
+        raise CliError(str(exc)) from None
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    parser = sub.add_parser("ls", help="list the live nodes of running systems and their channels",
+                            description=__doc__, epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--system", metavar="NAME", help="only the nodes of this system (default: every system)")
+    parser.add_argument("--json", action="store_true", help="one JSON object per node")
+    parser.add_argument("--timeout", type=positive_float, default=2.0, metavar="S",
+                        help="seconds to wait for answers (default 2)")
+    add_connect(parser)
+    parser.set_defaults(func=run)
+
+
+def list_nodes(session, system: str | None, timeout: float) -> list[dict]:
+    """Every live node of `system` (or of all systems), with its `@spec` answer when it gave one."""
+    from iotad.host import wire
+
+    pattern = f"{wire.PREFIX}/{system or '*'}/**/@alive"
+    nodes = []
+    for reply in session.liveliness().get(pattern, timeout=timeout):
+        if reply.ok is None:
+            continue
+        key = str(reply.ok.key_expr)
+        base = key[:-len("/@alive")]
+        parts = base.split("/")
+        node = {"system": parts[1], "path": "/".join(parts[2:]), "alive": key, "spec": None}
+        for answer in session.get(f"{base}/@spec", timeout=timeout):
+            if answer.ok is not None:
+                try:
+                    node["spec"] = wire.decode(answer.ok.payload.to_bytes())
+                except wire.WireError:
+                    pass
+        nodes.append(node)
+    return sorted(nodes, key=lambda n: (n["system"], n["path"]))
+
+
+def run(args: argparse.Namespace) -> int:
+    session = tool_session(args)
+    try:
+        nodes = list_nodes(session, args.system, args.timeout)
+    finally:
+        session.close()
+    if args.json:
+        for node in nodes:
+            spec = node["spec"] or {}
+            print(json.dumps({"system": node["system"], "path": node["path"], "pid": spec.get("pid"),
+                              "source": spec.get("source"), "params": spec.get("params"),
+                              "channels": [{k: c[k] for k in ("name", "direction", "type", "switching_time",
+                                                              "keys", "bound")}
+                                           for c in spec.get("channels", [])]}))
+        return 0
+    if not nodes:
+        print("no live nodes" + (f" in system {args.system}" if args.system else ""))
+        return 0
+    for node in nodes:
+        spec = node["spec"]
+        if spec is None:
+            print(f"{node['system']}/{node['path']}  (alive; no @spec answer)")
+            continue
+        source = spec.get("source", {})
+        what = source.get("ref") or f"{source.get('file')}:{source.get('iota') or ''}"
+        print(f"{node['system']}/{node['path']}  pid {spec.get('pid')}  {source.get('kind')} {what}")
+        for channel in spec.get("channels", []):
+            arrow = "<-" if channel["direction"] == "input" else "->"
+            keys = ", ".join(channel["keys"])
+            bound = [k for keys_ in channel.get("bound", {}).values() for k in keys_]
+            extra = f"  (from {', '.join(bound)})" if bound else ""
+            print(f"  {arrow} {channel['name']:<14} {channel['type'] or '-':<16} s={channel['switching_time']:g}  "
+                  f"{keys}{extra}")
+    return 0

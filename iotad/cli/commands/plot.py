@@ -1,0 +1,54 @@
+"""`iotad plot`: a PNG timeline of which requester held the motors, the acks and the violations."""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from iotad.cli import output_file
+
+ORDER = 34
+FORMATS = (".png", ".pdf", ".svg", ".jpg", ".jpeg")
+
+EPILOG = """\
+examples:
+  iotad plot recordings/fig2.mcap -o fig2.png
+  iotad plot recordings/fig2.mcap -o fig2.svg --title "Figure 2, run 3"
+
+The image format follows the extension of -o: .png, .pdf, .svg or .jpg. The time axis is
+seconds from the start of the recording. See also: 'iotad info FILE', 'iotad export FILE
+-o OUT.mcap --json' (every channel in Foxglove)."""
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    parser = sub.add_parser("plot", help="draw who held the motors, the acks and the violations (PNG)",
+                            description=__doc__, epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("file", metavar="FILE", help="an MCAP recording (from 'iotad run' or 'iotad record')")
+    parser.add_argument("-o", "--output", required=True, metavar="OUT.png",
+                        help="image to write (.png, .pdf, .svg, .jpg)")
+    parser.add_argument("--node", metavar="PATH", help="the scheduler node (default: the one that schedules)")
+    parser.add_argument("--title", help="title of the plot")
+    parser.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from iotad.cli import CliError
+    from iotad.cli.commands.info import load
+    from iotad.recording.mcap_io import RecordingError
+
+    if Path(args.output).suffix.lower() not in FORMATS:
+        raise CliError(f"-o {args.output}: the image format follows the extension; use one of "
+                       f"{', '.join(FORMATS)}")
+    output_file(args.output)
+    recording = load(args.file)
+    try:
+        from iotad.recording.timeline_plot import plot
+    except ImportError:
+        raise CliError("plotting needs matplotlib: pip install 'iotad[plot]'") from None
+    if args.node and args.node not in recording.nodes():
+        raise CliError(f"no node {args.node!r} in {args.file} (nodes: {', '.join(recording.nodes())})")
+    try:
+        path = plot(recording, args.output, args.node, args.title)
+    except RecordingError as exc:
+        raise CliError(str(exc)) from None
+    print(f"wrote {path}")
+    return 0

@@ -1,0 +1,80 @@
+"""`iotad pub KEY JSON`: publish a value (msgpack, with the `[seq, send_time_ns]` attachment) as a
+node would, e.g. to inject an input: `iotad pub iota/figure2/scheduler/req/0 '{"control": ...}'`."""
+from __future__ import annotations
+
+import argparse
+import json
+import time
+
+from iotad.cli import key_expression, nonnegative_float, nonnegative_int, positive_float
+
+from .ls import add_connect, tool_session
+
+ORDER = 42
+
+EPILOG = """\
+examples (with 'iotad run examples/figure2.toml' running in another terminal):
+  iotad pub iota/figure2/scheduler/req/1 \\
+      '{"control": {"w": 0.7, "k": 1.0}, "epoch": 1.0, "timeout": 1.0, "priority": 9}'
+  iotad pub iota/some/node/tick null --count 0 --rate 10       10 Hz until Ctrl-C
+
+An input channel's key is iota/<system>/<node>/<channel>[/<index>] ('iotad ls' lists them);
+the node applies the value as an input event at the time it arrives, checking its type and
+switching time (a violation otherwise). See also: 'iotad echo KEY' to watch the answer."""
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    parser = sub.add_parser("pub", help="publish a JSON value on a key, e.g. to inject an input into a node",
+                            description=__doc__, epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("key", metavar="KEY", type=key_expression,
+                        help="where to publish, e.g. iota/figure2/scheduler/req/1 (no wildcards)")
+    parser.add_argument("value", metavar="VALUE", help="the value as JSON ('null' for a channel without a value)")
+    parser.add_argument("--count", type=nonnegative_int, default=1, metavar="N",
+                        help="publish N times (default 1; 0: until Ctrl-C)")
+    parser.add_argument("--rate", type=positive_float, default=1.0, metavar="HZ",
+                        help="messages per second when --count is not 1 (default 1)")
+    parser.add_argument("--wait", type=nonnegative_float, default=2.0, metavar="S",
+                        help="wait up to S seconds for a subscriber before the first message (default 2)")
+    add_connect(parser)
+    parser.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    import sys
+
+    import zenoh
+
+    from iotad.host import wire
+    from iotad.cli import CliError
+
+    try:
+        value = json.loads(args.value)
+    except json.JSONDecodeError as exc:
+        raise CliError(f"value is not JSON: {exc.msg} (quote it for the shell: '{{\"w\": 1.0}}')") from None
+    if args.rate <= 0:
+        raise CliError("--rate must be positive")
+    if "*" in args.key:
+        raise CliError(f"{args.key}: a key to publish on has no wildcards ('*', '**')")
+    payload = wire.encode(value)
+    session = tool_session(args)
+    try:
+        publisher = session.declare_publisher(args.key, congestion_control=zenoh.CongestionControl.BLOCK)
+        # A put before the subscriber's declaration reached us would be lost: wait for a match.
+        end = time.monotonic() + args.wait
+        while not publisher.matching_status.matching and time.monotonic() < end:
+            time.sleep(0.01)
+        if not publisher.matching_status.matching:
+            print(f"iotad pub: no subscriber matches {args.key} (yet); publishing anyway", file=sys.stderr)
+        period, start, sequence = 1.0 / args.rate, time.monotonic(), 0
+        while args.count == 0 or sequence < args.count:
+            publisher.put(payload, attachment=wire.encode_attachment(sequence))
+            sequence += 1
+            if args.count and sequence >= args.count:
+                break
+            delay = start + sequence * period - time.monotonic()
+            if delay > 0:
+                time.sleep(delay)
+        publisher.undeclare()
+        return 0
+    finally:
+        session.close()

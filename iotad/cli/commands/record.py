@@ -1,0 +1,156 @@
+"""`iotad record`: record every event of a running system to MCAP until SIGINT or SIGTERM."""
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+import threading
+import time
+from pathlib import Path
+
+from iotad.cli import endpoint, key_expression, positive_float
+
+ORDER = 30
+
+EPILOG = """\
+examples:
+  iotad record 'iota/figure2/**' -o recordings/fig2.mcap            (quote '**' for the shell)
+  iotad record --system-file examples/figure2.toml -o fig2.mcap --duration 30
+  iotad record 'iota/figure2/**' -o fig2.mcap --connect tcp/127.0.0.1:7447
+  iotad record --system-file examples/figure2.toml -o fig2.mcap --max-size 100M --max-duration 600
+
+'iotad run' starts a recorder by itself (-o FILE, or --no-record); use this command to record
+a system started elsewhere, or only some keys. Missing folders of -o are created. On a terminal
+a status line shows what has been written so far. Ctrl-C (SIGINT) or SIGTERM stops it cleanly
+(exit 0). Then: 'iotad info FILE', 'iotad check FILE', 'iotad replay FILE --node PATH';
+a killed recorder's file: 'iotad recover FILE'.
+
+direct or trace-sourced: by default every sample on the keys is recorded as it arrives, so every
+message also wakes the recorder, which costs the nodes latency on a machine with few cores.
+--from-traces (what 'iotad run' uses) subscribes only to the nodes' @trace, @launcher and
+@heartbeat keys and writes each output (and each input no node sent, e.g. from 'iotad pub') on
+its own key from the trace event that describes it, with the sender's sequence number and send
+time: one wake-up per trace burst. It records what the nodes sent and saw: a message that no
+node received is only recorded in direct mode; a node killed with SIGKILL loses its last trace
+period (20 ms) of messages as well.
+
+split recordings: with --max-size and/or --max-duration the recording goes to numbered files
+fig2_0.mcap, fig2_1.mcap... next to -o fig2.mcap: a file is closed and the next one begun at the
+first flush after it reached either bound (so a file may pass --max-size by one flush period of
+data). Each file is a whole recording on its own (system file, specs, summary): any MCAP tool
+opens it. -o fig2.mcap is the set file: it lists the files, and 'iotad info/check/replay/export/
+plot fig2.mcap' read the whole set as one recording. A killed recorder cuts only the last file;
+the earlier ones are complete."""
+
+
+def byte_size(text: str) -> int:
+    """`100M`, `1.5G`, `64K`, `4096`: bytes (K, M, G are 1024-based; a trailing B or iB is allowed)."""
+    import argparse as _argparse
+    units = {"": 1, "K": 1024, "M": 1024 ** 2, "G": 1024 ** 3, "T": 1024 ** 4}
+    body = text.strip().upper().removesuffix("IB").removesuffix("B")
+    unit = body[-1:] if body[-1:] in units and body[-1:] else ""
+    try:
+        value = float(body[:-1] if unit else body)
+    except ValueError:
+        raise _argparse.ArgumentTypeError(f"expected a size such as 100M, 1.5G or 65536, got {text!r}") from None
+    if value != value or value in (float("inf"), float("-inf")):
+        raise _argparse.ArgumentTypeError(f"must be a finite size, got {text!r}")
+    size = int(value * units[unit])
+    if not size > 0:
+        raise _argparse.ArgumentTypeError(f"must be a positive size, got {text!r}")
+    return size
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    parser = sub.add_parser(
+        "record", help="record a running system (every event, specs, gaps) to an MCAP file",
+        description="Record every external event and every node's @trace (internal events and "
+                    "violations) of a running system to MCAP, with the system file and each node's spec, "
+                    "so that 'iotad replay' and 'iotad check' need nothing else. Stops cleanly on "
+                    "SIGINT/SIGTERM; a killed recording loses at most the last --flush-period seconds "
+                    "and is made whole by 'iotad recover'.",
+        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("keys", nargs="*", metavar="KEYEXPR", type=key_expression,
+                        help="zenoh key expressions; 'iota/SYS/**' also covers SYS's @trace, @launcher "
+                             "and @heartbeat keys (default: every key of the system file's system)")
+    parser.add_argument("-o", "--output", required=True, metavar="FILE", help="MCAP file to write")
+    parser.add_argument("--system-file", metavar="SYSTEM.toml", help="system file to store in the recording")
+    parser.add_argument("--connect", action="append", default=[], metavar="EP", type=endpoint,
+                        help="zenoh endpoint to connect to, e.g. tcp/127.0.0.1:7447 (repeatable; default: "
+                             "none, peers find the recorder through --listen and gossip)")
+    parser.add_argument("--listen", action="append", default=None, metavar="EP", type=endpoint,
+                        help="zenoh endpoint to listen on (default tcp/127.0.0.1:0: any free loopback port)")
+    parser.add_argument("--from-traces", action="store_true",
+                        help="record a whole system from its nodes' @trace bursts, not every sample "
+                             "(see below; needs 'iota/SYS/**' or --system-file)")
+    parser.add_argument("--flush-period", type=positive_float, default=0.05, metavar="S",
+                        help="close the MCAP chunk in progress every S seconds (default 0.05)")
+    parser.add_argument("--duration", type=positive_float, default=None, metavar="S",
+                        help="stop by itself after S seconds (default: until Ctrl-C or SIGTERM)")
+    parser.add_argument("--max-size", type=byte_size, default=None, metavar="SIZE",
+                        help="split: begin a new file once the current one holds SIZE bytes (100M, 1G...)")
+    parser.add_argument("--max-duration", type=positive_float, default=None, metavar="S",
+                        help="split: begin a new file once the current one spans S seconds")
+    parser.add_argument("--ready-file", metavar="PATH",
+                        help="create PATH once subscribed (for launchers and tests to wait on)")
+    parser.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    parser.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from iotad.cli import CliError
+    from iotad.recording.recorder import Recorder
+    from iotad.host.transport import DEFAULT_LISTEN
+
+    if args.flush_period <= 0 or args.flush_period > 10:
+        raise CliError("--flush-period must be in (0, 10] seconds")
+    output = Path(args.output)
+    if output.is_dir():
+        raise CliError(f"-o {args.output}: is a directory; name the .mcap file to write")
+    if args.system_file is not None:
+        if Path(args.system_file).is_dir():
+            raise CliError(f"--system-file {args.system_file}: is a directory")
+        if not Path(args.system_file).is_file():
+            raise CliError(f"--system-file {args.system_file}: no such file")
+    try:
+        recorder = Recorder(args.keys, args.output, system_file=args.system_file, connect=args.connect,
+                            listen=args.listen or DEFAULT_LISTEN, flush_period=args.flush_period,
+                            background=True,  # a process of its own: yield the CPU to the nodes
+                            from_traces=args.from_traces, max_size=args.max_size,
+                            max_duration=args.max_duration)
+    except UnicodeDecodeError:
+        raise CliError(f"--system-file {args.system_file}: not UTF-8 text") from None
+    except OSError as exc:
+        raise CliError(f"{exc.filename or args.output}: {exc.strerror or exc}") from None
+    except ValueError as exc:
+        raise CliError(str(exc)) from None
+    stop = threading.Event()
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, lambda *_: stop.set())
+    try:
+        recorder.start()
+    except OSError as exc:
+        raise CliError(f"cannot start recording: {exc.filename or args.output}: {exc.strerror or exc}") from None
+    except Exception as exc:  # noqa: BLE001 - zenoh said no
+        reason = str(exc).split(" at /", 1)[0]  # zenoh appends its Rust source location
+        raise CliError(f"cannot start recording: {reason}") from None
+    try:
+        if args.ready_file:
+            Path(args.ready_file).write_text(str(recorder.output))
+        if not args.quiet:
+            print(f"recording {' '.join(recorder.keys)} -> {recorder.output} (Ctrl-C to stop)", file=sys.stderr)
+        deadline = None if args.duration is None else time.monotonic() + args.duration
+        while not stop.is_set() and recorder.failed is None:  # a write error ends the recording: exit, say why
+            timeout = 0.5 if deadline is None else min(0.5, max(0.0, deadline - time.monotonic()))
+            stop.wait(timeout)
+            if deadline is not None and time.monotonic() >= deadline:
+                break
+    finally:
+        stats = recorder.stop()
+    if not args.quiet:
+        where = str(recorder.output)
+        if recorder.split:
+            where += f" (a set of {len(recorder.files)} files: {recorder.files[0].name} .. {recorder.files[-1].name})"
+        print(f"recorded {stats['written']} messages to {where}; "
+              f"{stats['gaps']} sequence gaps ({stats['missing']} missing)", file=sys.stderr)
+    return 0

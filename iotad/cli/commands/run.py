@@ -1,0 +1,147 @@
+"""`iotad run SYSTEM.toml`: check a system file, then run each IOTA as its own process around a
+zenoh hub, supervise them (restarts, liveliness, heartbeats), record, and stop them all on Ctrl-C.
+With --virtual, run every IOTA of the same file in this one process in virtual time instead."""
+from __future__ import annotations
+
+import argparse
+import sys
+
+from iotad.cli import port, positive_float
+
+ORDER = 20
+
+EPILOG = """\
+examples:
+  iotad run examples/figure2.toml --until 20     run the Figure 2 demo for 20 s, then summarise
+  iotad run --check examples/figure2.toml        only check the file (exit 2 on an error)
+  iotad run sys.toml --host arm --port 7500      run the nodes of host "arm" of a multi-host system
+  iotad run examples/figure2.toml --until 20 -o recordings/fig2.mcap --plain
+  iotad run examples/figure2.toml --virtual --until 60     the same IOTAs in one process, virtual time
+
+The system file format (nodes, bindings, endpoints, time_unit, restart policies, hosts) is
+docs/system-file.md. --until is wall-clock seconds; spec times are in the spec's time units,
+time_unit seconds each. Exit status: 0 when every node stopped cleanly, 1 when a node failed or
+the recording was lost, 2 for a bad system file or option, 130 on Ctrl-C.
+
+A node whose process exits, whose liveliness token vanishes or whose heartbeat stops is
+restarted by its restart policy (never | on-failure | always, backoff doubling, max_restarts).
+Ctrl-C sends SIGINT to every node, then SIGTERM, then SIGKILL; nodes also die with the launcher
+if it is killed. Events go to iota/<system>/@launcher; the recording to recordings/.
+
+While it runs: 'iotad ls', 'iotad echo KEY', 'iotad hz KEY', 'iotad pub KEY VALUE' (another
+terminal). Afterwards: 'iotad info FILE', 'iotad check FILE', 'iotad replay FILE --node PATH',
+'iotad plot FILE -o OUT.png'.
+
+--virtual: one process, no zenoh, no real CAN: every node is instantiated here, bound as the file
+says, each [[can]] bus is the modelled 1 Mbit/s bus (bit times, arbitration by id), and the
+engine runs as fast as the machine allows up to --until virtual seconds (required). The
+recording has the same format as a real-time run's, so info, check, replay, plot and export read
+both. External inputs can be fed with --inputs SCRIPT.jsonl (times in spec units)."""
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    parser = sub.add_parser("run", help="run a system file: one process per IOTA, supervised",
+                            description=__doc__, epilog=EPILOG,
+                            formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("system_file", metavar="SYSTEM.toml",
+                        help="the system file (docs/system-file.md; example: examples/figure2.toml)")
+    parser.add_argument("--check", action="store_true",
+                        help="check the file (nodes, channels, bindings) and exit: 0 fine, 2 errors")
+    parser.add_argument("--until", type=positive_float, metavar="SECONDS",
+                        help="stop everything after SECONDS of wall-clock time (default: run until Ctrl-C)")
+    parser.add_argument("--port", type=port, metavar="PORT",
+                        help="hub port instead of the system file's (0: any free port; default: the file's "
+                             "[system.endpoints] listen, else 7447)")
+    parser.add_argument("--host", metavar="NAME",
+                        help="run only the nodes with host = NAME (multi-host systems; one launcher per host)")
+    parser.add_argument("--no-record", action="store_true", help="do not start 'iotad record'")
+    parser.add_argument("-o", "--record-to", metavar="FILE",
+                        help="recording file (default recordings/<system>-<time>.mcap)")
+    parser.add_argument("--origin", type=positive_float, metavar="WALLTIME",
+                        help="wall-clock time (time.time()) that is t=0 for every node (default: now, "
+                             "or the hub launcher's for a --host that does not hold the hub)")
+    parser.add_argument("--log-dir", metavar="DIR",
+                        help="keep node configs and logs in DIR (default: a temp dir, removed unless a node failed)")
+    parser.add_argument("--plain", action="store_true", help="plain event lines even on a terminal")
+    parser.add_argument("--virtual", action="store_true",
+                        help="run every node in this process in virtual time (needs --until, in virtual seconds)")
+    parser.add_argument("--inputs", metavar="SCRIPT.jsonl",
+                        help="with --virtual: input script for external inputs ({\"t\", \"iota\", \"action\", "
+                             "\"index\", \"value\"} a line; \"iota\" names the node)")
+    parser.add_argument("--seed", type=int, default=None, metavar="N",
+                        help="with --virtual: fire at random times within each window (policy random(N))")
+    parser.set_defaults(func=run)
+
+
+def load_checked(path: str):
+    """The system, checked; a `CliError` listing every problem otherwise."""
+    from iotad.cli import CliError
+    from iotad.launcher.system_file import SystemFileError, load_system
+
+    try:
+        return load_system(path)
+    except SystemFileError as exc:
+        raise CliError(str(exc) if len(exc.errors) == 1 else
+                       f"{len(exc.errors)} problems in the system file:\n" + str(exc)) from None
+
+
+def run(args: argparse.Namespace) -> int:
+    system = load_checked(args.system_file)
+    if args.check:
+        inputs = sum(1 for b in system.bindings)
+        buses = f", {len(system.buses)} CAN bus(es)" if system.buses else ""
+        print(f"{system.file}: ok: system {system.name!r}, {len(system.nodes)} nodes, "
+              f"{inputs} channel bindings, {len(system.external)} external inputs{buses}")
+        return 0
+    if args.virtual:
+        from iotad.cli.virtual_run import run_virtual
+
+        return run_virtual(system, args)
+    for option in ("inputs", "seed"):
+        if getattr(args, option) is not None:
+            from iotad.cli import CliError
+
+            raise CliError(f"--{option} goes with --virtual")
+    return launch(system, args)
+
+
+def launch(system, args: argparse.Namespace, summary_hook=None) -> int:
+    import os
+    from pathlib import Path
+
+    from iotad.cli import CliError
+    from iotad.launcher.supervision import Launcher, LauncherError
+    from iotad.host.transport import free_port
+
+    if args.host is not None and args.host not in {n.host for n in system.nodes.values()}:
+        hosts = sorted({n.host for n in system.nodes.values() if n.host}) or ["none declared"]
+        raise CliError(f"{system.file}: no node has host = {args.host!r} (hosts: {', '.join(hosts)})")
+    if args.until is not None and args.until <= 0:
+        raise CliError("--until must be a positive number of seconds")
+    if getattr(args, "log_dir", None):
+        log_dir = Path(args.log_dir)
+        try:
+            log_dir.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise CliError(f"--log-dir {args.log_dir}: cannot create it: {exc.strerror or exc}") from None
+        if not os.access(log_dir, os.W_OK):
+            raise CliError(f"--log-dir {args.log_dir}: not writable")
+    if getattr(args, "record_to", None) and Path(args.record_to).is_dir():
+        raise CliError(f"-o {args.record_to}: is a directory; name the .mcap file to write")
+    port = args.port
+    if port == 0:
+        port = free_port()
+    launcher = Launcher(system, host=args.host, port=port, until=args.until, record=not args.no_record,
+                        record_path=args.record_to, origin=args.origin, log_dir=args.log_dir,
+                        live_table=False if args.plain else None)
+    try:
+        code = launcher.run()
+    except LauncherError as exc:
+        raise CliError(str(exc)) from None
+    print(f"summary of {system.name}" + (f" (host {args.host})" if args.host else "") + ":")
+    for line in launcher.summary():
+        print(line)
+    if summary_hook is not None:
+        code = summary_hook(launcher, code)
+    sys.stdout.flush()
+    return code

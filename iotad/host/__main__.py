@@ -1,0 +1,84 @@
+"""`python -m iotad.host CONFIG.json`: run one IOTA as one process on zenoh until SIGINT/SIGTERM.
+
+Prints nothing on stdout. A bad config or a spec that fails to load is reported on stderr and
+exits with code 2; a clean stop exits 0; an engine that dies or halts exits 1.
+"""
+from __future__ import annotations
+
+import argparse
+import gc
+import signal
+import sys
+import threading
+
+from iotad.host.node_config import ConfigError, load, parse
+
+
+def _fail(message: str, code: int = 2) -> int:
+    print(f"iotad.host: error: {message}", file=sys.stderr, flush=True)
+    return code
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m iotad.host", description=__doc__)
+    parser.add_argument("config", nargs="?", help="the node's JSON config file (docs/internals.md)")
+    parser.add_argument("--config-json", help="the same JSON, inline")
+    args = parser.parse_args(argv)
+    if (args.config is None) == (args.config_json is None):
+        return _fail("give a CONFIG.json file or --config-json, not both and not neither")
+
+    # Signals first: a launcher may stop us while we are still importing zenoh or the spec.
+    stop = threading.Event()
+
+    def on_signal(signum, frame):
+        stop.set()
+
+    signal.signal(signal.SIGTERM, on_signal)
+    signal.signal(signal.SIGINT, on_signal)
+
+    try:
+        config = load(args.config) if args.config else parse(args.config_json, "--config-json")
+    except ConfigError as exc:
+        return _fail(str(exc))
+
+    from iotad.host.node_host import NodeHost, SpecLoadError, load_root
+
+    try:
+        root, text = load_root(config)
+    except SpecLoadError as exc:
+        return _fail(f"{config.path}: cannot load its IOTA:\n{exc}")
+    try:
+        host = NodeHost(config, root, text)
+    except ConfigError as exc:
+        return _fail(str(exc))
+    except Exception as exc:  # noqa: BLE001 - e.g. a composite whose bindings do not fit
+        return _fail(f"{config.path}: {type(exc).__name__}: {exc}")
+    if stop.is_set():
+        return 0
+    try:
+        from iotad.host.can_port import CanPortError
+
+        try:
+            host.start()
+        except CanPortError as exc:
+            return _fail(f"{config.path}: {exc}")
+        except Exception as exc:  # noqa: BLE001 - zenoh rejects an endpoint, a port is taken...
+            return _fail(f"{config.path}: cannot start on zenoh: {exc}".splitlines()[0])
+        # Everything made so far (modules, the spec, zenoh objects) lives as long as the node: keep
+        # it out of the collector's full passes, which would otherwise stall the engine thread.
+        gc.collect()
+        gc.freeze()
+        while not stop.wait(0.25):
+            if not host.alive():
+                break
+    finally:
+        host.close()
+    if host.error is not None:
+        return _fail(f"{config.path}: engine failed: {type(host.error).__name__}: {host.error}", 1)
+    if host.engine.halted:
+        return _fail(f"{config.path}: engine halted (see the zeno violation on @trace)", 1)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,477 @@
+"""The engine: executes a system of IOTAs exactly as docs/design.md section 4 defines.
+
+One heap of (fire time, rank, generation, action instance), SimPy-style. `rank` is the
+declaration order (leaf, action, index), so among actions due at one instant the heap itself
+yields them in the order the semantics prescribe; `generation` invalidates entries of windows
+that were dropped. After each firing only the preconditions that read a cell the firing may have
+written are re-evaluated (see `iotad.kernel.dependencies`), plus the fired action itself, whose window restarts.
+
+Time never moves inside a firing: the do-block, the output value and the inputs it delivers
+through bindings are one atomic step at one instant.
+"""
+from __future__ import annotations
+
+import heapq
+import math
+from typing import Any, Callable, Iterable
+
+from iotad.kernel.clock import Clock, VirtualClock
+from iotad.kernel.compose import Endpoint, Flat, Leaf, expand, flatten
+from iotad.kernel.model import ALL_STATE, ANY, INDEX, Action, Channel, is_by_state, window_ok
+from iotad.kernel.policy import Eager
+from iotad.kernel.types import BadValue
+
+INF = math.inf
+STOP = object()  # post this to a real clock's inbox to make `run` return
+
+
+class Slot:
+    """One channel (one index of a family) of one leaf: its last event time and switching time."""
+
+    __slots__ = ("leaf", "channel", "index", "switching", "last", "targets", "input_action", "type")
+
+    def __init__(self, leaf: Leaf, channel: Channel, index: int | None):
+        self.leaf, self.channel, self.index = leaf, channel, index
+        self.switching = leaf.switching[channel.name]
+        self.last = -INF
+        self.type = channel.type
+        self.targets: list[Slot] = []        # bound inputs an output delivers to
+        self.input_action: Action | None = None
+
+
+class ActionInstance:
+    """One locally controlled action at one index: its window while enabled."""
+
+    __slots__ = ("leaf", "action", "index", "slot", "rank", "enabled", "gen", "te", "lower", "upper",
+                 "fire_at", "affects", "iota", "when", "reads", "dynamic", "failing")
+
+    def __init__(self, leaf: Leaf, action: Action, index: int | None, slot: Slot, rank: int):
+        self.leaf, self.action, self.index, self.slot, self.rank = leaf, action, index, slot, rank
+        self.iota, self.when = leaf.iota, action.when
+        self.enabled, self.gen = False, 0
+        self.te = self.lower = self.upper = self.fire_at = 0.0
+        self.affects: list[ActionInstance] | None = None  # computed on first firing
+        self.dynamic = _dynamic_writes(action)
+        self.failing = False  # its precondition raised at its last evaluation
+        self.reads = _concrete(action.reads, index)
+
+
+def _dynamic_writes(action: Action) -> tuple:
+    """(variable, index variable) of the writes `x[k]` whose element depends on state `k`."""
+    if action.writes is ALL_STATE:
+        return ()
+    return tuple(sorted((var, key[1]) for var, key in action.writes if is_by_state(key)))
+
+
+def _concrete(cells: frozenset, index: int | None) -> frozenset:
+    if cells is ALL_STATE or cells == ALL_STATE:
+        return ALL_STATE
+    return frozenset((var, index if key == INDEX and index is not None else ANY) for var, key in cells)
+
+
+class Halted(Exception):
+    pass
+
+
+class Engine:
+    """Runs a root IOTA (a leaf or a `Composite`) under a clock and a policy.
+
+    Trace events are dicts in the JSONL shape of docs/design.md section 5; they go to `self.trace`
+    (when `record=True`) and to every sink in `sinks`.
+    """
+
+    def __init__(self, root: Any, clock: Clock | None = None, policy: Any = None, *, record: bool = True,
+                 sinks: Iterable[Callable[[dict], None]] = (), max_firings_per_instant: int = 10_000,
+                 deadline_tolerance: float = 0.0, reject_early_inputs: bool = True,
+                 input_tolerance: float = 0.0,
+                 track_dependencies: bool = True):
+        self.root = root
+        self.clock = clock or VirtualClock()
+        self.policy = policy or Eager()
+        self.trace: list[dict] = []
+        self.sinks = list(sinks)
+        if record:
+            self.sinks.insert(0, self.trace.append)
+        self.max_firings_per_instant = max_firings_per_instant
+        self.deadline_tolerance = deadline_tolerance
+        self.reject_early_inputs = reject_early_inputs
+        # How much sooner than its switching time an input may arrive and still be accepted: in
+        # a real system arrival times carry network and scheduling jitter the sender never had.
+        self.input_tolerance = input_tolerance
+        # False re-evaluates every precondition of a leaf after each of its firings: slower, and
+        # the reference the dependency analysis is tested against.
+        self.track_dependencies = track_dependencies
+        self.halted = False
+        self.firings = 0
+        self.flat: Flat = flatten(root)
+        self._heap: list = []
+        self._instant = -INF
+        self._instant_count = 0
+        self._build()
+        self._started = False
+
+    # ---------------------------------------------------------------- building
+    def _build(self) -> None:
+        self.slots: dict[tuple[str, str, int | None], Slot] = {}
+        self.instances: list[ActionInstance] = []
+        self._by_leaf: dict[str, list[ActionInstance]] = {}
+        self._readers: dict[str, dict[tuple, list[ActionInstance]]] = {}
+        self._input_affects: dict[tuple, list[ActionInstance]] = {}
+        self.leaves = {leaf.path: leaf for leaf in self.flat.leaves}
+        rank = 0
+        for leaf in self.flat.leaves:
+            spec = leaf.iota.iota_spec
+            for name, channel in spec.channels.items():
+                size = leaf.sizes[name]
+                for index in ([None] if size is None else range(size)):
+                    self.slots[(leaf.path, name, index)] = Slot(leaf, channel, index)
+            mine: list[ActionInstance] = []
+            readers: dict[tuple, list[ActionInstance]] = {}
+            for action in spec.actions:
+                channel = spec.channels[action.channel]
+                size = leaf.sizes[action.channel]
+                for index in ([None] if size is None else range(size)):
+                    slot = self.slots[(leaf.path, action.channel, index)]
+                    if channel.direction == "input":
+                        slot.input_action = action
+                        continue
+                    instance = ActionInstance(leaf, action, index, slot, rank)
+                    rank += 1
+                    mine.append(instance)
+                    for cell in instance.reads:
+                        readers.setdefault(cell, []).append(instance)
+            self._by_leaf[leaf.path] = mine
+            self._readers[leaf.path] = readers
+            self.instances += mine
+        for source, target in self.flat.bindings:
+            for src, dst in expand(self.flat, source, target):
+                self.slots[(src.path, src.channel, src.index)].targets.append(
+                    self.slots[(dst.path, dst.channel, dst.index)])
+
+    def _affected(self, leaf: Leaf, writes: frozenset, index: int | None) -> list[ActionInstance]:
+        """Instances of `leaf` whose precondition reads a cell that `writes` (at `index`) may change.
+        Computed once per firing action instance and cached, so it need not be fast."""
+        if writes is ALL_STATE or writes == ALL_STATE or not self.track_dependencies:
+            return list(self._by_leaf[leaf.path])
+        if not writes:
+            return []
+        found: dict[int, ActionInstance] = {}
+        for var, key in writes:
+            own_element = key == INDEX and index is not None
+            # an element chosen by state (`x[k]`) is added at firing time (`_with_dynamic`);
+            # here only the readers of the whole variable
+            by_state = is_by_state(key)
+            for (name, where), group in self._readers[leaf.path].items():
+                if name == "*" or (name == var and (where == ANY if by_state
+                                                    else not own_element or where in (index, ANY))):
+                    for instance in group:
+                        found[instance.rank] = instance
+        return [found[rank] for rank in sorted(found)]
+
+    def _with_dynamic(self, leaf: Leaf, static: list, dynamic: tuple, before: list) -> list:
+        """`static` plus the readers of the elements `x[k]` a firing wrote, with `k` taken
+        before and after it (the do-block assigns `k` at most once: it indexed with one of them)."""
+        readers = self._readers[leaf.path]
+        extra: dict[int, ActionInstance] = {}
+        for (var, source), old in zip(dynamic, before):
+            for key in (old, getattr(leaf.iota, source, None)):
+                try:
+                    group = readers.get((var, key), ())
+                except TypeError:  # an unhashable index: any element may have been written
+                    group = [i for (name, _), g in readers.items() if name == var for i in g]
+                for instance in group:
+                    extra[instance.rank] = instance
+        if not extra:
+            return static
+        for instance in static:
+            extra[instance.rank] = instance
+        return [extra[rank] for rank in sorted(extra)]
+
+    # ---------------------------------------------------------------- running
+    def now(self) -> float:
+        return self.clock.now()
+
+    def start(self) -> None:
+        """Evaluate every precondition at the start time (called by `run` if needed)."""
+        if self._started:
+            return
+        self._started = True
+        now = self.clock.now()
+        for instance in self.instances:
+            self._evaluate(instance, now)
+
+    def post(self, path: str | None, channel: str, value: Any = None, index: int | None = None,
+             t: float | None = None, meta: Any = None) -> None:
+        """Queue an external input. `path` None addresses the root's external channel `channel`."""
+        self.clock.post((path, channel, index, value, meta), t)
+
+    def stop(self) -> None:
+        self.clock.post(STOP)
+
+    def run(self, until: float = INF) -> list[dict]:
+        """Run until virtual time `until` (inclusive), until nothing is left, or until stopped."""
+        self.start()
+        clock, heap = self.clock, self._heap
+        while not self.halted:
+            while heap and heap[0][3].gen != heap[0][2]:
+                heapq.heappop(heap)  # a dropped window
+            next_fire = heap[0][0] if heap else INF
+            deadline = next_fire if next_fire < until else until
+            item = clock.wait(deadline)
+            if item is STOP:
+                break
+            now = clock.now()
+            if item is not None:
+                self._external_input(item, now)
+                continue
+            if next_fire <= until and next_fire != INF:
+                try:
+                    self._fire_due(now)
+                except Halted:
+                    break
+                continue
+            if clock.virtual or now >= until:
+                break  # the deadline was `until`, or nothing is left to happen
+        return self.trace
+
+    def _fire_due(self, now: float) -> None:
+        heap = self._heap
+        while heap and heap[0][0] <= now:
+            fire_at, _, gen, instance = heapq.heappop(heap)
+            if instance.gen != gen or not instance.enabled:
+                continue
+            slot = instance.slot
+            earliest = slot.last + slot.switching
+            if earliest > fire_at and earliest > now:
+                # another action on this channel fired meanwhile: wait out its switching time
+                self._schedule(instance, earliest, now)
+                continue
+            if self._instant != now:
+                self._instant, self._instant_count = now, 0
+            self._instant_count += 1
+            if self._instant_count > self.max_firings_per_instant:
+                self._violation(now, instance.leaf.path, instance.action.channel, instance.index, "zeno",
+                                f"more than {self.max_firings_per_instant} firings at t={now}: "
+                                "a loop of actions enables itself without time passing; engine halted")
+                self.halted = True
+                raise Halted()
+            self._fire(instance, now)
+
+    def _fire(self, instance: ActionInstance, now: float) -> None:
+        leaf, action, index, iota = instance.leaf, instance.action, instance.index, instance.iota
+        slot = instance.slot
+        # A window that the switching time made unreachable was reported then, and fires at the
+        # earliest legal time after it: only firing later than that is the process being late.
+        deadline = instance.fire_at if instance.upper < instance.fire_at < INF else instance.upper
+        if now > deadline + self.deadline_tolerance:
+            self._violation(now, leaf.path, action.channel, index, "deadline_miss",
+                            f"{action.label} fired at {now:.6g}, after its deadline {deadline:.6g}")
+        plain = None
+        emit = True
+        dynamic = instance.dynamic if self.track_dependencies else ()
+        if dynamic:
+            before = [getattr(iota, source, None) for _, source in dynamic]
+        if action.value is not None:
+            try:
+                value = action.value(iota, index)
+                slot.type.check(value)
+                plain = slot.type.to_plain(value)
+            except BadValue as exc:
+                self._violation(now, leaf.path, action.channel, index, "bad_value",
+                                f"{action.label}: output value rejected: {exc}")
+                emit = False
+            except Exception as exc:  # noqa: BLE001 - a fault in a spec is a violation, not a crash
+                self._runtime_error(now, instance, "value", exc)
+                emit = False
+        if action.do is not None:
+            try:
+                action.do(iota, index)
+            except Exception as exc:  # noqa: BLE001
+                self._runtime_error(now, instance, "do", exc)
+        self.firings += 1
+        instance.enabled = False
+        instance.gen += 1
+        if emit:
+            slot.last = now
+            self._emit(now, leaf.path, action.channel, index, slot.channel.direction, plain)
+        affects = instance.affects
+        if affects is None:
+            affects = instance.affects = self._affected(leaf, action.writes, index)
+        if dynamic:
+            affects = self._with_dynamic(leaf, affects, dynamic, before)
+        self._evaluate(instance, now)
+        for other in affects:
+            if other is not instance:
+                self._evaluate(other, now)
+        if emit:
+            for target in slot.targets:
+                self._deliver(target, plain, now)
+
+    def _external_input(self, item: tuple, now: float) -> None:
+        path, channel, index, value, meta = item
+        if path is None:
+            entry = self.flat.external.get(channel)
+            if entry is None or entry[0] != "input":
+                self._violation(now, self.root.instance_name, channel, index, "unknown_input",
+                                f"no external input channel {channel!r}")
+                return
+            endpoint = entry[1]
+            if endpoint.index is not None and index not in (None, endpoint.index):
+                # the root's channel is one member of a family: no other member is external
+                self._violation(now, self.root.instance_name, channel, index, "unknown_input",
+                                f"{channel} is a single channel ({endpoint}); it has no index {index}")
+                return
+            path, channel = endpoint.path, endpoint.channel
+            if endpoint.index is not None:
+                index = endpoint.index
+        slot = self.slots.get((path, channel, index))
+        if slot is None or slot.channel.direction != "input":
+            self._violation(now, path, channel, index, "unknown_input",
+                            f"{path} has no input channel {channel}{'' if index is None else f'[{index}]'}")
+            return
+        self._deliver(slot, value, now)
+
+    def _deliver(self, slot: Slot, plain: Any, now: float) -> None:
+        """An input event: always enabled, never blocked; rejected only if it breaks its contract."""
+        leaf, channel, index = slot.leaf, slot.channel, slot.index
+        if now < slot.last + slot.switching - self.input_tolerance and self.reject_early_inputs:
+            self._violation(now, leaf.path, channel.name, index, "switching_time",
+                            f"input {channel.name} at {now:.6g} is sooner than its switching time "
+                            f"{slot.switching:g} after the last one at {slot.last:.6g}; rejected")
+            return
+        value = None
+        if slot.type is not None:
+            try:
+                value = slot.type.from_plain(plain)
+            except BadValue as exc:
+                self._violation(now, leaf.path, channel.name, index, "bad_value",
+                                f"input {channel.name}: {exc}; rejected")
+                return
+        slot.last = now
+        self._emit(now, leaf.path, channel.name, index, "input", plain)
+        action = slot.input_action
+        if action is None:
+            return
+        dynamic = _dynamic_writes(action) if self.track_dependencies else ()
+        if dynamic:
+            before = [getattr(leaf.iota, source, None) for _, source in dynamic]
+        if action.do is not None:
+            try:
+                action.do(leaf.iota, index, value)
+            except Exception as exc:  # noqa: BLE001
+                self._violation(now, leaf.path, channel.name, index, "runtime_error",
+                                f"{action.label}: {type(exc).__name__}: {exc}")
+        key = (leaf.path, channel.name, index)
+        affects = self._input_affects.get(key)
+        if affects is None:
+            affects = self._input_affects[key] = self._affected(leaf, action.writes, index)
+        if dynamic:
+            affects = self._with_dynamic(leaf, affects, dynamic, before)
+        for other in affects:
+            self._evaluate(other, now)
+
+    def _evaluate(self, instance: ActionInstance, now: float) -> None:
+        when = instance.when
+        if when is None:
+            holds = True
+        else:
+            try:
+                holds = when(instance.iota, instance.index)
+                instance.failing = False
+            except Exception as exc:  # noqa: BLE001
+                # Reported when it starts failing, not at every evaluation: how often a
+                # precondition is evaluated is the engine's business, not part of the trace.
+                if not instance.failing:
+                    self._runtime_error(now, instance, "when", exc)
+                    instance.failing = True
+                holds = False
+        if holds:
+            if not instance.enabled:
+                self._enable(instance, now)
+        elif instance.enabled:
+            instance.enabled = False
+            instance.gen += 1  # the window is dropped; its heap entry goes stale
+
+    def _enable(self, instance: ActionInstance, now: float) -> None:
+        action, iota, index = instance.action, instance.iota, instance.index
+        instance.enabled = True
+        instance.gen += 1
+        try:
+            lower = 0.0 if action.lower is None else float(action.lower(iota, index))
+            upper = INF if action.upper is None else float(action.upper(iota, index))
+        except Exception as exc:  # noqa: BLE001
+            self._runtime_error(now, instance, "time bound", exc)
+            lower, upper = INF, INF
+        else:
+            if not window_ok(lower, upper):
+                self._violation(now, instance.leaf.path, action.channel, index, "bad_window",
+                                f"{action.label}: window [{lower:g}, {upper:g}] is empty or negative")
+                lower, upper = INF, INF
+        if lower == INF:
+            # enabled, but with no window it cannot fire until re-enabled; and no bounds of an
+            # earlier window stay behind (a checker would see that window expire)
+            instance.te, instance.lower, instance.upper = now, INF, INF
+            return
+        instance.te, instance.lower, instance.upper = now, now + lower, now + upper
+        slot = instance.slot
+        earliest = now + lower
+        if slot.last + slot.switching > earliest:
+            earliest = slot.last + slot.switching
+        self._schedule(instance, earliest, now)
+
+    def _schedule(self, instance: ActionInstance, earliest: float, now: float) -> None:
+        if earliest > instance.upper:
+            action = instance.action
+            self._violation(now, instance.leaf.path, action.channel, instance.index, "unreachable_window",
+                            f"{action.label}: switching time {instance.slot.switching:g} puts its earliest "
+                            f"firing at {earliest:.6g}, past its window's end {instance.upper:.6g}")
+            fire_at = earliest
+        else:
+            fire_at = self.policy.choose(earliest, instance.upper)
+        instance.fire_at = fire_at
+        heapq.heappush(self._heap, (fire_at, instance.rank, instance.gen, instance))
+
+    def fire_instance(self, instance: ActionInstance, now: float) -> None:
+        """Fire one enabled action instance at `now`, the time chosen from outside the policy:
+        the trace checker (iotad.recording.conformance) replays a recorded firing this way."""
+        self._fire(instance, now)
+
+    # ---------------------------------------------------------------- events
+    def _emit(self, t: float, path: str, channel: str, index: int | None, kind: str, value: Any) -> None:
+        event = {"t": t, "iota": path, "action": channel, "index": index, "kind": kind, "value": value}
+        for sink in self.sinks:
+            sink(event)
+
+    def _violation(self, t: float, path: str, channel: str, index: int | None, code: str, message: str) -> None:
+        self._emit(t, path, channel, index, "violation", {"violation": code, "message": message})
+
+    def _runtime_error(self, t: float, instance: ActionInstance, part: str, exc: Exception) -> None:
+        self._violation(t, instance.leaf.path, instance.action.channel, instance.index, "runtime_error",
+                        f"{instance.action.label} ({part}): {type(exc).__name__}: {exc}")
+
+    # ---------------------------------------------------------------- views
+    def external_trace(self, events: Iterable[dict] | None = None) -> list[dict]:
+        """The root's external behaviour: events on its external channels, named as the root names them."""
+        # keyed by index too: a root channel may be one member of a component's family, which
+        # then appears as a plain channel (index None) and the other members stay hidden
+        names = {(endpoint.path, endpoint.channel, endpoint.index): name
+                 for name, (_, endpoint) in self.flat.external.items()}
+        out = []
+        for event in self.trace if events is None else events:
+            if event["kind"] not in ("input", "output"):
+                continue
+            name = names.get((event["iota"], event["action"], None))
+            if name is not None:
+                out.append(dict(event, iota=self.root.instance_name, action=name))
+                continue
+            name = names.get((event["iota"], event["action"], event.get("index")))
+            if name is not None:
+                out.append(dict(event, iota=self.root.instance_name, action=name, index=None))
+        return out
+
+    def iota(self, path: str) -> Any:
+        """The instance at `path`, to read its state in tests and tools."""
+        return self.leaves[path].iota
+
+    def endpoint(self, path: str, channel: str, index: int | None = None) -> Endpoint:
+        return Endpoint(path, channel, index)

@@ -1,0 +1,2 @@
+"""The launcher: system files, process supervision and the status view behind `iotad run`.
+Imports iotad.kernel, iotad.esprit, iotad.host and iotad.can only."""

@@ -1,0 +1,25 @@
+"""A whole system file as one composite IOTA, for one process in virtual time (`iotad run
+--virtual`): every node instantiated as its node host would, the file's bindings as the
+composite's, and each `[[can]]` bus as the modelled bus `iotad.can.virtual_bus.CanBus` with
+station k's can_tx -> tx[k] and rx[k] -> can_rx. Nothing else differs from the real-time run,
+which is the point: the same IOTAs, the same channels, the same recording format."""
+from __future__ import annotations
+
+from typing import Any
+
+from iotad.kernel.compose import Composite
+from iotad.launcher.system_file import CAN_RX, CAN_TX, System, instantiate
+
+
+def compose(system: System) -> Composite:
+    """The system as one composite named after it; raises what instantiating a node raises."""
+    from iotad.can.virtual_bus import CanBus
+
+    components: list[Any] = [instantiate(node) for node in system.nodes.values()]
+    binds = [(str(b.source), str(b.target)) for b in system.bindings]
+    for bus in system.buses.values():
+        components.append(CanBus(bus.name, stations=len(bus.stations), bitrate=bus.bitrate))
+        for k, station in enumerate(bus.stations):
+            binds.append((f"{station}.{CAN_TX}", f"{bus.name}.tx[{k}]"))
+            binds.append((f"{bus.name}.rx[{k}]", f"{station}.{CAN_RX}"))
+    return Composite(system.name, *components, bind=binds)

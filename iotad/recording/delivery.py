@@ -1,0 +1,978 @@
+"""Delivery cross-check of a recording: what senders claim, what the wire carried, what receivers got.
+
+Three accounts of every message are in a recording (docs/checking.md, "Delivery"):
+
+- the sender's claim: an `output` event on its `@trace` (a node host adds the `key`, `seq` and
+  `send_ns` it published with);
+- the wire: the messages on the output's key. What they prove depends on how the file was made
+  (`iotad.recording` metadata): `direct` (`iotad record`), the recorder's own subscription, a
+  third witness; `traces` (`iotad run`), rebuilt by the recorder from the senders' traces, so they
+  can only disagree with the claims if the file was edited or lost trace; `virtual`, written by
+  the one engine that also wrote the traces;
+- the receiver's account: an `input` event on its `@trace` (with the key it came on and the
+  sender's `seq`/`send_ns`), or a recorded rejection of it (`switching_time`, `bad_value`,
+  `malformed_payload`).
+
+`check_delivery` matches them per binding of the recorded system file: by key, sequence number
+and send time where the events carry them (real node hosts), else by time within the tolerance
+and order (virtual time: a binding delivers at the instant of the firing). Each claim is
+delivered, altered (a value differs), lost, rejected, or not judged: sent before the receiver's
+engine started, or so close to its last sign of life (trace event or heartbeat) that the run
+ended before it could arrive. Received or wire messages that no claim explains are duplicated
+(the same message again) or unexplained. CAN buses (`[[can]]`, or the bus model of a virtual
+run) are checked frame by frame: every station's `can_tx` against the `can_rx` of the others,
+by content and order.
+"""
+from __future__ import annotations
+
+import json
+import math
+import re
+import tomllib
+from dataclasses import dataclass, field
+from typing import Any, Iterable
+
+from iotad.host import wire
+from iotad.recording.mcap_io import Recording
+
+GRACE = 0.1  # seconds: longer than any delivery seen here (~1 ms, tens under load) by far
+MASK = 0xFFFFFFFF  # MCAP keeps 32 bits of a sequence number
+REJECTIONS = {"switching_time", "bad_value", "malformed_payload"}  # a receiver saw it and refused it
+PROBLEMS = ("lost", "altered", "duplicated", "unexplained", "reordered", "causality")
+CAN_TX, CAN_RX = "can_tx", "can_rx"
+_ENDPOINT = re.compile(r"^\s*(?P<node>[^\s\[\]]+)\.(?P<channel>[A-Za-z_]\w*)(?:\[(?P<index>\d+)\])?\s*$")
+
+
+# ------------------------------------------------------------------------------------ results
+@dataclass(frozen=True)
+class Port:
+    node: str
+    channel: str
+    index: int | None = None
+
+    def __str__(self) -> str:
+        return f"{self.node}.{self.channel}" + ("" if self.index is None else f"[{self.index}]")
+
+
+@dataclass
+class Link:
+    """One row of the report: a binding (sender -> receiver), an output key against the wire,
+    inputs from outside, or one sender -> receiver pair of a CAN bus."""
+
+    label: str
+    kind: str                # binding | wire | external | can
+    nodes: tuple[str, ...]   # the nodes it concerns (for --node)
+    sent: int = 0
+    delivered: int = 0
+    lost: int = 0
+    altered: int = 0
+    duplicated: int = 0
+    unexplained: int = 0
+    rejected: int = 0
+    unjudged: int = 0        # in flight when the run ended, or sent before the receiver started
+    latencies: list[float] = field(default_factory=list)  # seconds, sender's firing -> receiver's input
+
+    @property
+    def problems(self) -> int:
+        return self.lost + self.altered + self.duplicated + self.unexplained
+
+    def latency(self) -> tuple[float, float, float] | None:
+        """(p50, p99, max) in seconds, nearest rank; None without deliveries."""
+        if not self.latencies:
+            return None
+        ordered = sorted(self.latencies)
+        return _rank(ordered, 0.50), _rank(ordered, 0.99), ordered[-1]
+
+
+@dataclass
+class DeliveryFinding:
+    code: str            # lost, altered, duplicated, unexplained, reordered, causality; or a note's kind
+    link: str
+    t: float | None      # spec time units: the sender's firing (or the receipt, for what no one sent)
+    message: str
+    problem: bool = True
+    nodes: tuple[str, ...] = ()
+    late: float | None = None  # seconds of latency, for delivered messages the plot may mark
+
+    def __str__(self) -> str:
+        when = "" if self.t is None else f"t={self.t:.6g} "
+        return f"{when}[{self.code}] {self.link}: {self.message}"
+
+
+@dataclass
+class DeliveryReport:
+    mode: str                       # virtual | traces | direct | unknown
+    witness: str                    # what the wire is in this mode, in one sentence
+    links: list[Link] = field(default_factory=list)
+    findings: list[DeliveryFinding] = field(default_factory=list)
+    notes: list[DeliveryFinding] = field(default_factory=list)
+    # (link, t sent, latency in seconds, the nodes it concerns) of every delivery
+    deliveries: list[tuple[str, float, float, tuple[str, ...]]] = field(default_factory=list)
+    checked: bool = True
+    reason: str = ""                # why nothing was checked
+
+    @property
+    def ok(self) -> bool:
+        return not any(f.problem for f in self.findings)
+
+    def totals(self, wire: bool = False) -> dict[str, int]:
+        """Counts over the links to receivers (bindings, outside, CAN), or over the wire links."""
+        out = {name: 0 for name in ("sent", "delivered", "lost", "altered", "duplicated", "unexplained",
+                                    "rejected", "unjudged")}
+        for link in self.links:
+            if (link.kind == "wire") == wire:
+                for name in out:
+                    out[name] += getattr(link, name)
+        return out
+
+    def summary(self) -> str:
+        if not self.checked:
+            return f"delivery: not checked ({self.reason})"
+        receivers, on_wire = self.totals(), self.totals(wire=True)
+        links = sum(1 for link in self.links if link.kind != "wire")
+        text = f"delivery: {receivers['delivered']} of {receivers['sent']} messages delivered as sent over {links} links"
+        bad = _counted(receivers)
+        order = sum(1 for f in self.findings if f.code in ("reordered", "causality"))
+        bad += [f"{order} out of order"] if order else []
+        text += f" ({', '.join(bad)})" if bad else ""
+        if any(link.kind == "wire" for link in self.links):
+            text += f"; the wire holds {on_wire['delivered']} of {on_wire['sent']} claimed messages as claimed"
+            bad = _counted(on_wire)
+            text += f" ({', '.join(bad)})" if bad else ""
+        extra = [f"{receivers['rejected']} rejected by the receiver"] if receivers["rejected"] else []
+        if receivers["unjudged"]:
+            extra.append(f"{receivers['unjudged']} not judged (in flight at the end, or before the receiver started)")
+        return text + ("; " + ", ".join(extra) if extra else "") + ("" if self.ok else ": PROBLEMS")
+
+    def table(self) -> list[str]:
+        out = [f"  {'link':<44} {'sent':>5} {'deliv':>5} {'lost':>4} {'alter':>5} {'dup':>3} {'unexp':>5} "
+               f"{'rej':>3} {'n/j':>3}  latency ms p50 / p99 / max"]
+        for link in self.links:
+            latency = link.latency()
+            shown = "-" if latency is None else " / ".join(_ms(x) for x in latency)
+            out.append(f"  {link.label:<44} {link.sent:>5} {link.delivered:>5} {link.lost:>4} {link.altered:>5} "
+                       f"{link.duplicated:>3} {link.unexplained:>5} {link.rejected:>3} {link.unjudged:>3}  {shown}")
+        return out
+
+    def lines(self, limit: int = 20) -> list[str]:
+        if not self.checked:
+            return [self.summary()]
+        out = [f"delivery, {self.mode} recording ({self.witness}):"]
+        out += self.table() if self.links else ["  no bindings, outputs or CAN buses to check"]
+        problems = [f for f in self.findings if f.problem]
+        for finding in problems[:limit]:
+            out.append(f"  {finding}")
+        if len(problems) > limit:
+            out.append(f"  ... {len(problems) - limit} more problem(s) (--all lists them)")
+        for note in self.notes[:limit]:
+            out.append(f"  note: {note}")
+        if len(self.notes) > limit:
+            out.append(f"  ... {len(self.notes) - limit} more note(s)")
+        out.append(self.summary())
+        return out
+
+
+def _counted(totals: dict[str, int]) -> list[str]:
+    return [f"{totals[name]} {name}" for name in ("lost", "altered", "duplicated", "unexplained") if totals[name]]
+
+
+def _rank(ordered: list[float], p: float) -> float:
+    return ordered[min(len(ordered) - 1, max(0, math.ceil(p * len(ordered)) - 1))]
+
+
+def _ms(seconds: float) -> str:
+    return f"{seconds * 1e3:.3g}"
+
+
+def _short(value: Any) -> str:
+    text = json.dumps(value, default=str) if not isinstance(value, str) else value
+    return text if len(text) <= 48 else text[:45] + "..."
+
+
+# ------------------------------------------------------------------------------------ the system
+@dataclass
+class RecordedSystem:
+    """What delivery needs of the recorded system file: concrete bindings, external inputs, buses."""
+
+    name: str
+    bindings: list[tuple[Port, Port]] = field(default_factory=list)
+    external: set[Port] = field(default_factory=set)
+    buses: dict[str, list[str]] = field(default_factory=dict)  # bus -> its stations, in order
+    bus_nodes: set[str] = field(default_factory=set)          # bus models (virtual time): not stations
+
+
+def recorded_system(recording: Recording) -> RecordedSystem | str:
+    """The system attached to `recording` (system.toml, or system.json of an in-process run),
+    with family bindings expanded by the recorded channel tables; or why there is none."""
+    toml_text = json_text = None
+    for attachment in recording.attachments:
+        if attachment.name == "system.toml":
+            toml_text = attachment.data.decode(errors="replace")
+        elif attachment.name == "system.json":
+            json_text = attachment.data.decode(errors="replace")
+    sizes = _channel_sizes(recording.specs)
+    name = recording.system or ""
+    pairs: list[tuple[str, str]] = []
+    external: list[str] = []
+    buses: dict[str, list[str]] = {}
+    if toml_text is not None:
+        try:
+            table = tomllib.loads(toml_text)
+        except tomllib.TOMLDecodeError as exc:
+            return f"the recorded system.toml is not TOML: {exc}"
+        pairs = [(b.get("from"), b.get("to")) for b in table.get("bind", []) if isinstance(b, dict)]
+        system = table.get("system") if isinstance(table.get("system"), dict) else {}
+        for raw in (table.get("external"), system.get("external")):
+            if isinstance(raw, list):
+                external += [e for e in raw if isinstance(e, str)]
+        for bus in table.get("can", []) if isinstance(table.get("can"), list) else []:
+            if isinstance(bus, dict) and isinstance(bus.get("name"), str) and isinstance(bus.get("stations"), list):
+                buses[bus["name"]] = [s for s in bus["stations"] if isinstance(s, str)]
+        prefix = ""
+    elif json_text is not None:
+        try:
+            data = json.loads(json_text)
+        except ValueError as exc:
+            return f"the recorded system.json is not JSON: {exc}"
+        pairs = [tuple(p) for p in data.get("bindings", []) if isinstance(p, (list, tuple)) and len(p) == 2]
+        root = recording.info.get("root") or data.get("name") or name
+        prefix = f"{root}/"
+    else:
+        return "the recording holds no system file (system.toml or system.json), so no bindings"
+    out = RecordedSystem(name)
+    for source_text, target_text in pairs:
+        source, target = _port(source_text, prefix), _port(target_text, prefix)
+        if source is None or target is None:
+            continue
+        out.bindings += _expand(source, target, sizes)
+    for text in external:
+        port = _port(text, "")
+        if port is not None:
+            members = [port.index] if port.index is not None else _members(sizes.get((port.node, port.channel)))
+            out.external.update(Port(port.node, port.channel, k) for k in members)
+    if not buses:  # a virtual run: the bus is a node; station k's can_tx -> bus.tx[k], bus.rx[k] -> can_rx
+        found: dict[str, dict[int, str]] = {}
+        for source, target in out.bindings:
+            if source.channel == CAN_TX and target.channel == "tx" and target.index is not None:
+                found.setdefault(target.node, {})[target.index] = source.node
+        buses = {bus: [stations[k] for k in sorted(stations)] for bus, stations in found.items()}
+        out.bus_nodes = set(buses)
+    out.buses = buses
+    return out
+
+
+def _port(text: Any, prefix: str) -> Port | None:
+    if not isinstance(text, str):
+        return None
+    match = _ENDPOINT.match(text)
+    if not match:
+        return None
+    node = match["node"]
+    if prefix and node.startswith(prefix):
+        node = node[len(prefix):]
+    return Port(node, match["channel"], None if match["index"] is None else int(match["index"]))
+
+
+def _channel_sizes(specs: dict[str, dict]) -> dict[tuple[str, str], int | None]:
+    out: dict[tuple[str, str], int | None] = {}
+    for node, spec in specs.items():
+        for entry in (spec.get("channels") or []) if isinstance(spec, dict) else []:
+            if isinstance(entry, dict) and isinstance(entry.get("name"), str):
+                size = entry.get("size")
+                out[(node, entry["name"])] = size if isinstance(size, int) else None
+    return out
+
+
+def _members(size: int | None) -> list[int | None]:
+    return [None] if size is None else list(range(size))
+
+
+def _expand(source: Port, target: Port, sizes: dict) -> list[tuple[Port, Port]]:
+    """A family bound to a family binds member to member (docs/system-file.md)."""
+    src_size = sizes.get((source.node, source.channel)) if source.index is None else None
+    dst_size = sizes.get((target.node, target.channel)) if target.index is None else None
+    if src_size is not None and dst_size is not None:
+        return [(Port(source.node, source.channel, k), Port(target.node, target.channel, k))
+                for k in range(min(src_size, dst_size))]
+    return [(source, target)]
+
+
+# ------------------------------------------------------------------------------------ accounts
+@dataclass
+class _Sent:
+    node: str
+    key: str
+    t: float
+    value: Any
+    ident: tuple[int, int] | None  # (seq, send_ns) as published, if the event says
+    ordinal: int                   # its place among the sender's claims on the key
+
+
+@dataclass
+class _Got:
+    node: str
+    key: str | None
+    t: float
+    value: Any
+    ident: tuple[int, int] | None
+    action: str
+    index: int | None
+
+
+@dataclass
+class _Wire:
+    key: str
+    t: float | None    # node clock, when it can be told (virtual time; a sender's origin)
+    value: Any
+    ident: tuple[int, int]
+
+
+class _Life:
+    """When a node's engine ran: its runs (a start event each) and the last sign of life of each
+    (a trace event or a heartbeat), in its clock."""
+
+    def __init__(self, starts: list[float], signs: list[float], virtual_end: float | None):
+        self.virtual_end = virtual_end
+        starts = sorted(starts) or [-math.inf]
+        self.runs: list[list[float]] = [[s, s] for s in starts]
+        for t in signs:
+            k = _last_at_or_before(starts, t)
+            run = self.runs[max(k, 0)]
+            run[1] = max(run[1], t)
+        self.seen = bool(signs) or virtual_end is not None
+
+    def judge(self, t: float, grace: float, who: str) -> tuple[str, str]:
+        """Why a message sent at `t` that `who` never took: ('lost' | 'unjudged', reason)."""
+        if self.virtual_end is not None:  # one engine, which ran every node until its end
+            if t + grace <= self.virtual_end:
+                return "lost", f"{who} ran until t={self.virtual_end:.6g} in the same engine"
+            return "unjudged", f"in flight when the run ended at t={self.virtual_end:.6g}"
+        if not self.seen:
+            return "unjudged", f"{who} has no trace in this recording"
+        starts = [run[0] for run in self.runs]
+        k = _last_at_or_before(starts, t)
+        if k < 0:
+            return "unjudged", f"sent before {who}'s engine started (t={starts[0]:.6g}): nobody could receive it"
+        start, last = self.runs[k]
+        if t + grace <= last:
+            return "lost", f"{who} was running until t={last:.6g}"
+        if k + 1 < len(self.runs):
+            return "lost", (f"sent while {who} was down: its last sign of life at t={last:.6g}, "
+                            f"restarted at t={self.runs[k + 1][0]:.6g}")
+        return "unjudged", (f"in flight when the run ended: {who}'s last sign of life is at t={last:.6g}, "
+                            f"less than {grace:g} after the send")
+
+    @property
+    def trace_end(self) -> float | None:
+        return self.runs[-1][1] if self.seen and self.virtual_end is None else None
+
+
+def _last_at_or_before(ordered: list[float], t: float) -> int:
+    k = -1
+    for i, value in enumerate(ordered):
+        if value <= t:
+            k = i
+        else:
+            break
+    return k
+
+
+def _ident(event: dict, seq_field: str = "seq", ns_field: str = "send_ns") -> tuple[int, int] | None:
+    seq, ns = event.get(seq_field), event.get(ns_field)
+    if isinstance(seq, int) and isinstance(ns, int) and not isinstance(seq, bool):
+        return seq & MASK, ns
+    return None
+
+
+def _same(a: Any, b: Any) -> bool:
+    if isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b):
+        return True
+    return a == b
+
+
+def _keyexpr_matches(expression: str, key: str) -> bool:
+    """zenoh key-expression matching for `*` (one chunk) and `**` (any chunks); a chunk starting
+    with '@' is matched only verbatim, as zenoh does."""
+    pattern, chunks = expression.split("/"), key.split("/")
+
+    def match(i: int, j: int) -> bool:
+        if i == len(pattern):
+            return j == len(chunks)
+        if pattern[i] == "**":
+            return any(match(i + 1, k) for k in range(j, len(chunks) + 1)
+                       if not any(c.startswith("@") for c in chunks[j:k]))
+        if j == len(chunks):
+            return False
+        if pattern[i] == "*":
+            return not chunks[j].startswith("@") and match(i + 1, j + 1)
+        return pattern[i] == chunks[j] and match(i + 1, j + 1)
+
+    return match(0, 0)
+
+
+# ------------------------------------------------------------------------------------ the check
+class DeliveryChecker:
+    def __init__(self, recording: Recording, tolerance: float, grace: float | None = None):
+        self.recording = recording
+        info = recording.info
+        self.virtual = info.get("clock") == "virtual"
+        self.mode = "virtual" if self.virtual else str(info.get("source") or "unknown")
+        try:
+            self.unit = float(info.get("time_unit") or 1.0)
+        except (TypeError, ValueError):
+            self.unit = 1.0
+        self.tolerance = tolerance
+        # spec units; in virtual time a binding delivers at the instant of the firing
+        self.grace = 0.0 if self.virtual else (GRACE if grace is None else grace) / self.unit
+        self.report = DeliveryReport(self.mode, _WITNESS.get(self.mode, _WITNESS["unknown"]))
+
+    # -- reading the recording once
+    def _read(self, system: RecordedSystem) -> None:
+        specs = self.recording.specs
+        self.specs = specs
+        self.events: dict[str, list[dict]] = {}
+        self.wire: dict[str, list[_Wire]] = {}
+        starts: dict[str, list[float]] = {}
+        signs: dict[str, list[float]] = {}
+        origin_ns = self.recording.info.get("origin_ns") if self.virtual else None
+        raw_wire: list[tuple[str, Any]] = []
+        for message in self.recording.messages:
+            parsed = wire.parse_key(message.topic)
+            if parsed is None or (system.name and parsed[0] != system.name):
+                continue
+            channel = parsed[2]
+            if channel == "@trace" or channel == "@heartbeat":
+                try:
+                    value = message.value
+                except Exception:  # noqa: BLE001 - an undecodable message is no account of anything
+                    continue
+                if not isinstance(value, dict) or not isinstance(value.get("t"), (int, float)):
+                    continue
+                node = parsed[1]
+                t = float(value["t"])
+                signs.setdefault(node, []).append(t)
+                if channel == "@trace":
+                    index = value.get("index")
+                    if not isinstance(value.get("action"), str) or not (index is None or type(index) is int):
+                        continue  # no event of any channel: conformance reports what it is
+                    if value.get("kind") == wire.START_KIND:
+                        starts.setdefault(node, []).append(t)
+                    else:
+                        self.events.setdefault(node, []).append(value)
+            elif not channel.startswith("@"):
+                raw_wire.append((message.topic, message))
+        for topic, message in raw_wire:
+            try:
+                value = message.value
+            except Exception:  # noqa: BLE001 - bytes that are no msgpack: a value no one sent
+                value = f"<undecodable {len(message.data)} bytes>"
+            node = wire.parse_key(topic)[1]
+            t = None
+            if self.virtual and isinstance(origin_ns, (int, float)):
+                t = (message.publish_time - origin_ns) / 1e9 / self.unit
+            else:
+                origin = (specs.get(node) or {}).get("origin")
+                if isinstance(origin, (int, float)):
+                    t = (message.publish_time / 1e9 - origin) / self.unit
+            self.wire.setdefault(topic, []).append(_Wire(topic, t, value, (message.sequence & MASK, message.publish_time)))
+        end = max((t for node_signs in signs.values() for t in node_signs), default=0.0)
+        nodes = set(self.events) | set(specs) | {p.node for b in system.bindings for p in b}
+        self.life = {node: _Life(starts.get(node, []), signs.get(node, []), end if self.virtual else None)
+                     for node in nodes}
+        self.claims: dict[str, list[_Sent]] = {}
+        for node, events in self.events.items():
+            for event in events:
+                if event.get("kind") != "output":
+                    continue
+                key = event.get("key")
+                if not isinstance(key, str):
+                    if not self.virtual and event.get("iota") not in (node, node.rsplit("/", 1)[-1]):
+                        continue  # an output inside a composite node that its root does not expose
+                    key = wire.channel_key(system.name, node, str(event.get("action")), event.get("index"))
+                claims = self.claims.setdefault(key, [])
+                claims.append(_Sent(node, key, float(event["t"]), event.get("value"), _ident(event), len(claims)))
+        self.gaps: dict[str, list[tuple[int, int]]] = {}
+        for gap in self.recording.gaps():
+            if isinstance(gap, dict) and isinstance(gap.get("key"), str):
+                self.gaps.setdefault(gap["key"], []).append((int(gap.get("expected", 0)), int(gap.get("got", 0))))
+
+    def _covered(self, key: str) -> bool:
+        """Whether the recording was made to hold the messages on `key`."""
+        if self.mode in ("virtual", "traces"):
+            return True
+        keys = self.recording.info.get("keys")
+        if isinstance(keys, list) and keys:
+            return any(isinstance(k, str) and _keyexpr_matches(k, key) for k in keys)
+        return key in self.wire
+
+    def _in_gap(self, key: str, seq: int) -> bool:
+        return any(expected <= seq < got for expected, got in self.gaps.get(key, ()))
+
+    def _trace_gap(self, node: str) -> bool:
+        return bool(self.gaps.get(wire.trace_key(self.system.name, node)))
+
+    def _node_t(self, node: str, ns: int) -> float | None:
+        origin = (self.specs.get(node) or {}).get("origin")
+        if not isinstance(origin, (int, float)):
+            return None
+        return (ns / 1e9 - origin) / self.unit
+
+    def _finding(self, link: Link, code: str, t: float | None, message: str, problem: bool = True) -> None:
+        finding = DeliveryFinding(code, link.label, t, message, problem, link.nodes)
+        (self.report.findings if problem else self.report.notes).append(finding)
+
+    # -- the checks
+    def check(self, only: str | None = None) -> DeliveryReport:
+        system = recorded_system(self.recording)
+        if isinstance(system, str):
+            self.report.checked, self.report.reason = False, system
+            return self.report
+        self.system = system
+        self._read(system)
+        sources_of: dict[Port, list[Port]] = {}
+        for source, target in system.bindings:
+            sources_of.setdefault(target, []).append(source)
+        output_keys = self._output_keys(system)
+        for key in sorted(output_keys):
+            self._check_wire(key)
+        for target in sorted(sources_of, key=str):
+            self._check_target(target, sources_of[target])
+        self._check_outside(system, sources_of, output_keys)
+        for bus, stations in system.buses.items():
+            self._check_bus(bus, stations)
+        order = {"binding": 0, "external": 1, "can": 2, "wire": 3}
+        self.report.links.sort(key=lambda link: (order.get(link.kind, 4), link.label))
+        if only is not None:
+            report = self.report
+            report.links = [link for link in report.links if only in link.nodes]
+            report.findings = [f for f in report.findings if only in f.nodes]
+            report.notes = [f for f in report.notes if only in f.nodes]
+            report.deliveries = [d for d in report.deliveries if only in d[3]]
+        return self.report
+
+    def _output_keys(self, system: RecordedSystem) -> set[str]:
+        keys = set(self.claims)
+        keys |= {wire.channel_key(system.name, s.node, s.channel, s.index) for s, _ in system.bindings}
+        for topic in self.wire:
+            parsed = wire.parse_key(topic)
+            spec = self.specs.get(parsed[1]) or {}
+            for entry in spec.get("channels") or []:
+                if isinstance(entry, dict) and entry.get("name") == parsed[2] and entry.get("direction") == "output":
+                    keys.add(topic)
+        return keys
+
+    def _check_wire(self, key: str) -> None:
+        """The sender's claims on `key` against the messages the recording holds on it."""
+        claims = self.claims.get(key, [])
+        messages = self.wire.get(key, [])
+        if not self._covered(key):
+            return
+        parsed = wire.parse_key(key)
+        sender = parsed[1] if parsed else "?"
+        port = Port(sender, parsed[2], parsed[3]) if parsed else None
+        link = Link(f"{port} -> (wire)", "wire", (sender,), sent=len(claims))
+        self.report.links.append(link)
+        by_ident: dict[tuple[int, int], list[_Wire]] = {}
+        for message in messages:
+            by_ident.setdefault(message.ident, []).append(message)
+        matched: set[int] = set()
+        unkeyed: list[_Sent] = []
+        for claim in claims:
+            if claim.ident is None:
+                unkeyed.append(claim)
+                continue
+            found = next((m for m in by_ident.get(claim.ident, ()) if id(m) not in matched), None)
+            if found is None:
+                self._wire_lost(link, key, claim)
+                continue
+            matched.add(id(found))
+            self._compare_wire(link, claim, found)
+        if unkeyed:
+            rest = [m for m in messages if id(m) not in matched and m.t is not None]
+            pairs = _align(unkeyed, rest, lambda c: c.t, lambda m: m.t, self.tolerance, self.tolerance + self.grace,
+                           lambda c, m: _same(c.value, m.value))
+            for claim, found in pairs:
+                if found is None:
+                    self._wire_lost(link, key, claim)
+                else:
+                    matched.add(id(found))
+                    self._compare_wire(link, claim, found)
+        taken = {m.ident for m in messages if id(m) in matched}
+        for message in messages:
+            if id(message) in matched:
+                continue
+            if message.ident in taken:
+                link.duplicated += 1
+                self._finding(link, "duplicated", message.t, f"#{message.ident[0]} is on the wire twice")
+                continue
+            link.unexplained += 1
+            self._finding(link, "unexplained", message.t,
+                          f"#{message.ident[0]} ({_short(message.value)}) is on the wire, and {sender}'s trace "
+                          f"claims no such message")
+
+    def _wire_lost(self, link: Link, key: str, claim: _Sent) -> None:
+        number = f"#{claim.ident[0]}" if claim.ident else f"output {claim.ordinal}"
+        if claim.ident and self._in_gap(key, claim.ident[0]):
+            self._finding(link, "not recorded", claim.t, f"{number} ({_short(claim.value)}): the recorder saw a "
+                          "sequence gap here: it missed the message, which says nothing of its delivery", False)
+            return
+        link.lost += 1
+        self._finding(link, "lost", claim.t, f"{number} ({_short(claim.value)}): {claim.node}'s trace says it was "
+                      "published; the wire holds no such message")
+
+    def _compare_wire(self, link: Link, claim: _Sent, message: _Wire) -> None:
+        if _same(claim.value, message.value):
+            link.delivered += 1
+            return
+        link.altered += 1
+        number = f"#{claim.ident[0]}" if claim.ident else f"output {claim.ordinal}"
+        self._finding(link, "altered", claim.t, f"{number}: {claim.node} sent {_short(claim.value)}, the wire "
+                      f"carried {_short(message.value)}")
+
+    def _inputs(self, target: Port, keys: set[str]) -> tuple[list[_Got], list[dict]]:
+        """The receiver's input events and rejections that concern `target` (bound from `keys`)."""
+        got, rejected = [], []
+        several = sum(1 for s, t in self.system.bindings if t.node == target.node and
+                      wire.channel_key(self.system.name, s.node, s.channel, s.index) in keys) > 1
+        for event in self.events.get(target.node, []):
+            kind = event.get("kind")
+            here = event.get("action") == target.channel and event.get("index") == target.index
+            if kind == "input":
+                key = event.get("key") if isinstance(event.get("key"), str) else None
+                if key is not None and key in keys:
+                    if several and not here:
+                        continue  # one key bound to two inputs of this node: the other one's
+                elif key is not None or not here:
+                    continue
+                got.append(_Got(target.node, key, float(event["t"]), event.get("value"), _ident(event),
+                                str(event.get("action")), event.get("index")))
+            elif kind == "violation" and here and (event.get("value") or {}).get("violation") in REJECTIONS:
+                rejected.append(event)
+        return got, rejected
+
+    def _check_target(self, target: Port, sources: list[Port]) -> None:
+        """Every claim of the outputs bound to `target` against what `target`'s node took."""
+        name = self.system.name
+        keys = {wire.channel_key(name, s.node, s.channel, s.index): s for s in sources}
+        got, rejections = self._inputs(target, set(keys))
+        links = {key: Link(f"{source} -> {target}", "binding", (source.node, target.node),
+                           sent=len(self.claims.get(key, []))) for key, source in keys.items()}
+        self.report.links += list(links.values())
+        claims = [c for key in keys for c in self.claims.get(key, [])]
+        by_ident = {(c.key, c.ident): c for c in claims if c.ident is not None}
+        taken: dict[int, _Got | None] = {}  # id(claim) -> the input that took it (None: a rejection)
+        last_ordinal: dict[str, int] = {}
+        unkeyed: list[_Got] = []
+        for item in got:
+            claim = by_ident.get((item.key, item.ident)) if item.ident is not None and item.key else None
+            if item.ident is None or item.key is None:
+                unkeyed.append(item)
+                continue
+            link = links[item.key]
+            if claim is None:
+                self._unclaimed(link, item, keys[item.key])
+                continue
+            if id(claim) in taken:
+                link.duplicated += 1
+                self._finding(link, "duplicated", claim.t, f"#{claim.ident[0]} ({_short(claim.value)}) received "
+                              f"again at t={item.t:.6g} (first at t={taken[id(claim)].t:.6g})")
+                continue
+            taken[id(claim)] = item
+            if claim.ordinal < last_ordinal.get(claim.key, -1):
+                self._finding(link, "reordered", claim.t, f"#{claim.ident[0]} received at t={item.t:.6g}, after a "
+                              "message sent later")
+            last_ordinal[claim.key] = max(claim.ordinal, last_ordinal.get(claim.key, -1))
+            self._delivered(link, claim, item)
+        if unkeyed:
+            free = sorted((c for c in claims if id(c) not in taken), key=lambda c: c.t)
+            window = self.tolerance + self.grace
+            pairs = _align(unkeyed, free, lambda g: g.t, lambda c: c.t, window, self.tolerance,
+                           lambda g, c: _same(g.value, c.value))
+            for item, claim in pairs:
+                if claim is not None:
+                    taken[id(claim)] = item
+                    self._delivered(links[claim.key], claim, item)
+                    continue
+                # the same value again, after a delivery of it: a duplicate (else nobody sent it)
+                twins = [c for c in claims if id(c) in taken and taken[id(c)] is not None
+                         and c.t <= item.t + self.tolerance and _same(c.value, item.value)]
+                twin = max(twins, key=lambda c: c.t) if twins else None
+                link = links[twin.key] if twin else next(iter(links.values()))
+                if twin is not None:
+                    link.duplicated += 1
+                    self._finding(link, "duplicated", twin.t, f"{_short(item.value)} received again at t={item.t:.6g}")
+                else:
+                    link.unexplained += 1
+                    self._finding(link, "unexplained", item.t, f"{target.node} took {_short(item.value)} at "
+                                  f"t={item.t:.6g}, and no sender bound to {target} sent it")
+        for event in rejections:  # the receiver saw the message and refused it: no loss
+            t = float(event["t"])
+            candidates = [c for c in claims if id(c) not in taken and t - self.tolerance - self.grace <= c.t
+                          <= t + self.tolerance]
+            if not candidates:
+                continue
+            claim = max(candidates, key=lambda c: c.t)
+            taken[id(claim)] = None
+            links[claim.key].rejected += 1
+        for claim in claims:
+            if id(claim) in taken:
+                continue
+            link = links[claim.key]
+            verdict, reason = self.life[target.node].judge(claim.t, self.grace, target.node) \
+                if target.node in self.life else ("unjudged", f"{target.node} is not in this recording")
+            number = f"#{claim.ident[0]}" if claim.ident else f"output {claim.ordinal}"
+            if verdict == "lost":
+                link.lost += 1
+                self._finding(link, "lost", claim.t, f"{number} ({_short(claim.value)}) sent at t={claim.t:.6g} "
+                              f"never reached {target}; {reason}")
+            else:
+                link.unjudged += 1
+                self._finding(link, "not judged", claim.t, f"{number}: {reason}", False)
+
+    def _delivered(self, link: Link, claim: _Sent, item: _Got) -> None:
+        latency = item.t - claim.t
+        if not _same(claim.value, item.value):
+            link.altered += 1
+            number = f"#{claim.ident[0]}" if claim.ident else f"output {claim.ordinal}"
+            self._finding(link, "altered", claim.t, f"{number}: {claim.node} sent {_short(claim.value)}, "
+                          f"{item.node} received {_short(item.value)} at t={item.t:.6g}")
+            return
+        if latency < -self.tolerance:
+            self._finding(link, "causality", claim.t, f"received at t={item.t:.6g}, {-latency * self.unit * 1e3:.3g} ms "
+                          f"before it was sent")
+        link.delivered += 1
+        link.latencies.append(latency * self.unit)
+        self.report.deliveries.append((link.label, claim.t, latency * self.unit, link.nodes))
+
+    def _unclaimed(self, link: Link, item: _Got, source: Port) -> None:
+        """A received message (key, seq, send time) that the sender's trace does not hold."""
+        seq = item.ident[0]
+        sender = source.node
+        sent_t = self._node_t(sender, item.ident[1])
+        last = max((c.t for c in self.claims.get(item.key, [])), default=None)
+        trace_end = self.life[sender].trace_end if sender in self.life else None
+        if self._in_gap(item.key, seq) or self._trace_gap(sender):
+            self._finding(link, "untraced", item.t, f"#{seq} received at t={item.t:.6g}; {sender}'s trace lost "
+                          "events there (a sequence gap), so it may have claimed it", False)
+            return
+        if sent_t is not None and trace_end is not None and sent_t > trace_end and (last is None or sent_t > last):
+            self._finding(link, "untraced", item.t, f"#{seq} received at t={item.t:.6g} was sent at t={sent_t:.6g}, "
+                          f"after {sender}'s recorded trace ends (t={trace_end:.6g}; a killed node loses its "
+                          "last trace period)", False)
+            return
+        link.unexplained += 1
+        self._finding(link, "unexplained", item.t, f"{item.node} took #{seq} ({_short(item.value)}) on {item.key} at "
+                      f"t={item.t:.6g}, and {sender}'s trace claims no such message")
+
+    def _check_outside(self, system: RecordedSystem, sources_of: dict[Port, list[Port]], output_keys: set[str]) -> None:
+        """Inputs from keys that no binding names (`iotad pub`, a foreign publisher): fine into an
+        input that is external (declared, or bound to nothing); unexplained into a bound one. In a
+        direct recording, also messages on input keys that no node took."""
+        name = system.name
+        bound_keys = {t: {wire.channel_key(name, s.node, s.channel, s.index) for s in sources}
+                      for t, sources in sources_of.items()}
+        links: dict[Port, Link] = {}
+        received: set[tuple[str, tuple[int, int]]] = set()
+        for node, events in self.events.items():
+            for event in events:
+                if event.get("kind") != "input":
+                    continue
+                key = event.get("key")
+                port = Port(node, str(event.get("action")), event.get("index"))
+                if not isinstance(key, str):
+                    if port in sources_of:
+                        continue  # a bound input without a key (virtual time): the binding's
+                    key = "(input script)"  # virtual time: posted into an external input
+                elif key.startswith("can/") or node in system.bus_nodes:
+                    continue  # a CAN frame: the bus check's
+                elif key in bound_keys.get(port, ()) or any(key in keys for p, keys in bound_keys.items()
+                                                            if p.node == node):
+                    continue
+                ident = _ident(event)
+                if ident is not None:
+                    received.add((key, ident))
+                link = links.get(port)
+                if link is None:
+                    link = links[port] = Link(f"(outside) -> {port}", "external", (node,))
+                link.sent += 1
+                t = float(event["t"])
+                if port in sources_of and port not in system.external:
+                    link.unexplained += 1
+                    self._finding(link, "unexplained", t, f"{node} took {_short(event.get('value'))} from {key}, "
+                                  f"which the system file does not bind to {port} (nor declares it external)")
+                else:
+                    link.delivered += 1
+        self.report.links += [links[p] for p in sorted(links, key=str)]
+        if self.mode != "direct":
+            return  # elsewhere such messages are on the file only because a node took them
+        for key, messages in self.wire.items():
+            if key in output_keys:
+                continue
+            for message in messages:
+                if (key, message.ident) in received:
+                    continue
+                parsed = wire.parse_key(key)
+                link = Link(f"(outside) -> {key}", "external", (parsed[1],))
+                self.report.links.append(link)
+                link.unexplained += 1
+                self._finding(link, "unexplained", message.t, f"#{message.ident[0]} ({_short(message.value)}) on "
+                              f"{key}: no node's output, and no node took it")
+
+    # -- CAN
+    def _check_bus(self, bus: str, stations: list[str]) -> None:
+        """Frames each station sent (can_tx outputs) against the frames each other station received
+        (can_rx inputs), by content and per-sender order (a CAN controller sends in FIFO order)."""
+        sent = {s: [e for e in self.events.get(s, []) if e.get("kind") == "output" and e.get("action") == CAN_TX]
+                for s in stations}
+        for receiver in stations:
+            got = [e for e in self.events.get(receiver, []) if e.get("kind") == "input" and e.get("action") == CAN_RX]
+            senders = [s for s in stations if s != receiver]
+            links = {s: Link(f"can {bus}: {s} -> {receiver}", "can", (s, receiver), sent=len(sent[s]))
+                     for s in senders}
+            self.report.links += list(links.values())
+            taken: dict[tuple[str, int], float] = {}
+            last_taken: dict[str, int] = {}
+            foreign: list[dict] = []
+            for event in got:
+                t, frame = float(event["t"]), _frame(event.get("value"))
+                best = None
+                for s in senders:
+                    for k, out in enumerate(sent[s]):
+                        if (s, k) in taken or float(out["t"]) > t + self.tolerance:
+                            continue
+                        if _frame(out.get("value")) == frame:
+                            if best is None or float(out["t"]) < float(sent[best[0]][best[1]]["t"]):
+                                best = (s, k)
+                            break
+                if best is None:
+                    foreign.append(event)
+                    continue
+                s, k = best
+                taken[best] = t
+                link = links[s]
+                if k < last_taken.get(s, -1):
+                    self._finding(link, "reordered", float(sent[s][k]["t"]),
+                                  f"frame {_frame_text(frame)} received at t={t:.6g}, after a frame {s} sent later")
+                last_taken[s] = max(k, last_taken.get(s, -1))
+                link.delivered += 1
+                latency = (t - float(sent[s][k]["t"])) * self.unit
+                link.latencies.append(latency)
+                self.report.deliveries.append((link.label, float(sent[s][k]["t"]), latency, link.nodes))
+            unreceived = {s: [k for k in range(len(sent[s])) if (s, k) not in taken] for s in senders}
+            for event in foreign:  # a frame no station sent: altered if one of the same id is missing
+                t, frame = float(event["t"]), _frame(event.get("value"))
+                pick = None
+                for s in senders:
+                    for k in unreceived[s]:
+                        out = sent[s][k]
+                        if float(out["t"]) <= t + self.tolerance and _frame(out.get("value"))[:3] == frame[:3]:
+                            if pick is None or float(out["t"]) < float(sent[pick[0]][pick[1]]["t"]):
+                                pick = (s, k)
+                            break
+                if pick is None:
+                    self.report.notes.append(DeliveryFinding(
+                        "foreign", f"can {bus}: -> {receiver}", t, f"{receiver} received frame {_frame_text(frame)}, "
+                        "which no station's can_tx sent (a device that is not a node, or a station's final frames)",
+                        False, (receiver,)))
+                    continue
+                s, k = pick
+                unreceived[s].remove(k)
+                links[s].altered += 1
+                self._finding(links[s], "altered", float(sent[s][k]["t"]),
+                              f"{s} sent frame {_frame_text(_frame(sent[s][k].get('value')))}, {receiver} received "
+                              f"{_frame_text(frame)} at t={t:.6g}")
+            for s in senders:
+                for k in unreceived[s]:
+                    out = sent[s][k]
+                    t_sent = float(out["t"])
+                    if any(j > k for (who, j) in taken if who == s):
+                        verdict, reason = "lost", f"{receiver} received frames {s} sent after it"
+                    elif receiver in self.life:
+                        # a frame may wait behind others on a busy bus, in virtual time too: the grace
+                        verdict, reason = self.life[receiver].judge(t_sent, GRACE / self.unit, receiver)
+                    else:
+                        verdict, reason = "unjudged", f"{receiver} is not in this recording"
+                    frame_text = _frame_text(_frame(out.get("value")))
+                    if verdict == "lost":
+                        links[s].lost += 1
+                        self._finding(links[s], "lost", t_sent, f"frame {frame_text} sent at t={t_sent:.6g} never "
+                                      f"reached {receiver}; {reason}")
+                    else:
+                        links[s].unjudged += 1
+                        self._finding(links[s], "not judged", t_sent, f"frame {frame_text}: {reason}", False)
+
+
+def _frame(value: Any) -> tuple:
+    """A canFrame value as CAN compares it: id, extended, rtr, then the dlc valid data bytes."""
+    if not isinstance(value, dict):
+        return ("?", repr(value))
+    data = value.get("data") or []
+    dlc = value.get("dlc")
+    dlc = dlc if isinstance(dlc, int) else len(data)
+    return (value.get("id"), bool(value.get("extended")), bool(value.get("rtr")), dlc, tuple(data[:dlc]))
+
+
+def _frame_text(frame: tuple) -> str:
+    if len(frame) != 5 or not isinstance(frame[0], int):
+        return str(frame[-1])
+    ident, extended, rtr, dlc, data = frame
+    head = f"0x{ident:0{8 if extended else 3}X}"
+    return head + (f" RTR dlc {dlc}" if rtr else " [" + " ".join(f"{b:02X}" for b in data if isinstance(b, int)) + "]")
+
+
+def _align(items: list, candidates: list, t_item, t_candidate, before: float, after: float, same) -> list[tuple]:
+    """Pair each of `items` (taken in time order) with the earliest free candidate whose time lies
+    in [t - before, t + after], preferring one of the same value; (item, None) when there is none."""
+    candidates = sorted(candidates, key=t_candidate)
+    used = [False] * len(candidates)
+    out = []
+    start = 0
+    for item in sorted(items, key=t_item):
+        t = t_item(item)
+        while start < len(candidates) and t_candidate(candidates[start]) < t - before:
+            start += 1  # too early for this item, so for every later one too
+        first = chosen = None
+        k = start
+        while k < len(candidates) and t_candidate(candidates[k]) <= t + after:
+            if not used[k]:
+                first = k if first is None else first
+                if same(item, candidates[k]):
+                    chosen = k
+                    break
+            k += 1
+        chosen = first if chosen is None else chosen
+        if chosen is not None:
+            used[chosen] = True
+        out.append((item, None if chosen is None else candidates[chosen]))
+    return out
+
+
+_WITNESS = {
+    "virtual": "one engine wrote the traces and the wire, deliveries are exact; the check proves "
+               "the file consistent",
+    "traces": "the wire was rebuilt from the senders' traces, so sender vs wire shows only an "
+              "edited or damaged file; sender vs receiver compares two processes' own accounts",
+    "direct": "the recorder subscribed to the keys itself, a third witness between sender and receiver",
+    "unknown": "recording of unknown origin: the wire is taken as recorded",
+}
+
+
+def check_delivery(recording: Recording, *, tolerance: float = 1e-9, node: str | None = None,
+                   grace: float | None = None) -> DeliveryReport:
+    """Cross-check every binding (and CAN bus) of the recorded system: see the module docstring.
+    `tolerance` is in spec time units; `grace` in seconds (default `GRACE`)."""
+    return DeliveryChecker(recording, tolerance, grace).check(node)
+
+
+def problem_marks(report: DeliveryReport, late: float | None = None) -> list[tuple[float, str, str]]:
+    """(t, code, text) of what a timeline may mark: every problem, and with `late` (seconds) every
+    delivery slower than that (code 'late')."""
+    marks = [(f.t, f.code, f"{f.link}: {f.code}") for f in report.findings if f.problem and f.t is not None]
+    if late is not None:
+        marks += [(t, "late", f"{label}: {latency * 1e3:.3g} ms") for label, t, latency, _ in report.deliveries
+                  if latency > late]
+    return sorted(marks, key=lambda m: m[0])
+
+
+__all__: Iterable[str] = ["DeliveryReport", "DeliveryFinding", "Link", "check_delivery", "problem_marks",
+                          "recorded_system", "GRACE"]

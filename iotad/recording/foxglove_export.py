@@ -1,0 +1,63 @@
+"""Export a recording as JSON-encoded MCAP, which Foxglove displays and plots field by field.
+
+Every message becomes a JSON object: trace events and struct values already are; a bare value
+(an enum name such as "COMMIT", a number, nothing) is wrapped as `{"value": ...}` and its JSON
+Schema wrapped the same way, because Foxglove shows fields of objects.
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from iotad.recording.mcap_io import McapSink, Recording, unpackb
+
+
+def _is_object_schema(schema: dict) -> bool:
+    # A permissive schema (no "type") says nothing: objects stay as they are, bare values are wrapped.
+    return schema.get("type") in ("object", None)
+
+
+def export_json(recording: Recording, output: str | Path) -> int:
+    """Write `output` with message encoding `json`; attachments and metadata are copied. Returns the count."""
+    sink = McapSink(output)
+    try:
+        for attachment in recording.attachments:
+            sink.writer.add_attachment(attachment.create_time, attachment.log_time, attachment.name,
+                                       attachment.media_type, attachment.data)
+        for name, data in recording.metadata.items():
+            sink.writer.add_metadata(name, data)
+        by_topic = {c.topic: c for c in recording.channels.values()}
+        ids: dict[str, tuple[int, bool]] = {}
+        schema_ids: dict[tuple, int] = {}
+        count = 0
+        for message in recording.messages:
+            entry = ids.get(message.topic)
+            if entry is None:
+                channel = by_topic[message.topic]
+                stored = recording.schemas.get(channel.schema_id)
+                try:
+                    schema = json.loads(stored.data) if stored is not None else {}
+                except ValueError:
+                    schema = {}
+                wrap = not _is_object_schema(schema)
+                if wrap:
+                    schema = {"type": "object", "title": schema.get("title", "value"),
+                              "properties": {"value": schema}}
+                name = stored.name if stored is not None else "any"
+                text = json.dumps(schema, sort_keys=True).encode()
+                key = (name, text)
+                schema_id = schema_ids.get(key)
+                if schema_id is None:
+                    schema_id = schema_ids[key] = sink.writer.register_schema(name, "jsonschema", text)
+                channel_id = sink.writer.register_channel(channel.topic, "json", schema_id, dict(channel.metadata))
+                entry = ids[message.topic] = (channel_id, wrap)
+            channel_id, wrap = entry
+            value = unpackb(message.data)
+            if wrap or not isinstance(value, dict):
+                value = {"value": value}
+            data = json.dumps(value, separators=(",", ":"), default=repr).encode()
+            sink.writer.add_message(channel_id, message.log_time, data, message.publish_time, message.sequence)
+            count += 1
+    finally:
+        sink.finish()
+    return count

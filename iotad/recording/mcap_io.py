@@ -1,0 +1,943 @@
+"""Recordings: writing iotad events to MCAP and reading them back, whole or cut short.
+
+One MCAP channel per key (`iota/<system>/<path>/<channel>[/<index>]`, `.../@trace`,
+`iota/<system>/@launcher`), message encoding `msgpack` with a `jsonschema` schema per type.
+A recording carries what replay and check need and nothing else must be found:
+
+- attachment `spec/<path>.json` per node: the node's `@spec` answer (source, text, params,
+  channels), so the node can be rebuilt from the recording alone;
+- attachment `system.toml` (or `system.json` for an in-process run): the system file;
+- metadata `iotad.recording`: system name, time unit, clock origin, who wrote it;
+- messages on `@recorder/gaps`: sequence gaps the recorder saw (they survive a kill),
+  and metadata `iotad.gaps` with their total at a clean finish;
+- messages on `@recorder/malformed` (only if any): what came on a `@trace` key that was neither
+  an event nor a burst of events, or an element of a burst that was no event.
+
+Every message on a `@trace` channel is one trace event, whether the node sent it alone or in a
+burst (the recorder splits bursts).
+
+Reading goes through one sequential pass of `mcap.stream_reader.StreamReader`, which also reads
+a file that a killed writer left without a footer; `complete` says whether the footer was there.
+"""
+from __future__ import annotations
+
+import hashlib
+import importlib.util
+import inspect
+import json
+import linecache
+import struct
+import sys
+import time
+from collections import Counter
+from dataclasses import dataclass, field
+from itertools import accumulate
+from pathlib import Path
+from typing import IO, Any, Callable, Iterable, Iterator
+
+import msgpack
+from mcap.opcode import Opcode
+from mcap.records import Attachment, Channel as McapChannel, Footer, Message, MessageIndex, Metadata, Schema
+from mcap.stream_reader import StreamReader
+from mcap.writer import CompressionType, Writer
+
+from iotad.host import wire
+from iotad.kernel.types import to_plain
+
+MESSAGE_ENCODING = "msgpack"
+SCHEMA_ENCODING = "jsonschema"
+PROFILE = "iotad"
+GAP_TOPIC = "@recorder/gaps"
+MALFORMED_TOPIC = "@recorder/malformed"  # what a recorder got on @trace that is no event (nor burst)
+FORMAT = "iotad-mcap/1"
+SET_METADATA = "iotad.split_set"  # in the set file of a split recording: its member files
+
+# Every message on a `@trace` key is one event in the trace JSONL shape (docs/design.md section 5); a
+# node host's first one is its engine-start record (kind `start`, `wire.start_event`).
+TRACE_SCHEMA = {
+    "title": "iotad trace event", "type": "object",
+    "properties": {"t": {"type": "number"}, "iota": {"type": "string"}, "action": {"type": "string"},
+                   "index": {"type": ["integer", "null"]},
+                   "kind": {"enum": ["input", "output", "internal", "violation", "start"]}, "value": {}},
+    "required": ["t", "iota", "action", "kind"]}
+GAP_SCHEMA = {
+    "title": "iotad sequence gap", "type": "object",
+    "properties": {"key": {"type": "string"}, "expected": {"type": "integer"}, "got": {"type": "integer"},
+                   "missing": {"type": "integer"}}}
+MALFORMED_SCHEMA = {
+    "title": "iotad malformed trace sample", "type": "object",
+    "properties": {"key": {"type": "string"}, "seq": {"type": "integer"}, "message": {"type": "string"},
+                   "data": {}}}
+LAUNCHER_SCHEMA = {"title": "iotad launcher event", "type": "object"}
+HEARTBEAT_SCHEMA = {"title": "iotad heartbeat", "type": "object",
+                    "properties": {"t": {"type": "number"}, "firings": {"type": "integer"},
+                                   "queue": {"type": "integer"}}}
+PERMISSIVE_SCHEMA: dict = {"title": "any msgpack value"}  # unknown type: anything goes
+
+
+class RecordingError(Exception):
+    """A file is not a readable iotad recording (one-line message)."""
+
+
+def packb(value: Any) -> bytes:
+    return msgpack.packb(value, use_bin_type=True)
+
+
+def unpackb(data: bytes) -> Any:
+    return msgpack.unpackb(data, raw=False, strict_map_key=False)
+
+
+# ------------------------------------------------------------------------------------ writing
+class McapSink:
+    """An MCAP file of iotad events: schemas and channels registered on first use.
+
+    `flush()` closes the chunk in progress and pushes it to the file: call it on a timer so a
+    killed writer loses only what arrived since (the mcap writer keeps a whole chunk in memory).
+    """
+
+    def __init__(self, output: str | Path | IO[bytes], *, chunk_size: int = 4 * 1024 * 1024,
+                 compression: CompressionType = CompressionType.ZSTD):
+        self._file = open(output, "wb") if isinstance(output, (str, Path)) else output
+        self._owns_file = isinstance(output, (str, Path))
+        self.writer = Writer(self._file, chunk_size=chunk_size, compression=compression)
+        # One chunk index per flush (20 a second at the recorder's 50 ms) would otherwise stay in
+        # memory until `finish`, ~1 KB each: 1.2 MB a minute. They wait in a temp file instead.
+        self._spilled = _spill_chunk_indexes(self.writer, Path(output).parent if self._owns_file else None)
+        self.writer.start(profile=PROFILE, library=f"iotad {_version()}")
+        self._schemas: dict[tuple[str, str], int] = {}
+        self.channels: dict[str, int] = {}
+        self.counts: dict[str, int] = {}
+        self.finished = False
+        self._commit: Callable[[], None] = lambda: None  # a fast writer's batch into the chunk
+        self.write_pair = self._write_pair  # replaced by the fast writer's
+
+    def schema(self, name: str, schema: dict) -> int:
+        text = json.dumps(schema, sort_keys=True)
+        key = (name, text)
+        schema_id = self._schemas.get(key)
+        if schema_id is None:
+            schema_id = self._schemas[key] = self.writer.register_schema(name, SCHEMA_ENCODING, text.encode())
+        return schema_id
+
+    def channel(self, topic: str, schema_name: str, schema: dict, metadata: dict[str, str] | None = None) -> int:
+        channel_id = self.channels.get(topic)
+        if channel_id is None:
+            schema_id = self.schema(schema_name, schema)
+            channel_id = self.channels[topic] = self.writer.register_channel(
+                topic, MESSAGE_ENCODING, schema_id, metadata or {})
+        return channel_id
+
+    def write(self, channel_id: int, log_ns: int, publish_ns: int, sequence: int, data: bytes) -> None:
+        self._commit()  # after what a batch writer holds: the file keeps the order of the writes
+        self.writer.add_message(channel_id, log_ns, data, publish_ns, sequence & 0xFFFFFFFF)
+
+    def fast_writer(self) -> Callable[[int, int, int, int, bytes], None]:
+        """`write` for the recorder's hot loop: a message costs one struct.pack and three list
+        appends; what it wrote goes into the chunk in progress at the next `flush` (or `write`,
+        `finish`, or `commit()`), all at once.
+
+        The mcap Writer builds a Message object and five small writes per message (~6 us); this
+        appends the same bytes and index entries itself, a batch at a time, and keeps the
+        Writer's statistics, so `flush`/`finish` write the chunk, its indexes and the summary as
+        usual. It relies on the Writer's private fields (mcap 1.x); if they are not there it is
+        plain `write`. The caller should `commit()` every few thousand messages: a chunk is
+        closed at `chunk_size` only when a batch goes in."""
+        writer = self.writer
+        builder = getattr(writer, "_Writer__chunk_builder", None)
+        stats = getattr(writer, "_Writer__statistics", None)
+        finalize = getattr(writer, "_Writer__maybe_finalize_chunk", None)
+        record_writer = getattr(builder, "record_writer", None)
+        if builder is None or stats is None or finalize is None or not hasattr(record_writer, "_buffer"):
+            return self.write
+        self._commit()
+        pack = struct.Struct("<BQHIQQ").pack  # opcode, record length, channel, sequence, log, publish
+        parts: list[bytes] = []  # header, data, header, data...
+        channels: list[int] = []
+        logs: list[int] = []
+        indices = builder.message_indices
+        channel_counts = stats.channel_message_counts
+        add_parts, add_channel, add_log = parts.extend, channels.append, logs.append
+        add_channels, add_logs = channels.extend, logs.extend
+
+        def write(channel_id: int, log_ns: int, publish_ns: int, sequence: int, data: bytes) -> None:
+            add_parts((pack(5, 22 + len(data), channel_id, sequence & 0xFFFFFFFF, log_ns, publish_ns), data))
+            add_channel(channel_id)
+            add_log(log_ns)
+
+        def write_pair(channel_id: int, log_ns: int, publish_ns: int, sequence: int, data: bytes,
+                       channel_id2: int, publish_ns2: int, sequence2: int, data2: bytes) -> None:
+            """Two messages with the same log time (a trace event and the message it describes)."""
+            add_parts((pack(5, 22 + len(data), channel_id, sequence & 0xFFFFFFFF, log_ns, publish_ns), data,
+                       pack(5, 22 + len(data2), channel_id2, sequence2 & 0xFFFFFFFF, log_ns, publish_ns2), data2))
+            add_channels((channel_id, channel_id2))
+            add_logs((log_ns, log_ns))
+
+        def commit() -> None:
+            if not logs:
+                return
+            buffer = record_writer._buffer  # replaced by a new one after every chunk
+            # where each message starts in the chunk: every other running total of the parts
+            starts = list(accumulate(map(len, parts), initial=buffer.tell()))[:-1:2]
+            buffer.write(b"".join(parts))
+            first, last, count = min(logs), max(logs), len(logs)
+            appenders = {}  # channel -> its index records' append
+            for channel_id, record in zip(channels, zip(logs, starts)):
+                try:
+                    appenders[channel_id](record)
+                except KeyError:
+                    index = indices.get(channel_id)
+                    if index is None:
+                        index = indices[channel_id] = _MessageIndex(channel_id=channel_id, records=[])
+                    appenders[channel_id] = index.records.append
+                    index.records.append(record)
+            for channel_id, n in Counter(channels).items():
+                channel_counts[channel_id] += n
+            if builder.num_messages == 0:
+                builder.message_start_time, builder.message_end_time = first, last
+            else:
+                builder.message_start_time = min(builder.message_start_time, first)
+                builder.message_end_time = max(builder.message_end_time, last)
+            builder.num_messages += count
+            if stats.message_count == 0:
+                stats.message_start_time, stats.message_end_time = first, last
+            else:
+                stats.message_start_time = min(stats.message_start_time, first)
+                stats.message_end_time = max(stats.message_end_time, last)
+            stats.message_count += count
+            parts.clear()
+            channels.clear()
+            logs.clear()
+            finalize()  # closes the chunk if it has reached chunk_size
+
+        self._commit = commit
+        self.write_pair = write_pair
+        return write
+
+    def _write_pair(self, channel_id: int, log_ns: int, publish_ns: int, sequence: int, data: bytes,
+                    channel_id2: int, publish_ns2: int, sequence2: int, data2: bytes) -> None:
+        self.write(channel_id, log_ns, publish_ns, sequence, data)
+        self.write(channel_id2, log_ns, publish_ns2, sequence2, data2)
+
+    def commit(self) -> None:
+        """Put what the fast writer holds into the chunk in progress (in memory)."""
+        self._commit()
+
+    def attach(self, name: str, media_type: str, data: bytes, log_ns: int | None = None) -> None:
+        now = time.time_ns() if log_ns is None else log_ns
+        self.writer.add_attachment(now, now, name, media_type, data)
+
+    def add_spec(self, path: str, spec: dict, log_ns: int | None = None) -> None:
+        self.attach(f"spec/{path}.json", "application/json", json.dumps(spec, default=_plain).encode(), log_ns)
+
+    def add_metadata(self, name: str, data: dict[str, Any]) -> None:
+        self.writer.add_metadata(name, {k: v if isinstance(v, str) else json.dumps(v, default=_plain)
+                                        for k, v in data.items()})
+
+    def flush(self) -> None:
+        self._commit()
+        self.writer.flush()
+
+    def size(self) -> int:
+        """Bytes written to the file so far (what `flush` pushed out; not the chunk in progress)."""
+        try:
+            return self._file.tell()
+        except (OSError, ValueError):
+            return 0
+
+    def finish(self) -> None:
+        if self.finished:
+            return
+        self.finished = True
+        self._commit()
+        try:
+            self.writer.finish()
+        finally:
+            if self._spilled is not None:
+                self._spilled.close()
+        self._file.flush()
+        if self._owns_file:
+            self._file.close()
+
+
+class _SpilledChunkIndexes:
+    """Stands in for the mcap Writer's list of chunk indexes: each index is written as its
+    record bytes to an unnamed temp file (gone with the process, even after a SIGKILL) and read
+    back once, by `Writer.finish`, which writes them into the summary. Iterating yields blocks
+    of whole records with the one method the Writer calls on an index, `write(builder)`."""
+
+    BLOCK = 1 << 20
+
+    def __init__(self, folder: Path | None):
+        import tempfile
+        try:
+            self._file = tempfile.TemporaryFile(dir=folder, prefix=".iotad-chunk-indexes-")
+        except OSError:  # a read-only or odd folder: the system temp dir then
+            self._file = tempfile.TemporaryFile(prefix=".iotad-chunk-indexes-")
+        self._count = 0
+
+    def append(self, index: Any) -> None:
+        from mcap.data_stream import RecordBuilder
+        builder = RecordBuilder()
+        index.write(builder)
+        self._file.write(builder.end())
+        self._count += 1
+
+    def __len__(self) -> int:
+        return self._count
+
+    def __iter__(self) -> Iterator[Any]:
+        self._file.flush()
+        self._file.seek(0)
+        while True:
+            block = self._file.read(self.BLOCK)
+            if not block:
+                break
+            yield _RawRecords(block)
+        self._file.seek(0, 2)
+
+    def close(self) -> None:
+        self._file.close()
+
+
+class _RawRecords:
+    """Record bytes that write themselves into a summary as they are."""
+
+    __slots__ = ("data",)
+
+    def __init__(self, data: bytes):
+        self.data = data
+
+    def write(self, builder: Any) -> None:
+        builder.write(self.data)
+
+
+def _spill_chunk_indexes(writer: Writer, folder: Path | None) -> _SpilledChunkIndexes | None:
+    """Replace the Writer's in-memory chunk index list (a private field of mcap 1.x) by a
+    `_SpilledChunkIndexes`; if the field is not there, leave the Writer as it is."""
+    if not isinstance(getattr(writer, "_Writer__chunk_indices", None), list):
+        return None
+    spilled = _SpilledChunkIndexes(folder)
+    writer._Writer__chunk_indices = spilled
+    return spilled
+
+
+class _MessageIndex(MessageIndex):
+    """The same record, written with one `struct.pack` rather than two small writes per message
+    (those cost ~1.5 us a message when a chunk is closed)."""
+
+    def write(self, stream: Any) -> None:
+        records = self.records
+        stream.start_record(Opcode.MESSAGE_INDEX)
+        stream.write(struct.pack(f"<HI{2 * len(records)}Q", self.channel_id, len(records) * 16,
+                                 *[n for record in records for n in record]))
+        stream.finish_record()
+
+
+def _plain(value: Any) -> Any:
+    plain = to_plain(value)
+    if plain is value:
+        return repr(value)
+    return plain
+
+
+def _version() -> str:
+    from iotad import __version__
+    return __version__
+
+
+# ------------------------------------------------------------------------------------ specs
+def spec_record(iota: Any, path: str, time_unit: float = 1.0) -> dict:
+    """The `@spec` answer for an in-process IOTA: what a node host would answer for it."""
+    from iotad.kernel.model import param_values
+    spec = iota.iota_spec
+    if spec.source is not None:  # ESPRIT (or any spec that carries its text)
+        source = {"kind": "esprit", "file": spec.source_path, "iota": spec.name}
+        text = spec.source
+    else:
+        cls = type(iota)
+        file = inspect.getsourcefile(cls)
+        source = {"kind": "python", "ref": f"{file}:{cls.__name__}"}
+        text = Path(file).read_text() if file and Path(file).is_file() else None
+    return {"path": path, "source": source, "text": text, "params": to_plain(param_values(iota)),
+            "channels": channel_list(spec, param_values(iota)), "time_unit": time_unit}
+
+
+def channel_list(spec: Any, params: dict | None = None) -> list[dict]:
+    """The channel table of an instance: switching times and sizes that name a parameter are
+    resolved with `params` (as a node host's @spec answer gives them)."""
+    params = {} if params is None else params
+    return [{"name": c.name, "direction": c.direction, "type": None if c.type is None else c.type.name,
+             "schema": None if c.type is None else c.type.json_schema(),
+             "switching_time": spec.switching_of(c, params) if isinstance(c.switching_time, str) else c.switching_time,
+             "size": spec.size_of(c, params) if isinstance(c.size, str) else c.size} for c in spec.channels.values()]
+
+
+def start_time(spec: dict | None) -> float:
+    """When the node's engine started, in its own clock. `Recording.specs` adds `engine_start`
+    from the node's `start` event on @trace (exact); a recording older than that event has only
+    the `started` wall-clock stamp of the `@spec` answer (taken just before the engine started);
+    in-process runs start at 0."""
+    if not spec:
+        return 0.0
+    exact = spec.get("engine_start")
+    if isinstance(exact, (int, float)):
+        return float(exact)
+    started, origin, unit = spec.get("started"), spec.get("origin"), spec.get("time_unit") or 1.0
+    if isinstance(started, (int, float)) and isinstance(origin, (int, float)):
+        return max(0.0, (started - origin) / unit)
+    return 0.0
+
+
+def build_node(spec: dict, name: str | None = None) -> Any:
+    """Rebuild a node from its stored `@spec` answer (text first; the file only if no text)."""
+    source = spec.get("source") or {}
+    kind, params, text = source.get("kind"), dict(spec.get("params") or {}), spec.get("text")
+    name = name or spec.get("path")
+    if kind == "esprit":
+        try:
+            from iotad.esprit import load_iota
+        except ImportError:
+            raise RecordingError("this recording holds an ESPRIT spec, and iotad.esprit is not installed") from None
+        return load_iota(text if text else source["file"], iota=source.get("iota"), name=name, **params)
+    if kind == "python":
+        ref = source.get("ref", "")
+        file, _, cls_name = ref.rpartition(":")
+        if text:
+            cls = getattr(_module_from_text(text, file), cls_name, None)
+            if cls is None:
+                raise RecordingError(f"spec of {name}: its stored source has no {cls_name}")
+        else:
+            from iotad.kernel.python_loader import load_object
+            cls = load_object(ref)
+        return cls(name, **params)
+    raise RecordingError(f"spec of {name}: unknown source kind {kind!r}")
+
+
+def _module_from_text(text: str, file: str) -> Any:
+    """Import a stored Python source as a module; its text goes to linecache so that the
+    dependency analysis (iotad.kernel.dependencies) can still read the functions' source."""
+    digest = hashlib.sha1(text.encode()).hexdigest()[:12]
+    name = f"_iotad_recorded_{digest}"
+    module = sys.modules.get(name)
+    if module is not None:
+        return module
+    filename = f"<recorded {Path(file).name or 'spec'} {digest}>"
+    linecache.cache[filename] = (len(text), None, text.splitlines(True), filename)
+    folder = str(Path(file).parent) if file else ""
+    if folder and Path(folder).is_dir() and folder not in sys.path:
+        sys.path.append(folder)  # neighbours it imports, if they are still there
+    spec = importlib.util.spec_from_loader(name, loader=None)
+    module = importlib.util.module_from_spec(spec)
+    module.__file__ = filename
+    sys.modules[name] = module
+    try:
+        exec(compile(text, filename, "exec"), module.__dict__)
+    except Exception as exc:
+        del sys.modules[name]
+        raise RecordingError(f"stored source of {file}: {type(exc).__name__}: {exc}") from None
+    return module
+
+
+def channel_schemas(spec: dict) -> dict[str, tuple[str, dict]]:
+    """channel name -> (schema name, JSON schema), from a stored spec's channel list."""
+    out: dict[str, tuple[str, dict]] = {}
+    for entry in spec.get("channels") or []:
+        if not isinstance(entry, dict) or "name" not in entry:
+            continue
+        schema = entry.get("schema") or entry.get("json_schema")
+        if isinstance(schema, dict):
+            out[entry["name"]] = (str(entry.get("type_name") or entry.get("type") or schema.get("title") or entry["name"]), schema)
+        elif entry.get("type") is None and "type" in entry:
+            out[entry["name"]] = ("null", {"type": "null"})
+    if out:
+        return out
+    try:  # a node host that did not give schemas: build the IOTA and ask its types
+        iota = build_node(spec)
+        from iotad.kernel.compose import flatten
+        for leaf in flatten(iota).leaves:
+            for name, channel in leaf.iota.iota_spec.channels.items():
+                if channel.type is not None:
+                    out.setdefault(name, (channel.type.name, channel.type.json_schema()))
+    except Exception:  # noqa: BLE001 - schemas are a nicety; permissive ones still record everything
+        pass
+    return out
+
+
+def schema_for_topic(topic: str, specs: dict[str, dict], cache: dict[str, dict]) -> tuple[str, dict]:
+    parsed = wire.parse_key(topic)
+    if topic == GAP_TOPIC:
+        return "iotad.gap", GAP_SCHEMA
+    if topic == MALFORMED_TOPIC:
+        return "iotad.malformed", MALFORMED_SCHEMA
+    if topic.endswith("/@launcher"):
+        return "iotad.launcher_event", LAUNCHER_SCHEMA
+    if parsed is None:
+        return "any", PERMISSIVE_SCHEMA
+    _, path, channel, _ = parsed
+    if channel == "@trace":
+        return "iotad.trace_event", TRACE_SCHEMA
+    if channel == "@heartbeat":
+        return "iotad.heartbeat", HEARTBEAT_SCHEMA
+    if path in specs:
+        if path not in cache:
+            cache[path] = channel_schemas(specs[path])
+        found = cache[path].get(channel)
+        if found:
+            return found
+    return "any", PERMISSIVE_SCHEMA
+
+
+# ------------------------------------------------------------------------------------ engine sink
+class EngineRecorder:
+    """An Engine sink that writes what a system of node hosts would publish: every event of a
+    leaf on `iota/<system>/<path>/@trace`, every output on its channel key. Virtual time `t`
+    becomes log and publish time `t * time_unit` seconds after `origin_ns`."""
+
+    def __init__(self, sink: McapSink, root: Any, system: str | None = None, *, time_unit: float = 1.0,
+                 origin_ns: int = 0):
+        from iotad.kernel.compose import Composite, flatten
+        self.sink, self.root = sink, root
+        self.system = system or root.instance_name
+        self.time_unit, self.origin_ns = time_unit, origin_ns
+        self.flat = flatten(root)
+        prefix = root.instance_name + "/"
+        self.node_path = {}
+        for leaf in self.flat.leaves:
+            rel = leaf.path[len(prefix):] if leaf.path.startswith(prefix) else leaf.path
+            self.node_path[leaf.path] = rel or leaf.path
+        self._seq: dict[str, int] = {}
+        self._ids: dict[str, int] = {}
+        self._specs: dict[str, dict] = {}
+        self._cache: dict[str, dict] = {}
+        for leaf in self.flat.leaves:
+            path = self.node_path[leaf.path]
+            self._specs[path] = spec_record(leaf.iota, path, time_unit)
+            sink.add_spec(path, self._specs[path], origin_ns)
+        bindings = [[str(s), str(d)] for s, d in self.flat.bindings]
+        sink.add_metadata("iotad.recording", {
+            "format": FORMAT, "system": self.system, "time_unit": time_unit, "origin_ns": origin_ns,
+            "clock": "virtual", "writer": "EngineRecorder", "root": root.instance_name,
+            "nodes": list(self._specs), "bindings": bindings,
+            "composite": isinstance(root, Composite)})
+        sink.attach("system.json", "application/json", json.dumps(
+            {"name": self.system, "nodes": {p: {k: s[k] for k in ("source", "params")} for p, s in self._specs.items()},
+             "bindings": bindings}, default=_plain).encode(), origin_ns)
+
+    def _put(self, topic: str, ns: int, value: Any) -> None:
+        channel_id = self._ids.get(topic)
+        if channel_id is None:
+            name, schema = schema_for_topic(topic, self._specs, self._cache)
+            channel_id = self._ids[topic] = self.sink.channel(topic, name, schema)
+        seq = self._seq.get(topic, 0)
+        self._seq[topic] = seq + 1
+        self.sink.write(channel_id, ns, ns, seq, packb(value))
+
+    def __call__(self, event: dict) -> None:
+        path = self.node_path.get(event["iota"], event["iota"])
+        ns = self.origin_ns + int(round(event["t"] * self.time_unit * 1e9))
+        self._put(wire.trace_key(self.system, path), ns, dict(event, iota=path))
+        if event["kind"] == "output":
+            self._put(wire.channel_key(self.system, path, event["action"], event["index"]), ns, event["value"])
+
+
+def record_run(root: Any, output: str | Path, until: float, inputs: Iterable[dict] = (), policy: Any = None,
+               system: str | None = None, **engine_options: Any):
+    """Run `root` in virtual time up to `until` and write every event to `output` (an MCAP file).
+    `inputs` are input-script entries (`iotad.kernel.input_script`). Returns the engine."""
+    from iotad.kernel.clock import VirtualClock
+    from iotad.kernel.engine import Engine
+    sink = McapSink(output)
+    try:
+        recorder = EngineRecorder(sink, root, system)
+        engine = Engine(root, VirtualClock(), policy, sinks=[recorder], **engine_options)
+        for entry in inputs:
+            if entry["t"] <= until:
+                engine.post(entry.get("iota"), entry["action"], entry.get("value"), entry.get("index"), t=entry["t"])
+        engine.run(until)
+    finally:
+        sink.finish()
+    return engine
+
+
+# ------------------------------------------------------------------------------------ reading
+@dataclass
+class RecordedMessage:
+    topic: str
+    log_time: int
+    publish_time: int
+    sequence: int
+    data: bytes
+
+    @property
+    def value(self) -> Any:
+        return unpackb(self.data)
+
+
+@dataclass
+class Recording:
+    """Everything in a recording, read in one pass; `complete` is False for a cut-short file."""
+
+    path: str
+    messages: list[RecordedMessage] = field(default_factory=list)
+    schemas: dict[int, Schema] = field(default_factory=dict)
+    channels: dict[int, McapChannel] = field(default_factory=dict)
+    attachments: list[Attachment] = field(default_factory=list)
+    metadata: dict[str, dict[str, str]] = field(default_factory=dict)
+    complete: bool = False
+    truncated_reason: str = ""
+    header_library: str = ""
+    # a split recording read as one (`read_recording` of its set file): the member files, in order
+    files: list[str] = field(default_factory=list)
+
+    # -- what it holds
+    @property
+    def info(self) -> dict[str, Any]:
+        raw = self.metadata.get("iotad.recording", {})
+        out: dict[str, Any] = {}
+        for key, value in raw.items():
+            try:
+                out[key] = json.loads(value)
+            except (TypeError, ValueError):
+                out[key] = value
+        return out
+
+    @property
+    def specs(self) -> dict[str, dict]:
+        out = {}
+        for attachment in self.attachments:
+            if attachment.name.startswith("spec/") and attachment.name.endswith(".json"):
+                try:
+                    spec = json.loads(attachment.data)
+                except ValueError:
+                    continue
+                out[attachment.name[5:-5]] = spec
+        for node, t in self.start_times().items():
+            if node in out and isinstance(out[node], dict):
+                out[node]["engine_start"] = t
+        return out
+
+    def start_times(self) -> dict[str, float]:
+        """node -> when its engine started (its `start` event on @trace; the first one if a
+        restarted node has several, since the first windows are those of the first run)."""
+        cached = self.__dict__.get("_start_times")
+        if cached is not None and cached[0] == len(self.messages):
+            return dict(cached[1])
+        out: dict[str, float] = {}
+        marker = packb(wire.START_KIND)
+        for message in self.messages:
+            # cheap test first: only a start record holds the packed string "start"
+            if not message.topic.endswith("/@trace") or marker not in message.data:
+                continue
+            parsed = wire.parse_key(message.topic)
+            event = message.value
+            if parsed and isinstance(event, dict) and event.get("kind") == wire.START_KIND \
+                    and isinstance(event.get("t"), (int, float)):
+                out.setdefault(parsed[1], float(event["t"]))
+        self.__dict__["_start_times"] = (len(self.messages), out)
+        return dict(out)
+
+    @property
+    def system_text(self) -> str | None:
+        for attachment in self.attachments:
+            if attachment.name in ("system.toml", "system.json"):
+                return attachment.data.decode(errors="replace")
+        return None
+
+    @property
+    def system(self) -> str | None:
+        name = self.info.get("system")
+        if name:
+            return name
+        for message in self.messages:
+            parsed = wire.parse_key(message.topic)
+            if parsed:
+                return parsed[0]
+        return None
+
+    def topics(self) -> dict[str, int]:
+        counts: dict[str, int] = {}
+        for message in self.messages:
+            counts[message.topic] = counts.get(message.topic, 0) + 1
+        return counts
+
+    def nodes(self) -> list[str]:
+        found = set(self.specs)
+        for topic in self.topics():
+            parsed = wire.parse_key(topic)
+            if parsed and parsed[1] and not parsed[2].startswith("@launcher"):
+                found.add(parsed[1])
+        return sorted(found)
+
+    def trace(self, node: str | None = None, starts: bool = False) -> list[dict]:
+        """Trace events (from `@trace` keys) of one node or of all, in recorded order; the
+        engine-start records (kind `start`) only with `starts`."""
+        out = []
+        for message in self.messages:
+            if not message.topic.endswith("/@trace"):
+                continue
+            parsed = wire.parse_key(message.topic)
+            if parsed is None or (node is not None and parsed[1] != node):
+                continue
+            event = message.value
+            if isinstance(event, dict):
+                if not starts and event.get("kind") == wire.START_KIND:
+                    continue
+                event.setdefault("node", parsed[1])
+                out.append(event)
+        return out
+
+    def violations(self) -> list[dict]:
+        return [e for e in self.trace() if e.get("kind") == "violation"]
+
+    def gaps(self) -> list[dict]:
+        return [m.value for m in self.messages if m.topic == GAP_TOPIC]
+
+    def malformed(self) -> list[dict]:
+        """What the recorder got on `@trace` keys that was no trace event (see `MALFORMED_TOPIC`)."""
+        return [m.value for m in self.messages if m.topic == MALFORMED_TOPIC]
+
+    def launcher_events(self) -> list[dict]:
+        return [dict(m.value, log_time=m.log_time) for m in self.messages
+                if m.topic.endswith("/@launcher") and isinstance(m.value, dict)]
+
+    def duration(self) -> float:
+        if not self.messages:
+            return 0.0
+        times = [m.log_time for m in self.messages]
+        return (max(times) - min(times)) / 1e9
+
+    def schema_of(self, topic: str) -> Schema | None:
+        for channel in self.channels.values():
+            if channel.topic == topic:
+                return self.schemas.get(channel.schema_id)
+        return None
+
+
+def read_recording(path: str | Path, whole_set: bool = True) -> Recording:
+    """Read a recording, complete or cut short by a kill; raise RecordingError if it is not MCAP.
+
+    The set file of a split recording (`iotad record --max-size/--max-duration`) reads as one
+    recording made of all its members, in order (`files` lists them); `whole_set=False` reads
+    the set file alone. A member file reads alone: each is a whole recording."""
+    path = Path(path)
+    if not path.is_file():
+        raise RecordingError(f"{path}: no such file")
+    recording = _read_file(path)
+    if whole_set and SET_METADATA in recording.metadata:
+        return _read_set(recording, path)
+    return recording
+
+
+def _read_file(path: Path) -> Recording:
+    recording = Recording(str(path))
+    with open(path, "rb") as stream:
+        try:
+            for record in _records(stream, recording):
+                if isinstance(record, Message):
+                    channel = recording.channels.get(record.channel_id)
+                    if channel is None:
+                        raise RecordingError(f"{path}: message on unknown channel {record.channel_id}")
+                    recording.messages.append(RecordedMessage(channel.topic, record.log_time,
+                                                              record.publish_time, record.sequence, record.data))
+                elif isinstance(record, Schema):
+                    recording.schemas[record.id] = record
+                elif isinstance(record, McapChannel):
+                    recording.channels[record.id] = record
+                elif isinstance(record, Attachment):
+                    recording.attachments.append(record)
+                elif isinstance(record, Metadata):
+                    recording.metadata[record.name] = dict(record.metadata)
+        except RecordingError:
+            raise
+    return recording
+
+
+def set_files(path: str | Path) -> list[Path]:
+    """The files that hold a recording's messages, in order: a split recording's members (those
+    that exist), or the file itself."""
+    path = Path(path)
+    recording = _read_head(path)
+    meta = recording.metadata.get(SET_METADATA)
+    if meta is None:
+        return [path]
+    return [path.parent / name for name in _member_names(path, meta) if (path.parent / name).is_file()]
+
+
+def iter_messages(path: str | Path) -> Iterator[RecordedMessage]:
+    """The messages of a recording (of every member of a split one), streamed one at a time:
+    for a recording too big to hold in memory. Stops quietly where a killed writer stopped."""
+    for file in set_files(path):
+        channels: dict[int, str] = {}
+        scratch = Recording(str(file))
+        with open(file, "rb") as stream:
+            for record in _records(stream, scratch):
+                if isinstance(record, Message):
+                    topic = channels.get(record.channel_id)
+                    if topic is None:
+                        raise RecordingError(f"{file}: message on unknown channel {record.channel_id}")
+                    yield RecordedMessage(topic, record.log_time, record.publish_time, record.sequence, record.data)
+                elif isinstance(record, McapChannel):
+                    channels[record.id] = record.topic
+
+
+def _read_head(path: Path) -> Recording:
+    """The records before the first message or chunk: enough to tell a set file from a recording."""
+    recording = Recording(str(path))
+    if not path.is_file():
+        raise RecordingError(f"{path}: no such file")
+    with open(path, "rb") as stream:
+        for record in _records(stream, recording):
+            if isinstance(record, Metadata):
+                recording.metadata[record.name] = dict(record.metadata)
+            elif isinstance(record, (Message, McapChannel, Schema)) or type(record).__name__ == "Chunk":
+                break
+    return recording
+
+
+def _member_names(path: Path, meta: dict[str, str]) -> list[str]:
+    try:
+        names = json.loads(meta.get("files", "[]"))
+    except ValueError:
+        raise RecordingError(f"{path}: the split recording's file list is not JSON") from None
+    if not isinstance(names, list) or not all(isinstance(n, str) and "/" not in n for n in names):
+        raise RecordingError(f"{path}: the split recording's file list is malformed")
+    return names
+
+
+def _read_set(index: Recording, path: Path) -> Recording:
+    """A split recording's members read as one: messages in member order, channels and schemas
+    merged by topic and content, each attachment once (the first member's), metadata of the
+    last member that has it (`iotad.recording`: the first's; `iotad.split_set`: the set file's)."""
+    names = _member_names(path, index.metadata[SET_METADATA])
+    out = Recording(str(path), complete=index.complete, truncated_reason=index.truncated_reason,
+                    header_library=index.header_library)
+    out.metadata[SET_METADATA] = index.metadata[SET_METADATA]
+    schema_ids: dict[tuple, int] = {}
+    channel_ids: dict[str, int] = {}
+    attached: set[str] = set()
+    for position, name in enumerate(names):
+        file = path.parent / name
+        if not file.is_file():
+            if position == len(names) - 1:  # the recorder stopped between naming it and creating it
+                continue
+            raise RecordingError(f"{path}: {name}, file {position} of the split recording, is missing")
+        member = _read_file(file)
+        out.files.append(str(file))
+        if not member.complete:
+            out.complete = False
+            out.truncated_reason = f"{name}: {member.truncated_reason or 'cut short'}"
+        new_schema: dict[int, int] = {0: 0}
+        for schema_id, schema in member.schemas.items():
+            key = (schema.name, schema.encoding, bytes(schema.data))
+            if key not in schema_ids:
+                schema_ids[key] = len(schema_ids) + 1
+                out.schemas[schema_ids[key]] = Schema(id=schema_ids[key], name=schema.name,
+                                                      encoding=schema.encoding, data=schema.data)
+            new_schema[schema_id] = schema_ids[key]
+        for channel in member.channels.values():
+            if channel.topic not in channel_ids:
+                channel_ids[channel.topic] = len(channel_ids) + 1
+                out.channels[channel_ids[channel.topic]] = McapChannel(
+                    id=channel_ids[channel.topic], topic=channel.topic, message_encoding=channel.message_encoding,
+                    schema_id=new_schema.get(channel.schema_id, 0), metadata=dict(channel.metadata))
+        out.messages.extend(member.messages)
+        for attachment in member.attachments:
+            if attachment.name not in attached:
+                attached.add(attachment.name)
+                out.attachments.append(attachment)
+        for name_, data in member.metadata.items():
+            if name_ == "iotad.recording":
+                out.metadata.setdefault(name_, data)
+            elif name_ != SET_METADATA:
+                out.metadata[name_] = data
+    if not out.files:
+        raise RecordingError(f"{path}: a split recording none of whose files exist")
+    return out
+
+
+def write_set_file(path: str | Path, set_id: str, files: list[str], info: dict[str, Any]) -> None:
+    """Write (or replace, atomically) the set file of a split recording: an MCAP file holding no
+    messages, only metadata `iotad.recording` (`info`) and `iotad.split_set` (`set`: an id that
+    every member carries too, `files`: the members' names in order, in the same folder)."""
+    import os
+    path = Path(path)
+    temp = path.with_name(f".{path.name}.tmp")
+    sink = McapSink(temp)
+    try:
+        sink.add_metadata("iotad.recording", info)
+        sink.add_metadata(SET_METADATA, {"set": set_id, "files": files})
+    finally:
+        sink.finish()
+    os.replace(temp, path)
+
+
+def member_path(path: str | Path, number: int) -> Path:
+    """File `number` of the split recording whose set file is `path`: `fig2.mcap` -> `fig2_3.mcap`."""
+    path = Path(path)
+    return path.with_name(f"{path.stem}_{number}{path.suffix or '.mcap'}")
+
+
+def _records(stream: IO[bytes], recording: Recording) -> Iterator[Any]:
+    """Records of the data section; stops quietly where a killed writer stopped writing."""
+    reader = StreamReader(stream, record_size_limit=1 << 31)
+    records = reader.records
+    first = True
+    while True:
+        try:
+            record = next(records)
+        except StopIteration:
+            return
+        except Exception as exc:  # noqa: BLE001 - the mcap reader raises many types on a cut-off file
+            if first:
+                raise RecordingError(f"{recording.path}: not an MCAP file ({type(exc).__name__}: {exc})") from None
+            recording.truncated_reason = f"{type(exc).__name__}: {exc}"
+            return
+        if first:
+            recording.header_library = getattr(record, "library", "")
+        first = False
+        if isinstance(record, Footer):
+            recording.complete = True
+            return
+        yield record
+
+
+def copy_recording(recording: Recording, output: str | Path, convert: Callable[[Schema | None, McapChannel, bytes],
+                   tuple[Schema | None, McapChannel, bytes]] | None = None,
+                   extra_metadata: dict[str, dict] | None = None) -> int:
+    """Write a complete MCAP (summary, indexes) holding everything `recording` holds.
+    `convert` may re-encode each channel's messages (export to JSON does). Returns the count."""
+    sink = McapSink(output)
+    try:
+        ids: dict[str, int] = {}
+        schema_ids: dict[tuple, int] = {}
+        by_topic = {c.topic: c for c in recording.channels.values()}
+        for attachment in recording.attachments:
+            sink.writer.add_attachment(attachment.create_time, attachment.log_time, attachment.name,
+                                       attachment.media_type, attachment.data)
+        for name, data in recording.metadata.items():
+            sink.writer.add_metadata(name, data)
+        for name, data in (extra_metadata or {}).items():
+            sink.add_metadata(name, data)
+        count = 0
+        for message in recording.messages:
+            channel_id = ids.get(message.topic)
+            data = message.data
+            if channel_id is None:
+                channel = by_topic[message.topic]
+                schema = recording.schemas.get(channel.schema_id)
+                if convert is not None:
+                    schema, channel, _ = convert(schema, channel, b"")
+                schema_id = 0
+                if schema is not None:
+                    key = (schema.name, schema.encoding, bytes(schema.data))
+                    schema_id = schema_ids.get(key) or schema_ids.setdefault(
+                        key, sink.writer.register_schema(schema.name, schema.encoding, schema.data))
+                channel_id = ids[message.topic] = sink.writer.register_channel(
+                    channel.topic, channel.message_encoding, schema_id, dict(channel.metadata))
+            if convert is not None:
+                data = convert(None, by_topic[message.topic], data)[2]
+            sink.writer.add_message(channel_id, message.log_time, data, message.publish_time, message.sequence)
+            count += 1
+    finally:
+        sink.finish()
+    return count

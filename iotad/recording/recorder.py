@@ -1,0 +1,540 @@
+"""The recorder: subscribes to a running system over zenoh and writes every event to MCAP.
+
+Samples wait in zenoh's Rust FIFOs (one per key expression; no Python callback per sample) and
+one writer thread owns the MCAP file: it takes them (log time = that moment), maps keys to
+channels, reads the sender's `[sequence, send_time_ns]` attachment (publish time, gap
+detection), asks each new node for its `@spec`, and closes the chunk in progress every
+`flush_period` seconds, so that a SIGKILLed recorder loses at most that much.
+
+Two modes. Direct: subscribe to the keys given and record every sample on its key; on a machine
+with few cores every message then also wakes the recorder's process, which the real-time nodes
+pay for in latency. Trace-sourced (`from_traces`, what `iotad run` uses): subscribe only to the
+nodes' `@trace` keys (bursts, one sample and one wake-up per node and trace period; each
+burst is split into one message per event, so a recording is the same as if each had come alone), `@launcher` and
+`@heartbeat`, and write each message from the trace event that describes it: an output on its
+key with the sequence number and send time the node published it with; an input that no node's
+output explains (`iotad pub`, a foreign publisher) on the key it arrived on, with the sender's
+attachment. It records what the nodes sent and saw: a message nobody received is only recorded
+in direct mode, and a message reaches the file one trace period (20 ms by default) late.
+
+Split recordings (`max_size`, `max_duration`, like rosbag2's): at the first flush after a file
+has reached either bound, the file is finished (summary, footer) and the next one begins, each
+a whole recording on its own (metadata, system file, every spec known so far). `output` is then
+the set file: no messages, only the list of members `NAME_0.mcap`, `NAME_1.mcap`... in the same
+folder, rewritten before each member is created; `mcap_io.read_recording(output)` reads the set
+as one recording. Sequence gaps are tracked across the files, as in one.
+
+Memory stays flat over a long run: the writer keeps one chunk and the chunk indexes go to a temp
+file (`McapSink`); the FIFOs hold at most `fifo_capacity` samples per key expression.
+"""
+from __future__ import annotations
+
+import functools
+import json
+import os
+import threading
+import time
+import tomllib
+import uuid
+from pathlib import Path
+from typing import Any, Callable, Iterable
+
+import msgpack
+import zenoh
+
+from iotad.host import wire
+from iotad.recording.mcap_io import (FORMAT, GAP_TOPIC, MALFORMED_TOPIC, McapSink, channel_schemas, member_path, packb,
+                                     schema_for_topic, write_set_file)
+from iotad.host.transport import DEFAULT_LISTEN, open_session
+
+NICENESS = 10  # a tenth of a normal process's CPU share when both want the CPU
+_NEVER = 1 << 62  # the next `seq` of a stream whose last burst could not be counted: no gap is seen
+
+
+def yield_cpu(threads: Iterable[int] | None = None, niceness: int = NICENESS) -> str:
+    """Lower the CPU priority of this process (every thread of it, zenoh's included) to
+    `niceness`. Returns what was done, for the log.
+
+    A logger should give way to the real-time nodes: on a machine with few cores the recorder
+    is woken for every event it records and competes with the nodes' own wake-ups. Not
+    SCHED_IDLE, and not the weakest nice level: a recorder starved by busy nodes would keep
+    events in memory for longer than a kill may lose (`flush_period`), so it keeps a share."""
+    if threads is None:
+        try:
+            threads = [int(name) for name in os.listdir("/proc/self/task")]
+        except OSError:
+            threads = [0]
+    done = "unchanged"
+    for tid in threads:
+        try:
+            if os.getpriority(os.PRIO_PROCESS, tid) < niceness:
+                os.setpriority(os.PRIO_PROCESS, tid, niceness)  # Linux: per thread
+            done = f"nice {niceness}"
+        except OSError:
+            pass
+    return done
+
+
+def expand_keys(keys: Iterable[str]) -> list[str]:
+    """`iota/<sys>/**` does not match `@` chunks in zenoh: widen it to every key of the system."""
+    out: list[str] = []
+    for key in keys:
+        parts = key.split("/")
+        if len(parts) == 3 and parts[0] == wire.PREFIX and parts[2] == "**" and "*" not in parts[1]:
+            wanted = wire.subscription_keys(parts[1])
+        else:
+            wanted = [key]
+        out += [k for k in wanted if k not in out]
+    return out
+
+
+def trace_keys(system: str) -> list[str]:
+    """What a trace-sourced recorder subscribes to: no channel key, so no wake-up per message."""
+    return [f"{wire.PREFIX}/{system}/**/@trace", wire.launcher_key(system), f"{wire.PREFIX}/{system}/**/@heartbeat"]
+
+
+def read_system_file(path: str | Path) -> tuple[str, dict]:
+    """(text, parsed table) of a system TOML file."""
+    text = Path(path).read_text()
+    try:
+        table = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ValueError(f"{path}: not TOML: {exc}") from None
+    return text, table
+
+
+def system_name(table: dict) -> str | None:
+    for candidate in (table.get("system"), table.get("name")):
+        if isinstance(candidate, str):
+            return candidate
+        if isinstance(candidate, dict) and isinstance(candidate.get("name"), str):
+            return candidate["name"]
+    return None
+
+
+class Recorder:
+    """Record `keys` to `output` until `stop()`. `stats` counts what came and what was written."""
+
+    def __init__(self, keys: Iterable[str], output: str | Path, *, system_file: str | Path | None = None,
+                 connect: Iterable[str] = (), listen: Iterable[str] = DEFAULT_LISTEN,
+                 flush_period: float = 0.05, spec_timeout: float = 0.5, query_specs: bool = True,
+                 fifo_capacity: int = 65536, background: bool = False, from_traces: bool = False,
+                 max_size: int | None = None, max_duration: float | None = None):
+        self.system_text, self.system_table = (None, {})
+        if system_file is not None:
+            self.system_text, self.system_table = read_system_file(system_file)
+        self.system = system_name(self.system_table)
+        keys = list(keys)
+        if not keys and self.system:
+            keys = [f"{wire.PREFIX}/{self.system}/**"]
+        if not keys:
+            raise ValueError("nothing to record: give key expressions or a system file")
+        self.keys = expand_keys(keys)
+        if self.system is None:
+            parsed = self.keys[0].split("/")
+            if len(parsed) > 1 and parsed[0] == wire.PREFIX and "*" not in parsed[1]:
+                self.system = parsed[1]
+        self.from_traces = from_traces
+        if from_traces:
+            whole = [f"{wire.PREFIX}/{self.system}/**"]
+            if self.system is None or any(expand_keys([k]) != expand_keys(whole) for k in keys):
+                raise ValueError("a trace-sourced recording records one whole system: give 'iota/SYS/**' "
+                                 "or a system file, not single keys")
+            self.keys = trace_keys(self.system)
+        # trace-sourced: node paths whose outputs their own traces record (the system file's
+        # nodes, every node seen on @trace) and every key a node published an output on
+        self._nodes: set[str] = {n["name"] for n in self.system_table.get("node") or []
+                                 if isinstance(n, dict) and isinstance(n.get("name"), str)}
+        self._output_keys: set[str] = set()
+        self._pack = msgpack.Packer(use_bin_type=True).pack  # the writer thread's alone
+        self._unpack = functools.partial(msgpack.unpackb, raw=False, strict_map_key=False)
+        self.output = Path(output)
+        if max_size is not None and max_size <= 0:
+            raise ValueError(f"max_size must be a positive number of bytes, got {max_size!r}")
+        if max_duration is not None and not max_duration > 0:
+            raise ValueError(f"max_duration must be a positive number of seconds, got {max_duration!r}")
+        self.max_size, self.max_duration = max_size, max_duration
+        self.split = max_size is not None or max_duration is not None
+        self.files: list[Path] = []  # the files written so far (split: the members; else output)
+        self._set_id = uuid.uuid4().hex
+        self.connect, self.listen = list(connect), list(listen)
+        self.flush_period, self.spec_timeout, self.query_specs = flush_period, spec_timeout, query_specs
+        self.stats = {"received": 0, "written": 0, "gaps": 0, "missing": 0, "duplicates": 0, "malformed": 0, "flushes": 0}
+        self._stopping = threading.Event()
+        self.fifo_capacity = fifo_capacity
+        # `iotad record` runs as its own process and sets this: see `yield_cpu`. Off for a
+        # recorder inside another program, whose threads are not ours to slow down.
+        self.background = background
+        self._session: Any = None
+        self._subscribers: list = []
+        self._thread: threading.Thread | None = None
+        self._error: BaseException | None = None
+        self.specs: dict[str, dict] = {}
+        self._asked: set[str] = set()
+        self._schema_cache: dict[str, dict] = {}
+
+    # ------------------------------------------------------------------ life cycle
+    def start(self) -> "Recorder":
+        self.started_ns = time.time_ns()
+        self._open_file()
+        try:
+            self._session = open_session(self.listen, self.connect)
+            # Samples wait in zenoh's own (Rust) FIFO until the writer thread takes them: no
+            # Python callback on zenoh's threads, no GIL hand-off per sample. A full FIFO makes
+            # zenoh push back on the senders (BLOCK) rather than lose.
+            for key in self.keys:
+                self._subscribers.append(self._session.declare_subscriber(
+                    key, zenoh.handlers.FifoChannel(self.fifo_capacity)))
+            self._thread = threading.Thread(target=self._run, name="iotad-recorder", daemon=True)
+            self._thread.start()
+            if self.background:
+                self.priority = yield_cpu()  # after zenoh and the writer have started their threads
+        except BaseException:
+            self._close_session()
+            self.sink.finish()  # a whole (empty) recording, and no open file left behind
+            raise
+        return self
+
+    def stop(self) -> dict:
+        """Stop receiving, write what is queued, ask missing specs, and finish the file."""
+        try:
+            if self._thread is not None:
+                self._stopping.set()  # the writer empties the FIFOs, then returns
+                self._thread.join()
+                self._thread = None
+            for subscriber in self._subscribers:
+                subscriber.undeclare()
+            self._subscribers.clear()
+            if self._error is not None:
+                raise self._error
+            self._ask_missing_specs()
+            self._finish_file()
+        finally:
+            self._close_session()
+        return self.stats
+
+    # ------------------------------------------------------------------ files
+    def _info(self) -> dict:
+        info = {"format": FORMAT, "system": self.system or "", "keys": self.keys, "started_ns": self.started_ns,
+                "source": "traces" if self.from_traces else "direct",
+                "clock": "real", "writer": "iotad record",
+                "time_unit": self._system_time_unit()}
+        if self.split:
+            info["split"] = {"set": self._set_id, "index": len(self.files), "set_file": self.output.name,
+                             "max_size": self.max_size, "max_duration": self.max_duration}
+        return info
+
+    def _open_file(self) -> None:
+        """Begin the recording's (next) file, whole on its own: metadata, system file, the specs
+        known so far. Split: name it in the set file first, so that a reader finds every member."""
+        info = self._info()
+        path = self.output
+        if self.split:
+            path = member_path(self.output, len(self.files))
+            write_set_file(self.output, self._set_id, [p.name for p in self.files] + [path.name],
+                           dict(info, split={"set": self._set_id, "set_file": self.output.name}))
+        self.sink = McapSink(path)
+        self.files.append(path)
+        self._file_opened = time.monotonic()
+        self.sink.add_metadata("iotad.recording", info)
+        if self.system_text is not None:
+            self.sink.attach("system.toml", "application/toml", self.system_text.encode())
+        for spec_path, spec in self.specs.items():
+            self.sink.add_spec(spec_path, spec)
+        self.sink.flush()
+
+    def _finish_file(self) -> None:
+        self.sink.add_metadata("iotad.gaps", {"count": self.stats["gaps"], "missing": self.stats["missing"]})
+        self.sink.add_metadata("iotad.stats", dict(self.stats, stopped_ns=time.time_ns(), files=len(self.files)))
+        self.sink.finish()
+
+    def _split_due(self, now: float, messages: int) -> bool:
+        """Whether the file in progress has reached --max-size or --max-duration (and holds
+        messages: a file is never split off empty)."""
+        if not self.split or not messages:
+            return False
+        if self.max_size is not None and self.sink.size() >= self.max_size:
+            return True
+        return self.max_duration is not None and now - self._file_opened >= self.max_duration
+
+    def _next_file(self) -> None:
+        self._finish_file()
+        self._open_file()
+
+    @property
+    def failed(self) -> BaseException | None:
+        """What ended the writer thread early (a full disk...), or None while it records."""
+        return self._error
+
+    def _close_session(self) -> None:
+        if self._session is not None:
+            self._session.close()
+            self._session = None
+
+    def _system_time_unit(self) -> float:
+        unit = self.system_table.get("time_unit")
+        if unit is None and isinstance(self.system_table.get("system"), dict):
+            unit = self.system_table["system"].get("time_unit")
+        return float(unit) if isinstance(unit, (int, float)) else 1.0
+
+    # ------------------------------------------------------------------ the writer thread
+    def _run(self) -> None:
+        try:
+            self._loop()
+        except BaseException as exc:  # noqa: BLE001 - reported by stop()
+            self._error = exc
+
+    def _loop(self) -> None:
+        sink, stats = self.sink, self.stats
+        receivers = [subscriber.handler.try_recv for subscriber in self._subscribers]
+        ids: dict[str, int] = {}  # key -> channel id in the file in progress
+        last: dict[str, tuple[int, int]] = {}
+        # per @trace key: the `seq` its next burst should have (the last one's + its length)
+        following: dict[str, int] = {}
+        unpack_attachment = msgpack.unpackb
+        write = sink.fast_writer()  # one per sink: it sets sink.write_pair and sink.commit
+        burst = functools.partial(self._burst, write, sink.write_pair)
+        now_ns, monotonic_ns = time.time_ns, time.monotonic_ns
+        period_ns = int(self.flush_period * 1e9)
+        next_flush = monotonic_ns() + period_ns
+        received = written = file_start = 0
+        stopping = self._stopping.is_set
+        quiet_since = stop_at = 0
+        while True:
+            idle = True
+            for receive in receivers:
+                for _ in range(4096):  # then the next key expression, and a flush check
+                    sample = receive()
+                    if sample is None:
+                        break
+                    idle = False
+                    receipt_ns = now_ns()
+                    key = str(sample.key_expr)
+                    received += 1
+                    channel_id = ids.get(key)
+                    if channel_id is None:
+                        channel_id = ids[key] = self._new_channel(key)
+                    sequence, publish_ns = 0, receipt_ns
+                    attachment = sample.attachment
+                    if attachment is not None:
+                        try:
+                            sequence, publish_ns = unpack_attachment(attachment.to_bytes())
+                        except Exception:  # noqa: BLE001 - a foreign publisher's attachment
+                            sequence, publish_ns = 0, receipt_ns
+                        previous = last.get(key)
+                        if previous is not None:
+                            if sequence == previous[0] and publish_ns == previous[1]:
+                                stats["duplicates"] += 1  # one sample through two overlapping key expressions
+                                continue
+                            expected = following.get(key, previous[0] + 1)
+                            if sequence > expected:
+                                self._gap(key, expected, sequence, receipt_ns)
+                        last[key] = (sequence, publish_ns)
+                    data = sample.payload.to_bytes()
+                    if key.endswith("/@trace"):
+                        # a burst of events (or one event, the old form): one message per event
+                        count, n = burst(key, channel_id, data, receipt_ns, publish_ns, sequence, ids, last)
+                        following[key] = sequence + n if attachment is not None else _NEVER
+                        written += count
+                        if monotonic_ns() >= next_flush:
+                            break  # a busy stream must flush on time too
+                        continue
+                    write(channel_id, receipt_ns, publish_ns, sequence, data)
+                    written += 1
+                    if not (received & 255) and monotonic_ns() >= next_flush:
+                        break  # a busy stream must flush on time too
+            sink.commit()  # into the chunk in progress, at most 4096 samples a key expression
+            now = monotonic_ns()
+            if now >= next_flush:
+                sink.flush()
+                stats["flushes"] += 1
+                next_flush = now + period_ns
+                stats["received"], stats["written"] = received, written
+                if self._split_due(now / 1e9, written - file_start):
+                    self._next_file()
+                    sink, file_start = self.sink, written
+                    ids.clear()  # channel ids are per file: each one registers its channels anew
+                    write = sink.fast_writer()
+                    burst = functools.partial(self._burst, write, sink.write_pair)
+            if idle:
+                if stopping():
+                    # what the senders already sent may still be on its way: stop only after
+                    # 100 ms with nothing new (or 5 s after the stop request, whatever comes)
+                    quiet_since = quiet_since or now
+                    stop_at = stop_at or now + 5_000_000_000
+                    if now - quiet_since >= 100_000_000 or now >= stop_at:
+                        break
+                time.sleep(0.002)  # idle: poll gently (the FIFOs hold what comes meanwhile)
+            else:
+                quiet_since = 0
+        stats["received"], stats["written"] = received, written
+
+    def _burst(self, write: Callable, write_pair: Callable, key: str, channel_id: int, data: bytes,
+               receipt_ns: int, publish_ns: int, sequence: int, ids: dict[str, int],
+               last: dict[str, tuple[int, int]]) -> tuple[int, int]:
+        """One `@trace` sample: write each of its events as one message on `key` (sequence: the
+        burst's `seq` plus the event's place in it, as if each had come alone) and, trace-sourced,
+        the message each output or input event describes. A payload that is no event and no
+        burst, or an element that is no event, is a recorded problem (`MALFORMED_TOPIC`), never
+        an error. Returns (messages written, events the burst held: its length in `seq`)."""
+        try:
+            value = self._unpack(data)
+        except Exception as exc:  # noqa: BLE001 - msgpack raises several unrelated types
+            detail = str(exc) or f"starts {data[:16].hex(' ')}"  # some msgpack errors say nothing
+            self._malformed(key, sequence, f"undecodable msgpack ({len(data)} bytes): {type(exc).__name__}: {detail}",
+                            data, receipt_ns)
+            return 0, _NEVER - sequence
+        if value.__class__ is dict:
+            events, single = (value,), True
+        elif value.__class__ is list:
+            events, single = value, False
+        else:
+            self._malformed(key, sequence, f"a {type(value).__name__}, neither an event dict nor a burst (list)",
+                            data, receipt_ns)
+            return 0, _NEVER - sequence
+        pack, derive, output_keys, traced = self._pack, self.from_traces, self._output_keys, self._traced
+        written = 0
+        for position, event in enumerate(events):
+            seq = sequence + position
+            if event.__class__ is not dict:
+                self._malformed(key, seq, f"element {position} of the burst is a {type(event).__name__}, "
+                                f"not an event dict", pack(event), receipt_ns)
+                continue
+            event_data = data if single else pack(event)
+            kind = event.get("kind")
+            if not derive or (kind != "output" and kind != "input"):
+                write(channel_id, receipt_ns, publish_ns, seq, event_data)
+                written += 1
+                continue
+            # an output event of a node host (the common case) is written with its message in
+            # one go; the rest, and anything unexpected, in `_traced`
+            out_key, out_seq, out_ns = event.get("key"), event.get("seq"), event.get("send_ns")
+            fast = (kind == "output" and out_key.__class__ is str and out_seq.__class__ is int
+                    and out_ns.__class__ is int)
+            if fast:
+                if out_key not in output_keys:
+                    output_keys.add(out_key)
+                previous = last.get(out_key)
+                if previous is not None:
+                    if out_seq == previous[0] and out_ns == previous[1]:
+                        fast = False  # a duplicate: _traced counts it
+                    elif out_seq > previous[0] + 1:
+                        self._gap(out_key, previous[0] + 1, out_seq, receipt_ns)
+            if fast:
+                last[out_key] = (out_seq, out_ns)
+                out_id = ids.get(out_key)
+                if out_id is None:
+                    out_id = ids[out_key] = self._new_channel(out_key)
+                write_pair(channel_id, receipt_ns, publish_ns, seq, event_data,
+                           out_id, out_ns, out_seq, pack(event["value"]))
+                written += 2
+            else:
+                write(channel_id, receipt_ns, publish_ns, seq, event_data)
+                written += 1 + traced(key, event, receipt_ns, write, ids, last)
+        return written, len(events)
+
+    def _malformed(self, key: str, sequence: int, message: str, data: bytes, receipt_ns: int) -> None:
+        """Record what could not be read as trace events: on `MALFORMED_TOPIC` (key, seq, why, and
+        the bytes themselves, up to 4 KiB), counted in the stats; the rest of the stream goes on."""
+        self.stats["malformed"] += 1
+        channel_id = self.sink.channel(MALFORMED_TOPIC, "iotad.malformed", schema_for_topic(MALFORMED_TOPIC, {}, {})[1])
+        self.sink.write(channel_id, receipt_ns, receipt_ns, self.stats["malformed"] - 1,
+                        packb({"key": key, "seq": sequence, "message": message, "data": bytes(data[:4096])}))
+
+    def _traced(self, trace_key: str, event: Any, receipt_ns: int, write: Callable, ids: dict[str, int],
+                last: dict[str, tuple[int, int]]) -> int:
+        """Trace-sourced: write the message that an output or input event (decoded) on `trace_key`
+        describes (on its key, publish time and sequence from the sender), unless another node's
+        output records it. Returns how many messages were written (0 or 1)."""
+        key = event.get("key") if isinstance(event, dict) else None
+        if not isinstance(key, str):
+            return 0  # a node host older than these fields: its trace holds its events still
+        if event.get("kind") == "output":
+            self._output_keys.add(key)
+        elif not self._unexplained(key, trace_key):
+            return 0
+        sequence, publish_ns = event.get("seq"), event.get("send_ns")
+        if not (isinstance(sequence, int) and isinstance(publish_ns, int)):
+            sequence, publish_ns = 0, receipt_ns  # an input from a publisher without the attachment
+        else:
+            previous = last.get(key)
+            if previous is not None:
+                if sequence == previous[0] and publish_ns == previous[1]:
+                    self.stats["duplicates"] += 1  # one injected message that two nodes received
+                    return 0
+                if sequence > previous[0] + 1:
+                    self._gap(key, previous[0] + 1, sequence, receipt_ns)
+            last[key] = (sequence, publish_ns)
+        channel_id = ids.get(key)
+        if channel_id is None:
+            channel_id = ids[key] = self._new_channel(key)
+        write(channel_id, receipt_ns, publish_ns, sequence, self._pack(event.get("value")))
+        return 1
+
+    def _unexplained(self, key: str, trace_key: str) -> bool:
+        """Whether an input that arrived on `key` (seen on `trace_key`) is no node's output: a
+        key of the receiving node itself that it never published on (`iotad pub` into its input),
+        or a key of a node that neither the system file names nor has a trace."""
+        parsed = wire.parse_key(key)
+        if parsed is None:
+            return True
+        receiver = trace_key[:-len("/@trace")].split("/", 2)[2]
+        if parsed[1] == receiver:
+            return key not in self._output_keys
+        return parsed[1] not in self._nodes
+
+    def _gap(self, key: str, expected: int, got: int, receipt_ns: int) -> None:
+        missing = got - expected
+        self.stats["gaps"] += 1
+        self.stats["missing"] += missing
+        channel_id = self.sink.channel(GAP_TOPIC, "iotad.gap", schema_for_topic(GAP_TOPIC, {}, {})[1])
+        self.sink.write(channel_id, receipt_ns, receipt_ns, self.stats["gaps"] - 1,
+                        packb({"key": key, "expected": expected, "got": got, "missing": missing}))
+
+    def _new_channel(self, key: str) -> int:
+        parsed = wire.parse_key(key)
+        if parsed is not None and parsed[2] == "@trace":
+            self._nodes.add(parsed[1])
+        if parsed is not None and parsed[1] and self.query_specs:
+            self._ask_spec(parsed[0], parsed[1])
+        name, schema = schema_for_topic(key, self.specs, self._schema_cache)
+        return self.sink.channel(key, name, schema)
+
+    # ------------------------------------------------------------------ specs
+    def _ask_spec(self, system: str, path: str) -> None:
+        """Ask a node for its spec once (a node answers on `<node>/@spec`); store the answer."""
+        if (system, path) in self._asked or path in self.specs:
+            return
+        self._asked.add((system, path))
+        try:
+            replies = self._session.get(f"{wire.PREFIX}/{system}/{path}/@spec", timeout=self.spec_timeout)
+            for reply in replies:
+                sample = reply.ok
+                if sample is None:
+                    continue
+                spec = msgpack.unpackb(sample.payload.to_bytes(), raw=False, strict_map_key=False)
+                if isinstance(spec, dict):
+                    spec.setdefault("path", path)
+                    self.specs[path] = spec
+                    self._schema_cache[path] = channel_schemas(spec)
+                    self.sink.add_spec(path, spec)
+                    break
+        except Exception:  # noqa: BLE001 - a node without a spec is still recorded
+            pass
+
+    def _ask_missing_specs(self) -> None:
+        if not self.query_specs or self._session is None:
+            return
+        seen = set()
+        for topic in self.sink.channels:
+            parsed = wire.parse_key(topic)
+            if parsed and parsed[1] and topic.endswith("/@trace"):
+                seen.add((parsed[0], parsed[1]))
+        for system, path in sorted(seen):
+            if path not in self.specs:
+                self._asked.discard((system, path))
+                self._ask_spec(system, path)
+
+
+def describe(stats: dict) -> str:
+    return json.dumps(stats)

@@ -1,0 +1,167 @@
+"""Replay: re-run one recorded node in virtual time against its recorded inputs and compare its
+outputs with the recorded ones (`replay_node`); or republish a recording on zenoh (`republish`).
+
+The node is rebuilt from the spec stored in the recording; its inputs are the input events of
+its own `@trace` (what it accepted, at the times it accepted them, in its clock), so the replay
+needs no other node. Outputs must agree in order, channel, index and value; times may differ
+by `tolerance` (a real process fires a little after its window opens, the replay exactly then).
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Any, Callable
+
+from iotad.recording.conformance import _same, align_paths, describe
+from iotad.kernel.clock import VirtualClock
+from iotad.kernel.engine import Engine
+from iotad.recording.mcap_io import Recording, RecordingError, build_node, start_time
+
+
+@dataclass
+class ReplayResult:
+    node: str
+    recorded: list[dict]
+    replayed: list[dict]
+    tolerance: float
+    divergence: int | None = None   # index into the compared sequences of the first disagreement
+    reason: str = ""
+    max_time_error: float = 0.0
+    kinds: tuple = ("output",)
+
+    @property
+    def ok(self) -> bool:
+        return self.divergence is None
+
+    def lines(self, context: int = 3) -> list[str]:
+        if self.ok:
+            return [f"{self.node}: replay agrees: {len(self.recorded)} {'/'.join(self.kinds)} events, "
+                    f"largest time difference {self.max_time_error:.3g} (tolerance {self.tolerance:g})"]
+        k = self.divergence
+        out = [f"{self.node}: replay diverges at {'/'.join(self.kinds)} event #{k}: {self.reason}"]
+        lo = max(0, k - context)
+        for title, events in (("recorded", self.recorded), ("replayed", self.replayed)):
+            out.append(f"  {title}:")
+            for j in range(lo, min(len(events), k + context + 1)):
+                mark = ">>" if j == k else "  "
+                out.append(f"   {mark} #{j} {describe(events[j])}")
+            if k >= len(events):
+                out.append(f"   >> #{k} (none: the {title} run ends here)")
+        return out
+
+
+def node_root(recording: Recording, node: str) -> Any:
+    specs = recording.specs
+    if node not in specs:
+        known = ", ".join(sorted(specs)) or "none"
+        raise RecordingError(f"no spec of node {node!r} in {recording.path} (nodes with specs: {known})")
+    return build_node(specs[node], node)
+
+
+def replay_node(recording: Recording, node: str, tolerance: float = 0.01,
+                kinds: tuple = ("output",)) -> ReplayResult:
+    events = recording.trace(node)
+    if not events:
+        raise RecordingError(f"node {node!r} has no @trace events in {recording.path}")
+    root = node_root(recording, node)
+    engine = Engine(root, VirtualClock(start_time(recording.specs.get(node))))
+    mapping = align_paths((e.get("iota", "") for e in events), list(engine.leaves))
+    reverse = {}
+    for recorded_name, leaf in mapping.items():
+        reverse.setdefault(leaf, recorded_name)
+    # Inputs bound to an output inside the node (a composite) are delivered by that output's
+    # firing in the replay too: their recorded input events are not posted again.
+    bound = {id(target) for slot in engine.slots.values() for target in slot.targets}
+    for event in events:
+        if event.get("kind") == "input":
+            slot = engine.slots.get((mapping[event.get("iota", "")], event["action"], event.get("index")))
+            if slot is not None and id(slot) in bound:
+                continue
+            engine.post(mapping[event.get("iota", "")], event["action"], event.get("value"), event.get("index"),
+                        t=float(event["t"]))
+    end = max(float(e["t"]) for e in events)
+    engine.run(end + tolerance)
+    recorded = [e for e in events if e.get("kind") in kinds]
+    replayed = [dict(e, iota=reverse.get(e["iota"], e["iota"])) for e in engine.trace if e["kind"] in kinds]
+    # A firing the recording may simply not have reached (it ended first) is not a divergence.
+    while len(replayed) > len(recorded) and replayed[-1]["t"] > end:
+        replayed.pop()
+    result = ReplayResult(node, recorded, replayed, tolerance, kinds=kinds)
+    for k in range(max(len(recorded), len(replayed))):
+        if k >= len(recorded):
+            result.divergence, result.reason = k, f"the replay has an extra event: {describe(replayed[k])}"
+            break
+        if k >= len(replayed):
+            result.divergence, result.reason = k, f"the replay never produced {describe(recorded[k])}"
+            break
+        a, b = recorded[k], replayed[k]
+        if (a["action"], a.get("index"), a.get("kind")) != (b["action"], b.get("index"), b.get("kind")) \
+                or not _same(a.get("value"), b.get("value")):
+            result.divergence, result.reason = k, f"recorded {describe(a)}, replayed {describe(b)}"
+            break
+        error = abs(float(a["t"]) - float(b["t"]))
+        result.max_time_error = max(result.max_time_error, error)
+        if error > tolerance:
+            result.divergence, result.reason = k, (f"{describe(a)} was replayed at t={b['t']:.6g}: "
+                                                   f"{error:.3g} apart, beyond the tolerance {tolerance:g}")
+            break
+    return result
+
+
+# ------------------------------------------------------------------------------------ live
+def republish(recording: Recording, session: Any, *, rate: float = 1.0, start: float = 0.0, loop: bool = False,
+              progress: Callable[[int, int], None] | None = None, stop: Callable[[], bool] = lambda: False) -> int:
+    """Publish every message on its key at its recorded pace (divided by `rate`), from `start`
+    seconds into the recording. Attachments are fresh `[sequence, send_time_ns]`. Returns the count."""
+    from iotad.host import wire
+
+    # Paced by the senders' send times where the recording has them: a trace-sourced recording's
+    # log times are burst arrivals (20 ms lumps), not when the messages were sent.
+    def sent_at(message: Any) -> int:
+        return message.publish_time or message.log_time
+
+    messages = sorted((m for m in recording.messages if not m.topic.startswith("@")), key=sent_at)
+    if not messages:
+        return 0
+    first = sent_at(messages[0]) + int(start * 1e9)
+    messages = [m for m in messages if sent_at(m) >= first]
+    publishers: dict[str, Any] = {}
+    sequences: dict[str, int] = {}
+    sent = 0
+    try:
+        while True:
+            t0 = time.monotonic()
+            for k, message in enumerate(messages):
+                if stop():
+                    return sent
+                due = t0 + (sent_at(message) - first) / 1e9 / rate
+                delay = due - time.monotonic()
+                if delay > 0:
+                    time.sleep(delay)
+                publisher = publishers.get(message.topic)
+                if publisher is None:
+                    publisher = publishers[message.topic] = session.declare_publisher(message.topic)
+                seq = sequences.get(message.topic, 0)
+                sequences[message.topic] = seq + 1
+                publisher.put(message.data, attachment=wire.encode_attachment(seq))
+                sent += 1
+                if progress is not None:
+                    progress(k + 1, len(messages))
+            if not loop:
+                return sent
+    finally:
+        for publisher in publishers.values():
+            publisher.undeclare()
+
+
+def default_tolerance(recording: Recording) -> float:
+    """Virtual-time recordings replay exactly; real ones get 10 ms (in spec time units)."""
+    info = recording.info
+    if info.get("clock") == "virtual":
+        return 1e-9
+    unit = info.get("time_unit") or 1.0
+    try:
+        return 0.01 / float(unit)
+    except (TypeError, ValueError, ZeroDivisionError):
+        return 0.01
+

@@ -1,0 +1,136 @@
+"""A timeline of motor arbitration from a recording: who held the motors, the acks, the violations.
+
+The scheduler node is the one whose trace has `schedule` firings (or the one named). A requester
+holds the motors from its `schedule[i]` firing until its `commit[i]`, or until another request
+is scheduled over it (pre-emption: an ABORT follows). Requester names come from the bindings in
+the stored system file (`vision.req -> scheduler.req[0]`), else `req[i]`.
+"""
+from __future__ import annotations
+
+import json
+import re
+import tomllib
+from pathlib import Path
+
+from iotad.recording.mcap_io import Recording, RecordingError
+
+ACK_STYLE = {"COMMIT": ("o", "#2a9d3f"), "ABORT": ("v", "#e08a00"), "REJECT": ("X", "#c62828")}
+_TARGET = re.compile(r"^(?P<node>[\w/]+)\.(?P<channel>\w+)\[(?P<index>\d+)\]$")
+
+
+def requester_names(recording: Recording, scheduler: str) -> dict[int, str]:
+    """index -> requester name, from `[[bind]]` tables (TOML) or `bindings` (in-process JSON)."""
+    pairs: list[tuple[str, str]] = []
+    for attachment in recording.attachments:
+        try:
+            if attachment.name == "system.toml":
+                table = tomllib.loads(attachment.data.decode())
+                pairs += [(b.get("from", ""), b.get("to", "")) for b in table.get("bind", []) if isinstance(b, dict)]
+            elif attachment.name == "system.json":
+                pairs += [tuple(p) for p in json.loads(attachment.data).get("bindings", [])]
+        except (ValueError, UnicodeDecodeError, AttributeError):
+            continue
+    names = {}
+    for source, target in pairs:
+        match = _TARGET.match(target.strip())
+        if match and match["node"].split("/")[-1] == scheduler.split("/")[-1]:
+            names[int(match["index"])] = source.split(".")[0].split("/")[-1]
+    return names
+
+
+def find_scheduler(recording: Recording) -> str:
+    best, most = None, 0
+    for node in recording.nodes():
+        count = sum(1 for e in recording.trace(node) if e.get("action") == "schedule")
+        if count > most:
+            best, most = node, count
+    if best is None:
+        raise RecordingError("no node with 'schedule' firings in this recording: name one with --node")
+    return best
+
+
+def timeline(recording: Recording, scheduler: str) -> dict:
+    events = recording.trace(scheduler)
+    holds, acks, requests = [], [], []
+    holder, since = None, None
+    end = max((float(e["t"]) for e in events), default=0.0)
+    for event in events:
+        t, action, index, kind = float(event["t"]), event.get("action"), event.get("index"), event.get("kind")
+        index = 0 if index is None else index  # a scheduler of one requester: plain req, ack channels
+        if action == "schedule" and kind == "internal":
+            if holder is not None:
+                holds.append((holder, since, t, "pre-empted"))
+            holder, since = index, t
+        elif action == "commit" and kind == "internal" and index == holder:
+            holds.append((holder, since, t, "committed"))
+            holder = None
+        elif action == "ack" and kind == "output":
+            acks.append((index, t, event.get("value")))
+        elif action == "req" and kind == "input":
+            requests.append((index, t))
+    if holder is not None:
+        holds.append((holder, since, end, "holding"))
+    violations = [(e["node"], float(e["t"]), (e.get("value") or {}).get("violation", "?"), e.get("action"))
+                  for e in recording.violations()]
+    return {"holds": holds, "acks": acks, "requests": requests, "violations": violations, "end": end}
+
+
+def plot(recording: Recording, output: str | Path, scheduler: str | None = None, title: str | None = None) -> Path:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+
+    scheduler = scheduler or find_scheduler(recording)
+    data = timeline(recording, scheduler)
+    names = requester_names(recording, scheduler)
+    indexes = sorted({h[0] for h in data["holds"]} | {a[0] for a in data["acks"]} | {r[0] for r in data["requests"]}
+                     | set(names))
+    rows = {index: k for k, index in enumerate(indexes)}
+    violation_row = len(indexes)
+    fig, ax = plt.subplots(figsize=(11, 1.2 + 0.8 * (len(indexes) + 1)))
+    palette = plt.get_cmap("tab10")
+    for index, start, stop, how in data["holds"]:
+        y = rows[index]
+        ax.barh(y, max(stop - start, 1e-3), left=start, height=0.5, color=palette(index % 10), alpha=0.55,
+                edgecolor="black", linewidth=0.6, hatch="//" if how == "pre-empted" else None)
+    for index, t in data["requests"]:
+        ax.plot([t, t], [rows[index] - 0.32, rows[index] + 0.32], color="0.3", linewidth=1.2)
+    for index, t, value in data["acks"]:
+        marker, color = ACK_STYLE.get(value if isinstance(value, str) else None, ("s", "0.4"))  # struct acks too
+        ax.plot(t, rows[index] + 0.42, marker=marker, color=color, markersize=9, markeredgecolor="black",
+                markeredgewidth=0.5, linestyle="none")
+    codes: dict[str, int] = {}
+    for node, t, code, action in data["violations"]:
+        codes[code] = codes.get(code, 0) + 1
+        ax.plot(t, violation_row, marker="|", color="#c62828", markersize=18, markeredgewidth=2)
+        if len(data["violations"]) <= 4:  # few: name each; many: the summary below says what they are
+            ax.annotate(f"{node}.{action}: {code}", (t, violation_row), xytext=(3, -12),
+                        textcoords="offset points", fontsize=7, color="#c62828")
+    if codes:
+        summary = ", ".join(f"{code} x{n}" for code, n in sorted(codes.items()))
+        ax.annotate(summary, (1.0, 0.02), xycoords="axes fraction", ha="right", va="bottom", fontsize=8,
+                    color="#c62828")
+    labels = [f"{names.get(i, f'req[{i}]')}  (req[{i}])" if i in names else f"req[{i}]" for i in indexes]
+    ax.set_yticks(list(range(len(indexes))) + [violation_row], labels + [f"violations ({len(data['violations'])})"])
+    ax.set_ylim(-0.7, violation_row + 0.8)
+    ax.invert_yaxis()
+    ax.set_xlim(0, max(data["end"], 1e-3) * 1.02)
+    ax.set_xlabel("time (node clock, spec units)")
+    ax.grid(axis="x", alpha=0.3)
+    system = recording.system or ""
+    ax.set_title(title or f"{system}: who held the motors ({scheduler})", fontsize=11)
+    legend = [Patch(facecolor="0.7", edgecolor="black", label="holds the motors"),
+              Patch(facecolor="0.7", edgecolor="black", hatch="//", label="held, then pre-empted"),
+              Line2D([], [], color="0.3", label="request"),
+              *[Line2D([], [], marker=m, color=c, linestyle="none", markeredgecolor="black", label=f"ack {v}")
+                for v, (m, c) in ACK_STYLE.items()],
+              Line2D([], [], marker="|", color="#c62828", linestyle="none", markersize=12, label="violation")]
+    ax.legend(handles=legend, loc="upper center", bbox_to_anchor=(0.5, -0.32 if len(indexes) < 3 else -0.2),
+              ncol=7, fontsize=8, frameon=False)
+    fig.tight_layout()
+    output = Path(output)
+    fig.savefig(output, dpi=110)
+    plt.close(fig)
+    return output

@@ -1,0 +1,501 @@
+"""`CanMotor`, the CAN motor node: joint setpoints to ODrive CAN Simple frames, CAN feedback to joint states.
+
+One IOTA drives one CAN bus of ODrive axes (firmware 0.6), one axis per joint of its joint map
+(`nodes/can_motor/joint_map.py`). docs/can_motor.md is the full description; in short:
+
+- Arming, per axis, at start and on every retry: Clear_Errors, Set_Controller_Mode (the joint's
+  mode and input mode), Set_Limits, the optional gain and trajectory settings, Set_Axis_State
+  CLOSED_LOOP_CONTROL; armed once a Heartbeat shows CLOSED_LOOP_CONTROL, else ARM_TIMEOUT after
+  `arm_timeout` and another try `arm_retry` later.
+- Every `setpoints` message sends one frame per armed axis, by the joint's mode: Set_Input_Pos
+  (position, velocity and torque feed-forward), Set_Input_Vel (velocity_ff, torque feed-forward)
+  or Set_Input_Torque (torque_ff). A value outside the joint's limits is rejected or clamped as
+  its `out_of_range` says, and reported on `joint_status`.
+- Feedback: Heartbeat, Get_Encoder_Estimates (cyclic), Get_Error and the other axis messages
+  (polled with remote frames as `polls` says); `joint_states` every `state_period` once every
+  joint has reported a position; `joint_status[i]` at every heartbeat and every event.
+- A heartbeat missing for `lost_after` heartbeat periods: LOST. Frames it cannot use go to
+  `bad_frame`. `estop = true` (and `final_can_frames`, the node host's shutdown hook) sends
+  Estop to every axis; `estop = false` resets ESTOPPED and FAULT axes, which then re-arm.
+
+Times are seconds: run it with time_unit = 1.0.
+"""
+from __future__ import annotations
+
+import math
+from collections import deque
+from typing import Any
+
+from channels.joints import joint_setpoints, joint_states
+from channels.motor import BAD_FRAME, JOINT_STATUS
+from iotad.can.frame import CAN_FRAME, Frame, FrameError
+from iotad.can.odrive import (AXIS_STATE, CONTROL_MODE, INPUT_MODE, MESSAGES, EncodeError, MalformedFrame,
+                              UnknownFrame, decode, encode, node_id_of, request)
+from iotad.kernel.api import Input, Internal, Iota, Output, Param
+from iotad.kernel.types import Bool
+
+from .joint_map import JointConfig, JointMapError, parse_joints
+
+CLOSED_LOOP = AXIS_STATE["CLOSED_LOOP_CONTROL"]
+FF_MAX = 32.767  # Set_Input_Pos carries Vel_FF and Torque_FF as int16 x 0.001
+FLOAT_MAX = 1.7976931348623157e308
+
+# Messages an axis sends that the node may poll with a remote frame (the `polls` parameter).
+POLLABLE = ("Get_Error", "Get_Encoder_Estimates", "Get_Torques", "Get_Iq", "Get_Temperature",
+            "Get_Bus_Voltage_Current", "Get_Powers", "Get_Version")
+
+UNARMED, ARMING, ARMED, FAULT, ESTOPPED = "UNARMED", "ARMING", "ARMED", "FAULT", "ESTOPPED"
+
+
+class Axis:
+    """What the node knows about one axis; plain state, changed only by the node's actions."""
+
+    def __init__(self, node_id: int):
+        self.node_id = node_id
+        self.phase = UNARMED
+        self.retry = False            # the next arming is a retry: it waits arm_retry first
+        self.lost = False
+        self.beat = False             # a heartbeat's report is waiting to go out (see `lost`)
+        self.heard = False            # any heartbeat ever
+        self.axis_state = 0
+        self.axis_error = 0
+        self.procedure_result = 0
+        self.trajectory_done = False
+        self.active_errors = 0
+        self.disarm_reason = 0
+        self.has_position = False
+        self.position = 0.0           # joint units
+        self.velocity = 0.0
+        self.effort = 0.0
+        self.command = 0.0            # the joint-unit command the axis follows now
+        self.last_sent = 0            # the tick of the last command (or arming) frame
+        self.torque_estimate = 0.0    # controller units from here on
+        self.iq_measured = 0.0
+        self.fet_temperature = 0.0
+        self.motor_temperature = 0.0
+        self.bus_voltage = 0.0
+        self.bus_current = 0.0
+
+
+class CanMotor(Iota):
+    """The CAN motor node. `CanMotor(name, joints=[...])` builds the IOTA sized for its joint map:
+    `setpoints` is jointSetpoints<N> and `joint_states` jointStates<N> for N joints."""
+
+    joints = Param(None)            # the joint map (required): see joint_map.py
+    heartbeat_period = Param(0.1)   # s, the axes' Heartbeat period
+    lost_after = Param(3)           # heartbeat periods without one before LOST
+    encoder_period = Param(0.01)    # s, the axes' cyclic Get_Encoder_Estimates period
+    state_period = Param(0.0)       # s between joint_states; 0: encoder_period
+    polls = Param({"Get_Error": 0.1})  # message name -> s between remote requests (0: off)
+    arm_timeout = Param(1.0)        # s from the arming sequence to a closed-loop heartbeat
+    arm_retry = Param(0.5)          # s after an ARM_TIMEOUT (or a FAULT with auto_rearm) to try again
+    auto_rearm = Param(False)       # re-arm an axis that left closed loop on its own
+    keepalive = Param(0.05)         # s without a command before an ARMED axis gets its last one again; 0: off
+    arm_hold = Param(0.05)          # s between hold commands to an ARMING axis (feeds its watchdog); 0: off
+    reaction_time = Param(0.003)    # s: outputs go out within this of what caused them
+
+    # Sized per joint map (see `_sized`); the declarations here are for six joints.
+    setpoints = Input(joint_setpoints(6), switching=0)
+    can_rx = Input(CAN_FRAME, switching=0)
+    estop = Input(Bool, switching=0)
+    can_tx = Output(CAN_FRAME, switching=0)
+    joint_states = Output(joint_states(6), switching=0)
+    joint_status = Output(JOINT_STATUS, size=6, switching=0)
+    bad_frame = Output(BAD_FRAME, switching=0)
+    arm = Internal(size=6)
+    arm_timeout_expired = Internal(size=6)
+    heartbeat_lost = Internal(size=6)
+    tick = Internal()
+
+    def __new__(cls, name: str | None = None, **params: Any):
+        if cls is CanMotor:  # pick the class sized for this joint map
+            cls = _sized(len(_joint_map(params.get("joints"))))
+        return super().__new__(cls)
+
+    def init(self):
+        self.joint_map = _joint_map(self.joints)
+        self.by_node = {joint.node_id: k for k, joint in enumerate(self.joint_map)}
+        self.period = _check_period("state_period", self.state_period or self.encoder_period)
+        self.lost_timeout = _check_period("heartbeat_period", self.heartbeat_period) * _count(self.lost_after)
+        self.poll_plan = _poll_plan(self.polls, self.period)
+        self.keepalive_ticks = _ticks("keepalive", self.keepalive, self.period)
+        self.arm_hold_ticks = _ticks("arm_hold", self.arm_hold, self.period)
+        self.axes = [Axis(joint.node_id) for joint in self.joint_map]
+        self.reports: list[list[tuple]] = [[] for _ in self.joint_map]  # (event, requested, applied)
+        self.tx: deque[Frame] = deque()
+        self.bad: list = []
+        self.estopped = False
+        self.ticks = 0
+        self.states_due = False
+
+    # ------------------------------------------------------------------ inputs
+    @setpoints.input
+    def on_setpoints(self, value):
+        if not self.estopped:
+            self._command(value)
+
+    @can_rx.input
+    def on_can_rx(self, value):
+        self._receive(value)
+
+    @estop.input
+    def on_estop(self, value):
+        if value:
+            self._estop()
+        else:
+            self._reset()
+
+    def final_can_frames(self) -> list:
+        """The shutdown hook of the node host (iotad/host/node_host.py): the frames it sends on the
+        bus after the engine stopped, before the bus closes: Estop to every axis."""
+        return [encode(axis.node_id, "Estop").to_value() for axis in self.axes]
+
+    # ------------------------------------------------------------------ arming and timers
+    @arm.action(when=lambda self, i: self.axes[i].phase == UNARMED and not self.axes[i].lost,
+                after=lambda self, i: self.arm_retry if self.axes[i].retry else 0.0)
+    def send_arming(self, i):
+        self._send_arming(i)
+
+    @arm_timeout_expired.action(when=lambda self, i: self.axes[i].phase == ARMING, after="arm_timeout")
+    def on_arm_timeout(self, i):
+        self.axes[i].phase = UNARMED
+        self.reports[i].append(("ARM_TIMEOUT", 0.0, 0.0))
+
+    # Restarted by every heartbeat: `beat` is true from a heartbeat until its report is out.
+    @heartbeat_lost.action(when=lambda self, i: not self.axes[i].beat and not self.axes[i].lost,
+                           after=lambda self, i: self.lost_timeout)
+    def on_heartbeat_lost(self, i):
+        self.axes[i].lost = True
+        self.reports[i].append(("LOST", 0.0, 0.0))
+
+    @tick.action(after=lambda self: self.period)
+    def on_tick(self):
+        self._tick()
+
+    # ------------------------------------------------------------------ outputs
+    @can_tx.action(value=lambda self: self.tx[0].to_value(), when=lambda self: bool(self.tx),
+                   within=(0, "reaction_time"))
+    def sent_frame(self):
+        self.tx.popleft()
+
+    @joint_status.action(value=lambda self, i: _status(i, self.axes[i], self.reports[i][0]),
+                         when=lambda self, i: bool(self.reports[i]), within=(0, "reaction_time"))
+    def sent_status(self, i):
+        self.reports[i].pop(0)
+        if not self.reports[i]:
+            self.axes[i].beat = False
+
+    @bad_frame.action(value=lambda self: self.bad[0], when=lambda self: bool(self.bad),
+                      within=(0, "reaction_time"))
+    def sent_bad_frame(self):
+        self.bad.pop(0)
+
+    @joint_states.action(value=lambda self: self._joint_states(), when=lambda self: self.states_due,
+                         within=(0, "reaction_time"))
+    def sent_joint_states(self):
+        self.states_due = False
+
+    # ------------------------------------------------------------------ behaviour
+    def _send_arming(self, i: int) -> None:
+        joint, axis = self.joint_map[i], self.axes[i]
+        node = joint.node_id
+        frames = [encode(node, "Clear_Errors", Identify=0),
+                  encode(node, "Set_Controller_Mode", Control_Mode=CONTROL_MODE[joint.control_mode],
+                         Input_Mode=INPUT_MODE[joint.input_mode]),
+                  encode(node, "Set_Limits", Velocity_Limit=joint.motor_velocity_limit,
+                         Current_Limit=joint.current_limit)]
+        if joint.pos_gain is not None:
+            frames.append(encode(node, "Set_Pos_Gain", Pos_Gain=joint.pos_gain))
+        if joint.vel_gain is not None:
+            frames.append(encode(node, "Set_Vel_Gains", Vel_Gain=joint.vel_gain,
+                                 Vel_Integrator_Gain=joint.vel_integrator_gain))
+        if joint.traj_vel_limit is not None:
+            frames.append(encode(node, "Set_Traj_Vel_Limit", Traj_Vel_Limit=joint.traj_vel_limit))
+        if joint.traj_accel_limit is not None:
+            frames.append(encode(node, "Set_Traj_Accel_Limits", Traj_Accel_Limit=joint.traj_accel_limit,
+                                 Traj_Decel_Limit=joint.traj_decel_limit))
+        if joint.traj_inertia is not None:
+            frames.append(encode(node, "Set_Traj_Inertia", Traj_Inertia=joint.traj_inertia))
+        frames.append(encode(node, "Set_Axis_State", Axis_Requested_State=CLOSED_LOOP))
+        self.tx.extend(frames)
+        axis.phase = ARMING
+        axis.retry = True  # until a reset: an axis that fails or drops out is not hammered
+        axis.last_sent = self.ticks
+        axis.command = axis.position if joint.mode == "position" else 0.0
+        self.reports[i].append(("ARM_SENT", 0.0, 0.0))
+
+    def _command(self, value) -> None:
+        for i, joint in enumerate(self.joint_map):
+            axis = self.axes[i]
+            if axis.phase != ARMED:
+                continue  # not armed: the firmware would refuse or ignore it
+            if joint.mode == "position":
+                wanted, low, high = value.position[i], joint.position_min, joint.position_max
+            elif joint.mode == "velocity":
+                wanted, low, high = value.velocity_ff[i], -joint.velocity_limit, joint.velocity_limit
+            else:
+                wanted, low, high = value.torque_ff[i], -joint.torque_limit, joint.torque_limit
+            applied = wanted
+            if not math.isfinite(wanted):
+                self._report(i, "SETPOINT_REJECTED", wanted, axis.command)
+                continue
+            if not low <= wanted <= high:
+                if joint.out_of_range == "reject":
+                    self._report(i, "SETPOINT_REJECTED", wanted, axis.command)
+                    continue
+                applied = min(max(wanted, low), high)
+            try:
+                frame = _setpoint_frame(joint, applied, value.velocity_ff[i], value.torque_ff[i])
+            except EncodeError:  # e.g. a position of 1e300 turns with no limits: no float32 holds it
+                self._report(i, "SETPOINT_REJECTED", wanted, axis.command)
+                continue
+            self.tx.append(frame)
+            axis.command = applied
+            axis.last_sent = self.ticks
+            if applied != wanted:
+                self._report(i, "SETPOINT_CLAMPED", wanted, applied)
+
+    def _receive(self, value) -> None:
+        try:
+            frame = Frame.from_value(value)
+        except FrameError:
+            self._bad("MALFORMED", value)
+            return
+        if frame.extended:
+            self._bad("EXTENDED_ID", value)
+            return
+        i = self.by_node.get(node_id_of(frame.id))
+        if i is None:
+            self._bad("UNKNOWN_NODE", value)
+            return
+        try:
+            message = decode(frame)
+        except UnknownFrame:
+            self._bad("UNKNOWN_COMMAND", value)
+            return
+        except MalformedFrame:
+            self._bad("WRONG_DLC", value)
+            return
+        if message.rtr or MESSAGES[message.name].sender == "host":
+            self._bad("UNEXPECTED", value)
+            return
+        signals = message.signals
+        if not all(math.isfinite(v) for v in signals.values()):
+            self._bad("BAD_VALUE", value)
+            return
+        handler = _HANDLERS.get(message.name)
+        if handler is not None:
+            handler(self, i, signals)
+        # Get_Version, TxSdo, Address, Get_Powers: valid, nothing here uses them
+
+    def _on_heartbeat(self, i: int, signals: dict) -> None:
+        axis = self.axes[i]
+        previous_error = axis.axis_error
+        axis.axis_error = signals["Axis_Error"]
+        axis.axis_state = signals["Axis_State"]
+        axis.procedure_result = signals["Procedure_Result"]
+        axis.trajectory_done = bool(signals["Trajectory_Done_Flag"])
+        axis.heard = True
+        axis.beat = True
+        events = []
+        if axis.lost:
+            axis.lost = False
+            events.append("FOUND")
+        closed = axis.axis_state == CLOSED_LOOP
+        if axis.phase == ARMING and closed:
+            axis.phase = ARMED
+            axis.command = axis.position  # the firmware holds where it is on entering closed loop
+            events.append("ARM_DONE")
+        elif axis.phase == ARMED and not closed:
+            axis.phase = UNARMED if self.auto_rearm else FAULT
+            events.append("DISARMED")
+        elif axis.phase == ESTOPPED and closed:
+            self.tx.append(encode(axis.node_id, "Estop"))  # it missed the Estop (or came back): again
+        if axis.axis_error and axis.axis_error != previous_error:
+            events.append("AXIS_ERROR")
+        for event in events or ["HEARTBEAT"]:
+            self.reports[i].append((event, 0.0, 0.0))
+
+    def _on_encoder_estimates(self, i: int, signals: dict) -> None:
+        joint, axis = self.joint_map[i], self.axes[i]
+        axis.position = joint.position(signals["Pos_Estimate"])
+        axis.velocity = joint.velocity(signals["Vel_Estimate"])
+        axis.has_position = True
+
+    def _on_error(self, i: int, signals: dict) -> None:
+        axis = self.axes[i]
+        active, reason = signals["Active_Errors"], signals["Disarm_Reason"]
+        if (active, reason) != (axis.active_errors, axis.disarm_reason):
+            axis.active_errors, axis.disarm_reason = active, reason
+            self.reports[i].append(("ERRORS", 0.0, 0.0))
+
+    def _on_torques(self, i: int, signals: dict) -> None:
+        axis = self.axes[i]
+        axis.torque_estimate = signals["Torque_Estimate"]
+        axis.effort = self.joint_map[i].torque(axis.torque_estimate)
+
+    def _on_iq(self, i: int, signals: dict) -> None:
+        self.axes[i].iq_measured = signals["Iq_Measured"]
+
+    def _on_temperature(self, i: int, signals: dict) -> None:
+        axis = self.axes[i]
+        axis.fet_temperature, axis.motor_temperature = signals["FET_Temperature"], signals["Motor_Temperature"]
+
+    def _on_bus(self, i: int, signals: dict) -> None:
+        axis = self.axes[i]
+        axis.bus_voltage, axis.bus_current = signals["Bus_Voltage"], signals["Bus_Current"]
+
+    def _estop(self) -> None:
+        self.estopped = True
+        for i, axis in enumerate(self.axes):
+            self.tx.append(encode(axis.node_id, "Estop"))
+            axis.phase = ESTOPPED
+            self.reports[i].append(("ESTOP", 0.0, 0.0))
+
+    def _reset(self) -> None:
+        self.estopped = False
+        for i, axis in enumerate(self.axes):
+            if axis.phase in (ESTOPPED, FAULT):
+                axis.phase = UNARMED
+                axis.retry = False
+                self.reports[i].append(("RESET", 0.0, 0.0))
+
+    def _tick(self) -> None:
+        self.ticks += 1
+        if self.keepalive_ticks or self.arm_hold_ticks:
+            self._keep_alive()
+        for name, every in self.poll_plan:
+            if self.ticks % every == 0:
+                self.tx.extend(request(axis.node_id, name) for axis in self.axes if not axis.lost)
+        if all(axis.has_position for axis in self.axes):
+            self.states_due = True
+
+    def _keep_alive(self) -> None:
+        """Feed the firmware's watchdog. An ARMED axis with no command for `keepalive` gets its last
+        command again (no feed-forward). An ARMING axis gets "hold where you are" (the measured
+        position, or 0 velocity or torque) every `arm_hold`: the firmware is in closed loop, its
+        watchdog running, up to a heartbeat period before its heartbeat says so."""
+        for joint, axis in zip(self.joint_map, self.axes):
+            every = self.keepalive_ticks if axis.phase == ARMED else self.arm_hold_ticks if axis.phase == ARMING else 0
+            if not every or axis.lost or self.ticks - axis.last_sent < every:
+                continue
+            if axis.phase == ARMING and joint.mode == "position":
+                if not axis.has_position:
+                    continue
+                axis.command = axis.position
+            self.tx.append(_setpoint_frame(joint, axis.command, 0.0, 0.0))
+            axis.last_sent = self.ticks
+
+    def _joint_states(self):
+        axes = self.axes
+        return self.joint_states_type(position=[a.position for a in axes], velocity=[a.velocity for a in axes],
+                                      effort=[a.effort for a in axes], stamp=self.ticks * self.period)
+
+    def _report(self, i: int, event: str, requested: float, applied: float) -> None:
+        self.reports[i].append((event, _finite(requested), applied))
+
+    def _bad(self, reason: str, value) -> None:
+        self.bad.append(BAD_FRAME(reason=reason, frame=value))
+
+
+_HANDLERS = {"Heartbeat": CanMotor._on_heartbeat, "Get_Encoder_Estimates": CanMotor._on_encoder_estimates,
+             "Get_Error": CanMotor._on_error, "Get_Torques": CanMotor._on_torques, "Get_Iq": CanMotor._on_iq,
+             "Get_Temperature": CanMotor._on_temperature, "Get_Bus_Voltage_Current": CanMotor._on_bus}
+
+
+def _setpoint_frame(joint: JointConfig, command: float, velocity_ff: float, torque_ff: float) -> Frame:
+    """The frame that commands `command` (joint units, in the joint's mode) with feed-forward.
+    Feed-forward is limited to the joint's limits and to what the frame can carry, silently."""
+    node = joint.node_id
+    torque_ff = _saturate(torque_ff, joint.torque_limit)
+    if joint.mode == "position":
+        velocity_ff = _saturate(velocity_ff, joint.velocity_limit)
+        return encode(node, "Set_Input_Pos", Input_Pos=joint.turns(command),
+                      Vel_FF=_saturate(joint.turns_per_second(velocity_ff), FF_MAX),
+                      Torque_FF=_saturate(joint.motor_torque(torque_ff), FF_MAX))
+    if joint.mode == "velocity":
+        return encode(node, "Set_Input_Vel", Input_Vel=joint.turns_per_second(command),
+                      Input_Torque_FF=joint.motor_torque(torque_ff))
+    return encode(node, "Set_Input_Torque", Input_Torque=joint.motor_torque(command))
+
+
+def _status(i: int, axis: Axis, report: tuple):
+    event, requested, applied = report
+    return JOINT_STATUS(joint=i, node_id=axis.node_id, event=event, phase=axis.phase, lost=axis.lost,
+                        axis_state=axis.axis_state, axis_error=axis.axis_error,
+                        procedure_result=axis.procedure_result, trajectory_done=axis.trajectory_done,
+                        active_errors=axis.active_errors, disarm_reason=axis.disarm_reason,
+                        requested=requested, applied=applied, torque_estimate=axis.torque_estimate,
+                        iq_measured=axis.iq_measured, fet_temperature=axis.fet_temperature,
+                        motor_temperature=axis.motor_temperature, bus_voltage=axis.bus_voltage,
+                        bus_current=axis.bus_current)
+
+
+def _saturate(value: float, limit: float) -> float:
+    return value if -limit <= value <= limit else math.copysign(limit, value)
+
+
+def _finite(value: float) -> float:
+    """A value a Float channel can carry: +-inf as the largest float (the event says it was bad)."""
+    return value if math.isfinite(value) else math.copysign(FLOAT_MAX, value)
+
+
+def _joint_map(value: Any) -> tuple[JointConfig, ...]:
+    if value is None:
+        raise JointMapError("CanMotor needs a joint map: joints = [{ name = \"joint1\", node_id = 1 }, ...] "
+                            "(docs/can_motor.md)")
+    return parse_joints(value)
+
+
+def _check_period(name: str, value: Any) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value < math.inf:
+        raise ValueError(f"CanMotor: {name} must be a positive number of seconds, got {value!r}")
+    return float(value)
+
+
+def _count(value: Any) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+        raise ValueError(f"CanMotor: lost_after must be a whole number of heartbeat periods >= 1, got {value!r}")
+    return value
+
+
+def _ticks(name: str, seconds: Any, period: float) -> int:
+    """Seconds as whole ticks, at least one (0: off)."""
+    if isinstance(seconds, bool) or not isinstance(seconds, (int, float)) or not 0 <= seconds < math.inf:
+        raise ValueError(f"CanMotor: {name} must be seconds >= 0 (0: off), got {seconds!r}")
+    return max(1, round(seconds / period)) if seconds > 0 else 0
+
+
+def _poll_plan(polls: Any, period: float) -> tuple[tuple[str, int], ...]:
+    """(message, every how many ticks) for each poll; a period rounds to whole ticks, at least one."""
+    if not isinstance(polls, dict):
+        raise ValueError(f"CanMotor: polls must be a table of message name -> seconds, got {polls!r}")
+    plan = []
+    for name, seconds in polls.items():
+        if name not in POLLABLE:
+            raise ValueError(f"CanMotor: polls: {name!r} cannot be polled; one of {', '.join(POLLABLE)}")
+        if isinstance(seconds, bool) or not isinstance(seconds, (int, float)) or not 0 <= seconds < math.inf:
+            raise ValueError(f"CanMotor: polls.{name} must be seconds >= 0 (0: off), got {seconds!r}")
+        if seconds > 0:
+            plan.append((name, max(1, round(seconds / period))))
+    return tuple(plan)
+
+
+_CLASSES: dict[int, type] = {}
+
+
+def _sized(joints: int) -> type:
+    """The CanMotor class for `joints` joints: its channels typed and sized for that count (a
+    spec's channel types are fixed per class, so each joint count gets one class, cached)."""
+    cls = _CLASSES.get(joints)
+    if cls is None:
+        cls = type("CanMotor", (CanMotor,), {
+            "__module__": CanMotor.__module__, "__qualname__": "CanMotor", "__doc__": CanMotor.__doc__,
+            "joint_states_type": joint_states(joints),
+            "setpoints": Input(joint_setpoints(joints), switching=0),
+            "joint_states": Output(joint_states(joints), switching=0),
+            "joint_status": Output(JOINT_STATUS, size=joints, switching=0),
+            "arm": Internal(size=joints), "arm_timeout_expired": Internal(size=joints),
+            "heartbeat_lost": Internal(size=joints)})
+        _CLASSES[joints] = cls
+    return cls

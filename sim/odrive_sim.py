@@ -1,0 +1,280 @@
+"""`SimulatedOdrives`: an IOTA of simulated ODrive axes on a CAN bus, one per joint of a PyBullet world.
+
+    can_rx  (input, canFrame, switching 0)   frames from the bus: commands and remote requests
+    can_tx  (output, canFrame, switching 0)  answers, and the cyclic Heartbeat and encoder estimates
+    step    (internal, every `step_period`)  one control step of every axis, then one world step
+
+The world (`world`, `world_options`) is opened when the IOTA is built, before its engine starts:
+opening it in a firing would make that firing and every action due meanwhile late by the
+0.1-0.3 s a URDF takes to load. It is registered under `world_key` (default: the instance name)
+for sensor IOTAs of the same process (`sim.worlds.find_world`); `close()` releases it.
+
+Each `step`: the world advances one step, then every axis reads its joint, runs its cascaded loop
+and gives the joint a torque for the next step (None while IDLE: the world's brake or coast).
+Torque, not PyBullet's position or velocity motors, because the cascade is what is simulated: the
+ODrive's position and velocity loops with their gains, limits and integrator, and the torque they
+end in (docs/simulation.md). The axes keep their own time, `step_period` per step, so in virtual
+time it is the engine's time exactly. In real time a late step runs the physics late rather than
+skipping ahead (an IOTA cannot read the clock): the next window starts at the late firing, so a
+busy machine runs the world somewhat slower than the wall clock. Steps and cyclic frames may
+come up to `timing_slack` late before that is a deadline miss; eager virtual time fires them at
+the window's start, exactly on period.
+
+Units. CAN carries the axis's side: turns, turns/s, motor Nm. An axis maps its joint as
+`turns = gear * joint_rad / (2 pi)` and `joint_torque = gear * motor_torque`, gear 1 unless the
+`gear` param says otherwise; direction and offset of a joint map belong to the CAN motor node.
+
+Cyclic messages: axis k of N sends its Heartbeat every `heartbeat_period` and its encoder
+estimates every `encoder_period`, the axes staggered by period/N (independent controllers are not
+in phase), so one can_tx action per message kind walks through the axes.
+"""
+from __future__ import annotations
+
+import math
+from collections import deque
+from typing import Any
+
+from iotad import Input, Internal, Iota, Output, Param
+from iotad.can.frame import CAN_FRAME, Frame, FrameError
+from iotad.can.odrive import CONTROL_MODE, INPUT_MODE, decode
+
+from .odrive_axis import AxisConfig, OdriveAxis
+from .worlds import WORLDS, close_world, open_world
+
+TWO_PI = 2.0 * math.pi
+GAIN_NAMES = ("pos_gain", "vel_gain", "vel_integrator_gain")
+LIMIT_NAMES = ("vel_limit", "current_limit")
+
+
+class SimulatedOdrives(Iota):
+    """Simulated ODrive controllers (firmware 0.6, CAN Simple) driving the joints of one world."""
+
+    world = Param("arm")            # "arm" (xArm6 + gripper), "kuka", "conveyor", "buggy"
+    world_options = Param({})       # keyword arguments of the world (seed, belt_speed, ...)
+    world_key = Param("")           # registry key of the world in this process; "" = instance name
+    node_ids = Param([])            # [id per joint, in joint order] or {joint: id}; [] = 0..N-1
+    gear = Param(1.0)               # motor turns per joint turn: a number, [per joint] or {joint: g}
+    step_period = Param(1.0 / 240.0)  # s, one control step and one physics step
+    heartbeat_period = Param(0.1)   # s, per axis
+    encoder_period = Param(0.01)    # s, Get_Encoder_Estimates per axis
+    watchdog_timeout = Param(0.08)  # s without a command before an armed axis trips; 0 = off
+    control_bandwidth = Param(60.0)  # rad/s: the default gains put the velocity loop here
+    gains = Param({})               # {joint: {pos_gain, vel_gain, vel_integrator_gain}} in turn units
+    limits = Param({})              # {joint: {vel_limit (turn/s), current_limit (A)}} at power-up
+    control_mode = Param("POSITION")   # at power-up: a name, or {joint: name}
+    input_mode = Param("PASSTHROUGH")  # at power-up: a name, or {joint: name}
+    torque_constant = Param(1.0)    # Nm/A: Set_Limits' Current_Limit times this is the torque limit
+    timing_slack = Param(0.005)     # s a step or cyclic frame may be late in real time (window width)
+
+    can_rx = Input(CAN_FRAME, switching=0)
+    can_tx = Output(CAN_FRAME, switching=0)
+    step = Internal(switching=0)
+
+    def init(self):
+        _check_params(self)
+        self.plant = None           # the world
+        self.axes: list[OdriveAxis] = []
+        self.by_node: dict[int, OdriveAxis] = {}
+        self.driven: list[tuple[int, OdriveAxis, float]] = []  # (joint index, axis, gear)
+        self.joint_names: list[str] = []
+        self.outbox: deque = deque()  # CAN_FRAME values waiting to go out, in order
+        self.steps = 0
+        self.sim_time = 0.0
+        self.next_heartbeat = 0
+        self.next_encoder = 0
+        self.frames_ignored = 0     # frames for none of our axes, or not understood
+        self.last_ignored = ""
+        self._open()
+
+    # ------------------------------------------------------------------ actions
+    @can_rx.input
+    def received(self, value):
+        self._receive(value)
+
+    @step.action(within=(lambda self: self.step_period, lambda self: self.step_period + self.timing_slack))
+    def stepped(self):
+        self._step()
+
+    @can_tx.action(value=lambda self: self.outbox[0], when=lambda self: len(self.outbox) > 0)
+    def answered(self):
+        self.outbox.popleft()
+
+    @can_tx.action(value=lambda self: self.axes[self.next_heartbeat].heartbeat().to_value(),
+                   within=(lambda self: self.heartbeat_period / len(self.axes),
+                           lambda self: self.heartbeat_period / len(self.axes) + self.timing_slack))
+    def heartbeat(self):
+        self.next_heartbeat = (self.next_heartbeat + 1) % len(self.axes)
+
+    @can_tx.action(value=lambda self: self.axes[self.next_encoder].encoder_estimates().to_value(),
+                   within=(lambda self: self.encoder_period / len(self.axes),
+                           lambda self: self.encoder_period / len(self.axes) + self.timing_slack))
+    def encoder_estimates(self):
+        self.next_encoder = (self.next_encoder + 1) % len(self.axes)
+
+    # ------------------------------------------------------------------ the work
+    def _open(self) -> None:
+        options = dict(self.world_options)
+        options.setdefault("time_step", self.step_period)
+        key = self.world_key or self.instance_name
+        plant = open_world(key, self.world, **options)
+        try:
+            self._make_axes(plant)
+        except Exception:
+            close_world(key, plant)  # a bad joint map must not leave the world open under its key
+            raise
+        self.plant = plant
+
+    def _make_axes(self, plant) -> None:
+        names = list(plant.joint_names)
+        node_of = _node_ids(self.node_ids, names)
+        gear_of = _per_joint(self.gear, names, "gear")
+        inertias, efforts, speeds = plant.joint_inertias(), plant.effort_limits(), plant.velocity_limits()
+        positions, velocities = plant.read_joints()
+        axes, driven = [], []
+        for index, name in enumerate(names):
+            if name not in node_of:
+                continue
+            gear = gear_of[name]
+            config = self._axis_config(name, gear, inertias[index], efforts[index], speeds[index])
+            axis = OdriveAxis(node_of[name], config)
+            scale = gear / TWO_PI
+            axis.update(positions[index] * scale, velocities[index] * scale, 0.0, self.step_period)
+            axes.append(axis)
+            driven.append((index, axis, gear))
+        unknown = (set(self.gains) | set(self.limits)) - set(names)
+        if unknown:
+            raise ValueError(f"gains/limits name joints the world does not have: {sorted(unknown)}; it has {names}")
+        self.axes, self.driven, self.joint_names = axes, driven, names
+        self.by_node = {axis.node_id: axis for axis in axes}
+
+    def _axis_config(self, joint: str, gear: float, inertia: float, effort: float, speed: float) -> AxisConfig:
+        # the loop is tuned to the inertia the motor sees: J / gear^2, in Nm per turn/s^2
+        motor_inertia = inertia / (gear * gear) * TWO_PI
+        bandwidth = self.control_bandwidth
+        values = dict(pos_gain=bandwidth / 4.0, vel_gain=motor_inertia * bandwidth,
+                      vel_integrator_gain=motor_inertia * bandwidth * bandwidth / 4.0,
+                      vel_limit=speed * gear / TWO_PI, current_limit=effort / gear / self.torque_constant)
+        values.update(self.gains.get(joint, {}))
+        values.update(self.limits.get(joint, {}))
+        return AxisConfig(**values, inertia=motor_inertia, torque_constant=self.torque_constant,
+                          watchdog_timeout=self.watchdog_timeout,
+                          control_mode=CONTROL_MODE[_for_joint(self.control_mode, joint, "POSITION")],
+                          input_mode=INPUT_MODE[_for_joint(self.input_mode, joint, "PASSTHROUGH")])
+
+    def _step(self) -> None:
+        plant, dt = self.plant, self.step_period
+        plant.step()
+        self.steps += 1
+        self.sim_time = now = self.steps * dt
+        positions, velocities = plant.read_joints()
+        torques: list[float | None] = [None] * len(positions)
+        for index, axis, gear in self.driven:
+            scale = gear / TWO_PI
+            torque = axis.update(positions[index] * scale, velocities[index] * scale, now, dt)
+            if torque is not None:
+                torques[index] = torque * gear
+        plant.apply_torques(torques)
+
+    def _receive(self, value: Any) -> None:
+        try:
+            message = decode(Frame.from_value(value))
+        except FrameError as exc:
+            return self._ignored(str(exc))
+        axis = self.by_node.get(message.node_id)
+        if axis is None:
+            return self._ignored(f"node {message.node_id} is none of ours")  # another device's traffic
+        for frame in axis.handle(message, self.sim_time):
+            self.outbox.append(frame.to_value())
+
+    def _ignored(self, why: str) -> None:
+        self.frames_ignored += 1
+        self.last_ignored = why
+
+    def axis(self, joint: str) -> OdriveAxis:
+        """The axis driving `joint` (for tests and tools)."""
+        for index, axis, _ in self.driven:
+            if self.joint_names[index] == joint:
+                return axis
+        raise KeyError(f"no axis drives joint {joint!r}; driven: {[self.joint_names[i] for i, _, _ in self.driven]}")
+
+    def close(self) -> None:
+        """Close the world (its PyBullet client)."""
+        if self.plant is not None:
+            close_world(self.world_key or self.instance_name, self.plant)
+            self.plant = None
+
+
+# ---------------------------------------------------------------------- params
+def _check_params(iota: SimulatedOdrives) -> None:
+    """Clear errors for bad params at build time (what `iotad run --check` reports)."""
+    if iota.world not in WORLDS:
+        raise ValueError(f"world {iota.world!r} is not one of {', '.join(WORLDS)}")
+    for name in ("step_period", "heartbeat_period", "encoder_period", "control_bandwidth", "torque_constant",
+                 "timing_slack"):
+        value = getattr(iota, name)
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0 or not math.isfinite(value):
+            raise ValueError(f"{name} must be a number > 0, got {value!r}")
+    if isinstance(iota.watchdog_timeout, bool) or not isinstance(iota.watchdog_timeout, (int, float)) \
+            or not iota.watchdog_timeout >= 0:
+        raise ValueError(f"watchdog_timeout must be a number >= 0 s (0 = off), got {iota.watchdog_timeout!r}")
+    for name in ("world_options", "gains", "limits"):
+        if not isinstance(getattr(iota, name), dict):
+            raise ValueError(f"{name} must be a table, got {getattr(iota, name)!r}")
+    for name, allowed in (("gains", GAIN_NAMES), ("limits", LIMIT_NAMES)):
+        for joint, values in getattr(iota, name).items():
+            if not isinstance(values, dict) or set(values) - set(allowed) or not all(
+                    isinstance(v, (int, float)) and not isinstance(v, bool) and v >= 0 for v in values.values()):
+                raise ValueError(f"{name}.{joint}: expected a table of numbers >= 0 named "
+                                 f"{', '.join(allowed)}, got {values!r}")
+    for name, table in (("control_mode", CONTROL_MODE), ("input_mode", INPUT_MODE)):
+        value = getattr(iota, name)
+        for mode in (value.values() if isinstance(value, dict) else [value]):
+            if mode not in table:
+                raise ValueError(f"{name} {mode!r} is not one of {', '.join(table)}")
+    if not isinstance(iota.node_ids, (list, dict)):
+        raise ValueError(f"node_ids must be a list (joint order) or a table {{joint = id}}, got {iota.node_ids!r}")
+
+
+def _node_ids(node_ids: list | dict, names: list[str]) -> dict[str, int]:
+    if isinstance(node_ids, dict):
+        unknown = set(node_ids) - set(names)
+        if unknown:
+            raise ValueError(f"node_ids names joints the world does not have: {sorted(unknown)}; it has {names}")
+        mapping = dict(node_ids)
+    elif not node_ids:
+        mapping = {name: k for k, name in enumerate(names)}
+    elif len(node_ids) != len(names):
+        raise ValueError(f"node_ids has {len(node_ids)} ids for {len(names)} joints {names}")
+    else:
+        mapping = dict(zip(names, node_ids))
+    ids = list(mapping.values())
+    for node in ids:
+        if isinstance(node, bool) or not isinstance(node, int) or not 0 <= node <= 0x3F:
+            raise ValueError(f"node id {node!r} is not 0..63")
+    if len(set(ids)) != len(ids):
+        raise ValueError(f"node ids must be distinct, got {mapping}")
+    if not mapping:
+        raise ValueError("node_ids leaves no joint with an axis")
+    return mapping
+
+
+def _per_joint(value: Any, names: list[str], what: str) -> dict[str, float]:
+    if isinstance(value, dict):
+        unknown = set(value) - set(names)
+        if unknown:
+            raise ValueError(f"{what} names joints the world does not have: {sorted(unknown)}")
+        out = {name: value.get(name, 1.0) for name in names}
+    elif isinstance(value, list):
+        if len(value) != len(names):
+            raise ValueError(f"{what} has {len(value)} values for {len(names)} joints {names}")
+        out = dict(zip(names, value))
+    else:
+        out = {name: value for name in names}
+    for name, g in out.items():
+        if isinstance(g, bool) or not isinstance(g, (int, float)) or not g > 0:
+            raise ValueError(f"{what} of {name} must be a number > 0, got {g!r}")
+    return {name: float(g) for name, g in out.items()}
+
+
+def _for_joint(value: str | dict, joint: str, default: str) -> str:
+    return value.get(joint, default) if isinstance(value, dict) else value

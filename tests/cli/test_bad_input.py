@@ -1,0 +1,257 @@
+"""Bad input to every `iotad` command is one line on stderr (`iotad: error: ...`), exit status 2,
+never a Python traceback and never a hang. Each row: argv (with placeholders for files made by
+the fixture) and a fragment the error line must contain."""
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from iotad.cli import main
+from iotad.kernel.compose import Composite
+from iotad.recording.mcap_io import record_run
+from requesters import Requester
+from scheduler import Scheduler
+
+ROOT = Path(__file__).resolve().parents[2]
+SPEC = "nodes/scheduler/scheduler.iota"
+SYSTEM = "examples/figure2.toml"
+DEAD = "tcp/127.0.0.1:9"  # discard port: nothing listens there
+FAST = ["--connect", DEAD, "--connect-timeout", "0.3"]
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    """Bad files of every kind, and one good in-process recording."""
+    d = tmp_path_factory.mktemp("bad")
+    (d / "empty.mcap").write_bytes(b"")
+    (d / "empty.iota").write_text("")
+    (d / "empty.toml").write_text("")
+    (d / "garbage.bin").write_bytes(bytes(range(256)) * 8)
+    (d / "text.mcap").write_text("hello, not a recording\n")
+    (d / "bad.toml").write_text("[system\nname = 'x'\n")
+    (d / "bad.iota").write_text("iota x(\n")
+    (d / "bad.jsonl").write_text('{"t": \n')
+    (d / "back.jsonl").write_text('{"t": 2, "action": "req"}\n{"t": 1, "action": "req"}\n')
+    (d / "folder").mkdir()
+    (d / "nofolder.toml").write_text("[system]\nname = 'x'\n[[node]]\nname = 'a'\nspec = 'nope.iota'\n")
+    good = d / "good.mcap"
+    record_run(Composite(
+        "figure2", Scheduler("scheduler", N=2, T=0.5),
+        Requester("vision", priority=1, epoch=3.0, timeout=4.0, start=0.0, pause=0.5, setpoint=0.2),
+        Requester("manipulation", priority=5, epoch=2.0, timeout=3.0, start=1.0, pause=4.0, setpoint=1.5),
+        bind=[("vision.req", "scheduler.req[0]"), ("manipulation.req", "scheduler.req[1]"),
+              ("scheduler.ack[0]", "vision.ack"), ("scheduler.ack[1]", "manipulation.ack")]), good, until=10)
+    return d
+
+
+CASES = [
+    # the command line itself
+    (["nosuch"], "invalid choice: 'nosuch'"),
+    (["spec", "nosuch"], "invalid choice"),
+    (["run"], "required: SYSTEM.toml"),
+    # iotad spec
+    (["spec", "check", "missing.iota"], "cannot read missing.iota: no such file"),
+    (["spec", "check", "{d}/folder"], "is a directory"),
+    (["spec", "check", "{d}/empty.iota"], "the file is empty"),
+    (["spec", "check", "{d}/garbage.bin"], "not UTF-8 text"),
+    (["spec", "check", "{d}/bad.iota"], "1 error(s)"),
+    (["spec", "check", "examples/scheduler.py"], "is Python"),
+    (["spec", "show", "{d}/empty.iota"], "declares no iota"),
+    (["spec", "show", SPEC, "--iota", "nosuch"], "no iota nosuch"),
+    (["spec", "run", SPEC], "required: --until"),
+    (["spec", "run", SPEC, "--until", "-1"], "--until: expected a number >= 0, got '-1'"),
+    (["spec", "run", SPEC, "--until", "nan"], "--until: expected a number >= 0"),
+    (["spec", "run", SPEC, "--until", "abc"], "--until: expected a number >= 0, got 'abc'"),
+    (["spec", "run", SPEC, "--until", "1", "--seed", "abc"], "--seed: invalid int value: 'abc'"),
+    (["spec", "run", SPEC, "--until", "1", "--policy", "lazy"], "invalid choice: 'lazy'"),
+    (["spec", "run", SPEC, "--until", "1", "--param", "X=1"], "has no parameter X (it has N, T)"),
+    (["spec", "run", SPEC, "--until", "1", "--param", "N=abc"], "parameter N: expected int"),
+    (["spec", "run", SPEC, "--until", "1", "--param", "N"], "expected NAME=VALUE"),
+    (["spec", "run", SPEC, "--until", "1", "--inputs", "missing.jsonl"], "cannot read input script missing.jsonl"),
+    (["spec", "run", SPEC, "--until", "1", "--inputs", "{d}/bad.jsonl"], "bad.jsonl:1: not JSON"),
+    (["spec", "run", SPEC, "--until", "1", "--inputs", "{d}/back.jsonl"], "must not go backwards"),
+    (["spec", "run", SPEC, "--until", "1", "--inputs", "{d}/garbage.bin"], "not UTF-8 text"),
+    (["spec", "run", "{d}/bad.iota", "--until", "1"], "bad.iota:1:"),
+    (["spec", "run", SYSTEM, "--until", "1"], "not an ESPRIT spec"),
+    # iotad run (only checks: nothing starts)
+    (["run", "--check", "missing.toml"], "missing.toml: cannot read"),
+    (["run", "--check", "{d}/folder"], "Is a directory"),
+    (["run", "--check", "{d}/empty.toml"], "the system has no nodes"),
+    (["run", "--check", "{d}/garbage.bin"], "not UTF-8 text"),
+    (["run", "--check", "{d}/bad.toml"], "not valid TOML"),
+    (["run", "--check", SPEC], "not valid TOML"),
+    (["run", "--check", "{d}/nofolder.toml"], "nope.iota"),
+    (["run", SYSTEM, "--until", "-1"], "--until: expected a number > 0"),
+    (["run", SYSTEM, "--until", "nan"], "--until: expected a number > 0"),
+    (["run", SYSTEM, "--port", "70000"], "--port: expected a port number 0-65535"),
+    (["run", SYSTEM, "--host", "nosuch"], "no node has host = 'nosuch'"),
+    (["run", SYSTEM, "-o", "{d}/folder"], "is a directory"),
+    (["run", SYSTEM, "--log-dir", "{d}/empty.toml/logs"], "--log-dir"),
+    (["demo", "--until", "0"], "--until: expected a number > 0"),
+    (["demo", "--virtual", "--until", "abc"], "--until: expected a number > 0"),
+    # recordings: info, check, replay, plot, export, recover
+    *[([command, path, *extra], message)
+      for command, extra in (("info", []), ("check", []), ("replay", ["--node", "scheduler"]),
+                             ("plot", ["-o", "{d}/out.png"]), ("export", ["-o", "{d}/out.mcap", "--json"]),
+                             ("recover", ["-o", "{d}/out.mcap"]))
+      for path, message in (("missing.mcap", "missing.mcap: no such file"),
+                            ("{d}/folder", "is a directory"),
+                            ("{d}/empty.mcap", "empty file"),
+                            ("{d}/garbage.bin", "not an MCAP recording"),
+                            ("{d}/text.mcap", "not an MCAP recording"))],
+    (["info", "{d}/good.mcap", "--violations", "-1"], "--violations: expected a whole number >= 0"),
+    (["check", "{d}/good.mcap", "--node", "nosuch"], "no spec of node 'nosuch'"),
+    (["check", "{d}/good.mcap", "--tolerance", "-1"], "--tolerance: expected a number >= 0"),
+    (["check", "{d}/good.mcap", "--budget", "0"], "--budget: expected a whole number > 0"),
+    (["check", "{d}/good.mcap", "--param", "N=1"], "--iota and --param apply to --spec"),
+    (["check", "{d}/good.mcap", "--spec", SPEC], "--spec needs --node"),
+    (["check", "{d}/good.mcap", "--node", "scheduler", "--spec", "missing.iota"], "no such file"),
+    (["check", "{d}/good.mcap", "--node", "scheduler", "--spec", "{d}/bad.iota"], "bad.iota:1:"),
+    (["check", "{d}/good.mcap", "--node", "scheduler", "--spec", SPEC, "--param", "X=1"], "no parameter X"),
+    (["check", "{d}/good.mcap", "--node", "scheduler", "--spec", SYSTEM], "expected an ESPRIT file"),
+    (["check", "{d}/good.mcap", "--node", "scheduler", "--spec", "examples/scheduler.py:Nope"], "has no Nope"),
+    (["replay", "{d}/good.mcap"], "one of the arguments --node --live is required"),
+    (["replay", "{d}/good.mcap", "--node", "nosuch"], "node 'nosuch' is not in"),
+    (["replay", "{d}/good.mcap", "--node", "scheduler", "--tolerance", "-1"], "--tolerance: expected a number >= 0"),
+    (["replay", "{d}/good.mcap", "--live", "--rate", "0"], "--rate: expected a number > 0"),
+    (["replay", "{d}/good.mcap", "--live", "--start", "-3"], "--start: expected a number >= 0"),
+    (["replay", "{d}/good.mcap", "--live", "--connect", "garbage"], "expected a zenoh endpoint"),
+    (["replay", "{d}/good.mcap", "--live", "--connect", DEAD], "cannot open a zenoh session"),
+    (["plot", "{d}/good.mcap", "-o", "{d}/out.txt"], "the image format follows the extension"),
+    (["plot", "{d}/good.mcap", "-o", "{d}/empty.toml/out.png"], "is not a directory"),
+    (["plot", "{d}/good.mcap", "-o", "{d}/out.png", "--node", "nosuch"], "no node 'nosuch'"),
+    (["export", "{d}/good.mcap", "-o", "{d}/folder", "--json"], "is a directory"),
+    (["export", "{d}/good.mcap", "-o", "{d}/good.mcap", "--json"], "another file than the recording"),
+    (["export", "{d}/good.mcap", "-o", "{d}/x.mcap"], "required: --json"),
+    (["recover", "{d}/good.mcap", "-o", "{d}/empty.toml/x.mcap"], "is not a directory"),
+    # iotad record (fails before subscribing)
+    (["record", "-o", "{d}/r.mcap"], "nothing to record"),
+    (["record", "iota/x/**", "-o", "{d}/folder"], "is a directory"),
+    (["record", "iota/x/**", "-o", "{d}/empty.toml/r.mcap"], "Not a directory"),
+    (["record", "bad//key", "-o", "{d}/r.mcap"], "not a key expression"),
+    (["record", "iota/x/**", "-o", "{d}/r.mcap", "--duration", "-1"], "--duration: expected a number > 0"),
+    (["record", "iota/x/**", "-o", "{d}/r.mcap", "--duration", "nan"], "--duration: expected a number > 0"),
+    (["record", "iota/x/**", "-o", "{d}/r.mcap", "--flush-period", "0"], "--flush-period: expected a number > 0"),
+    (["record", "iota/x/**", "-o", "{d}/r.mcap", "--connect", "garbage"], "expected a zenoh endpoint"),
+    (["record", "iota/x/**", "-o", "{d}/r.mcap", "--listen", "tcp/127.0.0.1:99999"], "port out of range"),
+    (["record", "-o", "{d}/r.mcap", "--system-file", "missing.toml"], "--system-file missing.toml: no such file"),
+    (["record", "-o", "{d}/r.mcap", "--system-file", "{d}/bad.toml"], "not TOML"),
+    (["record", "-o", "{d}/r.mcap", "--system-file", "{d}/garbage.bin"], "not UTF-8 text"),
+    # live tools: bad options, and nothing running at the peer
+    (["ls", *FAST], "no zenoh peer at tcp/127.0.0.1:9"),
+    (["ls", "--connect", "garbage"], "expected a zenoh endpoint"),
+    (["ls", "--timeout", "0"], "--timeout: expected a number > 0"),
+    (["echo", "iota/**", *FAST], "is a system running?"),
+    (["echo", "bad//key"], "not a key expression"),
+    (["echo", "iota/**", "--count", "-1"], "--count: expected a whole number > 0"),
+    (["echo", "iota/**", "--timeout", "-1"], "--timeout: expected a number > 0"),
+    (["pub", "iota/x/y", "{bad"], "value is not JSON"),
+    (["pub", "iota/x/y", "1", "--rate", "0"], "--rate: expected a number > 0"),
+    (["pub", "iota/x/y", "1", "--count", "-1"], "--count: expected a whole number >= 0"),
+    (["pub", "iota/x/*", "1"], "no wildcards"),
+    (["pub", "iota/x/y", "1", *FAST], "no zenoh peer"),
+    (["hz", "iota/**", "--window", "1"], "--window must be at least 2"),
+    (["hz", "iota/**", "--every", "0"], "--every: expected a number > 0"),
+    (["hz", "iota/**", *FAST], "no zenoh peer"),
+]
+
+
+def _ids():
+    return [" ".join(argv)[:60] for argv, _ in CASES]
+
+
+@pytest.mark.parametrize("argv, message", CASES, ids=_ids())
+def test_bad_input_is_one_line_exit_2(argv, message, files, capsys, monkeypatch):
+    monkeypatch.chdir(ROOT)
+    argv = [a.replace("{d}", str(files)) for a in argv]
+    code = main(argv)
+    captured = capsys.readouterr()
+    err = captured.err
+    assert code == 2, (code, err)
+    assert "Traceback" not in err + captured.out
+    lines = err.strip().splitlines()
+    # one error line; a spec error may add its source line and a caret (and `spec check` lists
+    # its diagnostics first, compiler style, then the error line)
+    assert any(line.startswith("iotad: error:") for line in lines) and len(lines) <= 5, err
+    if argv[:2] != ["spec", "check"]:
+        assert lines[0].startswith("iotad: error:"), err
+    assert message.replace("{d}", str(files)) in err, err
+
+
+def test_good_input_still_works(files, capsys, monkeypatch):
+    """The twin of the table: the same commands on the good recording and spec succeed."""
+    monkeypatch.chdir(ROOT)
+    good = str(files / "good.mcap")
+    assert main(["info", good]) == 0
+    assert main(["check", good]) == 0
+    assert main(["replay", good, "--node", "scheduler"]) == 0
+    assert main(["spec", "check", SPEC]) == 0
+    assert main(["run", "--check", SYSTEM]) == 0
+    assert "Traceback" not in capsys.readouterr().err
+
+
+def test_unexpected_errors_are_one_line_too(monkeypatch, capsys):
+    """A bug in a command still prints one line (and the traceback with IOTAD_DEBUG=1)."""
+    from iotad.cli.commands import info
+
+    def broken(args):
+        raise RuntimeError("something inside broke\nsecond line")
+
+    monkeypatch.setattr(info, "run", broken)
+    monkeypatch.delenv("IOTAD_DEBUG", raising=False)
+    assert main(["info", "x.mcap"]) == 1
+    err = capsys.readouterr().err
+    assert err.strip() == ("iotad: error: unexpected RuntimeError: something inside broke "
+                           "(IOTAD_DEBUG=1 shows the traceback; please report it)")
+
+
+def _iotad(*argv, **kw):
+    return subprocess.Popen([sys.executable, "-m", "iotad", *argv], cwd=ROOT, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, **kw)
+
+
+def test_ctrl_c_exits_130_without_traceback():
+    """Ctrl-C (SIGINT) in a command that waits: exit 130, no traceback, no hang."""
+    hub = subprocess.Popen([sys.executable, "-c", "import sys, time\nfrom iotad.host.transport import open_session\n"
+                            f"s = open_session(['tcp/127.0.0.1:{_port()}'])\nprint('up', flush=True)\n"
+                            "sys.stdin.read()\ns.close()"],
+                           cwd=ROOT, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    try:
+        assert hub.stdout.readline().strip() == "up"
+        endpoint = f"tcp/127.0.0.1:{_PORT[0]}"
+        tools = [_iotad("echo", "iota/**", "--connect", endpoint),
+                 _iotad("hz", "iota/**", "--connect", endpoint)]
+        time.sleep(3)
+        for tool in tools:
+            tool.send_signal(signal.SIGINT)
+        for tool in tools:
+            out, err = tool.communicate(timeout=15)
+            assert tool.returncode == 130, err
+            assert "Traceback" not in err
+    finally:
+        hub.stdin.close()
+        hub.wait(10)
+
+
+_PORT = []
+
+
+def _port():
+    from iotad.host.transport import free_port
+    _PORT[:] = [free_port()]
+    return _PORT[0]
+
+
+def test_record_status_and_clean_stop(tmp_path):
+    """`iotad record` says what it records and, at the end, what it wrote (stderr); SIGINT: exit 0."""
+    out = tmp_path / "r.mcap"
+    recorder = _iotad("record", "iota/nobody/**", "-o", str(out), "--duration", "0.5")
+    stdout, stderr = recorder.communicate(timeout=30)
+    assert recorder.returncode == 0, stderr
+    assert f"-> {out}" in stderr and f"recorded 0 messages to {out}" in stderr
+    assert out.exists() and stdout == ""
+    assert os.path.getsize(out) > 0

@@ -1,0 +1,102 @@
+"""`iotad ls/echo/pub/hz` against a live node process, and their behaviour with no peer."""
+import json
+import subprocess
+import sys
+
+import pytest
+
+from node_harness import ECHO, ROOT, Hub, Node, node_config, wait_ready
+
+
+def iotad(*args, timeout=30):
+    return subprocess.run([sys.executable, "-m", "iotad", *args], cwd=ROOT, capture_output=True, text=True,
+                          timeout=timeout)
+
+
+@pytest.fixture(scope="module")
+def live():
+    hub = Hub()
+    node = None
+    try:
+        node = Node(node_config(hub, "echo", f"{ECHO}:Echo", system="intro"))
+        hub.subscribe(f"{node.base}/@heartbeat")
+        wait_ready(hub, node)
+        yield hub, node
+    finally:
+        if node is not None:
+            node.stop()
+        hub.close()
+
+
+def test_ls_lists_the_node_and_its_channels(live):
+    hub, node = live
+    result = iotad("ls", "--system", "intro", "--json", "--connect", hub.endpoint)
+    assert result.returncode == 0, result.stderr
+    (entry,) = [json.loads(line) for line in result.stdout.splitlines()]
+    assert entry["path"] == "echo" and entry["pid"] == node.process.pid
+    assert {c["name"]: c["direction"] for c in entry["channels"]} == {"inp": "input", "out": "output"}
+    text = iotad("ls", "--connect", hub.endpoint)
+    assert "intro/echo" in text.stdout and "iota/intro/echo/out" in text.stdout
+
+
+def test_pub_into_the_node_and_echo_its_output(live):
+    hub, node = live
+    echo = subprocess.Popen([sys.executable, "-m", "iotad", "echo", f"{node.base}/out", "--count", "3", "--json",
+                             "--timeout", "20", "--connect", hub.endpoint],
+                            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        # echo is ready once it receives: publish until it has seen three (bounded by pub --count)
+        pub = iotad("pub", f"{node.base}/inp", "5", "--count", "40", "--rate", "20", "--connect", hub.endpoint)
+        assert pub.returncode == 0, pub.stderr
+        out, err = echo.communicate(timeout=25)
+    finally:
+        if echo.poll() is None:
+            echo.kill()
+            echo.wait()
+    assert echo.returncode == 0, err
+    records = [json.loads(line) for line in out.splitlines()]
+    assert len(records) == 3 and all(r["value"] == 5 and r["key"] == f"{node.base}/out" for r in records)
+    assert [r["seq"] for r in records] == list(range(records[0]["seq"], records[0]["seq"] + 3))
+
+
+def test_echo_flags_gaps():
+    from iotad.cli.commands.echo import GapTracker
+
+    gaps = GapTracker()
+    assert [gaps.see("k", s) for s in (0, 1, 4, 5, 0)] == [0, 0, 2, 0, -1]
+    # @trace bursts: a sequence number counts events, a burst of n takes n of them
+    assert [gaps.see("t", s, n) for s, n in ((0, 3), (3, 2), (5, 1), (9, 4), (2, 1))] == [0, 0, 0, 3, -1]
+
+
+def test_echo_prints_each_event_of_a_trace_burst(live):
+    hub, node = live
+    echo = subprocess.Popen([sys.executable, "-m", "iotad", "echo", f"{node.base}/@trace", "--count", "4", "--json",
+                             "--timeout", "20", "--connect", hub.endpoint],
+                            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        pub = iotad("pub", f"{node.base}/inp", "6", "--count", "40", "--rate", "20", "--connect", hub.endpoint)
+        assert pub.returncode == 0, pub.stderr
+        out, err = echo.communicate(timeout=25)
+    finally:
+        if echo.poll() is None:
+            echo.kill()
+            echo.wait()
+    assert echo.returncode == 0, err
+    records = [json.loads(line) for line in out.splitlines()]
+    assert len(records) == 4 and all(isinstance(r["value"], dict) and r["value"]["iota"] == "echo" for r in records)
+    assert [r["seq"] for r in records] == list(range(records[0]["seq"], records[0]["seq"] + 4))
+
+
+def test_hz_reports_the_heartbeat_rate(live):
+    hub, node = live
+    result = iotad("hz", f"{node.base}/@heartbeat", "--count", "2", "--every", "0.6", "--connect", hub.endpoint)
+    assert result.returncode == 0, result.stderr
+    rate = float(result.stdout.split("average rate:")[-1].split()[0])
+    assert 2 < rate < 50  # heartbeat period 0.1 s; loose: this is not a timing test
+
+
+@pytest.mark.parametrize("command", [["ls"], ["echo", "iota/**"], ["pub", "iota/x/y", "1"], ["hz", "iota/**"]])
+def test_missing_peer_is_a_clear_error(command):
+    result = iotad(*command, "--connect", "tcp/127.0.0.1:9", "--connect-timeout", "0.5")
+    assert result.returncode == 2
+    assert "no zenoh peer at tcp/127.0.0.1:9" in result.stderr and "Traceback" not in result.stderr

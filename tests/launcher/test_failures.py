@@ -1,0 +1,317 @@
+"""What the launcher does when things go wrong, each the way a robotics engineer expects:
+a spec that fails to load in its node, a node that keeps exiting with an error, a node that
+floods its receiver, a taken hub port, a recorder killed mid-run, a recording that cannot be
+written, a node that ignores SIGINT and SIGTERM. Conditions are waited on, never slept on."""
+import os
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+from iotad.cli import main
+from iotad.launcher.supervision import Launcher
+from iotad.recording.mcap_io import read_recording
+from iotad.launcher.system_file import load_system
+from launcher_helpers import (IOTAS, ROOT, Observer, children_of, free_port, gone, launcher, pair_system,
+                              wait_until)
+
+STUB = Path(__file__).resolve().parents[1] / "launcher_stub_node.py"
+
+
+def stub_argv(*stubbed: str):
+    """Node command lines: the stand-in host for the named nodes (all when none), the real one else."""
+    def argv(config: str) -> list[str]:
+        name = Path(config).stem
+        if not stubbed or name in stubbed:
+            return [sys.executable, str(STUB), config]
+        return [sys.executable, "-m", "iotad.host", config]
+    return argv
+
+
+def in_process(tmp_path, system_file: Path, **options) -> tuple[Launcher, list]:
+    """A launcher in this process whose lines are kept with their time of arrival."""
+    options.setdefault("record", False)
+    options.setdefault("until", 30)
+    run = Launcher(load_system(system_file), live_table=False, log_dir=str(tmp_path / "logs"), **options)
+    lines: list[tuple[float, str]] = []
+    run.view.line = lambda text: lines.append((time.monotonic(), text))
+    return run, lines
+
+
+def texts(lines) -> list[str]:
+    return [text for _, text in lines]
+
+
+def write_system(tmp_path, name: str, body: str, **system) -> Path:
+    path = tmp_path / f"{name}.toml"
+    extra = "".join(f"{key} = {value}\n" for key, value in system.items())
+    path.write_text(f'[system]\nname = "{name}"\n{extra}[system.endpoints]\n'
+                    f'listen = ["tcp/127.0.0.1:{free_port()}"]\n{body}')
+    return path
+
+
+# ---------------------------------------------------------------------------- a spec that fails to load
+
+BROKEN_AFTER_CHECK = """
+from iotad import Input, Int, Iota, Output, Param
+class Fine(Iota):
+    out = Output(Int, switching=1)
+"""
+
+
+@pytest.mark.parametrize("required", [False, True], ids=["others-keep-running", "required-stops-all"])
+def test_spec_that_fails_to_load_in_its_node_gives_up_with_its_stderr(tmp_path, required):
+    """The file checked fine when the launcher read it, then broke (edited, or a module missing in
+    the node's environment): the node host exits 2 with the reason on stderr. Its restart policy
+    runs; then one 'gave up' line shows that stderr. A healthy node keeps running, unless the
+    broken one is `required`, in which case everything stops with status 1."""
+    spec = tmp_path / "flaky_spec.py"
+    spec.write_text(BROKEN_AFTER_CHECK)
+    path = write_system(tmp_path, "broken", f"""
+[[node]]
+name = "good"
+python = "{IOTAS}:Source"
+[[node]]
+name = "bad"
+python = "{spec}:Fine"
+after = ["good"]
+max_restarts = 2
+backoff = 0.05
+required = {str(required).lower()}
+""")
+    run, lines = in_process(tmp_path, path)
+    spec.write_text(BROKEN_AFTER_CHECK.replace("switching=1)", "switching=1)\n    oops = undefined_name"))
+    seen = {}
+
+    def line(text):
+        lines.append((time.monotonic(), text))
+        if "gave up" in text and not required:
+            seen["good"] = run.runs["good"].state
+            run.request_stop("test: seen the give-up")
+    run.view.line = line
+    assert run.run() == 1, texts(lines)
+    giveup = next(text for text in texts(lines) if text.startswith("bad: gave up after 2 restarts"))
+    assert "cannot load its IOTA" in giveup and "undefined_name" in giveup, giveup
+    assert "max_restarts = 2" in giveup
+    assert run.runs["bad"].state == "failed" and run.runs["bad"].restarts == 2
+    if required:
+        assert "bad is required and has ended for good: stopping every node" in texts(lines)
+        assert run.runs["good"].state == "stopped"
+    else:
+        assert seen["good"] == "running", texts(lines)
+        assert run.runs["good"].restarts == 0
+
+
+# ---------------------------------------------------------------------------- repeated error exits
+
+def test_repeated_error_exits_back_off_and_honour_max_restarts(tmp_path):
+    path = write_system(tmp_path, "crashy", f"""
+[[node]]
+name = "n"
+python = "{IOTAS}:Rogue"
+params = {{ exit_code = 3, exit_after = 0.0, stderr = "n: motor driver not found" }}
+max_restarts = 3
+backoff = 0.1
+""")
+    run, lines = in_process(tmp_path, path, node_argv=stub_argv())
+    assert run.run() == 1, texts(lines)
+    exits = [(when, text) for when, text in lines if text.startswith("n: exit 3")]
+    starts = [when for when, text in lines if text.startswith("n: started") or text.startswith("n: restarted")]
+    assert [text.split("; ")[1].split("\n")[0] for _, text in exits[:3]] == \
+        ["restart 1/3 in 0.10 s", "restart 2/3 in 0.20 s", "restart 3/3 in 0.40 s"], texts(lines)
+    assert all("| n: motor driver not found" in text for _, text in exits[:3])  # its stderr, each time
+    # each restart waited at least its backoff after the exit it follows (a lower bound: load-proof)
+    for (exited, _), restarted, delay in zip(exits, starts[1:], (0.1, 0.2, 0.4)):
+        assert restarted - exited >= delay - 0.01
+    assert len(starts) == 4 and run.runs["n"].restarts == 3
+    giveup = [text for text in texts(lines) if "gave up" in text]
+    assert len(giveup) == 1 and "gave up after 3 restarts (max_restarts = 3); last: exit 3" in giveup[0]
+    assert "motor driver not found" in giveup[0]
+
+
+# ---------------------------------------------------------------------------- flooding
+
+def test_node_flooding_its_receiver_is_recorded_as_violations_and_the_system_stays_up(tmp_path):
+    """A node that does not keep its own switching time (here a stand-in host publishing 500 Hz
+    on an output declared one event per second): the receiver rejects the excess, each rejection
+    is a switching_time violation on its @trace and in the recording, and nothing restarts."""
+    path = write_system(tmp_path, "flood", f"""
+[[node]]
+name = "rogue"
+python = "{IOTAS}:Rogue"
+params = {{ token = true, beat = true, flood_hz = 500.0, exit_after = 60 }}
+[[node]]
+name = "dst"
+python = "{IOTAS}:Sink"
+[[bind]]
+from = "rogue.out"
+to = "dst.inp"
+""")
+    output = tmp_path / "flood.mcap"
+    run, lines = in_process(tmp_path, path, record=True, record_path=str(output), node_argv=stub_argv("rogue"))
+    waiter = threading.Thread(target=lambda: wait_until(lambda: run.tally.violations["dst"] >= 300, 30)
+                              and run.request_stop("test: enough violations"), daemon=True)
+    waiter.start()
+    assert run.run() == 0, texts(lines)
+    waiter.join(5)
+    assert run.runs["dst"].restarts == 0 and run.runs["rogue"].restarts == 0, texts(lines)
+    assert not any("stale" in text or "killing" in text for text in texts(lines)), texts(lines)
+    recording = read_recording(output)
+    assert recording.complete
+    rejected = [v for v in recording.violations() if v.get("value", {}).get("violation") == "switching_time"]
+    assert len(rejected) >= 300, len(rejected)
+    beats = [m.value for m in recording.messages if m.topic == "iota/flood/dst/@heartbeat"]
+    assert beats  # the receiver's engine loop kept beating through the flood
+    print(f"\nflood at 500 Hz: {len(rejected)} rejected inputs recorded; the receiver's input backlog "
+          f"peaked at {max(b['queue'] for b in beats)} (heartbeats)")
+
+
+# ---------------------------------------------------------------------------- a taken hub port
+
+def test_hub_port_in_use_is_one_clear_line_and_exit_2(tmp_path):
+    with socket.socket() as squatter:
+        squatter.bind(("127.0.0.1", 0))
+        squatter.listen()
+        port = squatter.getsockname()[1]
+        result = subprocess.run([sys.executable, "-m", "iotad", "run", str(pair_system(tmp_path, port)),
+                                 "--no-record", "--plain", "--log-dir", str(tmp_path / "logs")],
+                                cwd=ROOT, capture_output=True, text=True, timeout=60)
+    assert result.returncode == 2, result.stdout + result.stderr
+    assert f"tcp/127.0.0.1:{port} is taken" in result.stderr and "--port" in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1 and "Traceback" not in result.stderr
+    assert "started" not in result.stdout  # no node ran
+
+
+# ---------------------------------------------------------------------------- recordings
+
+def test_recorder_killed_mid_run_is_reported_restarted_and_recoverable(tmp_path):
+    port = free_port()
+    system_file = pair_system(tmp_path, port)
+    first = tmp_path / "rec.mcap"
+    observer = Observer("pair", f"tcp/127.0.0.1:{port}")
+    try:
+        with launcher(system_file, "-o", str(first)) as proc:
+            assert observer.wait_all_alive(("src", "dst"), 20), proc.output.read_text()
+            recorder = next(pid for pid, cmd in children_of(proc.pid).items() if " record " in cmd)
+            os.kill(recorder, signal.SIGKILL)
+            event = observer.wait_event(lambda e: e["event"] == "recorder" and "restarted" in e["message"], 20)
+            assert event is not None, proc.output.read_text()
+            second = Path(event["file"])
+            assert second == tmp_path / "rec.1.mcap"
+            # the new recorder hears the nodes: wait for their traffic in the growing file
+            assert wait_until(lambda: second.exists() and any(
+                m.topic.startswith("iota/pair/src/") for m in read_recording(second).messages), 20)
+            proc.send_signal(signal.SIGINT)
+            assert proc.wait(20) == 130
+        output = proc.output.read_text()
+    finally:
+        observer.close()
+    assert f"recorder: killed by SIGKILL" in output and f"'iotad recover {first}' makes it whole" in output, output
+    assert f"recording in 2 files (the recorder died): {first}, {second}" in output, output
+    recovered = tmp_path / "recovered.mcap"
+    assert main(["recover", str(first), "-o", str(recovered)]) == 0
+    assert read_recording(recovered).complete and read_recording(recovered).messages
+    whole = read_recording(second)
+    assert whole.complete
+    news = [e for e in whole.launcher_events() if e["event"] == "recorder"]
+    assert news and "restarted" in news[0]["message"]
+
+
+@pytest.mark.parametrize("where", ["under-a-file", "a-folder"])
+def test_unwritable_recording_path_is_an_error_before_any_node_starts(tmp_path, where):
+    (tmp_path / "plain").write_text("a file, not a folder")
+    target = tmp_path / "plain" / "rec.mcap" if where == "under-a-file" else tmp_path
+    result = subprocess.run([sys.executable, "-m", "iotad", "run", str(pair_system(tmp_path, free_port())),
+                             "-o", str(target), "--plain", "--log-dir", str(tmp_path / "logs")],
+                            cwd=ROOT, capture_output=True, text=True, timeout=60)
+    assert result.returncode == 2, result.stdout + result.stderr
+    # said by the launcher's check, or earlier by the command line's own check of -o
+    assert str(target) in result.stderr and ("cannot record to" in result.stderr or "is a directory" in result.stderr)
+    assert len(result.stderr.strip().splitlines()) == 1, result.stderr
+    assert "Traceback" not in result.stderr and "started" not in result.stdout
+
+
+def test_full_disk_is_an_error_before_any_node_starts(tmp_path):
+    """A 1 MiB file system of our own (a tmpfs in a private mount namespace this test creates)."""
+    disk = tmp_path / "disk"
+    disk.mkdir()
+    system_file = pair_system(tmp_path, free_port())
+    script = (f"mount -t tmpfs -o size=1m iotad-test {disk} || exit 77; "
+              f"exec {sys.executable} -m iotad run {system_file} -o {disk}/rec.mcap --plain "
+              f"--log-dir {tmp_path / 'logs'}")
+    try:
+        result = subprocess.run(["unshare", "-m", "sh", "-c", script], cwd=ROOT, capture_output=True,
+                                text=True, timeout=60)
+    except FileNotFoundError:
+        pytest.skip("no unshare here")
+    if result.returncode == 77 or "unshare:" in result.stderr:
+        pytest.skip(f"cannot mount a private tmpfs here: {result.stderr.strip()}")
+    assert result.returncode == 2, result.stdout + result.stderr
+    assert "MiB free on its file system" in result.stderr and "--no-record" in result.stderr, result.stderr
+    assert "started" not in result.stdout
+
+
+FILL_DURING_RUN = """
+mount -t tmpfs -o size=20m iotad-test {disk} || exit 77
+{python} -m iotad run {system} -o {disk}/rec.mcap --plain --until 6 --log-dir {logs} > {out} 2>&1 &
+launcher=$!
+i=0
+while ! grep -q "recording to" {out} && [ $i -lt 400 ]; do sleep 0.05; i=$((i+1)); done
+dd if=/dev/zero of={disk}/fill bs=1M count=40 2>/dev/null
+wait $launcher
+status=$?
+cp {disk}/rec.mcap {cut}
+exit $status
+"""
+
+
+def test_disk_filling_up_mid_run_stops_the_recording_loudly(tmp_path):
+    """The recording's file system fills up while the system runs: the recorder exits with the
+    reason, the launcher names the cut file, cannot start another (no space), says RECORDING
+    STOPPED, keeps the nodes running to the end, and exits 1. The cut file is recoverable."""
+    disk, out, cut = tmp_path / "disk", tmp_path / "launcher.out", tmp_path / "cut.mcap"
+    disk.mkdir()
+    script = FILL_DURING_RUN.format(disk=disk, python=sys.executable, system=pair_system(tmp_path, free_port()),
+                                    logs=tmp_path / "logs", out=out, cut=cut)
+    try:
+        result = subprocess.run(["unshare", "-m", "sh", "-c", script], cwd=ROOT, capture_output=True,
+                                text=True, timeout=90)
+    except FileNotFoundError:
+        pytest.skip("no unshare here")
+    if result.returncode == 77 or "unshare:" in result.stderr:
+        pytest.skip(f"cannot mount a private tmpfs here: {result.stderr.strip()}")
+    output = out.read_text()
+    assert result.returncode == 1, output + result.stderr
+    assert "No space left on device" in output and f"'iotad recover {disk}/rec.mcap' makes it whole" in output, output
+    assert "RECORDING STOPPED: cannot record to" in output and "MiB free" in output, output
+    assert "--until 6 s reached" in output and output.count("stopped (exit 0)") == 2, output
+    assert "RECORDING INCOMPLETE" in output
+    assert main(["recover", str(cut), "-o", str(tmp_path / "recovered.mcap")]) == 0
+    assert read_recording(tmp_path / "recovered.mcap").complete
+
+
+# ---------------------------------------------------------------------------- stopping
+
+def test_node_ignoring_sigint_and_sigterm_is_killed_after_the_timeouts(tmp_path):
+    path = write_system(tmp_path, "stubborn", f"""
+[[node]]
+name = "n"
+python = "{IOTAS}:Rogue"
+params = {{ ignore_signals = true, exit_after = 60 }}
+""")
+    run, lines = in_process(tmp_path, path, node_argv=stub_argv(), stop_timeouts=(0.3, 0.3))
+    log = tmp_path / "logs" / "n.log"
+    threading.Thread(target=lambda: wait_until(lambda: log.exists() and "ready" in log.read_text(), 30)
+                     and run.request_stop("test: stop it"), daemon=True).start()
+    assert run.run() == 0, texts(lines)
+    stopping = next(when for when, text in lines if "stopping every node" in text)
+    killed = [(when, text) for when, text in lines if text.startswith("n: stopped (killed by SIGKILL)")]
+    assert killed, texts(lines)
+    assert "ignored SIGINT (0.3 s) and SIGTERM (0.3 s), so it was killed with SIGKILL" in killed[0][1]
+    assert killed[0][0] - stopping >= 0.6
+    assert gone(run.runs["n"].child.pid)

@@ -1,0 +1,69 @@
+"""Systems and recording helpers several test folders share: the Figure 2 demo system, an ESPRIT
+composite, and a way to tamper with a recorded trace."""
+from iotad.kernel.compose import Composite
+from iotad.recording.mcap_io import McapSink, RecordedMessage, packb, read_recording
+from requesters import Requester
+from scheduler import Scheduler
+
+
+def figure2(vision_pause=0.5):
+    """The `iotad demo` system: a scheduler (N=2, T=0.5) and two requesters."""
+    return Composite(
+        "figure2",
+        Scheduler("scheduler", N=2, T=0.5),
+        Requester("vision", priority=1, epoch=3.0, timeout=4.0, start=0.0, pause=vision_pause, setpoint=0.2),
+        Requester("manipulation", priority=5, epoch=2.0, timeout=3.0, start=1.0, pause=4.0, setpoint=1.5),
+        bind=[("vision.req", "scheduler.req[0]"), ("manipulation.req", "scheduler.req[1]"),
+              ("scheduler.ack[0]", "vision.ack"), ("scheduler.ack[1]", "manipulation.ack")])
+
+
+COMPOSITE = """
+iota counter: tick()/0 -> count(int)/0 {
+  states int n = 0; bool dirty = false;
+  actions
+  tick() do { n = n + 1; dirty = true; }
+  count(n) when dirty do dirty = false;
+}
+iota doubler: inp(int)/0 -> out(int)/0 {
+  states int v = 0; bool full = false;
+  actions
+  inp(x) do { v = x * 2; full = true; }
+  out(v) when full after 0.5 do full = false;
+}
+iota clocked(float P = 1.0, int TIMES = 3): go()/0 -> tick()/0, total(int)/0 {
+  states int sent = 0; bool running = false;
+  include
+    counter c;
+    doubler d;
+    tick -> c.tick;          // an output of clocked's own feeds a component
+    c.count -> d.inp;
+    d.out -> total;          // a component's output is clocked's output
+  actions
+  go() do running = true;
+  tick() when running && sent < TIMES after P do sent = sent + 1;
+}
+"""
+
+
+def mutate(source, target, node, change):
+    """Copy a recording with `change(events) -> events` applied to `node`'s @trace (re-sorted by t)."""
+    recording = read_recording(source)
+    topic = f"iota/{recording.system}/{node}/@trace"
+    events = [m.value for m in recording.messages if m.topic == topic]
+    events = sorted(change(events), key=lambda e: e["t"])
+    others = [m for m in recording.messages if m.topic != topic]
+    mutated = [RecordedMessage(topic, int(e["t"] * 1e9), int(e["t"] * 1e9), k, packb(e)) for k, e in enumerate(events)]
+    sink = McapSink(target)
+    for attachment in recording.attachments:
+        sink.attach(attachment.name, attachment.media_type, attachment.data)
+    for name, data in recording.metadata.items():
+        sink.writer.add_metadata(name, data)
+    for message in sorted(others + mutated, key=lambda m: m.log_time):
+        channel = sink.channel(message.topic, "any", {})
+        sink.write(channel, message.log_time, message.publish_time, message.sequence, message.data)
+    sink.finish()
+    return target
+
+
+def find(events, **fields):
+    return next(k for k, e in enumerate(events) if all(e.get(f) == v for f, v in fields.items()))

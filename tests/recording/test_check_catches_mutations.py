@@ -1,0 +1,123 @@
+"""`iotad check` on the Figure 2 demo: the honest recording passes; hand-mutated ones are caught
+with a message that names the event."""
+import pytest
+
+from iotad.recording.conformance import check_implements, check_trace
+from iotad.cli import main
+from iotad.recording.mcap_io import McapSink, RecordedMessage, packb, read_recording, record_run
+from requesters import Requester
+from scheduler import Scheduler
+from recorded_systems import find, mutate
+from recorded_systems import figure2
+
+
+@pytest.fixture(scope="module")
+def recorded(tmp_path_factory):
+    # vision pauses 1.0 after an answer, so that no input masks a missing ack (see test below)
+    path = tmp_path_factory.mktemp("rec") / "fig2.mcap"
+    record_run(figure2(vision_pause=1.0), path, until=30)
+    return path
+
+
+def check(path, capsys):
+    code = main(["check", str(path), "--node", "scheduler"])
+    return code, capsys.readouterr().out
+
+
+def test_honest_recording_passes(recorded, capsys):
+    assert main(["check", str(recorded)]) == 0
+    out = capsys.readouterr().out
+    assert "every node conforms" in out and "ack[i](COMMIT)" in out  # the slack table
+
+
+def test_ack_later_than_T(recorded, tmp_path, capsys):
+    def late(events):
+        k = find(events, action="ack", value="COMMIT", index=1)
+        events[k] = dict(events[k], t=events[k]["t"] + 0.8)  # T = 0.5
+        return events
+    code, out = check(mutate(recorded, tmp_path / "m.mcap", "scheduler", late), capsys)
+    assert code == 1
+    assert "[late] output ack[1]=COMMIT at t=3.8 fired 0.3 after its window [3, 3.5] closed" in out
+
+
+def test_commit_before_its_epoch(recorded, tmp_path, capsys):
+    def early(events):
+        k = find(events, action="commit", index=1)
+        events[k] = dict(events[k], t=events[k]["t"] - 0.5)  # after epoch = 2.0
+        return events
+    code, out = check(mutate(recorded, tmp_path / "m.mcap", "scheduler", early), capsys)
+    assert code == 1
+    assert "[early] internal commit[1] at t=2.5 fired 0.5 before its window [3, 3] opened" in out
+
+
+def test_missing_abort(recorded, tmp_path, capsys):
+    def drop(events):
+        del events[find(events, action="ack", value="ABORT", index=0)]
+        return events
+    code, out = check(mutate(recorded, tmp_path / "m.mcap", "scheduler", drop), capsys)
+    assert code == 1
+    assert "[expired] ack[0](ABORT) was enabled at t=1 and had to fire by t=1.5; it never fired" in out
+
+
+def test_input_faster_than_its_switching_time(recorded, tmp_path, capsys):
+    def extra(events):
+        first = events[find(events, action="req", kind="input", index=0)]
+        return events + [dict(first, t=first["t"] + 0.4)]  # switching time 1
+    code, out = check(mutate(recorded, tmp_path / "m.mcap", "scheduler", extra), capsys)
+    assert code == 1
+    assert "[switching_time] input req[0]=" in out and "at t=0.4 came 0.4 after the previous one at t=0" in out
+
+
+def test_output_value_the_spec_does_not_give(recorded, tmp_path, capsys):
+    def wrong(events):
+        k = find(events, action="ack", value="COMMIT", index=1)
+        events[k] = dict(events[k], value="REJECT")
+        return events
+    code, out = check(mutate(recorded, tmp_path / "m.mcap", "scheduler", wrong), capsys)
+    assert code == 1 and "[wrong_value] output ack[1]=REJECT at t=3" in out and "ack[1](COMMIT)=COMMIT" in out
+
+
+def test_tolerance_absorbs_small_lateness(recorded, tmp_path, capsys):
+    def slightly(events):
+        # the commit and what it enables at the same instant come 4 ms late, as from a real process
+        t = events[find(events, action="commit", index=1)]["t"]
+        return [dict(e, t=e["t"] + 0.004) if e["t"] == t else e for e in events]
+    path = mutate(recorded, tmp_path / "m.mcap", "scheduler", slightly)
+    assert main(["check", str(path), "--node", "scheduler"]) == 1
+    assert main(["check", str(path), "--node", "scheduler", "--tolerance", "0.01"]) == 0
+    capsys.readouterr()
+
+
+def test_implements_own_spec_and_not_another(recorded, capsys):
+    recording = read_recording(recorded)
+    scheduler_trace = recording.trace("scheduler")
+    assert check_implements(Scheduler("scheduler", N=2, T=0.5), scheduler_trace).ok
+    vision = recording.trace("vision")
+    report = check_implements(Requester("vision", priority=1, epoch=3.0, timeout=4.0, start=0.5, pause=1.0,
+                                        setpoint=0.2), vision)
+    assert not report.ok and report.explained == 0
+    assert "output req=" in report.lines()[0] and "at t=0" in report.lines()[0]
+    assert any("may fire only in [0.5, 0.5]" in reason for reason in report.reasons)
+    # the same through the command line, with the spec named by file
+    spec = f"{Requester.__module__ and __import__('requesters').__file__}:Requester"
+    assert main(["check", str(recorded), "--node", "vision", "--spec", spec, "--param", "priority=1",
+                 "--param", "epoch=3.0", "--param", "timeout=4.0", "--param", "pause=1.0",
+                 "--param", "setpoint=0.2"]) == 0
+    assert main(["check", str(recorded), "--node", "vision", "--spec", spec, "--param", "priority=7"]) == 1
+    out = capsys.readouterr().out
+    assert "does not implement" in out and "cannot explain event #0" in out
+
+
+def test_check_trace_api_reports_slack(recorded):
+    recording = read_recording(recorded)
+    report = check_trace(Scheduler("scheduler", N=2, T=0.5), recording.trace("scheduler"))
+    assert report.ok and report.firings > 10
+    assert report.slack["commit[i]"].after_open == 0 and report.slack["ack[i](COMMIT)"].before_close == 0.5
+
+
+def test_bad_input_is_exit_2(recorded, tmp_path, capsys):
+    assert main(["check", str(recorded), "--node", "nosuch"]) == 2
+    assert main(["check", str(recorded), "--node", "vision", "--spec", str(tmp_path / "none.iota")]) == 2
+    assert main(["check", str(recorded), "--spec", "x.py:Y"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("iotad: error:") == 3 and "Traceback" not in err
