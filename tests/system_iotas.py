@@ -1,5 +1,6 @@
 """Tiny IOTAs for the system-file and launcher tests: just enough channels to bind."""
 from iotad import Float, Input, Int, Iota, Output, Param
+from iotad.can.frame import CAN_FRAME, Frame
 
 
 class Source(Iota):
@@ -74,3 +75,47 @@ class Rogue(Iota):
     ignore_signals = Param(False)
     flood_hz = Param(0.0)
     out = Output(Int, switching=1)
+
+
+class CanPinger(Iota):
+    """A CAN station: sends frame 0x10 with a counter every `period`, keeps what it receives."""
+    period = Param(0.01)
+    can_tx = Output(CAN_FRAME, switching=0)
+    can_rx = Input(CAN_FRAME, switching=0)
+
+    def init(self):
+        self.n = 0
+        self.received = []
+
+    @can_tx.action(value=lambda self: Frame(0x10, bytes([self.n % 256])).to_value(), after="period")
+    def ping(self):
+        self.n += 1
+
+    @can_rx.input
+    def heard(self, frame):
+        self.received.append(Frame.from_value(frame))
+
+
+class CanEcho(Iota):
+    """A CAN station: answers every frame id with id + 1 and the same data."""
+    can_tx = Output(CAN_FRAME, switching=0)
+    can_rx = Input(CAN_FRAME, switching=0)
+
+    def init(self):
+        self.pending = []
+
+    @can_rx.input
+    def heard(self, frame):
+        self.pending.append(Frame.from_value(frame))
+
+    @can_tx.action(value=lambda self: Frame(self.pending[0].id + 1, self.pending[0].data).to_value(),
+                   when=lambda self: len(self.pending) > 0)
+    def answered(self):
+        del self.pending[0]
+
+
+class NotAStation(Iota):
+    """Has can_tx and can_rx, but of the wrong type and shape."""
+    period = Param(0.01)
+    can_tx = Output(Int, switching=0)
+    can_rx = Input(CAN_FRAME, size=2, switching=0)

@@ -282,7 +282,10 @@ class NodeHost:
     def describe(self) -> dict:
         config = self.config
         params = config.params if isinstance(self.root, Composite) else param_values(self.root)
-        return {"system": config.system, "path": config.path, "source": config.source, "text": self.text,
+        source = dict(config.source)
+        if source.get("kind") == "python" and not isinstance(self.root, Composite):
+            source["module"] = type(self.root).__module__  # replay resolves its relative imports there
+        return {"system": config.system, "path": config.path, "source": source, "text": self.text,
                 "params": plain_params(params), "channels": self.table.described,
                 "time_unit": config.time_unit, "origin": self.clock.origin_wall, "pid": os.getpid(),
                 "trace": wire.trace_key(config.system, config.path), "started": time.time()}

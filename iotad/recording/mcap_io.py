@@ -356,7 +356,8 @@ def spec_record(iota: Any, path: str, time_unit: float = 1.0) -> dict:
     else:
         cls = type(iota)
         file = inspect.getsourcefile(cls)
-        source = {"kind": "python", "ref": f"{file}:{cls.__name__}"}
+        # the module's name too: a module of a package imports its neighbours relatively
+        source = {"kind": "python", "ref": f"{file}:{cls.__name__}", "module": cls.__module__}
         text = Path(file).read_text() if file and Path(file).is_file() else None
     return {"path": path, "source": source, "text": text, "params": to_plain(param_values(iota)),
             "channels": channel_list(spec, param_values(iota)), "time_unit": time_unit}
@@ -403,7 +404,7 @@ def build_node(spec: dict, name: str | None = None) -> Any:
         ref = source.get("ref", "")
         file, _, cls_name = ref.rpartition(":")
         if text:
-            cls = getattr(_module_from_text(text, file), cls_name, None)
+            cls = getattr(_module_from_text(text, file, _package_of(source, file)), cls_name, None)
             if cls is None:
                 raise RecordingError(f"spec of {name}: its stored source has no {cls_name}")
         else:
@@ -413,11 +414,36 @@ def build_node(spec: dict, name: str | None = None) -> Any:
     raise RecordingError(f"spec of {name}: unknown source kind {kind!r}")
 
 
-def _module_from_text(text: str, file: str) -> Any:
+def _package_of(source: dict, where: str) -> str | None:
+    """The package a stored module's relative imports (`from .joint_map import ...`) resolve
+    in: from the recorded module name, or from a `package.module` reference; None for a file
+    that is no package's module."""
+    module = source.get("module")
+    if not module and where and not where.endswith(".py"):
+        module = where  # a "package.module:Class" reference
+    if not module or module == "__main__":
+        return None
+    try:
+        found = importlib.util.find_spec(module)
+    except (ImportError, ValueError):
+        found = None
+    if found is not None and found.submodule_search_locations is not None:
+        return module  # the text is the package's __init__
+    return module.rpartition(".")[0] or None
+
+
+def _module_from_text(text: str, file: str, package: str | None = None) -> Any:
     """Import a stored Python source as a module; its text goes to linecache so that the
-    dependency analysis (iotad.kernel.dependencies) can still read the functions' source."""
+    dependency analysis (iotad.kernel.dependencies) can still read the functions' source.
+    In `package` (imported first), so that its relative imports find the package's modules."""
     digest = hashlib.sha1(text.encode()).hexdigest()[:12]
     name = f"_iotad_recorded_{digest}"
+    if package:
+        try:
+            importlib.import_module(package)
+            name = f"{package}.{name}"
+        except ImportError:
+            pass  # not installed here: relative imports will say so
     module = sys.modules.get(name)
     if module is not None:
         return module

@@ -1,0 +1,140 @@
+"""`[[can]]` in system files (every check trips on a file and passes on its twin), and `iotad run
+--virtual`: the file's nodes and its CAN buses in one process in virtual time, recorded in the
+format every reading command takes."""
+from pathlib import Path
+
+import pytest
+
+from iotad.can.frame import Frame
+from iotad.cli import main
+from iotad.launcher.system_file import SystemFileError, load_system
+from iotad.recording.mcap_io import read_recording
+
+ROOT = Path(__file__).resolve().parents[2]
+IOTAS = Path(__file__).resolve().parents[1] / "system_iotas.py"
+
+PING_PONG = """[system]
+name = "pingpong"
+[[node]]
+name = "pinger"
+python = "IOTAS:{pinger}"
+params = {{ period = 0.01 }}
+[[node]]
+name = "echo"
+python = "IOTAS:CanEcho"
+[[can]]
+{bus}
+"""
+GOOD_BUS = 'name = "can0"\ninterface = "socketcan"\nchannel = "vcan0"\nstations = ["pinger", "echo"]'
+
+
+def write(tmp_path: Path, bus: str = GOOD_BUS, pinger: str = "CanPinger") -> Path:
+    path = tmp_path / "pingpong.toml"
+    path.write_text(PING_PONG.format(bus=bus, pinger=pinger).replace("IOTAS", str(IOTAS)))
+    return path
+
+
+def errors(tmp_path: Path, **kw) -> str:
+    with pytest.raises(SystemFileError) as caught:
+        load_system(write(tmp_path, **kw))
+    return "\n".join(caught.value.errors)
+
+
+def test_a_bus_binds_its_stations_and_tells_each_node_host_what_to_open(tmp_path):
+    system = load_system(write(tmp_path))
+    bus = system.buses["can0"]
+    assert (bus.interface, bus.channel, bus.bitrate, bus.stations) == ("socketcan", "vcan0", 1_000_000,
+                                                                      ["pinger", "echo"])
+    # can_rx is fed by the bus (no [[bind]] needed); each station's host is told what to open
+    for node in ("pinger", "echo"):
+        config = system.node_config(node, 0.0, ["tcp/127.0.0.1:7447"])
+        assert config["can"] == {"bus": "can0", "interface": "socketcan", "channel": "vcan0",
+                                 "bitrate": 1_000_000, "options": {}}
+
+
+@pytest.mark.parametrize("bus, expected", [
+    (GOOD_BUS + '\nspeed = 3', "unknown key 'speed'"),
+    (GOOD_BUS.replace('name = "can0"', 'name = "can 0"'), "name must be one key chunk"),
+    (GOOD_BUS.replace('name = "can0"', 'name = "echo"'), "already taken by another bus or a node"),
+    (GOOD_BUS.replace('interface = "socketcan"', 'interface = ""'), "interface must name a python-can interface"),
+    (GOOD_BUS.replace('channel = "vcan0"', 'channel = 0'), "channel must be a string"),
+    (GOOD_BUS + "\nbitrate = 5", "bitrate must be an integer from 10000 to 1000000"),
+    (GOOD_BUS + "\noptions = 3", "options must be a table"),
+    (GOOD_BUS.replace('["pinger", "echo"]', '[]'), "stations must be a non-empty list"),
+    (GOOD_BUS.replace('["pinger", "echo"]', '["pinger", "motor"]'), "station 'motor' is not a node"),
+    (GOOD_BUS.replace('["pinger", "echo"]', '["pinger", "pinger"]'), "listed twice"),
+])
+def test_a_bad_bus_entry_is_named_with_what_is_wrong(tmp_path, bus, expected):
+    message = errors(tmp_path, bus=bus)
+    assert "[[can]] #1" in message and expected in message
+
+
+def test_a_station_needs_plain_canframe_channels(tmp_path):
+    message = errors(tmp_path, pinger="NotAStation")
+    assert "'pinger' needs a plain input channel 'can_rx' of type canFrame" in message
+    assert "pinger.can_tx carries" in message and "not canFrame" in message
+
+
+def test_a_node_cannot_sit_on_two_buses(tmp_path):
+    bus = GOOD_BUS + '\n[[can]]\nname = "can1"\ninterface = "socketcan"\nstations = ["echo"]'
+    assert "node 'echo' is already a station of bus 'can0'" in errors(tmp_path, bus=bus)
+
+
+def test_iotad_run_check_accepts_the_bus(tmp_path, capsys):
+    assert main(["run", "--check", str(write(tmp_path))]) == 0
+    assert "ok: system" in capsys.readouterr().out
+
+
+def frames(recording, node, action):
+    return [(round(e["t"], 9), Frame.from_value(e["value"])) for e in recording.trace(node)
+            if e["kind"] in ("output", "input") and e["action"] == action and e["value"] is not None]
+
+
+def test_virtual_run_carries_frames_over_the_modelled_bus_and_records_them(tmp_path, capsys):
+    out = tmp_path / "pingpong.mcap"
+    assert main(["run", str(write(tmp_path)), "--virtual", "--until", "0.1", "-o", str(out)]) == 0
+    assert main(["check", str(out)]) == 0
+    recording = read_recording(out)
+    pings = frames(recording, "pinger", "can_tx")
+    answers = frames(recording, "echo", "can_tx")
+    heard = frames(recording, "pinger", "can_rx")
+    assert [f.data[0] for _, f in pings] == list(range(len(pings))) and len(pings) >= 9
+    # every ping answered by 0x11 with its data; each answer heard by the pinger, in order
+    assert [(f.id, f.data) for _, f in answers] == [(0x11, f.data) for _, f in pings][:len(answers)]
+    assert [f for _, f in heard] == [f for _, f in answers][:len(heard)]
+    # the bus holds each frame for its bit time (1-byte standard frame at 1 Mbit/s: ~65-75 us)
+    for (t_ping, _), (t_answer, _) in zip(pings, answers):
+        assert 50e-6 < t_answer - t_ping < 100e-6
+    for (t_answer, _), (t_heard, _) in zip(answers, heard):
+        assert 50e-6 < t_heard - t_answer < 100e-6
+    # the frames the echo never sees are its own: the bus does not deliver a frame to its sender
+    assert not any(f.id == 0x11 for _, f in frames(recording, "echo", "can_rx"))
+
+
+def test_virtual_runs_are_deterministic_for_a_seed(tmp_path):
+    path = write(tmp_path)
+    traces = []
+    for k in range(2):
+        out = tmp_path / f"run{k}.mcap"
+        assert main(["run", str(path), "--virtual", "--until", "0.05", "--seed", "7", "-o", str(out)]) == 0
+        traces.append([(e["t"], e["iota"], e["action"], str(e.get("value"))) for e in read_recording(out).trace()])
+    assert traces[0] == traces[1] and len(traces[0]) > 10
+
+
+def test_virtual_run_of_figure2_passes_check_and_shows_the_scheduler_at_work(tmp_path):
+    out = tmp_path / "fig2.mcap"
+    assert main(["run", str(ROOT / "examples/figure2.toml"), "--virtual", "--until", "20", "-o", str(out)]) == 0
+    assert main(["check", str(out)]) == 0
+    acks = {e["value"] for e in read_recording(out).trace("scheduler") if e["action"] == "ack" and e["kind"] == "output"}
+    assert "COMMIT" in acks
+
+
+@pytest.mark.parametrize("args, expected", [
+    (["--virtual"], "--virtual needs --until"),
+    (["--virtual", "--until", "1", "--port", "7999"], "--port is for processes over zenoh"),
+    (["--virtual", "--until", "1", "--inputs", "/nonexistent.jsonl"], "/nonexistent.jsonl"),
+])
+def test_virtual_run_refuses_what_it_cannot_do_with_a_clear_message(tmp_path, capsys, args, expected):
+    assert main(["run", str(write(tmp_path))] + args) != 0
+    captured = capsys.readouterr()
+    assert expected in captured.err and "Traceback" not in captured.err
