@@ -22,7 +22,7 @@ GROUPS = (
     ("specify and simulate an IOTA (virtual time, one process)", ("spec",)),
     ("run a system (one process per IOTA, over zenoh)", ("run",)),
     ("record and examine a recording (MCAP)", ("record", "info", "replay", "check", "plot", "export", "recover")),
-    ("watch a running system", ("top", "ls", "echo", "pub", "hz")),
+    ("watch a running system", ("top", "view", "ls", "echo", "pub", "hz")),
 )
 
 EPILOG = """\

@@ -63,6 +63,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--log-dir", metavar="DIR",
                         help="keep node configs and logs in DIR (default: a temp dir, removed unless a node failed)")
     parser.add_argument("--plain", action="store_true", help="plain event lines even on a terminal")
+    parser.add_argument("--view", nargs="?", type=int, const=8765, metavar="WS_PORT",
+                        help="also serve the system to Foxglove (iotad view) on ws://127.0.0.1:WS_PORT (default 8765)")
     parser.add_argument("--virtual", action="store_true",
                         help="run every node in this process in virtual time (needs --until, in virtual seconds)")
     parser.add_argument("--inputs", metavar="SCRIPT.jsonl",
@@ -134,10 +136,19 @@ def launch(system, args: argparse.Namespace, summary_hook=None) -> int:
     launcher = Launcher(system, host=args.host, port=port, until=args.until, record=not args.no_record,
                         record_path=args.record_to, origin=args.origin, log_dir=args.log_dir,
                         live_table=False if args.plain else None)
+    viewer = None
+    if getattr(args, "view", None) is not None and system.opens_hub(args.host):
+        from iotad.cli.commands.view import ViewerProcess
+
+        hub = system.listen[0] if port is None else f"tcp/127.0.0.1:{port}"
+        viewer = ViewerProcess(hub.replace("0.0.0.0", "127.0.0.1"), system.name, args.view)
     try:
         code = launcher.run()
     except LauncherError as exc:
         raise CliError(str(exc)) from None
+    finally:
+        if viewer is not None:
+            viewer.stop()
     print(f"summary of {system.name}" + (f" (host {args.host})" if args.host else "") + ":")
     for line in launcher.summary():
         print(line)
