@@ -13,6 +13,9 @@ own). The bus models a classic CAN bus at `bitrate`:
   its lowest id first). Arbitration is decided at the end of the start-of-frame bit, so frames
   posted at the same instant all take part whatever the order of the components' actions; the
   frame still ends exactly one frame time after it started.
+- Log: with `log_frames` (the default), every frame the bus carried goes out on `frames` as it
+  ends, a `CAN_BUS_FRAME` (`frame_log.py`: sender station, bit time, the frame, its CAN Simple
+  direction and message name), so a recording holds the bus's frames on one topic.
 - Load: `busy_time` (seconds the bus carried frames), `frames`; every `load_period` seconds the
   output `load` reports the fraction of that period the bus was busy (frames counted when they end;
   0 switches it off: the reports never stop, so `engine.run()` needs `until`) and `average_load` is
@@ -29,6 +32,7 @@ from iotad.kernel.types import Float
 
 from .bit_timing import frame_bits
 from .frame import CAN_FRAME
+from .frame_log import CAN_BUS_FRAME, bus_frame
 
 
 def arbitration_key(frame) -> tuple:
@@ -50,10 +54,12 @@ class CanBus(Iota):
     stuffing = Param("exact")        # "exact", "worst" or "none"
     station_queue = Param("fifo")    # "fifo" (SocketCAN) or "priority" (lowest id of a station first)
     load_period = Param(0.1)         # seconds between `load` reports; 0: no reports
+    log_frames = Param(True)         # every frame carried out on `frames` (one recorded topic per bus)
 
     tx = Input(CAN_FRAME, size="stations", switching=0)
     rx = Output(CAN_FRAME, size="stations", switching=0)
     load = Output(Float(0, None), switching=0)
+    frames = Output(CAN_BUS_FRAME, switching=0)
     arbitrate = Internal(CAN_FRAME, switching=0)   # its value: the frame that won
     finish = Internal(switching=0)
 
@@ -74,6 +80,7 @@ class CanBus(Iota):
         self.elapsed = 0.0
         self.busy_time_reported = 0.0
         self.max_waiting = 0
+        self.log = []                 # CAN_BUS_FRAME records of frames that ended, not yet out
 
     @property
     def average_load(self) -> float:
@@ -122,7 +129,13 @@ class CanBus(Iota):
         _, station, position = min(heads)  # equal ids (an error on a real bus): the lower station
         return station, position, self.waiting[station][position]
 
+    @frames.action(value=lambda self: self.log[0], when=lambda self: bool(self.log), after=0)
+    def logged(self):
+        self.log.pop(0)
+
     def _free(self):
+        if self.log_frames:
+            self.log.append(bus_frame(self.current, self.sender, self.frame_time))
         self.busy_time += self.frame_time
         self.window_busy += self.frame_time
         self.frames += 1

@@ -68,3 +68,57 @@ def arm_system(target, *, motor_params=None, odrive_params=None, **trajectory) -
         bind=[("trajectory.setpoints", "motor.setpoints"), ("motor.joint_states", "trajectory.joint_states"),
               ("motor.can_tx", "bus.tx[0]"), ("bus.rx[0]", "motor.can_rx"),
               ("odrives.can_tx", "bus.tx[1]"), ("bus.rx[1]", "odrives.can_rx")])
+
+
+def system_toml(target, *, name="arm_can", start=0.3, duration=1.0, polls="{ Get_Error = 0.1, Get_Torques = 0.05 }",
+                trajectory_python=None) -> str:
+    """The same arm as a system file (what `iotad run --virtual` and `iotad replay` take): the
+    joint map as nested TOML tables, a [[can]] bus with the motor and the simulated ODrives."""
+    import textwrap
+    from pathlib import Path
+
+    python = trajectory_python or f"{Path(__file__).resolve()}:Trajectory"
+    joints = "".join(textwrap.dedent(f'''
+        [[node.params.joints]]
+        name = "joint{k}"
+        node_id = {k}
+        velocity_limit = 3.14
+        current_limit = {effort}
+        out_of_range = "clamp"
+        ''') for k, effort in zip(range(1, 7), EFFORT))
+    return textwrap.dedent(f'''
+        [system]
+        name = "{name}"
+        external = ["motor.estop"]
+
+        [[node]]
+        name = "trajectory"
+        python = "{python}"
+        params = {{ target = {list(target)}, start = {start}, duration = {duration} }}
+
+        [[node]]
+        name = "motor"
+        python = "nodes.can_motor:CanMotor"
+
+        [node.params]
+        polls = {polls}
+        ''') + joints + textwrap.dedent('''
+        [[node]]
+        name = "odrives"
+        python = "sim.odrive_sim:SimulatedOdrives"
+        params = { world = "arm", node_ids = { joint1 = 1, joint2 = 2, joint3 = 3, joint4 = 4, joint5 = 5, joint6 = 6 } }
+
+        [[can]]
+        name = "can0"
+        interface = "socketcan"
+        channel = "vcan0"
+        stations = ["motor", "odrives"]
+
+        [[bind]]
+        from = "trajectory.setpoints"
+        to = "motor.setpoints"
+
+        [[bind]]
+        from = "motor.joint_states"
+        to = "trajectory.joint_states"
+        ''')

@@ -1,5 +1,5 @@
-"""The ESPRIT extensions the schedulers need (docs/esprit.md "Quantifiers" and "Time, reset and
-inhibit"): forall/exists, now(), reset(), inhibit(d). Parsing, static checks, generated code,
+"""The ESPRIT extensions the schedulers need (docs/esprit.md "Quantifiers, time,
+reset and inhibit"): forall/exists, now(), reset(), inhibit(d). Parsing, static checks, generated code,
 the cells actions read and write, and their runtime behaviour."""
 import pytest
 
@@ -7,7 +7,7 @@ from iotad import run_script
 from iotad.esprit import EspritError, check_text, load_iota, load_text
 from iotad.kernel.model import ALL_STATE, ANY, INDEX
 
-from conftest import RESUME, priority, req, run
+from scheduling_helpers import RESUME, priority, req, run
 
 
 def errors(text):

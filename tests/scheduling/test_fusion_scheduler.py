@@ -10,7 +10,7 @@ from iotad.cli import main
 from iotad.esprit import load_file, load_iota
 from iotad.kernel.input_script import parse_script
 
-from conftest import EXAMPLES, FUSION, acks, assert_conforms, run, story
+from scheduling_helpers import EXAMPLES, FUSION, acks, assert_conforms, run, story
 
 
 def scheduler(**params):
@@ -79,6 +79,15 @@ def test_a_request_replaced_while_served_is_aborted():
     assert setpoints(engine) == [(0.0, [0.0, 0.0]), (2.0, [1.0, 2.0])]
     assert acks(engine) == [(2.0, 0, "ABORT"), (3.0, 0, "COMMIT")]
 
+
+
+def test_back_to_back_requests_on_one_index_commit_after_their_epochs():
+    engine = run(scheduler(), [fuse_req(0.0, 0, [0.0, 0.0], [1.0, 1.0], epoch=0.9),
+                               fuse_req(1.0, 0, [1.0, 1.0], [1.0, 1.0], epoch=0.1)])
+    assert [t for t, a, _, _ in story(engine) if a == "commit"] == [0.9, 1.1]
+    assert setpoints(engine) == [(0.0, [0.0, 0.0]), (1.0, [1.0, 1.0])]
+    assert acks(engine) == [(0.9, 0, "COMMIT"), (1.9, 0, "COMMIT")]  # ack's switching time 1
+    assert not [e for e in engine.trace if e["kind"] == "violation"]
 
 def test_the_example_script_with_iotad_spec_run(capsys):
     assert main(["spec", "run", str(FUSION), "--param", "T=0.5", "--inputs", str(EXAMPLES / "fusion-inputs.jsonl"),

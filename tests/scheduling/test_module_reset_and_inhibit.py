@@ -9,7 +9,7 @@ from iotad.cli import main
 from iotad.esprit import load_iota
 from iotad.kernel.input_script import parse_script
 
-from conftest import EXAMPLES, assert_conforms, run, story, violations
+from scheduling_helpers import EXAMPLES, assert_conforms, run, story, violations
 
 BEHAVIOURS = EXAMPLES / "behaviours.iota"
 

@@ -10,7 +10,7 @@ from iotad.cli import main
 from iotad.esprit import load_iota
 from iotad.kernel.input_script import parse_script
 
-from conftest import (EXAMPLES, FIGURE2, RESUME, acks, assert_conforms, mode, priority, req, run, story,
+from scheduling_helpers import (EXAMPLES, FIGURE2, RESUME, acks, assert_conforms, mode, priority, req, run, story,
                       violations)
 
 
@@ -117,6 +117,35 @@ def test_a_request_preempted_before_it_signalled_waits_again_and_is_rejected_as_
     assert [t for t, a, _, _ in story(engine) if a == "mdl_command"] == [0.0, 1.0, 4.0]
     assert acks(engine) == [(2.0, 1, "REJECT"), (4.0, 2, "COMMIT"), (8.5, 0, "COMMIT")]
 
+
+
+def test_the_motors_go_to_the_highest_waiting_request_the_instant_they_are_free():
+    # 0 resumes at 1.2 but is suspended again at 1.5, before its mode went out (mdl_command waits
+    # out its switching time); when 2 commits at 2.1, 0 is scheduled at that instant although it
+    # was last scheduled only 0.9 before (schedule's switching time is 0, not Figure 2's 1)
+    engine = run(scheduler(N=3), [req(0.0, 0, 1, epoch=5.0, w=0.0), req(0.5, 1, 5, epoch=0.2, w=0.1),
+                                  req(1.5, 2, 7, epoch=0.1, w=0.2)])
+    assert story(engine) == [
+        (0.0, "schedule", 0, None), (0.0, "mdl_command", None, mode(0.0)),
+        (0.5, "schedule", 1, None), (1.0, "mdl_command", None, mode(0.1)),       # 0 suspended, 4.5 left
+        (1.2, "commit", 1, None), (1.2, "schedule", 0, None), (1.2, "ack", 1, "COMMIT"),
+        (1.5, "schedule", 2, None),                                              # 0 suspended again
+        (2.0, "mdl_command", None, mode(0.2)),
+        (2.1, "commit", 2, None), (2.1, "schedule", 0, None), (2.1, "ack", 2, "COMMIT"),
+        (3.0, "mdl_command", None, mode(0.0)),                                   # mdl_command's switching time
+        (7.5, "commit", 0, None), (7.5, "ack", 0, "COMMIT")]                     # 3 + 4.5
+    assert not violations(engine)
+
+
+def test_back_to_back_requests_on_one_index_commit_after_their_epochs():
+    # Figure 2 commits the second request at 1.9 (commit's switching time 1: an unreachable window)
+    inputs = [req(0.0, 0, 1, epoch=0.9), req(1.0, 0, 1, epoch=0.1)]
+    assert [t for t, a, _, _ in story(run(scheduler(), inputs)) if a == "commit"] == [0.9, 1.1]
+    assert acks(run(scheduler(), inputs)) == [(0.9, 0, "COMMIT"), (1.9, 0, "COMMIT")]  # ack's switching time
+    assert not violations(run(scheduler(), inputs))
+    figure2 = run(load_iota(str(FIGURE2)), inputs)
+    assert [t for t, a, _, _ in story(figure2) if a == "commit"] == [0.9, 1.9]
+    assert [v["value"]["violation"] for v in violations(figure2)] == ["unreachable_window"]
 
 FIGURE2_SCENARIOS = {  # the scenarios of tests/esprit/test_figure2_scheduler_in_esprit.py that preempt nothing
     "commit_after_epoch": [req(0.0, 0, 1, epoch=2.0, timeout=5.0)],

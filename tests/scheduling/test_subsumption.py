@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 from iotad.cli import main
 from iotad.esprit import load_iota
 
-from conftest import EXAMPLES, SUBSUMPTION, assert_conforms, run
+from scheduling_helpers import EXAMPLES, SUBSUMPTION, assert_conforms, run
 from nodes.scheduler.subsumption_tree import load_tree, main as generate, tree_spec
 
 
@@ -51,6 +51,19 @@ def test_hold_zero_suppresses_only_at_the_same_instant():
                                          event(1.001, "inferior", 2.0)])
     assert outs(engine) == [(1.0, 9.0), (1.001, 2.0)]
 
+
+
+def test_the_pair_example_script_with_iotad_spec_run(capsys):
+    script = EXAMPLES / "subsumption-pair-inputs.jsonl"
+    assert main(["spec", "run", str(SUBSUMPTION), "--inputs", str(script), "--until", "6"]) == 0
+    trace = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    assert [(e["t"], e["value"]) for e in trace if e["kind"] == "output"] == [
+        (0.0, 1.0), (0.5, 1.5),   # no dominant input yet: the inferior one goes out
+        (1.0, 9.0),               # the dominant one
+        (2.25, 3.0),              # inferior at 1.5 and 2.0 suppressed (dominant not absent > hold)
+        (3.0, 8.0),               # both at one instant: the dominant one
+        (5.0, 4.0)]               # dominant absent for 2 > hold
+    assert not [e for e in trace if e["kind"] == "violation"]
 
 def test_a_four_level_tree_with_the_example_script(capsys):
     script = EXAMPLES / "subsumption-inputs.jsonl"

@@ -8,7 +8,7 @@ from iotad.can.odrive import CONTROL_MODE
 from sim.odrive_axis import AxisConfig, OdriveAxis
 from sim.worlds.buggy import BuggyWorld, closest_point
 
-from conftest import DT, TWO_PI, command
+from sim_helpers import DT, TWO_PI, command
 
 
 @pytest.fixture

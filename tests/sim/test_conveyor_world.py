@@ -8,7 +8,7 @@ import pytest
 from sim.odrive_axis import AxisConfig, OdriveAxis
 from sim.worlds.conveyor import ConveyorWorld
 
-from conftest import DT, TWO_PI, command
+from sim_helpers import DT, TWO_PI, command
 
 DOWN = (1.0, 0.0, 0.0, 0.0)  # the tool pointing at the floor
 

@@ -6,7 +6,7 @@ from iotad.can import odrive
 from iotad.can.odrive import AXIS_ERROR, CONTROL_MODE, INPUT_MODE
 from sim.odrive_axis import AxisConfig, OdriveAxis
 
-from conftest import DT, command, poll, run
+from sim_helpers import DT, command, poll, run
 
 POSITION, VELOCITY, TORQUE = CONTROL_MODE["POSITION"], CONTROL_MODE["VELOCITY"], CONTROL_MODE["TORQUE"]
 

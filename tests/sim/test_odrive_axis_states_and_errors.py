@@ -8,7 +8,7 @@ from iotad.can import odrive
 from iotad.can.odrive import AXIS_ERROR, AXIS_STATE, PROCEDURE_RESULT
 from sim.odrive_axis import AxisConfig, OdriveAxis
 
-from conftest import command, poll
+from sim_helpers import command, poll
 
 IDLE, CLOSED_LOOP = AXIS_STATE["IDLE"], AXIS_STATE["CLOSED_LOOP_CONTROL"]
 

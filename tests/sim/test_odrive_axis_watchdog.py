@@ -4,7 +4,7 @@ from iotad.can import odrive
 from iotad.can.odrive import AXIS_ERROR, AXIS_STATE
 from sim.odrive_axis import AxisConfig, OdriveAxis
 
-from conftest import DT, command, poll
+from sim_helpers import DT, command, poll
 
 WATCHDOG = AXIS_ERROR["WATCHDOG_TIMER_EXPIRED"]
 CLOSED_LOOP = AXIS_STATE["CLOSED_LOOP_CONTROL"]

@@ -8,7 +8,7 @@ from iotad.can import odrive
 from iotad.can.frame import Frame
 from iotad.can.odrive import AXIS_ERROR, AXIS_STATE
 
-from conftest import TWO_PI
+from sim_helpers import TWO_PI
 
 CLOSED_LOOP, IDLE = AXIS_STATE["CLOSED_LOOP_CONTROL"], AXIS_STATE["IDLE"]
 WATCHDOG = AXIS_ERROR["WATCHDOG_TIMER_EXPIRED"]
