@@ -39,10 +39,11 @@ def follow(x: float, y: float, speed: float, gain: float, turn_max: float, near:
     tangent = min(tangents, key=abs)
     blend = min(1.0, math.hypot(x, y) / near)
     heading = wrap(tangent + wrap(bearing - tangent) * blend)
-    return {"speed": speed, "turn": clamp(gain * heading, -turn_max, turn_max)}
+    return {"speed": speed, "turn": clamp(gain * heading, -turn_max, turn_max), "why": "FOLLOW"}
 
 
 def avoid(direction: float, speed: float, gain: float, turn_max: float) -> dict:
     """Turn away from a wall seen at `direction`; stop while still facing it (rotate in place)."""
     away = wrap(direction + math.pi)
-    return {"speed": speed if abs(away) < math.pi / 3 else 0.0, "turn": clamp(gain * away, -turn_max, turn_max)}
+    return {"speed": speed if abs(away) < math.pi / 3 else 0.0, "turn": clamp(gain * away, -turn_max, turn_max),
+            "why": "AVOID"}

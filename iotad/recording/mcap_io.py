@@ -399,6 +399,11 @@ def build_node(spec: dict, name: str | None = None) -> Any:
             from iotad.esprit import load_iota
         except ImportError:
             raise RecordingError("this recording holds an ESPRIT spec, and iotad.esprit is not installed") from None
+        if text and source.get("file"):
+            # the stored text under its file's name: externs named relative to the spec
+            # ("buggy_math.py:wrap") resolve next to it, as when the node loaded it
+            from iotad.esprit import load_text
+            return load_text(text, str(source["file"])).factory(source.get("iota"))(name, **params)
         return load_iota(text if text else source["file"], iota=source.get("iota"), name=name, **params)
     if kind == "python":
         ref = source.get("ref", "")

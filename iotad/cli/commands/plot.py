@@ -40,6 +40,16 @@ def run(args: argparse.Namespace) -> int:
                        f"{', '.join(FORMATS)}")
     output_file(args.output)
     recording = load(args.file)
+    from iotad.recording.buggy_plot import is_buggy
+    if is_buggy(recording):  # Buggy's channels: its arena, path and moods (Figures 4 and 5)
+        try:
+            from iotad.recording.buggy_plot import plot as plot_buggy
+            print(f"wrote {plot_buggy(recording, args.output, args.title)}")
+        except ImportError:
+            raise CliError("plotting needs matplotlib: pip install 'iotad[plot]'") from None
+        except RecordingError as exc:
+            raise CliError(str(exc)) from None
+        return 0
     try:
         from iotad.recording.timeline_plot import plot
     except ImportError:

@@ -1,0 +1,128 @@
+"""Buggy's run as the paper's Figures 4 and 5: the arena, the path coloured by the active
+behaviour, and hunger and fear over time.
+
+A recording is Buggy's when a node outputs `landmark` and `pose` (the sensors: walls, cracks and
+food, then x, y, yaw) and a node outputs `mood` (buggy: hunger, fear, the active behaviour and
+the basic behaviour driving: WANDER, FOLLOW, EAT, AVOID). Everything comes from the nodes' trace
+events, so a virtual-time run and a real-time run draw the same way.
+"""
+from __future__ import annotations
+
+from bisect import bisect_right
+from pathlib import Path
+
+from iotad.recording.mcap_io import Recording, RecordingError
+
+COLOURS = {"WANDER": "#3a6ea5", "FOLLOW": "#e08a00", "EAT": "#2a9d3f", "AVOID": "#c62828"}
+LABELS = {"WANDER": "wander", "FOLLOW": "follow crack", "EAT": "eat", "AVOID": "avoid wall (subconscious)"}
+
+
+def _outputs(recording: Recording, channel: str) -> dict[str, list[tuple[float, object]]]:
+    """node -> [(t, value)] of its `channel` outputs."""
+    out: dict[str, list] = {}
+    for event in recording.trace():
+        if event.get("kind") == "output" and event.get("action") == channel:
+            out.setdefault(event["node"], []).append((float(event["t"]), event.get("value")))
+    return out
+
+
+def is_buggy(recording: Recording) -> bool:
+    channels = {topic.rsplit("/", 1)[-1] for topic in recording.topics()}
+    return {"pose", "mood", "landmark"} <= channels
+
+
+def buggy_data(recording: Recording) -> dict:
+    """The arena, the path and the moods of a Buggy recording (RecordingError if it is none)."""
+    poses, moods, landmarks = (_outputs(recording, c) for c in ("pose", "mood", "landmark"))
+    if not poses or not moods:
+        raise RecordingError("not a Buggy recording: no node outputs both 'pose' and 'mood'")
+    path = sorted(next(iter(poses.values())), key=lambda p: p[0])
+    mood = sorted(next(iter(moods.values())), key=lambda p: p[0])
+    arena = {"walls": None, "cracks": [], "food": {}, "eaten": []}
+    for t, mark in sorted(next(iter(landmarks.values()), []), key=lambda p: p[0]):
+        kind = mark.get("kind")
+        if kind == "WALL":
+            arena["walls"] = (mark["x1"], mark["y1"], mark["x2"], mark["y2"])
+        elif kind == "CRACK":
+            arena["cracks"].append(((mark["x1"], mark["x2"]), (mark["y1"], mark["y2"])))
+        elif kind == "FOOD":
+            arena["food"][mark["id"]] = (mark["x1"], mark["y1"])
+        elif kind == "EATEN":
+            arena["eaten"].append((t, mark["id"]))
+    return {"path": path, "mood": mood, "arena": arena}
+
+
+def plot(recording: Recording, output: str | Path, title: str | None = None) -> Path:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.collections import LineCollection
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Rectangle
+
+    data = buggy_data(recording)
+    path, mood, arena = data["path"], data["mood"], data["arena"]
+    mood_t = [t for t, _ in mood]
+
+    def doing_at(t: float) -> str:
+        k = bisect_right(mood_t, t) - 1
+        return mood[max(k, 0)][1].get("doing", "WANDER")
+
+    fig, (ax, bx) = plt.subplots(1, 2, figsize=(12, 5.6), gridspec_kw={"width_ratios": [1, 1.25]})
+    if arena["walls"]:
+        x1, y1, x2, y2 = arena["walls"]
+        ax.add_patch(Rectangle((x1, y1), x2 - x1, y2 - y1, fill=False, linewidth=4, edgecolor="0.35"))
+        pad = 0.08 * (x2 - x1)
+        ax.set_xlim(x1 - pad, x2 + pad)
+        ax.set_ylim(y1 - pad, y2 + pad)
+    for xs, ys in arena["cracks"]:
+        ax.plot(xs, ys, color="#5b3a1e", linewidth=3, solid_capstyle="round", zorder=1)
+    for fx, fy in arena["food"].values():
+        ax.plot(fx, fy, marker="s", color="#2a9d3f", markersize=8, markeredgecolor="black", zorder=2,
+                linestyle="none")
+    segments, colours = [], []
+    for (t0, a), (t1, b) in zip(path, path[1:]):
+        segments.append([(a["x"], a["y"]), (b["x"], b["y"])])
+        colours.append(COLOURS.get(doing_at(t1), "0.5"))
+    ax.add_collection(LineCollection(segments, colors=colours, linewidths=1.6, zorder=3))
+    if path:
+        start, end = path[0][1], path[-1][1]
+        ax.plot(start["x"], start["y"], marker="o", color="white", markeredgecolor="black", markersize=9, zorder=4)
+        ax.plot(end["x"], end["y"], marker="o", color="black", markersize=7, zorder=4)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    eaten = len(arena["eaten"])
+    bumps = path[-1][1].get("bumps", 0) if path else 0
+    ax.set_title(f"path ({path[-1][0] - path[0][0]:.0f} s): {eaten} food eaten, {bumps} bumps" if path else "path",
+                 fontsize=10)
+    legend = [Line2D([], [], color=c, linewidth=2.5, label=LABELS[k]) for k, c in COLOURS.items()]
+    legend += [Line2D([], [], color="#5b3a1e", linewidth=3, label="crack"),
+               Line2D([], [], marker="s", color="#2a9d3f", markeredgecolor="black", linestyle="none", label="food"),
+               Line2D([], [], marker="o", color="white", markeredgecolor="black", linestyle="none", label="start")]
+    ax.legend(handles=legend, loc="upper center", bbox_to_anchor=(0.5, -0.11), ncol=3, fontsize=8, frameon=False)
+
+    # hunger and fear over time, the active behaviour as a band underneath
+    ts = mood_t
+    bx.plot(ts, [m.get("hunger", 0.0) for _, m in mood], color="#7b2cbf", linewidth=1.6, label="hunger")
+    bx.plot(ts, [m.get("fear", 0.0) for _, m in mood], color="#c62828", linewidth=1.2, label="fear")
+    top = max([1.0] + [min(m.get("fear", 0.0), 3.0) for _, m in mood])
+    band = -0.08 * top
+    for (t0, m), (t1, _) in zip(mood, mood[1:]):
+        bx.axvspan(t0, t1, ymin=0, ymax=0.05, color=COLOURS.get(m.get("doing"), "0.5"), linewidth=0)
+    for t, _ in arena["eaten"]:
+        bx.axvline(t, color="#2a9d3f", linewidth=0.8, alpha=0.6)
+    bx.set_ylim(band * 1.6, top * 1.05)
+    bx.set_xlim(ts[0] if ts else 0, ts[-1] if ts else 1)
+    bx.set_xlabel("time (s)")
+    bx.set_ylabel("level")
+    bx.set_title("hunger and fear; band: the behaviour driving (green lines: food eaten)", fontsize=10)
+    bx.legend(loc="upper right", fontsize=8)
+    bx.grid(alpha=0.3)
+    fig.suptitle(title or f"{recording.system or 'buggy'}: Buggy in an arena with {len(arena['cracks'])} cracks",
+                 fontsize=12)
+    fig.tight_layout()
+    output = Path(output)
+    fig.savefig(output, dpi=90)
+    plt.close(fig)
+    return output
