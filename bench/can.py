@@ -1,19 +1,26 @@
 """CAN benchmark, on the best CAN tier this host has (vcan, user-mode Linux, udp_multicast).
 
-Baseline: the raw python-can round trip between two processes on the same bus (a frame out,
-an echo process sends it back). Then the same round trip through iotad's bus (`open_env_bus`,
-Frames both ways) and its ratio to the baseline. Prints the tier first.
+1. Baseline: the raw python-can round trip between two processes on the same bus (a frame out,
+   an echo process sends it back); then the same through iotad's bus (`open_env_bus`) and the ratio.
+2. The CAN motor node as a process (`iotad run`, six joints, its [[can]] bus on the tier's bus),
+   fed setpoints over zenoh at 500 Hz for `--seconds` (default 10; the issue's figure is 60),
+   while this process plays six ODrives on the bus: heartbeats every 100 ms, encoder estimates
+   at 500 Hz per axis. Setpoint published -> its Set_Input_Pos frame on the bus: p50/p99; control
+   cycles missed (a setpoint whose six frames did not all reach the bus within one cycle, 2 ms,
+   or never); bus load (bits of every frame over the run's bus time, of 1 Mbit/s).
+3. examples/arm_can.toml in virtual time, in this process: its speed as a multiple of real time.
 
-    .venv/bin/python bench/can.py [--count 2000] [--tier uml]
+    .venv/bin/python bench/can.py [--count 2000] [--seconds 10] [--tier uml]
 
-The host side picks the tier and runs the measuring part inside it (`--inside`); inside, the echo
-peer is a second process (`--echo`). Figures only, no pass/fail on timings.
+The host side picks the tier and runs parts 1 and 2 inside it (`--inside`); inside, the echo
+peer is a second process (`--echo`). Prints the tier first. Figures only, no pass/fail on timings.
 """
 from __future__ import annotations
 
 import argparse
 import json
 import os
+import signal
 import statistics
 import subprocess
 import sys
@@ -120,7 +127,188 @@ def wait_for_echo(timeout: float = 20.0) -> None:
         bus.shutdown()
 
 
-def inside(count: int) -> None:
+MOTOR_SYSTEM = """
+[system]
+name = "canbench"
+time_unit = 1.0
+external = ["motor.setpoints", "motor.estop"]
+
+[system.endpoints]
+listen = ["tcp/127.0.0.1:{port}"]
+
+[[node]]
+name = "motor"
+python = "nodes.can_motor:CanMotor"
+params = {{ encoder_period = {period}, state_period = 0.01, polls = {{ Get_Error = 0.1 }}, joints = [{joints}] }}
+
+[[can]]
+name = "bench_bus"
+interface = "{interface}"
+channel = "{channel}"
+stations = ["motor"]
+"""
+JOINTS, RATE, SCALE = 6, 500.0, 1e-4   # setpoint k carries position k * SCALE rad (mod 20000)
+
+
+def motor_loop(seconds: float, rate: float = RATE, port: int = 7447) -> dict:
+    """Part 2: the motor node fed at `rate`, this process as its six ODrives."""
+    import math
+    import tempfile
+    import threading
+
+    import can
+
+    from iotad.can import odrive
+    from iotad.can.bit_timing import frame_bits
+    from iotad.host import wire
+    from iotad.host.transport import open_tool_session
+
+    interface, channel = os.environ["IOTAD_CAN_INTERFACE"], os.environ["IOTAD_CAN_CHANNEL"]
+    joints = ", ".join(f'{{ name = "j{k}", node_id = {k + 1}, position_min = -6.3, position_max = 6.3 }}'
+                       for k in range(JOINTS))
+    folder = Path(tempfile.mkdtemp(prefix="canbench-"))
+    system = folder / "canbench.toml"
+    system.write_text(MOTOR_SYSTEM.format(port=port, period=1.0 / rate, joints=joints, interface=interface,
+                                          channel=channel))
+    launcher = subprocess.Popen([str(Path(sys.executable).with_name("iotad")), "run", str(system), "--no-record",
+                                 "--plain"], cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                                start_new_session=True)
+    bus = raw_bus()
+    stop = threading.Event()
+    frames_seen: list[tuple[float, int, bytes, bool]] = []   # (time, id, data, rtr) of every frame on the bus
+    arrivals: dict[tuple[int, int], float] = {}              # (setpoint k, node id) -> Set_Input_Pos time
+    lock = threading.Lock()
+
+    def send(message):
+        bus.send(message)
+        frames_seen.append((time.time(), message.arbitration_id, bytes(message.data), message.is_remote_frame))
+
+    def odrives():
+        """Six axes, always in closed loop: heartbeats at 10 Hz, encoder estimates at rate each."""
+        beat = odrive.AXIS_STATE["CLOSED_LOOP_CONTROL"]
+        start, n = time.perf_counter(), 0
+        while not stop.is_set():
+            for node in range(1, JOINTS + 1):
+                frame = odrive.encode(node, "Get_Encoder_Estimates", Pos_Estimate=0.0, Vel_Estimate=0.0)
+                send(frame.to_can_message())
+                if n % max(1, int(rate / 10)) == 0:
+                    send(odrive.encode(node, "Heartbeat", Axis_Error=0, Axis_State=beat, Procedure_Result=0,
+                                       Trajectory_Done_Flag=1).to_can_message())
+            n += 1
+            delay = start + n / rate - time.perf_counter()
+            if delay > 0:
+                time.sleep(delay)
+
+    def listen():
+        while not stop.is_set():
+            message = bus.recv(timeout=0.1)
+            if message is None or message.is_error_frame:
+                continue
+            frames_seen.append((message.timestamp, message.arbitration_id, bytes(message.data),
+                                message.is_remote_frame))
+            if message.arbitration_id & 0x1F == odrive.MESSAGES["Set_Input_Pos"].cmd_id and not message.is_remote_frame:
+                turns = odrive.decode(odrive.Frame.from_can_message(message)).signals["Input_Pos"]
+                k = round(turns * 2 * math.pi / SCALE)
+                with lock:
+                    arrivals.setdefault((k, message.arbitration_id >> 5), message.timestamp)
+
+    threads = [threading.Thread(target=odrives, daemon=True), threading.Thread(target=listen, daemon=True)]
+    for thread in threads:
+        thread.start()
+    session = publisher = None
+    published: dict[int, float] = {}
+    try:
+        session = open_tool_session([f"tcp/127.0.0.1:{port}"], timeout=60.0)
+        publisher = session.declare_publisher("iota/canbench/motor/setpoints")
+        deadline = time.monotonic() + 120
+        while not publisher.matching_status.matching and time.monotonic() < deadline:
+            time.sleep(0.05)
+        if not publisher.matching_status.matching:
+            raise SystemExit("the motor node did not come up within 120 s")
+
+        def setpoint(k):
+            q = (k % 20000) * SCALE
+            return wire.encode({"position": [q] * JOINTS, "velocity_ff": [0.0] * JOINTS, "torque_ff": [0.0] * JOINTS})
+
+        # warm-up: until every axis is armed and gets setpoints (start-up, arming)
+        k, warm_end = 0, time.monotonic() + 120
+        while time.monotonic() < warm_end:
+            publisher.put(setpoint(k), attachment=wire.encode_attachment(k))
+            time.sleep(1.0 / rate)
+            k += 1
+            with lock:
+                if len({node for (kk, node) in arrivals if kk == (k - 50) % 20000}) == JOINTS:
+                    break
+        else:
+            raise SystemExit("the motor node did not arm its six axes within 120 s of warm-up")
+        with lock:
+            arrivals.clear()
+        first, begin = k, time.time()
+        frames_seen.clear()
+        start = time.perf_counter()
+        late_publish = 0
+        n = 0
+        while time.perf_counter() - start < seconds:
+            published[(first + n) % 20000] = time.time()
+            publisher.put(setpoint(first + n), attachment=wire.encode_attachment(first + n))
+            n += 1
+            delay = start + n / rate - time.perf_counter()
+            if delay > 0:
+                time.sleep(delay)
+            elif delay < -1.0 / rate:
+                late_publish += 1
+        end = time.time()
+        time.sleep(0.5)   # the last frames
+    finally:
+        stop.set()
+        for thread in threads:
+            thread.join(2)
+        if publisher is not None:
+            publisher.undeclare()
+        if session is not None:
+            session.close()
+        launcher.send_signal(signal.SIGINT)
+        try:
+            launcher.wait(20)
+        except subprocess.TimeoutExpired:
+            os.killpg(launcher.pid, signal.SIGKILL)
+            launcher.wait()
+        bus.shutdown()
+    latencies, missed = [], 0
+    period = 1.0 / rate
+    for k, sent in published.items():
+        got = [arrivals.get((k, node)) for node in range(1, JOINTS + 1)]
+        if got[0] is not None:
+            latencies.append(got[0] - sent)
+        if any(t is None or t - sent > period for t in got):
+            missed += 1
+    bits = sum(frame_bits(i, False, rtr, data) for t, i, data, rtr in frames_seen if begin <= t <= end)
+    span = end - begin
+    return {"setpoint_to_frame": percentiles(latencies) if latencies else None, "setpoints": len(published),
+            "missed": missed, "missed_pct": 100.0 * missed / max(1, len(published)),
+            "lost": sum(1 for k in published if arrivals.get((k, 1)) is None), "late_publish": late_publish,
+            "frames": sum(1 for t, *_ in frames_seen if begin <= t <= end), "seconds": span,
+            "bus_load_pct": 100.0 * bits / (span * 1e6)}
+
+
+def virtual_arm(seconds: float = 5.0) -> dict:
+    """Part 3: examples/arm_can.toml in one process in virtual time."""
+    from iotad.kernel.engine import Engine
+    from iotad.launcher.in_process import compose
+    from iotad.launcher.system_file import load_system
+
+    engine = Engine(compose(load_system(ROOT / "examples" / "arm_can.toml")))
+    try:
+        start = time.perf_counter()
+        engine.run(until=seconds)
+        wall = time.perf_counter() - start
+    finally:
+        for iota in ("arm_can/odrives",):
+            engine.iota(iota).close()
+    return {"virtual_s": seconds, "wall_s": wall, "speed": seconds / wall, "events": len(engine.trace)}
+
+
+def inside(count: int, seconds: float, rate: float = RATE) -> None:
     """The measuring side, inside the tier: start the echo peer, measure, stop it."""
     import can
 
@@ -138,12 +326,18 @@ def inside(count: int) -> None:
         if peer.poll() is None:
             peer.kill()
             peer.wait()
-    print("RESULT " + json.dumps({"raw": raw, "iotad": wrapped, "tier": os.environ.get("IOTAD_CAN_TIER")}))
+    motor = motor_loop(seconds, rate) if seconds > 0 else None
+    print("RESULT " + json.dumps({"raw": raw, "iotad": wrapped, "motor": motor,
+                                  "tier": os.environ.get("IOTAD_CAN_TIER")}))
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--count", type=int, default=2000, help="round trips per measurement (2000)")
+    parser.add_argument("--seconds", type=float, default=10.0,
+                        help="seconds of the 6-joint 500 Hz motor loop (default 10; 0 skips it)")
+    parser.add_argument("--rate", type=float, default=RATE,
+                        help=f"setpoints and encoder estimates per second and axis (default {RATE:.0f})")
     parser.add_argument("--tier", help="vcan | uml | udp_multicast (default: the best here)")
     parser.add_argument("--inside", action="store_true", help=argparse.SUPPRESS)
     parser.add_argument("--echo", action="store_true", help=argparse.SUPPRESS)
@@ -152,13 +346,15 @@ def main() -> int:
         echo()
         return 0
     if args.inside:
-        inside(args.count)
+        inside(args.count, args.seconds, args.rate)
         return 0
     from iotad.can.tiers import TierBus
 
     bus = TierBus(args.tier)
     print(f"CAN tier: {bus.describe()}  (interface {bus.interface}, channel {bus.channel})", flush=True)
-    result = bus.run([sys.executable, __file__, "--inside", "--count", str(args.count)], timeout=300, cwd=str(ROOT))
+    result = bus.run([sys.executable, __file__, "--inside", "--count", str(args.count), "--seconds", str(args.seconds),
+                      "--rate", str(args.rate)],
+                     timeout=600 + args.seconds, cwd=str(ROOT))
     result.check()
     report = json.loads(next(l for l in result.output.splitlines() if l.startswith("RESULT "))[7:])
     raw, wrapped = report["raw"], report["iotad"]
@@ -168,6 +364,23 @@ def main() -> int:
               f"{figures['mean_us']:9.1f} {figures['max_us']:9.1f}")
     print(f"iotad.can.bus / raw: p50 x{wrapped['p50_us'] / raw['p50_us']:.2f}, "
           f"p99 x{wrapped['p99_us'] / raw['p99_us']:.2f}   (run took {result.seconds:.1f} s, tier {bus.name})")
+    motor = report["motor"]
+    if motor:
+        print(f"\nmotor node, {JOINTS} joints at {args.rate:g} Hz for {motor['seconds']:.1f} s "
+              f"(setpoints over zenoh, this process as the ODrives), tier {bus.name}:")
+        hop = motor["setpoint_to_frame"]
+        if hop:
+            print(f"  setpoint published -> Set_Input_Pos on the bus: p50 {hop['p50_us'] / 1000:.3f} ms, "
+                  f"p99 {hop['p99_us'] / 1000:.3f} ms, max {hop['max_us'] / 1000:.1f} ms "
+                  f"(x{hop['p50_us'] / raw['p50_us']:.1f} / x{hop['p99_us'] / raw['p99_us']:.1f} the raw round trip)")
+        print(f"  control cycles missed: {motor['missed']} of {motor['setpoints']} = {motor['missed_pct']:.2f} % "
+              f"(a setpoint whose {JOINTS} frames were not all on the bus within a cycle, {1000 / args.rate:g} ms; {motor['lost']} never came; "
+              f"{motor['late_publish']} published more than a cycle late)")
+        print(f"  bus load: {motor['bus_load_pct']:.1f} % of 1 Mbit/s ({motor['frames']} frames, "
+              f"{motor['frames'] / motor['seconds']:.0f} frames/s)")
+    arm = virtual_arm()
+    print(f"\nexamples/arm_can.toml in virtual time, one process (this host, no tier): {arm['virtual_s']:.0f} s "
+          f"in {arm['wall_s']:.2f} s wall = {arm['speed']:.1f}x real time ({arm['events']} trace events)")
     return 0
 
 

@@ -1,0 +1,202 @@
+"""`iotad candump`: CAN frames decoded by name (ODrive CAN Simple), like can-utils' candump, from a
+recording or from a live bus.
+
+A recording holds every frame as a trace event of the node that sent it (`can_tx`) and of each
+node that received it (`can_rx`; with `iotad run --virtual`, the modelled bus's `tx[i]`/`rx[i]` too).
+By default each frame is printed once, as it went on the bus: the sender's `can_tx`. Lines are
+`NODE  TIME  DIRECTION  ID  [DLC]  DATA  MESSAGE node=N SIGNALS...` (iotad/can/dump.py).
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+
+ORDER = 37
+
+EPILOG = """\
+examples:
+  iotad candump arm.mcap                                every frame put on the bus, by its sender
+  iotad candump arm.mcap --rx --node odrives            what the simulated ODrives received
+  iotad candump arm.mcap --message Heartbeat --axis 3   axis 3's heartbeats
+  iotad candump arm.mcap --start 2 --end 2.1 --count 50
+  iotad candump --live examples/arm_can.toml            a running system's bus ([[can]], python-can)
+  python -m iotad.can.tiers run -- .venv/bin/iotad candump --live --count 20    the tier's bus
+  iotad candump --live --interface socketcan --channel can0
+
+Times are the recording's seconds (the receive time stamp on a live bus). Frames CAN Simple does
+not know end in 'unknown', known ones of the wrong shape in 'malformed: ...'. See docs/can.md."""
+
+ACTIONS = {"tx": ("can_tx",), "rx": ("can_rx",), "all": ("can_tx", "can_rx", "tx", "rx")}
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    from iotad.cli import nonnegative_float, positive_int
+
+    parser = sub.add_parser("candump", help="print CAN frames decoded by name, from a recording or a live bus",
+                            description=__doc__, epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("source", metavar="RECORDING | SYSTEM.toml", nargs="?",
+                        help="an MCAP recording; with --live, a system file whose [[can]] bus to open")
+    parser.add_argument("--live", action="store_true",
+                        help="print a live bus: the system file's [[can]] bus, --interface/--channel, or the "
+                             "tier's (IOTAD_CAN_INTERFACE, IOTAD_CAN_CHANNEL)")
+    parser.add_argument("--bus", metavar="NAME", help="which [[can]] bus of the system file (default: its only one)")
+    parser.add_argument("--interface", help="python-can interface for --live: socketcan | udp_multicast | virtual")
+    parser.add_argument("--channel", help="python-can channel for --live: vcan0, can0, a multicast group")
+    direction = parser.add_mutually_exclusive_group()
+    direction.add_argument("--rx", action="store_const", dest="direction", const="rx",
+                           help="recording: the frames nodes received (can_rx) instead of those sent")
+    direction.add_argument("--all", action="store_const", dest="direction", const="all",
+                           help="recording: every frame event, sent and received (and the modelled bus's)")
+    parser.set_defaults(direction="tx")
+    parser.add_argument("--node", action="append", metavar="NAME", help="only this node's events (repeatable)")
+    parser.add_argument("--message", action="append", metavar="NAME",
+                        help="only this CAN Simple message, e.g. Heartbeat, Set_Input_Pos (repeatable)")
+    parser.add_argument("--axis", type=int, action="append", metavar="N", help="only frames of ODrive node id N")
+    parser.add_argument("--start", type=nonnegative_float, metavar="T", help="recording: from time T (s)")
+    parser.add_argument("--end", type=nonnegative_float, metavar="T", help="recording: up to time T (s)")
+    parser.add_argument("--count", type=positive_int, metavar="N", help="stop after N frames")
+    parser.add_argument("--timeout", type=nonnegative_float, default=0.0, metavar="S",
+                        help="--live: stop after S quiet seconds (default: never)")
+    parser.set_defaults(func=run)
+
+
+class _Filter:
+    def __init__(self, args: argparse.Namespace):
+        from iotad.can import odrive
+
+        unknown = sorted(set(args.message or ()) - set(odrive.MESSAGES))
+        if unknown:
+            from iotad.cli import CliError
+
+            raise CliError(f"--message {', '.join(unknown)}: not a CAN Simple message; one of "
+                           f"{', '.join(sorted(odrive.MESSAGES))}")
+        self.messages, self.axes = set(args.message or ()), set(args.axis or ())
+
+    def __call__(self, frame) -> bool:
+        from iotad.can import odrive
+
+        if self.axes and (frame.extended or frame.id >> 5 not in self.axes):
+            return False
+        if self.messages:
+            try:
+                return odrive.decode(frame).name in self.messages
+            except (odrive.UnknownFrame, ValueError):
+                return False
+        return True
+
+
+def run(args: argparse.Namespace) -> int:
+    from iotad.cli import CliError
+
+    if args.live:
+        if args.start is not None or args.end is not None or args.direction != "tx" or args.node:
+            raise CliError("--start, --end, --rx, --all and --node read a recording; a live bus has none of them")
+        return live(args, _Filter(args))
+    if not args.source:
+        raise CliError("give a recording (iotad candump FILE.mcap), or --live for a bus")
+    if args.interface or args.channel or args.bus or args.timeout:
+        raise CliError("--interface, --channel, --bus and --timeout are for --live")
+    return recorded(args, _Filter(args))
+
+
+def frame_events(recording, direction: str = "tx", nodes=None, start=None, end=None):
+    """(t, node, action, index, Frame) of the recording's frame events, in time order."""
+    from iotad.can.frame import Frame, FrameError
+
+    actions = ACTIONS[direction]
+    found = []
+    for order, event in enumerate(recording.trace()):
+        if event.get("action") not in actions or event.get("kind") not in ("input", "output"):
+            continue
+        node = event.get("node") or event.get("iota", "")
+        if nodes and node not in nodes:
+            continue
+        t = event.get("t")
+        if not isinstance(t, (int, float)) or (start is not None and t < start) or (end is not None and t > end):
+            continue
+        try:
+            frame = Frame.from_value(event.get("value"))
+        except FrameError:
+            continue  # not a frame: a malformed event is iotad check's business
+        found.append((float(t), order, node, event["action"], event.get("index"), frame))
+    found.sort(key=lambda item: (item[0], item[1]))
+    return [(t, node, action, index, frame) for t, _, node, action, index, frame in found]
+
+
+def recorded(args: argparse.Namespace, keep: _Filter) -> int:
+    from iotad.can.dump import format_frame
+    from iotad.cli import CliError
+
+    from .info import load
+
+    recording = load(args.source)
+    events = frame_events(recording, args.direction, set(args.node or ()), args.start, args.end)
+    if not events:
+        nodes = f" of node(s) {', '.join(args.node)}" if args.node else ""
+        raise CliError(f"{args.source}: no CAN frame events{nodes} (nodes on a [[can]] bus record can_tx and can_rx)")
+    width = max(len(node) for _, node, *_ in events)
+    shown = 0
+    out = sys.stdout
+    for t, node, action, index, frame in events:
+        if not keep(frame):
+            continue
+        direction = action if index is None else f"{action}[{index}]"
+        out.write(f"{node:<{width}}  {format_frame(t, frame, direction).lstrip()}\n")
+        shown += 1
+        if args.count and shown >= args.count:
+            break
+    out.flush()
+    return 0
+
+
+def _live_bus(args: argparse.Namespace):
+    from iotad.can.bus import open_bus, open_env_bus
+    from iotad.cli import CliError
+
+    if args.source:
+        if args.interface or args.channel:
+            raise CliError("give a system file or --interface/--channel, not both")
+        from iotad.launcher.system_file import SystemFileError, load_system
+
+        try:
+            system = load_system(args.source)
+        except SystemFileError as exc:
+            raise CliError(str(exc).splitlines()[0] if str(exc) else "bad system file") from None
+        buses = system.buses
+        if not buses:
+            raise CliError(f"{args.source}: no [[can]] bus")
+        if args.bus is None and len(buses) > 1:
+            raise CliError(f"{args.source} has buses {', '.join(buses)}: choose one with --bus")
+        spec = buses.get(args.bus) if args.bus else next(iter(buses.values()))
+        if spec is None:
+            raise CliError(f"{args.source}: no [[can]] bus named {args.bus!r} (it has {', '.join(buses)})")
+        return open_bus(spec.interface, spec.channel, **spec.options)
+    if args.bus:
+        raise CliError("--bus names a [[can]] bus of a system file: give the file")
+    if args.interface:
+        return open_bus(args.interface, args.channel)
+    if args.channel:
+        raise CliError("--channel needs --interface")
+    return open_env_bus()
+
+
+def live(args: argparse.Namespace, keep: _Filter) -> int:
+    from iotad.can.bus import BusUnavailable
+    from iotad.can.dump import format_frame
+    from iotad.cli import CliError
+
+    try:
+        bus = _live_bus(args)
+    except BusUnavailable as exc:
+        raise CliError(str(exc)) from None
+    shown = 0
+    with bus:
+        print(f"candump: {bus.describe()}", file=sys.stderr, flush=True)
+        while not args.count or shown < args.count:
+            got = bus.recv_frame(timeout=args.timeout or None)
+            if got is None:
+                break
+            if keep(got[1]):
+                print(format_frame(got[0], got[1], "rx"), flush=True)
+                shown += 1
+    return 0
