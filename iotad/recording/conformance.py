@@ -176,7 +176,11 @@ def _value_of(instance: ActionInstance) -> Any:
     action = instance.action
     if action.value is None:
         return None
-    return to_plain(action.value(instance.iota, instance.index))
+    value = action.value(instance.iota, instance.index)
+    # as the engine records it: by the channel's type, which also knows value types defined in
+    # Python (an ESPRIT `extern struct`, e.g. channels.mdl:MDL_PROGRAM) that plain to_plain does not
+    kind = getattr(instance.slot, "type", None)
+    return to_plain(value) if kind is None else kind.to_plain(value)
 
 
 def _same(a: Any, b: Any) -> bool:

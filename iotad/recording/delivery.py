@@ -29,6 +29,7 @@ import json
 import math
 import re
 import tomllib
+from collections import deque
 from dataclasses import dataclass, field
 from typing import Any, Iterable
 
@@ -37,9 +38,12 @@ from iotad.recording.mcap_io import Recording
 
 GRACE = 0.1  # seconds: longer than any delivery seen here (~1 ms, tens under load) by far
 MASK = 0xFFFFFFFF  # MCAP keeps 32 bits of a sequence number
-REJECTIONS = {"switching_time", "bad_value", "malformed_payload"}  # a receiver saw it and refused it
+REJECTIONS = ("switching_time", "bad_value", "malformed_payload")  # a receiver saw it and refused it
+OVERFLOW = "input_overflow"  # a receiver's full input queue dropped `dropped` inputs between two times
+_BETWEEN = re.compile(r"between t=(?P<first>[-+\d.eE]+) and t=(?P<last>[-+\d.eE]+)")
 PROBLEMS = ("lost", "altered", "duplicated", "unexplained", "reordered", "causality")
 CAN_TX, CAN_RX = "can_tx", "can_rx"
+BUS_LOG = "frames"  # a bus's log of every frame it carried (iotad.can.frame_log), if the recording has one
 _ENDPOINT = re.compile(r"^\s*(?P<node>[^\s\[\]]+)\.(?P<channel>[A-Za-z_]\w*)(?:\[(?P<index>\d+)\])?\s*$")
 
 
@@ -145,13 +149,35 @@ class DeliveryReport:
         return text + ("; " + ", ".join(extra) if extra else "") + ("" if self.ok else ": PROBLEMS")
 
     def table(self) -> list[str]:
-        out = [f"  {'link':<44} {'sent':>5} {'deliv':>5} {'lost':>4} {'alter':>5} {'dup':>3} {'unexp':>5} "
+        width = max([44] + [len(link.label) for link in self.links])
+        out = [f"  {'link':<{width}} {'sent':>5} {'deliv':>5} {'lost':>4} {'alter':>5} {'dup':>3} {'unexp':>5} "
                f"{'rej':>3} {'n/j':>3}  latency ms p50 / p99 / max"]
         for link in self.links:
             latency = link.latency()
             shown = "-" if latency is None else " / ".join(_ms(x) for x in latency)
-            out.append(f"  {link.label:<44} {link.sent:>5} {link.delivered:>5} {link.lost:>4} {link.altered:>5} "
+            out.append(f"  {link.label:<{width}} {link.sent:>5} {link.delivered:>5} {link.lost:>4} {link.altered:>5} "
                        f"{link.duplicated:>3} {link.unexplained:>5} {link.rejected:>3} {link.unjudged:>3}  {shown}")
+        return out
+
+    def brief(self, limit: int = 10) -> list[str]:
+        """The per-link summary `iotad info` shows: links to receivers (bindings, outside, CAN),
+        the wire in one line, the first problems, and the totals."""
+        if not self.checked:
+            return [self.summary()]
+        receivers = [link for link in self.links if link.kind != "wire"]
+        report = DeliveryReport(self.mode, self.witness, links=receivers)
+        out = report.table() if receivers else ["  no bindings or CAN buses"]
+        on_wire = self.totals(wire=True)
+        if any(link.kind == "wire" for link in self.links):
+            bad = _counted(on_wire)
+            out.append(f"  wire ({self.mode} recording): {on_wire['delivered']} of {on_wire['sent']} claimed "
+                       f"messages as claimed" + (f" ({', '.join(bad)})" if bad else ""))
+        problems = [f for f in self.findings if f.problem]
+        out += [f"  {finding}" for finding in problems[:limit]]
+        if len(problems) > limit:
+            out.append(f"  ... {len(problems) - limit} more problem(s): iotad check lists them")
+        unjudged = [n for n in self.notes if n.code == "not judged"]
+        out += [f"  note: {note}" for note in unjudged[:limit]]
         return out
 
     def lines(self, limit: int = 20) -> list[str]:
@@ -646,7 +672,7 @@ class DeliveryChecker:
                     continue
                 got.append(_Got(target.node, key, float(event["t"]), event.get("value"), _ident(event),
                                 str(event.get("action")), event.get("index")))
-            elif kind == "violation" and here and (event.get("value") or {}).get("violation") in REJECTIONS:
+            elif kind == "violation" and here and (event.get("value") or {}).get("violation") in REJECTIONS + (OVERFLOW,):
                 rejected.append(event)
         return got, rejected
 
@@ -707,6 +733,10 @@ class DeliveryChecker:
                                   f"t={item.t:.6g}, and no sender bound to {target} sent it")
         for event in rejections:  # the receiver saw the message and refused it: no loss
             t = float(event["t"])
+            value = event.get("value") or {}
+            if value.get("violation") == OVERFLOW:
+                self._overflowed(links, claims, taken, t, value)
+                continue
             candidates = [c for c in claims if id(c) not in taken and t - self.tolerance - self.grace <= c.t
                           <= t + self.tolerance]
             if not candidates:
@@ -728,6 +758,19 @@ class DeliveryChecker:
             else:
                 link.unjudged += 1
                 self._finding(link, "not judged", claim.t, f"{number}: {reason}", False)
+
+    def _overflowed(self, links: dict[str, Link], claims: list[_Sent], taken: dict, t: float, value: dict) -> None:
+        """An `input_overflow` the receiver recorded: it dropped `dropped` inputs received between
+        two times (its message says which): so many untaken claims sent by then were refused."""
+        count = value.get("dropped")
+        count = count if isinstance(count, int) and not isinstance(count, bool) else 1
+        match = _BETWEEN.search(str(value.get("message") or ""))
+        first, last = (float(match["first"]), float(match["last"])) if match else (-math.inf, t)
+        window = self.tolerance + self.grace
+        candidates = [c for c in claims if id(c) not in taken and first - window <= c.t <= last + self.tolerance]
+        for claim in sorted(candidates, key=lambda c: c.t)[:count]:
+            taken[id(claim)] = None
+            links[claim.key].rejected += 1
 
     def _delivered(self, link: Link, claim: _Sent, item: _Got) -> None:
         latency = item.t - claim.t
@@ -821,85 +864,201 @@ class DeliveryChecker:
     # -- CAN
     def _check_bus(self, bus: str, stations: list[str]) -> None:
         """Frames each station sent (can_tx outputs) against the frames each other station received
-        (can_rx inputs), by content and per-sender order (a CAN controller sends in FIFO order)."""
-        sent = {s: [e for e in self.events.get(s, []) if e.get("kind") == "output" and e.get("action") == CAN_TX]
-                for s in stations}
+        (can_rx inputs), by content and per-sender order (a CAN controller sends in FIFO order).
+        Linear in the frames: each sender's unreceived frames wait in one queue per content."""
+        sent: dict[str, list[tuple[float, tuple]]] = {}
+        for s in stations:
+            events = self.events.get(s, [])
+            refused = {float(e["t"]) for e in events if e.get("kind") == "violation" and e.get("action") == CAN_TX
+                       and (e.get("value") or {}).get("violation") == "can_send_failed"}
+            frames = []
+            for e in events:
+                if e.get("kind") == "output" and e.get("action") == CAN_TX:
+                    t = float(e["t"])
+                    if t in refused:  # the port could not send it (recorded): nobody could receive it
+                        refused.discard(t)
+                        continue
+                    frames.append((t, _frame(e.get("value"))))
+            sent[s] = frames
+        self._check_bus_log(bus, stations, sent)
+        window = GRACE / self.unit  # a frame may wait behind others on a busy bus, in virtual time too
         for receiver in stations:
             got = [e for e in self.events.get(receiver, []) if e.get("kind") == "input" and e.get("action") == CAN_RX]
             senders = [s for s in stations if s != receiver]
             links = {s: Link(f"can {bus}: {s} -> {receiver}", "can", (s, receiver), sent=len(sent[s]))
                      for s in senders}
             self.report.links += list(links.values())
-            taken: dict[tuple[str, int], float] = {}
+            waiting: dict[str, dict[tuple, deque]] = {s: {} for s in senders}
+            for s in senders:
+                for k, (_, frame) in enumerate(sent[s]):
+                    waiting[s].setdefault(frame, deque()).append(k)
+            taken: dict[str, set[int]] = {s: set() for s in senders}
             last_taken: dict[str, int] = {}
-            foreign: list[dict] = []
+            foreign: list[tuple[float, tuple]] = []
             for event in got:
                 t, frame = float(event["t"]), _frame(event.get("value"))
                 best = None
                 for s in senders:
-                    for k, out in enumerate(sent[s]):
-                        if (s, k) in taken or float(out["t"]) > t + self.tolerance:
-                            continue
-                        if _frame(out.get("value")) == frame:
-                            if best is None or float(out["t"]) < float(sent[best[0]][best[1]]["t"]):
-                                best = (s, k)
-                            break
+                    queue = waiting[s].get(frame)
+                    if not queue:
+                        continue
+                    # an older twin that waited past the window was lost, if a later twin fits
+                    while len(queue) > 1 and sent[s][queue[0]][0] < t - window and sent[s][queue[1]][0] <= t + self.tolerance:
+                        queue.popleft()
+                    k = queue[0]
+                    if sent[s][k][0] <= t + self.tolerance and (best is None or sent[s][k][0] < sent[best[0]][best[1]][0]):
+                        best = (s, k)
                 if best is None:
-                    foreign.append(event)
+                    foreign.append((t, frame))
                     continue
                 s, k = best
-                taken[best] = t
+                waiting[s][frame].popleft()
+                taken[s].add(k)
                 link = links[s]
+                t_sent = sent[s][k][0]
                 if k < last_taken.get(s, -1):
-                    self._finding(link, "reordered", float(sent[s][k]["t"]),
+                    self._finding(link, "reordered", t_sent,
                                   f"frame {_frame_text(frame)} received at t={t:.6g}, after a frame {s} sent later")
                 last_taken[s] = max(k, last_taken.get(s, -1))
                 link.delivered += 1
-                latency = (t - float(sent[s][k]["t"])) * self.unit
+                latency = (t - t_sent) * self.unit
                 link.latencies.append(latency)
-                self.report.deliveries.append((link.label, float(sent[s][k]["t"]), latency, link.nodes))
-            unreceived = {s: [k for k in range(len(sent[s])) if (s, k) not in taken] for s in senders}
-            for event in foreign:  # a frame no station sent: altered if one of the same id is missing
-                t, frame = float(event["t"]), _frame(event.get("value"))
+                self.report.deliveries.append((link.label, t_sent, latency, link.nodes))
+            by_head: dict[str, dict[tuple, deque]] = {s: {} for s in senders}
+            for s in senders:
+                for k, (_, frame) in enumerate(sent[s]):
+                    if k not in taken[s]:
+                        by_head[s].setdefault(frame[:3], deque()).append(k)
+            altered: dict[str, set[int]] = {s: set() for s in senders}
+            for t, frame in foreign:  # a frame no station sent: altered if one of the same id is missing
                 pick = None
                 for s in senders:
-                    for k in unreceived[s]:
-                        out = sent[s][k]
-                        if float(out["t"]) <= t + self.tolerance and _frame(out.get("value"))[:3] == frame[:3]:
-                            if pick is None or float(out["t"]) < float(sent[pick[0]][pick[1]]["t"]):
-                                pick = (s, k)
-                            break
+                    queue = by_head[s].get(frame[:3])
+                    if queue and sent[s][queue[0]][0] <= t + self.tolerance and \
+                            (pick is None or sent[s][queue[0]][0] < sent[pick][by_head[pick][frame[:3]][0]][0]):
+                        pick = s
                 if pick is None:
-                    self.report.notes.append(DeliveryFinding(
-                        "foreign", f"can {bus}: -> {receiver}", t, f"{receiver} received frame {_frame_text(frame)}, "
-                        "which no station's can_tx sent (a device that is not a node, or a station's final frames)",
-                        False, (receiver,)))
+                    if self.virtual:  # every station of the modelled bus is a node: the frame is no one's
+                        link = Link(f"can {bus}: (no station) -> {receiver}", "can", (receiver,))
+                        self.report.links.append(link)
+                        link.unexplained += 1
+                        self._finding(link, "unexplained", t, f"{receiver} received frame {_frame_text(frame)}, "
+                                      "which no station's can_tx sent")
+                    else:
+                        self.report.notes.append(DeliveryFinding(
+                            "foreign", f"can {bus}: -> {receiver}", t, f"{receiver} received frame "
+                            f"{_frame_text(frame)}, which no station's can_tx sent (a device that is not a node, "
+                            "or a station's final frames)", False, (receiver,)))
                     continue
-                s, k = pick
-                unreceived[s].remove(k)
-                links[s].altered += 1
-                self._finding(links[s], "altered", float(sent[s][k]["t"]),
-                              f"{s} sent frame {_frame_text(_frame(sent[s][k].get('value')))}, {receiver} received "
-                              f"{_frame_text(frame)} at t={t:.6g}")
+                k = by_head[pick][frame[:3]].popleft()
+                altered[pick].add(k)
+                links[pick].altered += 1
+                self._finding(links[pick], "altered", sent[pick][k][0], f"{pick} sent frame "
+                              f"{_frame_text(sent[pick][k][1])}, {receiver} received {_frame_text(frame)} at t={t:.6g}")
             for s in senders:
-                for k in unreceived[s]:
-                    out = sent[s][k]
-                    t_sent = float(out["t"])
-                    if any(j > k for (who, j) in taken if who == s):
+                for k, (t_sent, frame) in enumerate(sent[s]):
+                    if k in taken[s] or k in altered[s]:
+                        continue
+                    if k < last_taken.get(s, -1):
                         verdict, reason = "lost", f"{receiver} received frames {s} sent after it"
                     elif receiver in self.life:
-                        # a frame may wait behind others on a busy bus, in virtual time too: the grace
-                        verdict, reason = self.life[receiver].judge(t_sent, GRACE / self.unit, receiver)
+                        verdict, reason = self.life[receiver].judge(t_sent, window, receiver)
                     else:
                         verdict, reason = "unjudged", f"{receiver} is not in this recording"
-                    frame_text = _frame_text(_frame(out.get("value")))
                     if verdict == "lost":
                         links[s].lost += 1
-                        self._finding(links[s], "lost", t_sent, f"frame {frame_text} sent at t={t_sent:.6g} never "
-                                      f"reached {receiver}; {reason}")
+                        self._finding(links[s], "lost", t_sent, f"frame {_frame_text(frame)} sent at t={t_sent:.6g} "
+                                      f"never reached {receiver}; {reason}")
                     else:
                         links[s].unjudged += 1
-                        self._finding(links[s], "not judged", t_sent, f"frame {frame_text}: {reason}", False)
+                        self._finding(links[s], "not judged", t_sent, f"frame {_frame_text(frame)}: {reason}", False)
+
+    def _check_bus_log(self, bus: str, stations: list[str], sent: dict[str, list[tuple[float, tuple]]]) -> None:
+        """Each station's can_tx frames against the bus's own log of the frames it carried (the
+        modelled bus's `frames` output, `iotad.can.frame_log`: sender station and frame), in the
+        station's order: a frame sent and never on the bus is lost, a frame on the bus its station
+        never sent is unexplained (or altered, when one of the same id is missing)."""
+        key = wire.channel_key(self.system.name, bus, BUS_LOG, None)
+        log = self.wire.get(key)
+        if not log:
+            return
+        params = (self.specs.get(bus) or {}).get("params") or {}
+        fifo = params.get("station_queue", "fifo") == "fifo"  # else a station's frames may overtake
+        window = GRACE / self.unit
+        links = {s: Link(f"can {bus}: {s} -> (bus)", "can", (s,), sent=len(sent[s])) for s in stations}
+        self.report.links += list(links.values())
+        waiting: dict[str, dict[tuple, deque]] = {s: {} for s in stations}
+        for s in stations:
+            for k, (_, frame) in enumerate(sent[s]):
+                waiting[s].setdefault(frame, deque()).append(k)
+        taken: dict[str, set[int]] = {s: set() for s in stations}
+        last_taken: dict[str, int] = {}
+        strays: list[tuple[float | None, str | None, tuple, Any]] = []
+        end = max((m.t for m in log if m.t is not None), default=None)
+        for message in log:
+            value = message.value if isinstance(message.value, dict) else {}
+            station = value.get("station")
+            frame, t = _frame(value), message.t
+            if station is None:  # a listener that cannot tell the sender: the station that sent it first
+                heads = [(sent[x][waiting[x][frame][0]][0], x) for x in stations if waiting[x].get(frame)]
+                s = min(heads)[1] if heads else stations[0]
+            else:
+                s = stations[station] if isinstance(station, int) and 0 <= station < len(stations) else None
+            queue = waiting[s].get(frame) if s is not None else None
+            if queue and t is not None:
+                while len(queue) > 1 and sent[s][queue[0]][0] < t - window and sent[s][queue[1]][0] <= t + self.tolerance:
+                    queue.popleft()  # an older twin that waited past the window never made it
+            if not queue or (t is not None and sent[s][queue[0]][0] > t + self.tolerance):
+                strays.append((t, s, frame, station))
+                continue
+            k = queue.popleft()
+            taken[s].add(k)
+            t_sent = sent[s][k][0]
+            if fifo and k < last_taken.get(s, -1):
+                self._finding(links[s], "reordered", t_sent, f"frame {_frame_text(frame)} went on the bus at "
+                              f"t={t:.6g}, after a frame {s} sent later")
+            last_taken[s] = max(k, last_taken.get(s, -1))
+            links[s].delivered += 1
+            if t is not None:
+                links[s].latencies.append((t - t_sent) * self.unit)
+        altered: dict[str, set[int]] = {s: set() for s in stations}
+        for t, s, frame, station in strays:
+            if s is None:
+                link = Link(f"can {bus}: station {station!r} -> (bus)", "can", ())
+                self.report.links.append(link)
+                link.unexplained += 1
+                self._finding(link, "unexplained", t, f"the bus carried frame {_frame_text(frame)} from station "
+                              f"{station!r}, which is none of {stations}")
+                continue
+            twin = next((k for k in range(len(sent[s])) if k not in taken[s] and k not in altered[s]
+                         and sent[s][k][1][:3] == frame[:3] and (t is None or sent[s][k][0] <= t + self.tolerance)),
+                        None)
+            if twin is not None:
+                altered[s].add(twin)
+                links[s].altered += 1
+                self._finding(links[s], "altered", sent[s][twin][0], f"{s} sent frame {_frame_text(sent[s][twin][1])},"
+                              f" the bus carried {_frame_text(frame)}" + ("" if t is None else f" at t={t:.6g}"))
+                continue
+            links[s].unexplained += 1
+            self._finding(links[s], "unexplained", t, f"the bus carried frame {_frame_text(frame)} from {s}, "
+                          f"and {s}'s trace holds no such can_tx")
+        for s in stations:
+            for k, (t_sent, frame) in enumerate(sent[s]):
+                if k in taken[s] or k in altered[s]:
+                    continue
+                if fifo and k < last_taken.get(s, -1):
+                    verdict, reason = "lost", f"the bus carried frames {s} sent after it"
+                elif end is not None and t_sent + window <= end:
+                    verdict, reason = "lost", f"the bus logged frames until t={end:.6g}"
+                else:
+                    verdict, reason = "unjudged", "in flight (queued or on the bus) when the run ended"
+                if verdict == "lost":
+                    links[s].lost += 1
+                    self._finding(links[s], "lost", t_sent, f"frame {_frame_text(frame)} sent at t={t_sent:.6g} "
+                                  f"never went on the bus; {reason}")
+                else:
+                    links[s].unjudged += 1
+                    self._finding(links[s], "not judged", t_sent, f"frame {_frame_text(frame)}: {reason}", False)
 
 
 def _frame(value: Any) -> tuple:

@@ -1,4 +1,6 @@
-"""A timeline of motor arbitration from a recording: who held the motors, the acks, the violations.
+"""A timeline of motor arbitration from a recording: who held the motors, the acks, the violations,
+and the delivery problems `iotad check` finds (lost, altered, duplicated, unexplained; late with a
+threshold).
 
 The scheduler node is the one whose trace has `schedule` firings (or the one named). A requester
 holds the motors from its `schedule[i]` firing until its `commit[i]`, or until another request
@@ -75,7 +77,26 @@ def timeline(recording: Recording, scheduler: str) -> dict:
     return {"holds": holds, "acks": acks, "requests": requests, "violations": violations, "end": end}
 
 
-def plot(recording: Recording, output: str | Path, scheduler: str | None = None, title: str | None = None) -> Path:
+MARK_STYLE = {"lost": ("X", "#222222"), "altered": ("D", "#ad1457"), "duplicated": ("P", "#1565c0"),
+              "unexplained": ("*", "#7b1fa2"), "reordered": ("s", "#6d4c41"), "causality": ("s", "#6d4c41"),
+              "late": ("^", "#e08a00")}
+
+
+def delivery_marks(recording: Recording, late: float | None = None) -> list[tuple[float, str, str]]:
+    """(t, code, text) of every delivery problem (lost, altered, duplicated, unexplained, out of
+    order) and, with `late` (seconds), of every delivery slower than that: `iotad check`'s
+    cross-check of senders, wire and receivers (docs/checking.md)."""
+    from iotad.recording.delivery import check_delivery, problem_marks
+    from iotad.recording.replay import default_tolerance
+
+    report = check_delivery(recording, tolerance=default_tolerance(recording))
+    return problem_marks(report, late) if report.checked else []
+
+
+def plot(recording: Recording, output: str | Path, scheduler: str | None = None, title: str | None = None,
+         late: float | None = None) -> Path:
+    """The timeline; a `delivery` row marks lost, altered, duplicated or unexplained messages when
+    there are any, and with `late` (seconds) deliveries slower than that."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -89,7 +110,10 @@ def plot(recording: Recording, output: str | Path, scheduler: str | None = None,
                      | set(names))
     rows = {index: k for k, index in enumerate(indexes)}
     violation_row = len(indexes)
-    fig, ax = plt.subplots(figsize=(11, 1.2 + 0.8 * (len(indexes) + 1)))
+    marks = delivery_marks(recording, late)
+    delivery_row = violation_row + 1 if marks else None
+    rows_drawn = len(indexes) + (2 if marks else 1)
+    fig, ax = plt.subplots(figsize=(11, 1.2 + 0.8 * rows_drawn))
     palette = plt.get_cmap("tab10")
     for index, start, stop, how in data["holds"]:
         y = rows[index]
@@ -112,9 +136,24 @@ def plot(recording: Recording, output: str | Path, scheduler: str | None = None,
         summary = ", ".join(f"{code} x{n}" for code, n in sorted(codes.items()))
         ax.annotate(summary, (1.0, 0.02), xycoords="axes fraction", ha="right", va="bottom", fontsize=8,
                     color="#c62828")
+    kinds: dict[str, int] = {}
+    for k, (t, code, text) in enumerate(marks):
+        kinds[code] = kinds.get(code, 0) + 1
+        marker, color = MARK_STYLE.get(code, ("o", "0.3"))
+        ax.plot(t, delivery_row, marker=marker, color=color, markersize=9, markeredgecolor="black",
+                markeredgewidth=0.4, linestyle="none")
+        if len(marks) <= 4:
+            right = t > 0.75 * max(data["end"], 1e-3)  # near the right edge: the text goes left
+            ax.annotate(text, (t, delivery_row), xytext=(-4 if right else 4, 10 if k % 2 == 0 else -16),
+                        textcoords="offset points", fontsize=7, color=color, ha="right" if right else "left")
     labels = [f"{names.get(i, f'req[{i}]')}  (req[{i}])" if i in names else f"req[{i}]" for i in indexes]
-    ax.set_yticks(list(range(len(indexes))) + [violation_row], labels + [f"violations ({len(data['violations'])})"])
-    ax.set_ylim(-0.7, violation_row + 0.8)
+    ticks = list(range(len(indexes))) + [violation_row]
+    labels.append(f"violations ({len(data['violations'])})")
+    if marks:
+        ticks.append(delivery_row)
+        labels.append("delivery: " + ", ".join(f"{code} {n}" for code, n in sorted(kinds.items())))
+    ax.set_yticks(ticks, labels)
+    ax.set_ylim(-0.7, ticks[-1] + 0.8)
     ax.invert_yaxis()
     ax.set_xlim(0, max(data["end"], 1e-3) * 1.02)
     ax.set_xlabel("time (node clock, spec units)")
@@ -126,7 +165,10 @@ def plot(recording: Recording, output: str | Path, scheduler: str | None = None,
               Line2D([], [], color="0.3", label="request"),
               *[Line2D([], [], marker=m, color=c, linestyle="none", markeredgecolor="black", label=f"ack {v}")
                 for v, (m, c) in ACK_STYLE.items()],
-              Line2D([], [], marker="|", color="#c62828", linestyle="none", markersize=12, label="violation")]
+              Line2D([], [], marker="|", color="#c62828", linestyle="none", markersize=12, label="violation"),
+              *[Line2D([], [], marker=MARK_STYLE[code][0], color=MARK_STYLE[code][1], linestyle="none",
+                       markeredgecolor="black", label=code) for code in sorted({c for _, c, _ in marks})
+                if code in MARK_STYLE]]
     ax.legend(handles=legend, loc="upper center", bbox_to_anchor=(0.5, -0.32 if len(indexes) < 3 else -0.2),
               ncol=7, fontsize=8, frameon=False)
     fig.tight_layout()

@@ -1,4 +1,5 @@
-"""`iotad info`: what a recording holds: nodes, channels, message counts, duration, violations, gaps."""
+"""`iotad info`: what a recording holds: nodes, channels, message counts, duration, violations, gaps,
+and per binding how many messages were delivered, lost, altered, duplicated or unexplained."""
 from __future__ import annotations
 
 import argparse
@@ -73,6 +74,18 @@ def _launcher_line(event: dict, first_ns: int) -> str:
     return "  ".join(parts)
 
 
+def _delivery(recording, limit: int) -> None:
+    """The per-binding delivery summary (`iotad check` has the full report: docs/checking.md)."""
+    from iotad.recording.delivery import check_delivery
+    from iotad.recording.replay import default_tolerance
+
+    report = check_delivery(recording, tolerance=default_tolerance(recording))
+    print(f"  {report.summary()}")
+    if report.checked:
+        for line in report.brief(limit):
+            print(f"  {line}")
+
+
 def run(args: argparse.Namespace) -> int:
     from iotad.recording.conformance import describe
 
@@ -108,6 +121,7 @@ def run(args: argparse.Namespace) -> int:
     print(f"  sequence gaps: {len(gaps)} ({sum(g.get('missing', 0) for g in gaps)} messages missing)")
     for gap in gaps[:args.violations]:
         print(f"    {gap['key']}: expected #{gap['expected']}, got #{gap['got']}")
+    _delivery(recording, args.violations)
     launcher = recording.launcher_events()
     if launcher:
         print(f"  launcher events: {len(launcher)}")

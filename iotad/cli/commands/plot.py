@@ -4,7 +4,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from iotad.cli import output_file
+from iotad.cli import nonnegative_float, output_file
 
 ORDER = 34
 FORMATS = (".png", ".pdf", ".svg", ".jpg", ".jpeg")
@@ -13,6 +13,7 @@ EPILOG = """\
 examples:
   iotad plot recordings/fig2.mcap -o fig2.png
   iotad plot recordings/fig2.mcap -o fig2.svg --title "Figure 2, run 3"
+  iotad plot recordings/fig2.mcap -o fig2.png --late 2       mark deliveries slower than 2 ms
 
 The image format follows the extension of -o: .png, .pdf, .svg or .jpg. The time axis is
 seconds from the start of the recording. See also: 'iotad info FILE', 'iotad export FILE
@@ -27,6 +28,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                         help="image to write (.png, .pdf, .svg, .jpg)")
     parser.add_argument("--node", metavar="PATH", help="the scheduler node (default: the one that schedules)")
     parser.add_argument("--title", help="title of the plot")
+    parser.add_argument("--late", type=nonnegative_float, metavar="MS",
+                        help="also mark every delivery slower than MS milliseconds (lost, altered, duplicated "
+                             "and unexplained messages are always marked)")
     parser.set_defaults(func=run)
 
 
@@ -57,7 +61,8 @@ def run(args: argparse.Namespace) -> int:
     if args.node and args.node not in recording.nodes():
         raise CliError(f"no node {args.node!r} in {args.file} (nodes: {', '.join(recording.nodes())})")
     try:
-        path = plot(recording, args.output, args.node, args.title)
+        path = plot(recording, args.output, args.node, args.title,
+                    late=None if args.late is None else args.late / 1e3)
     except RecordingError as exc:
         raise CliError(str(exc)) from None
     print(f"wrote {path}")
