@@ -388,6 +388,10 @@ class _Life:
         return "unjudged", (f"in flight when the run ended: {who}'s last sign of life is at t={last:.6g}, "
                             f"less than {grace:g} after the send")
 
+    def before_start(self, t: float) -> bool:
+        """Sent before the first start of a real-time node's engine (never in virtual time)."""
+        return self.virtual_end is None and self.seen and t < self.runs[0][0]
+
     @property
     def trace_end(self) -> float | None:
         return self.runs[-1][1] if self.seen and self.virtual_end is None else None
@@ -959,7 +963,12 @@ class DeliveryChecker:
                 for k, (t_sent, frame) in enumerate(sent[s]):
                     if k in taken[s] or k in altered[s]:
                         continue
-                    if k < last_taken.get(s, -1):
+                    life = self.life.get(receiver)
+                    if life is not None and life.before_start(t_sent):
+                        # a real bus delivers only to sockets open at the time: a station that had
+                        # not started could not hear it, whatever it heard later
+                        verdict, reason = life.judge(t_sent, window, receiver)
+                    elif k < last_taken.get(s, -1):
                         verdict, reason = "lost", f"{receiver} received frames {s} sent after it"
                     elif receiver in self.life:
                         verdict, reason = self.life[receiver].judge(t_sent, window, receiver)
