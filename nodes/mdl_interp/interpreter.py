@@ -56,6 +56,7 @@ class MdlInterpreter(Iota):
     ee_link = Param("link6")
     ik_tolerance = Param(0.01)              # metres
     preload_ik = Param(False)               # load the URDF at start, not at the first pose
+    tick_slack = Param(0.002)               # s a tick may come late in real time before it is a deadline miss
 
     mdl_command = Input(MDL_PROGRAM)
     mode_command = Input(MODE)              # the paper's mode {w, k}: its one-atom program
@@ -84,6 +85,9 @@ class MdlInterpreter(Iota):
         if isinstance(self.sensor_timeout, bool) or not isinstance(self.sensor_timeout, (int, float)) \
                 or not self.sensor_timeout > 0:
             raise ValueError(f"sensor_timeout: expected seconds > 0 (inf: never stale), got {self.sensor_timeout!r}")
+        if isinstance(self.tick_slack, bool) or not isinstance(self.tick_slack, (int, float)) \
+                or not 0 <= self.tick_slack < math.inf:
+            raise ValueError(f"tick_slack: expected seconds >= 0, got {self.tick_slack!r}")
         if isinstance(self.max_suspended, bool) or not isinstance(self.max_suspended, int) or self.max_suspended < 0:
             raise ValueError(f"max_suspended: expected a whole number >= 0, got {self.max_suspended!r}")
         self._expressions = ExpressionCache(self._layout, self._robot.size)
@@ -131,7 +135,9 @@ class MdlInterpreter(Iota):
         self.sensor_time[i] = esprit_now()
 
     # ------------------------------------------------------------------ the control tick
-    @tick.action(after=lambda self: self._until_next_tick())
+    # The engine evaluates a window's lower bound, then its upper one, at the same instant: the
+    # upper reuses the lower's delay (now() walks the stack: it is not free at 500 Hz).
+    @tick.action(within=(lambda self: self._until_next_tick(), lambda self: self._delay + self.tick_slack))
     def on_tick(self):
         self._tick(esprit_now())
 
@@ -153,7 +159,8 @@ class MdlInterpreter(Iota):
 
     def _until_next_tick(self) -> float:
         now, period = esprit_now(), self._robot.period
-        return (math.floor(now / period + GRID_SLACK) + 1) * period - now
+        self._delay = (math.floor(now / period + GRID_SLACK) + 1) * period - now
+        return self._delay
 
     def _tick(self, now: float) -> None:
         period = self._robot.period
@@ -264,13 +271,13 @@ class MdlInterpreter(Iota):
             known, valid, since = self.sensor_time[k] > -math.inf, self.sensor_valid[k], self.sensor_time[k]
             source = f"sensor[{k}] ({name})"
         if not known:
-            raise MissingInput(name, f"no value from {source} yet")
+            raise MissingInput(name, f"no value from {source} yet", "unknown")
         if not valid:
-            raise MissingInput(name, f"{source} says its value is not valid")
+            raise MissingInput(name, f"{source} says its value is not valid", "invalid")
         age = self._now - since
         if age > self.sensor_timeout:
             raise MissingInput(name, f"the last value from {source} is {age:.3g} s old "
-                                     f"(sensor_timeout {self.sensor_timeout:g} s)")
+                                     f"(sensor_timeout {self.sensor_timeout:g} s)", "stale")
 
     def _step(self, run: ProgramRun, steps: int) -> None:
         current, robot = run.current, self._robot
@@ -352,9 +359,10 @@ class MdlInterpreter(Iota):
 
     # ------------------------------------------------------------------ reports
     def _hold(self, run: ProgramRun, missing: MissingInput) -> None:
-        """The motors stay where they are commanded; the atom's time stands still; said once."""
-        if run.holding != str(missing):
-            run.holding = str(missing)
+        """The motors stay where they are commanded; the atom's time stands still; said once per
+        cause (a stale input's age grows every tick: it is said when it goes stale, not each tick)."""
+        if run.holding != missing.key:
+            run.holding = missing.key
             atom = run.spec
             self._fault(run.program.id, f"behaviours[{atom.behaviour}].atoms[{atom.index}] reads {missing}; "
                                         "motors held")

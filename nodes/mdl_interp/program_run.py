@@ -26,9 +26,10 @@ class ProgramFault(Exception):
 class MissingInput(Exception):
     """An input the atom reads has no usable value now: the motors are held until it has."""
 
-    def __init__(self, name: str, why: str):
+    def __init__(self, name: str, why: str, reason: str = ""):
         super().__init__(f"{name}: {why}")
         self.name, self.why = name, why
+        self.key = (name, reason or why)   # what stays the same while the same cause lasts
 
 
 @dataclass
@@ -129,8 +130,8 @@ class AtomRun:
 
     u is anchored at the command the atom started from. On a resume the anchor moves to the
     command the arm holds then (`reanchor`), so the motion is continuous: a ramp or minimum-jerk
-    keeps its goal and finishing time (the offset fades out along the profile), the other kinds
-    carry on shifted by the offset. If the arm was held still meanwhile the offset is zero and
+    keeps its goal and finishing time for the joints it names (the offset fades out along the
+    profile) and holds the others where they are, the other kinds carry on shifted by the offset. If the arm was held still meanwhile the offset is zero and
     the atom finishes exactly the trajectory it would have, later.
     """
 
@@ -164,6 +165,12 @@ class AtomRun:
         return [b + o for b, o in zip(base, self.offset)]
 
     def reanchor(self, command: list[float], tau: float) -> None:
+        if self.goal is not None and self.atom.pose is None:
+            # joints its target leaves out hold where they are now, not where the atom started:
+            # what moved them while it was preempted is not undone
+            for j, c in enumerate(command):
+                if j not in self.atom.goal:
+                    self.base[j] = self.goal[j] = c
         self.anchor = tau
         self.offset = [0.0] * len(command)
         now = self.open_loop(tau)
@@ -179,7 +186,7 @@ class ProgramRun:
         self.behaviour = 0
         self.atom = 0
         self.current: AtomRun | None = None
-        self.holding: str | None = None    # why the motors are held (a missing input), if they are
+        self.holding: tuple | None = None  # why the motors are held (MissingInput.key), if they are
 
     @property
     def spec(self) -> CompiledAtom:

@@ -89,3 +89,14 @@ def test_a_command_replaced_before_the_next_tick_never_runs(make_run):
     run.run(until=0.1)
     assert [(v["program"], v["end"], v["tick"]) for v in run.values("program_end")] == [("A", "PREEMPTED", 1)]
     assert {p for _, p in run.setpoints(0)} == {0.0}
+
+
+def test_a_resumed_move_leaves_the_joints_it_does_not_name_where_another_program_put_them(make_run):
+    run = make_run()
+    run.command(REACH, t=0.0)                                            # names joint1 only
+    run.command(program("wrist", ramp({"joint5": 0.4}, T=0.2), hold()), t=0.3005)
+    run.command(REACH, t=0.7005)
+    run.run(until=2.0)
+    final = run.of("setpoints", "output")[-1]["value"]["position"]
+    assert final[0] == pytest.approx(0.6, abs=1e-12)                     # REACH's goal
+    assert final[4] == pytest.approx(0.4, abs=1e-12)                     # wrist's move stands
