@@ -18,14 +18,13 @@ from pathlib import Path
 from typing import Any, Callable
 
 from lark import Lark
-from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput, UnexpectedToken, VisitError
 
 from iotad.kernel.types import BoolType, FloatType, IntType, Type
 
 from . import codegen
 from . import syntax as S
 from .errors import EspritError, Source
-from .parser import _Build, _Early, _expected
+from .parser import parse_with
 from .runtime import all_of, any_of, c_div, c_mod, ix
 from .static_checks import Checker, _Scope
 from .typesys import describe, is_number
@@ -42,28 +41,7 @@ def parse_expression(text: str, filename: str = "<expression>") -> S.Expr:
     source = Source(text, filename)
     if not text.strip():
         raise source.error((1, 1), "empty expression")
-    try:
-        tree = _expression_parser().parse(text)
-    except UnexpectedToken as exc:
-        if exc.token.type == "$END":
-            raise source.error(None, f"unexpected end of expression; expected {_expected(exc.expected)}") from None
-        raise source.error((exc.line, exc.column),
-                           f"unexpected {str(exc.token)[:40]!r}; expected {_expected(exc.expected)}") from None
-    except UnexpectedCharacters as exc:
-        char = text[exc.pos_in_stream] if 0 <= exc.pos_in_stream < len(text) else "?"
-        raise source.error((exc.line, exc.column), f"unexpected character {char!r}") from None
-    except UnexpectedEOF as exc:
-        raise source.error(None, f"unexpected end of expression; expected {_expected(exc.expected)}") from None
-    except UnexpectedInput as exc:  # pragma: no cover - the three above are all lark raises
-        raise source.error((exc.line, exc.column), "syntax error") from None
-    try:
-        return _Build().transform(tree)
-    except VisitError as exc:
-        if isinstance(exc.orig_exc, _Early):
-            raise source.error(exc.orig_exc.pos, exc.orig_exc.message) from None
-        raise
-    except RecursionError:
-        raise source.error(None, "the expression nests too deeply") from None
+    return parse_with(_expression_parser(), source, "expression")
 
 
 @dataclass(frozen=True)

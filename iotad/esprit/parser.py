@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from functools import lru_cache
 from pathlib import Path
+from typing import Any
 
 from lark import Lark, Token, Transformer, v_args
 from lark.lexer import PatternStr
@@ -364,18 +365,25 @@ def _expected(names) -> str:
 
 
 def parse(source: Source) -> S.Program:
+    return parse_with(_lark(), source, "file")
+
+
+def parse_with(parser: Lark, source: Source, unit: str = "file") -> Any:
+    """`source` parsed by `parser` (a whole spec, or one expression) into syntax; every syntax
+    error an EspritError at its line and column ("unexpected end of <unit>" at the end)."""
+    text = source.text
     try:
-        tree = _lark().parse(source.text)
+        tree = parser.parse(text)
     except UnexpectedToken as exc:
         if exc.token.type == "$END":
-            raise source.error(None, f"unexpected end of file; expected {_expected(exc.expected)}") from None
+            raise source.error(None, f"unexpected end of {unit}; expected {_expected(exc.expected)}") from None
         raise source.error((exc.line, exc.column),
                            f"unexpected {str(exc.token)[:40]!r}; expected {_expected(exc.expected)}") from None
     except UnexpectedCharacters as exc:
-        char = source.text[exc.pos_in_stream] if 0 <= exc.pos_in_stream < len(source.text) else "?"
+        char = text[exc.pos_in_stream] if 0 <= exc.pos_in_stream < len(text) else "?"
         raise source.error((exc.line, exc.column), f"unexpected character {char!r}") from None
     except UnexpectedEOF as exc:
-        raise source.error(None, f"unexpected end of file; expected {_expected(exc.expected)}") from None
+        raise source.error(None, f"unexpected end of {unit}; expected {_expected(exc.expected)}") from None
     except UnexpectedInput as exc:  # pragma: no cover - the three above are all lark raises
         raise source.error((exc.line, exc.column), "syntax error") from None
     try:
@@ -384,5 +392,7 @@ def parse(source: Source) -> S.Program:
         if isinstance(exc.orig_exc, _Early):
             raise source.error(exc.orig_exc.pos, exc.orig_exc.message) from None
         raise
+    except RecursionError:
+        raise source.error(None, f"the {unit} nests too deeply") from None
     except LarkError as exc:  # pragma: no cover
         raise source.error(None, str(exc)) from None
