@@ -34,6 +34,7 @@ from dataclasses import dataclass, field
 from typing import Any, Iterable
 
 from iotad.host import wire
+from iotad.launcher.system_file import Port  # one concrete channel, as the system file names it
 from iotad.recording.mcap_io import Recording
 
 GRACE = 0.1  # seconds: longer than any delivery seen here (~1 ms, tens under load) by far
@@ -48,16 +49,6 @@ _ENDPOINT = re.compile(r"^\s*(?P<node>[^\s\[\]]+)\.(?P<channel>[A-Za-z_]\w*)(?:\
 
 
 # ------------------------------------------------------------------------------------ results
-@dataclass(frozen=True)
-class Port:
-    node: str
-    channel: str
-    index: int | None = None
-
-    def __str__(self) -> str:
-        return f"{self.node}.{self.channel}" + ("" if self.index is None else f"[{self.index}]")
-
-
 @dataclass
 class Link:
     """One row of the report: a binding (sender -> receiver), an output key against the wire,
