@@ -54,6 +54,16 @@ def run(args: argparse.Namespace) -> int:
         except RecordingError as exc:
             raise CliError(str(exc)) from None
         return 0
+    from iotad.recording.conveyor_plot import is_conveyor
+    if is_conveyor(recording):  # the conveyor arm's channels: its objects and who held the arm (Figure 1)
+        try:
+            from iotad.recording.conveyor_plot import plot as plot_conveyor
+            print(f"wrote {plot_conveyor(recording, args.output, args.title)}")
+        except ImportError:
+            raise CliError("plotting needs matplotlib: pip install 'iotad[plot]'") from None
+        except RecordingError as exc:
+            raise CliError(str(exc)) from None
+        return 0
     try:
         from iotad.recording.timeline_plot import plot
     except ImportError:

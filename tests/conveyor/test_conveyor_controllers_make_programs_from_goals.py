@@ -1,0 +1,123 @@
+"""Planning, vision control and manipulation control, each alone: planning turns sightings into a
+perceptual goal and, once the object will be in reach, a manipulative goal; manipulation asks for
+the arm with one MDL program of end-effector poses whose wait ends on vision's `near` interrupt;
+vision's look program turns joint1 by the visual error. The conveyor's scheduler is the resume
+scheduler's text with programs for modes."""
+import re
+
+import pytest
+
+from channels.mdl import Program
+from channels.messages import ACK
+from conveyor_variant import FOLDER, ROOT
+from conveyor_types import PICK_GOAL, SIGHTING
+from manipulation import ManipulationControl
+from planning import Planning
+from vision import VisionControl
+
+
+def sighting(t, y, x=0.45, colour=2):
+    return SIGHTING(t=t, count=1, x=[x, 0, 0, 0], y=[y, 0, 0, 0], colour=[colour, 0, 0, 0], pixels=[30, 0, 0, 0])
+
+
+def feed(planning, monkeypatch, t, y):
+    monkeypatch.setattr("planning.esprit_now", lambda: t)
+    planning.on_seen(sighting(t, y))
+
+
+def test_planning_looks_then_picks_once_the_object_will_be_in_reach(monkeypatch):
+    planning = Planning("planning")
+    planning.init()
+    feed(planning, monkeypatch, 2.0, 0.50)
+    assert planning.out_look.target == 0 and planning.out_pick is None
+    t, y = 2.0, 0.50
+    while planning.out_pick is None and t < 10:
+        t, y = t + 0.1, y - 0.005   # 0.05 m/s toward -y
+        feed(planning, monkeypatch, t, y)
+    goal = planning.out_pick
+    assert goal is not None and goal.target == 0
+    assert goal.vy == pytest.approx(-0.05, abs=0.002)
+    assert goal.y + goal.vy * planning.pick_lead <= planning.pick_y + 0.006  # in reach by the time the hand is down
+    # while manipulation works, sightings are not the belt's: nothing is tracked, no look goal
+    planning.out_look = None
+    feed(planning, monkeypatch, t + 0.1, 0.30)
+    assert planning.out_look is None and len(planning.tracks) == 1
+
+
+def test_manipulation_asks_for_the_arm_with_one_pick_program(monkeypatch):
+    monkeypatch.setattr("manipulation.esprit_now", lambda: 6.0)
+    manipulation = ManipulationControl("manipulation")
+    manipulation.init()
+    manipulation.on_goal(PICK_GOAL(target=3, x=0.46, y=0.33, vy=-0.05, t=6.0))
+    request = manipulation.out_req
+    program = request.control
+    assert isinstance(program, Program) and program.id == "pick-3"
+    assert request.priority > VisionControl.priority.default
+    atoms = [atom for _, _, atom in program.atoms()]
+    kinds = [atom.u.kind for atom in atoms]
+    assert kinds == ["minimum_jerk", "minimum_jerk", "hold", "ramp", "minimum_jerk", "minimum_jerk", "ramp"]
+    approach, down = atoms[0].u.pose, atoms[1].u.pose
+    # the meeting point is downstream of where the object is when the hand is down, even 1 s late
+    latest_down = 6.0 + manipulation.slack + manipulation.approach_time + manipulation.down_time
+    assert down.position[1] < 0.33 - 0.05 * (latest_down - 6.0) - manipulation.close_at
+    assert down.position[2] < approach.position[2]
+    assert atoms[2].xi == f"near.dy < {manipulation.close_at!r}"
+    assert dict(atoms[3].u.target) == {"drive_joint": 0.85} and dict(atoms[6].u.target) == {"drive_joint": 0.0}
+    # the epoch covers the program when it starts at once (the longest wait)
+    fixed = sum(a.T for a in atoms) - atoms[2].T
+    assert request.epoch > fixed
+    # one pick at a time; the ack reports it to planning
+    manipulation.on_goal(PICK_GOAL(target=4, x=0.46, y=0.5, vy=-0.05, t=6.0))
+    assert manipulation.current == 3
+    manipulation.on_ack(ACK.COMMIT)
+    assert manipulation.out_done[0].target == 3 and manipulation.out_done[0].committed
+
+
+def test_vision_tracks_with_feedback_on_joint1_and_asks_again_after_an_abort(monkeypatch):
+    from conveyor_types import LOOK_GOAL
+    monkeypatch.setattr("vision.esprit_now", lambda: 3.0)
+    vision = VisionControl("vision")
+    vision.init()
+    vision.on_goal(LOOK_GOAL(target=0, x=0.45, y=0.4, vy=-0.05, t=3.0))
+    program = vision.out_req.control
+    look, track = [atom for _, _, atom in program.atoms()]
+    assert look.u.pose.position[1] == pytest.approx(0.4 - 0.05 * vision.move_time)
+    assert [(g.joint, g.sensor) for g in track.k] == [("joint1", "visual_error.x")]
+    vision.out_req = None
+    vision.on_goal(LOOK_GOAL(target=0, x=0.45, y=0.35, vy=-0.05, t=4.0))
+    assert vision.out_req is None            # same target, request still live: no new request
+    vision.on_ack(ACK.ABORT)
+    vision.on_goal(LOOK_GOAL(target=0, x=0.45, y=0.30, vy=-0.05, t=5.0))
+    assert vision.out_req is not None        # dropped by the scheduler: ask again
+
+
+def test_the_conveyor_scheduler_is_the_resume_scheduler_carrying_programs():
+    ours = (FOLDER / "resume_program.iota").read_text()
+    resume = (ROOT / "nodes" / "scheduler" / "resume.iota").read_text()
+    tail = lambda text: text[text.index("\nenum ack"):]  # noqa: E731
+    expected = tail(resume).replace("struct mdlReq command;", "struct mdlProgramReq command;") \
+        .replace("req[N](struct mdlReq)/1", "req[N](struct mdlProgramReq)/1") \
+        .replace("mdl_command(struct mode)/1", "mdl_command(struct mdlProgram)/1")
+    assert tail(ours) == expected
+    assert re.search(r'extern struct mdlProgram = "channels.mdl:MDL_PROGRAM"', ours)
+
+
+@pytest.mark.parametrize("params, message", [
+    ({"world": "arm"}, "ConveyorSim drives the conveyor world, not 'arm'"),
+    ({"camera_period": 0}, "camera_period must be seconds > 0, got 0"),
+    ({"camera_period": "fast"}, "camera_period must be seconds > 0, got 'fast'"),
+])
+def test_the_conveyor_sim_refuses_bad_parameters_with_a_clear_message(params, message):
+    from conveyor_sim import ConveyorSim
+    with pytest.raises(ValueError, match=re.escape(message)):
+        ConveyorSim("sim", **params)
+    from sim.worlds import find_world
+    assert find_world("sim") is None  # nothing left open
+
+
+def test_a_malformed_camera_frame_is_refused_at_the_channel():
+    from conveyor_types import CAMERA_FRAME
+    from iotad.kernel.types import BadValue
+    plain = {"t": 0.0, "rgb": "AAAA", "fov": 60.0, "eye": [0, 0, 0], "forward": [0, 0, -1], "up": [1, 0, 0]}
+    with pytest.raises(BadValue, match="expected 4800 bytes"):
+        CAMERA_FRAME.from_plain(plain)
