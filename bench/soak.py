@@ -1,13 +1,25 @@
-"""Soak: a fast ping-pong pair run by `iotad run` for a while; does anything grow? (prints figures)
+"""Soak: a steady ping-pong load run by `iotad run` for a while; is anything lost, does anything grow?
 
-    .venv/bin/python bench/soak.py [--seconds 60] [--rate 400] [--no-record]
+    .venv/bin/python bench/soak.py                 10 minutes (the default), 250 round trips/s
+    .venv/bin/python bench/soak.py --minutes 1     a short try
+    .venv/bin/python bench/soak.py --minutes 30    the figure issue 15 asks for
 
-A `Ping` node sends 0, 1, 2... at --rate Hz to a `Pong` node that echoes each back; `iotad run`
-supervises both and (unless --no-record) records everything. After a warm-up, the resident
-memory (VmRSS) of the launcher, each node and the recorder is sampled every few seconds; the
-table shows the first and last samples and the growth per minute, and the pair's heartbeats
-show each node's input backlog. Everything runs on loopback in a temp dir, removed at the end.
-Wall-clock sensitive by nature (a loaded machine sends fewer pings), hence a bench, not a test.
+A `Ping` node sends 0, 1, 2... at --rate Hz to a `Pong` node that echoes each back: four trace
+events per round trip (ping's output, pong's input and output, ping's input), so 250 Hz is about
+1,000 events a second. `iotad run` supervises both and records everything (trace-sourced, as
+always). Printed:
+- events recorded against events published: each node numbers its trace events and each
+  output its messages from 0 (`seq`); published = the highest number + 1, recorded = what the
+  file holds (zero lost means equal), with the recorder's own gap count;
+- resident size (VmRSS) of every process (launcher, nodes, recorder) at the start (after the
+  warm-up), after 1 minute and at the end, the growth per minute after minute 1 (least squares
+  over all samples) and, for the recorder, that growth extrapolated to minute 30 (limit: 10 MB
+  more than after minute 1);
+- round-trip latency (ping's output -> ping's input of the echo, both in ping's clock) p50/p99
+  in the first and in the last minute (a third of the run each, for runs under 3 minutes), and
+  their ratio: the baseline is the run's own first minute.
+Everything runs on loopback in a temp dir, removed at the end. Wall-clock sensitive by nature (a
+loaded machine sends fewer pings), hence a bench, not a test.
 """
 from __future__ import annotations
 
@@ -117,16 +129,71 @@ def children(pid: int) -> dict[str, int]:
     return found
 
 
+def positive(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not value > 0 or value == float("inf"):
+        raise argparse.ArgumentTypeError(f"must be a positive number, got {text!r}")
+    return value
+
+
+def percentile(values: list[float], q: float) -> float:
+    ordered = sorted(values)
+    return ordered[min(len(ordered) - 1, int(q * len(ordered)))] if ordered else float("nan")
+
+
+def slope_per_min(points: list[tuple[float, float]]) -> float:
+    """Least-squares growth (value units per minute) of (seconds, value) points."""
+    if len(points) < 2:
+        return 0.0
+    n = len(points)
+    mt = sum(t for t, _ in points) / n
+    mv = sum(v for _, v in points) / n
+    var = sum((t - mt) ** 2 for t, _ in points)
+    return 60 * sum((t - mt) * (v - mv) for t, v in points) / var if var else 0.0
+
+
+def analyse(recording: Path) -> dict:
+    """Stream the recording once (it may not fit in memory): counts and round trips."""
+    from iotad.recording.mcap_io import iter_messages
+    recorded: dict[str, int] = {}
+    top: dict[str, int] = {}
+    sent_at: dict[int, float] = {}
+    trips: list[tuple[float, float]] = []  # (send t, round trip s)
+    gaps = 0
+    for message in iter_messages(recording):
+        topic = message.topic
+        if topic == "@recorder/gaps":
+            gaps += 1
+            continue
+        if topic.endswith("/@heartbeat") or topic.endswith("/@launcher"):
+            continue
+        recorded[topic] = recorded.get(topic, 0) + 1
+        top[topic] = max(top.get(topic, -1), message.sequence)
+        if topic == "iota/soak/ping/@trace":
+            event = message.value
+            if event.get("kind") == "output" and event.get("action") == "ping":
+                sent_at[event["value"]] = event["t"]
+            elif event.get("kind") == "input" and event.get("action") == "pong":
+                t0 = sent_at.pop(event["value"], None)
+                if t0 is not None:
+                    trips.append((t0, event["t"] - t0))
+    return {"recorded": recorded, "published": {k: v + 1 for k, v in top.items()}, "gaps": gaps, "trips": trips}
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--seconds", type=float, default=60.0, help="how long to sample (after the warm-up)")
-    parser.add_argument("--rate", type=float, default=400.0, help="pings per second")
-    parser.add_argument("--warmup", type=float, default=5.0, help="seconds before the first sample")
-    parser.add_argument("--every", type=float, default=5.0, help="seconds between samples")
-    parser.add_argument("--no-record", action="store_true", help="run without the recorder")
+    parser.add_argument("--minutes", type=positive, default=10.0, help="how long to run under load (default 10)")
+    parser.add_argument("--rate", type=positive, default=250.0,
+                        help="round trips per second (default 250: ~1,000 events/s)")
+    parser.add_argument("--warmup", type=positive, default=5.0, help="seconds before the first RSS sample")
+    parser.add_argument("--every", type=positive, default=5.0, help="seconds between RSS samples")
     args = parser.parse_args()
+    if args.warmup >= args.minutes * 60:
+        parser.error("--warmup must be shorter than the run (--minutes)")
 
-    from iotad.recording.mcap_io import read_recording
     from iotad.host.transport import free_port
 
     with tempfile.TemporaryDirectory(prefix="iotad-soak-") as tmp:
@@ -134,25 +201,22 @@ def main() -> int:
         system_file = tmp / "soak.toml"
         system_file.write_text(SYSTEM.format(port=free_port(), me=Path(__file__).resolve(), period=1 / args.rate))
         recording = tmp / "soak.mcap"
-        record = ["--no-record"] if args.no_record else ["-o", str(recording)]
-        total = args.warmup + args.seconds
+        total = args.minutes * 60
         out = open(tmp / "launcher.out", "wb")
         launcher = subprocess.Popen([sys.executable, "-m", "iotad", "run", str(system_file), "--plain",
-                                     "--until", str(total + 2), "--log-dir", str(tmp / "logs"), *record],
+                                     "--until", str(total), "--log-dir", str(tmp / "logs"), "-o", str(recording)],
                                     cwd=ROOT, stdout=out, stderr=subprocess.STDOUT, start_new_session=True)
         samples: list[tuple[float, dict[str, int | None]]] = []
         try:
             started = time.monotonic()
-            roles = {}
-            while time.monotonic() - started < total:
+            roles: dict[str, int] = {}
+            while launcher.poll() is None:
                 now = time.monotonic() - started
-                if now >= args.warmup and (not samples or now - samples[-1][0] >= args.every):
+                if now >= args.warmup and (not samples or now - samples[-1][0] >= args.every) and now < total - 1:
                     roles = {**roles, **children(launcher.pid)}
                     sample = {"launcher": rss_kb(launcher.pid)}
                     sample.update({role: rss_kb(pid) for role, pid in sorted(roles.items())})
                     samples.append((now, sample))
-                if launcher.poll() is not None:
-                    break
                 time.sleep(0.1)
             code = launcher.wait(60)
         finally:
@@ -169,33 +233,49 @@ def main() -> int:
             print(text[-3000:])
             print(f"launcher exit {code}; {len(samples)} samples")
             return 1
+        figures = analyse(recording)
+        size = sum(f.stat().st_size for f in tmp.glob("soak*.mcap"))
+
         (t0, first), (t1, last) = samples[0], samples[-1]
-        minutes = (t1 - t0) / 60
-        print(f"soak: ping-pong at {args.rate:g} Hz for {t1 - t0:.0f} s after a {args.warmup:g} s warm-up "
-              f"({'no recorder' if args.no_record else 'recorded'}); python {sys.version.split()[0]}, "
-              f"{os.cpu_count()} cpus")
-        print(f"  {'process':<10} {'RSS first':>10} {'RSS last':>10} {'growth':>9} {'per min':>9}")
+        at_1min = next(((t, s) for t, s in samples if t >= 60), None)
+        print(f"soak: ping-pong at {args.rate:g} round trips/s for {t1 - t0 + args.warmup:.0f} s "
+              f"(--minutes {args.minutes:g}); python {sys.version.split()[0]}, {os.cpu_count()} cpus")
+        print("events recorded / published (published: highest seq + 1 of each stream):")
+        lost_total = 0
+        for topic in sorted(figures["published"]):
+            published, recorded = figures["published"][topic], figures["recorded"][topic]
+            lost_total += published - recorded
+            print(f"  {topic:<28} {recorded:>9} / {published:<9} lost {published - recorded}")
+        print(f"  total lost {lost_total}; recorder gaps {figures['gaps']}; recording {size / 2**20:.1f} MB")
+        print(f"resident size (MB): start (t={t0:.0f} s)"
+              + (f", after 1 min" if at_1min else "") + f", end (t={t1:.0f} s); growth per minute after minute 1")
         for role in last:
             a, b = first.get(role), last.get(role)
             if a is None or b is None:
                 print(f"  {role:<10} (not sampled throughout)")
                 continue
-            print(f"  {role:<10} {a / 1024:>8.1f}MB {b / 1024:>8.1f}MB {(b - a) / 1024:>+7.1f}MB "
-                  f"{(b - a) / 1024 / minutes:>+7.2f}MB")
-        print("  RSS over time (MB): " + "; ".join(
-            f"{t:.0f}s " + " ".join(f"{r}={(v or 0) / 1024:.1f}" for r, v in s.items()) for t, s in samples))
+            since = [(t, s[role] / 1024) for t, s in samples if t >= 60 and s.get(role)] or \
+                    [(t, s[role] / 1024) for t, s in samples if s.get(role)]
+            slope = slope_per_min(since)
+            one = f"{at_1min[1][role] / 1024:>8.1f}" if at_1min and at_1min[1].get(role) else " " * 8
+            line = f"  {role:<10} {a / 1024:>8.1f} {one} {b / 1024:>8.1f}   {slope:+.3f} MB/min"
+            if role == "recorder":
+                line += f"; extrapolated to minute 30: {slope * 29:+.1f} MB over minute 1 (limit +10 MB)"
+            print(line)
+        trips = figures["trips"]
+        if trips:
+            begin, end = trips[0][0], trips[-1][0]
+            window = min(60.0, (end - begin) / 3)
+            early = [rtt for t, rtt in trips if t < begin + window]
+            late = [rtt for t, rtt in trips if t >= end - window]
+            p99a, p99b = percentile(early, 0.99), percentile(late, 0.99)
+            print(f"round trip ping -> pong -> ping ({len(trips)} trips; windows of {window:.0f} s):")
+            print(f"  first: p50 {percentile(early, 0.5) * 1e3:.2f} ms  p99 {p99a * 1e3:.2f} ms ({len(early)} trips)")
+            print(f"  last:  p50 {percentile(late, 0.5) * 1e3:.2f} ms  p99 {p99b * 1e3:.2f} ms ({len(late)} trips)"
+                  f"   p99 last/first = {p99b / p99a:.2f}")
         for line in text.splitlines():
-            if "ping.ping" in line or "pong.pong" in line or "violations:" in line or "restarted" in line:
+            if "violations:" in line or "restarted" in line or "gave up" in line:
                 print("  " + line.strip())
-        if not args.no_record:
-            rec = read_recording(recording)
-            for node in ("ping", "pong"):
-                beats = [m.value for m in rec.messages if m.topic == f"iota/soak/{node}/@heartbeat"]
-                if beats:
-                    print(f"  {node} heartbeats: {len(beats)}, input backlog max {max(b['queue'] for b in beats)}, "
-                          f"firings {beats[-1]['firings']}")
-            print(f"  recording: {recording.stat().st_size / 2**20:.1f} MB, {len(rec.messages)} messages, "
-                  f"complete={rec.complete}, gaps={len(rec.gaps())}")
     return 0
 
 

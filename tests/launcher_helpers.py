@@ -88,11 +88,15 @@ def wait_until(condition, timeout: float, step: float = 0.02):
 
 
 @contextmanager
-def launcher(system_file: Path, *args: str, cwd: Path | None = None, prefix: tuple = ()):
+def launcher(system_file: Path, *args: str, cwd: Path | None = None, prefix: tuple = (), secure: bool = False):
     """`iotad run SYSTEM ...` as a process of its own, stopped on the way out: SIGINT (a clean
     stop that removes what it made), then SIGKILL to its group if it has not ended in 15 s.
     Yields the Popen; its output (plain lines) goes to `<system_file>.N.out`, and its node
-    configs and logs to `<system_file>.N.logs` (unless the args say --log-dir), never /tmp."""
+    configs and logs to `<system_file>.N.logs` (unless the args say --log-dir), never /tmp.
+    Without `secure` it runs `--insecure`: an Observer opened before the hub has no credentials
+    (tests of access control itself pass secure=True; docs/access-control.md)."""
+    if not secure and "--insecure" not in args:
+        args = (*args, "--insecure")
     number = next(_outputs)
     out = Path(str(system_file) + f".{number}.out")
     if "--log-dir" not in args:

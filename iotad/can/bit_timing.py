@@ -9,6 +9,8 @@ frame really has (its CRC included); `"worst"` takes the bound floor((stuffed_bi
 """
 from __future__ import annotations
 
+import re
+
 CRC15_POLY = 0x4599          # x^15 + x^14 + x^10 + x^8 + x^7 + x^4 + x^3 + 1
 UNSTUFFED_TAIL = 1 + 2 + 7   # CRC delimiter, ACK slot + delimiter, end of frame
 INTERMISSION = 3             # bus idle bits between two frames
@@ -58,6 +60,30 @@ def stuff_bit_count(bits: list[int]) -> int:
 def frame_bits(id: int, extended: bool = False, rtr: bool = False, data: bytes = b"",
                stuffing: str = "exact", dlc: int | None = None) -> int:
     """Bits a frame occupies the bus for, intermission included (the time until the next SOF)."""
+    if id.__class__ is not int or data.__class__ is not bytes:  # 33.0 == 33: no look-alikes in the memo
+        return _frame_bits(id, extended, rtr, data, stuffing, dlc)
+    key = (id, extended, rtr, data, stuffing, dlc)
+    try:
+        return _KNOWN[key]
+    except KeyError:
+        pass
+    if len(_KNOWN) >= _KNOWN_MAX:
+        _KNOWN.clear()
+    bits = _KNOWN[key] = _frame_bits(id, extended, rtr, data, stuffing, dlc)
+    return bits
+
+
+# A bus carries the same frames again and again (heartbeats, polls, unchanged setpoints):
+# frame_bits remembers the last few thousand answers.
+_KNOWN: dict[tuple, int] = {}
+_KNOWN_MAX = 1 << 14
+
+
+def _frame_bits(id, extended, rtr, data, stuffing, dlc) -> int:
+    if (stuffing == "exact" and id.__class__ is int and extended.__class__ is bool and rtr.__class__ is bool
+            and data.__class__ is bytes and len(data) <= 8 and (dlc is None or dlc.__class__ is int and 0 <= dlc <= 8)
+            and 0 <= id <= 0x1FFFFFFF):
+        return _exact_frame_bits(id, extended, rtr, data, len(data) if dlc is None else dlc)
     region = stuffed_region(id, extended, rtr, data, dlc)
     if stuffing == "exact":
         stuff = stuff_bit_count(region)
@@ -68,6 +94,56 @@ def frame_bits(id: int, extended: bool = False, rtr: bool = False, data: bytes =
     else:
         raise ValueError(f"stuffing must be 'exact', 'worst' or 'none', got {stuffing!r}")
     return len(region) + stuff + UNSTUFFED_TAIL + INTERMISSION
+
+
+# The same count as stuffed_region + stuff_bit_count, on integers and strings (~3x faster);
+# tests/can check that both agree on random frames.
+def _crc_table() -> list[int]:
+    table = []
+    for byte in range(256):
+        crc = byte << 7
+        for _ in range(8):
+            crc = ((crc << 1) ^ CRC15_POLY if crc & 0x4000 else crc << 1) & 0x7FFF
+        table.append(crc)
+    return table
+
+
+_CRC_TABLE = _crc_table()
+_RUNS = re.compile("0+|1+")
+
+
+def _exact_frame_bits(id: int, extended: bool, rtr: bool, data: bytes, dlc: int) -> int:
+    if extended:  # SOF, base id, SRR, IDE, id extension, RTR, r1, r0, DLC
+        region = ((((id >> 18) & 0x7FF) << 2 | 3) << 18 | (id & 0x3FFFF)) << 7 | rtr << 6 | dlc
+        n = 39
+    else:  # SOF, id, RTR, IDE, r0, DLC
+        region = (id & 0x7FF) << 7 | rtr << 6 | dlc
+        n = 19
+    if data and not rtr:
+        region = region << (8 * len(data)) | int.from_bytes(data, "big")
+        n += 8 * len(data)
+    crc = 0
+    head = n % 8  # the bits before a whole number of bytes: one at a time
+    for shift in range(n - 1, n - 1 - head, -1):
+        feedback = ((region >> shift) & 1) ^ (crc >> 14)
+        crc = (crc << 1) & 0x7FFF
+        if feedback:
+            crc ^= CRC15_POLY
+    table = _CRC_TABLE
+    for shift in range(n - head - 8, -1, -8):
+        crc = ((crc << 8) & 0x7FFF) ^ table[((crc >> 7) ^ (region >> shift)) & 0xFF]
+    n += 15
+    # stuff bits run by run: a run of `length` equal bits, `carry` (0 or 1) of which a stuff bit of
+    # the same value just before it began, gets one stuff bit at its 5th bit and every 5 after
+    stuff = carry = 0
+    for run in _RUNS.finditer(format(region << 15 | crc, f"0{n}b")):
+        extra = run.end() - run.start() - 5 + carry
+        if extra >= 0:
+            stuff += 1 + extra // 5
+            carry = 1 if extra % 5 == 0 else 0
+        else:
+            carry = 0
+    return n + stuff + UNSTUFFED_TAIL + INTERMISSION
 
 
 def frame_time(frame, bitrate: float = 1_000_000, stuffing: str = "exact") -> float:

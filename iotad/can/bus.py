@@ -11,7 +11,8 @@ in-process bus, for one process). Every `RealTimeBus` is the same small interfac
 BusABC (`send`, `recv`, `fileno`, `shutdown`), plus `send_frame`/`recv_frame`, a `name` and
 `describe()`. A bus never hands back a frame it sent itself (python-can's udp_multicast does, so
 the frames it sent are filtered out).
-Failures to open say why and what to do (`BusUnavailable`).
+Failures to open say why and what to do (`BusUnavailable`). The interface name `env` (no
+channel) opens the bus the environment names, as `open_env_bus` does.
 """
 from __future__ import annotations
 
@@ -24,6 +25,7 @@ from collections import deque
 from .frame import Frame, FrameError
 
 INTERFACES = ("socketcan", "udp_multicast", "virtual")
+ENV = "env"  # not an interface: "the bus the environment names" (a tier's IOTAD_CAN_INTERFACE/CHANNEL)
 UDP_GROUP = "239.74.163.2"   # the project's IPv4 group for udp_multicast buses
 UDP_PORT = 43113
 VIRTUAL_CHANNEL = "iotad"
@@ -135,6 +137,10 @@ def open_bus(interface: str, channel: str | None = None, **kw) -> RealTimeBus:
     (e.g. `bitrate`, `port`; None values are dropped). `udp_multicast` refuses to run where the
     network has real interfaces."""
     kw = {key: value for key, value in kw.items() if value is not None}
+    if interface == ENV:  # a system file that runs unchanged on every tier (docs/system-file.md)
+        if channel:
+            raise BusUnavailable(f"interface {ENV!r} takes the channel from {ENV_CHANNEL} too: give no channel")
+        return open_env_bus(**kw)
     if interface not in INTERFACES:
         raise BusUnavailable(f"unknown CAN interface {interface!r}; choose one of {', '.join(INTERFACES)}")
     import can
@@ -168,6 +174,13 @@ def open_bus(interface: str, channel: str | None = None, **kw) -> RealTimeBus:
     channel = channel or VIRTUAL_CHANNEL
     bus = can.Bus(interface="virtual", channel=channel, receive_own_messages=False, **kw)
     return RealTimeBus(bus, interface, channel)
+
+
+def env_bus() -> tuple[str, str | None] | None:
+    """(interface, channel) of the bus the environment names (IOTAD_CAN_INTERFACE, IOTAD_CAN_CHANNEL),
+    or None where IOTAD_CAN_INTERFACE is not set."""
+    interface = os.environ.get(ENV_INTERFACE)
+    return (interface, os.environ.get(ENV_CHANNEL) or None) if interface else None
 
 
 def open_env_bus(**kw) -> RealTimeBus:

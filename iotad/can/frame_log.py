@@ -7,7 +7,10 @@ frame in both directions, in bus order. The time is the message's: its log time 
 not read the clock, so the record itself does not repeat it.
 
     duration   its bit time on the bus, stuff bits and intermission included (s)
-    station    the index of the station that sent it (the [[can]] entry's `stations` order)
+    station    the index of the station that sent it (the [[can]] entry's `stations` order); unset
+               (None, null in a recording) where the log cannot tell: a real bus's frames carry
+               no sender, so `BusLogger` leaves it unset and `iotad check` takes the station that
+               sent such a frame first
     id, extended, rtr, dlc, data   the frame (data zero-padded to 8, `dlc` bytes valid)
     direction  TO_AXIS (a host command, or a remote request for an axis's message), FROM_AXIS
                (an axis's message), EITHER (Address data, which both sides send), or NOT_ODRIVE
@@ -15,15 +18,23 @@ not read the clock, so the record itself does not repeat it.
                does not have or an extended id, MALFORMED for a known id of the wrong length
 
 A node's own view stays in its trace (`can_tx` outputs, `can_rx` inputs); this log is the bus's.
+
+In real time nothing models the bus, so `iotad run` runs `BusLogger` as one more node per
+`[[can]]` bus, named after it: a listen-only station whose node host opens the same python-can
+bus (SocketCAN hands every socket the frames of all the others) and which logs each frame it
+hears on `frames`, so the recording has the same topic as a virtual run. Its time is the frame's
+arrival in the logger, a little after the frame's end; its `duration` is computed from `bitrate`.
 """
 from __future__ import annotations
 
 from typing import Any
 
+from iotad.kernel.api import Input, Iota, Output, Param
 from iotad.kernel.types import Array, Bool, Enum, Float, Int, Struct
 
 from . import odrive
-from .frame import Frame, FrameError
+from .bit_timing import frame_bits
+from .frame import CAN_FRAME, Frame, FrameError
 
 CAN_DIRECTION = Enum("canDirection", "TO_AXIS", "FROM_AXIS", "EITHER", "NOT_ODRIVE")
 CAN_MESSAGE = Enum("canMessage", *odrive.MESSAGES, "UNKNOWN", "MALFORMED")
@@ -37,6 +48,21 @@ def classify(frame: Frame) -> tuple[str, str]:
     """(direction, name) of a frame under CAN Simple."""
     if frame.extended:
         return "NOT_ODRIVE", "UNKNOWN"  # CAN Simple uses 11-bit ids: another protocol shares the bus
+    if frame.__class__ is not Frame:
+        return _classify(frame)
+    # The answer depends on the id, RTR and DLC only (decoding the signals never fails), so a
+    # standard frame's is remembered: at most 2048 ids x 2 x 9 answers.
+    key = (frame.id, frame.rtr, len(frame.data))
+    found = _CLASSES.get(key)
+    if found is None:
+        found = _CLASSES[key] = _classify(frame)
+    return found
+
+
+_CLASSES: dict[tuple[int, bool, int], tuple[str, str]] = {}
+
+
+def _classify(frame: Frame) -> tuple[str, str]:
     try:
         name = odrive.decode(frame).name
     except odrive.UnknownFrame:
@@ -53,10 +79,37 @@ def _direction(sender: str, rtr: bool) -> str:
     return "FROM_AXIS" if sender == "axis" else "EITHER"
 
 
-def bus_frame(value: Any, station: int, duration: float):
+def bus_frame(value: Any, station: int | None, duration: float):
     """The CAN_BUS_FRAME record of a CAN_FRAME value the bus carried."""
     frame = Frame.from_value(value)
     direction, name = classify(frame)
     return CAN_BUS_FRAME(duration=duration, station=station, id=frame.id, extended=frame.extended,
                          rtr=frame.rtr, dlc=frame.dlc, data=list(frame.data) + [0] * (8 - len(frame.data)),
                          direction=direction, message=name)
+
+
+class BusLogger(Iota):
+    """The log of a real-time bus: every frame heard on `can_rx` goes out on `frames` as a
+    CAN_BUS_FRAME with no station (a real bus does not say who sent a frame), in arrival order."""
+
+    bitrate = Param(1_000_000)  # bit/s of the bus, for each frame's `duration`
+    lag = Param(0.1)            # s: a frame logged later than this after it arrived is a deadline miss
+
+    can_rx = Input(CAN_FRAME, switching=0)
+    frames = Output(CAN_BUS_FRAME, switching=0)
+
+    def init(self):
+        if not 0 < self.bitrate:
+            raise ValueError(f"BusLogger bitrate must be positive, got {self.bitrate!r}")
+        self.log = []  # records of frames heard, not yet out
+
+    @can_rx.input
+    def heard(self, value):
+        frame = Frame.from_value(value)
+        bits = frame_bits(frame.id, frame.extended, frame.rtr, frame.data, dlc=frame.dlc)
+        self.log.append(bus_frame(value, None, bits / self.bitrate))
+
+    # Logged at once; the window only bounds how stale the log's times may get on a busy machine.
+    @frames.action(value=lambda self: self.log[0], when=lambda self: bool(self.log), within=(0, "lag"))
+    def logged(self):
+        self.log.pop(0)

@@ -112,7 +112,8 @@ class NodeHost:
         self._can_source = None  # the engine (path, channel, index) of the root's can_tx
         if config.can is not None:
             self._can_source = next((p.source for p in self.table.outputs if p.name == CAN_TX), None)
-            if self._can_source is None or not any(p.name == "can_rx" for p in self.table.inputs):
+            listen_only = bool(config.can.get("listen_only"))  # a bus logger: it hears, never sends
+            if (self._can_source is None and not listen_only) or not any(p.name == "can_rx" for p in self.table.inputs):
                 raise ConfigError(f"{config.path}: sits on CAN bus {config.can['bus']!r} but has no "
                                   f"can_tx output and can_rx input")
             self.can = CanPort(config.can, self.clock.post)

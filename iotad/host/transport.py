@@ -8,6 +8,8 @@ from typing import Iterable
 
 import zenoh
 
+from iotad.host.credentials import Credentials, for_endpoints, from_env
+
 DEFAULT_LISTEN = ("tcp/127.0.0.1:0",)  # port 0: the OS picks a free loopback port
 # Where `iotad run` puts its hub peer unless told otherwise, and where the introspection commands
 # (`iotad ls/echo/pub/hz`) look for a running system by default.
@@ -15,12 +17,15 @@ DEFAULT_HUB_ENDPOINT = "tcp/127.0.0.1:7447"
 
 
 def make_config(listen: Iterable[str] = DEFAULT_LISTEN, connect: Iterable[str] = (), mode: str = "peer",
-                extra: dict | None = None) -> zenoh.Config:
+                extra: dict | None = None, credentials: Credentials | None = None) -> zenoh.Config:
     """`extra` maps zenoh config paths (e.g. "transport/link/tx/queue/size/data") to JSON values;
-    it cannot turn multicast scouting back on."""
+    it cannot turn multicast scouting back on. `credentials`: authenticate with zenoh's
+    user-password scheme (and, with a dictionary, check the peers that connect here)."""
     config = zenoh.Config()
     for path, value in (extra or {}).items():
         config.insert_json5(path, json.dumps(value))
+    if credentials is not None:
+        config.insert_json5("transport/auth/usrpwd", json.dumps(credentials.zenoh_usrpwd()))
     config.insert_json5("mode", json.dumps(mode))
     config.insert_json5("scouting/multicast/enabled", "false")
     config.insert_json5("listen/endpoints", json.dumps(list(listen)))
@@ -29,13 +34,26 @@ def make_config(listen: Iterable[str] = DEFAULT_LISTEN, connect: Iterable[str] =
 
 
 def open_session(listen: Iterable[str] = DEFAULT_LISTEN, connect: Iterable[str] = (), mode: str = "peer",
-                 connect_timeout: float | None = None, extra: dict | None = None) -> zenoh.Session:
+                 connect_timeout: float | None = None, extra: dict | None = None,
+                 credentials: Credentials | None | bool = None) -> zenoh.Session:
     """A zenoh session; close it (or use `with`) or the interpreter hangs at exit.
 
     With `connect_timeout` (seconds), opening fails with `zenoh.ZError` when no `connect`
     endpoint answers in time; without it a peer keeps retrying in the background, which is what
-    a node wants (its hub may start later) but not what a command-line tool wants."""
-    config = make_config(listen, connect, mode, extra)
+    a node wants (its hub may start later) but not what a command-line tool wants.
+
+    `credentials` None: those the launcher gave this process in `IOTAD_CREDENTIALS`, if any; a
+    process given credentials is a client of the hub that listens nowhere, so that everything
+    it sends passes the hub's access control (a listening peer could be reached around it).
+    False: none, whatever the environment says."""
+    if credentials is None:
+        credentials = from_env()
+        if credentials is not None:
+            mode, listen = "client", ()
+        elif connect:
+            # a hub that this user's `iotad run` guards lets in its tools' user (read only)
+            credentials = for_endpoints(connect)
+    config = make_config(listen, connect, mode, extra, credentials or None)
     if connect_timeout is not None and list(connect):
         config.insert_json5("connect/timeout_ms", json.dumps(max(1, int(connect_timeout * 1000))))
         config.insert_json5("connect/exit_on_failure", "true")
@@ -60,8 +78,11 @@ def open_tool_session(connect: Iterable[str] = (DEFAULT_HUB_ENDPOINT,), timeout:
     `PeerUnreachable` (one clear line) instead of retrying forever when nothing runs there."""
     endpoints = list(connect)
     try:
-        return open_session((), endpoints, mode="client", connect_timeout=timeout)
+        # a system under access control (docs/access-control.md) lets in only known users
+        return open_session((), endpoints, mode="client", connect_timeout=timeout,
+                            credentials=for_endpoints(endpoints) or False)
     except zenoh.ZError as exc:
         reason = str(exc).split(" at ", 1)[0].strip()
         raise PeerUnreachable(f"no zenoh peer at {', '.join(endpoints)} ({reason}); is a system running? "
-                              "Use --connect ENDPOINT to name its hub") from None
+                              "Use --connect ENDPOINT to name its hub; a hub under access control admits only the users "
+                              "its 'iotad run' made (docs/access-control.md)") from None

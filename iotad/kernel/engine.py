@@ -28,7 +28,8 @@ STOP = object()  # post this to a real clock's inbox to make `run` return
 class Slot:
     """One channel (one index of a family) of one leaf: its last event time and switching time."""
 
-    __slots__ = ("leaf", "channel", "index", "switching", "last", "targets", "input_action", "type")
+    __slots__ = ("leaf", "channel", "index", "switching", "last", "targets", "input_action", "type", "deliveries",
+                 "dynamic")
 
     def __init__(self, leaf: Leaf, channel: Channel, index: int | None):
         self.leaf, self.channel, self.index = leaf, channel, index
@@ -36,7 +37,9 @@ class Slot:
         self.last = -INF
         self.type = channel.type
         self.targets: list[Slot] = []        # bound inputs an output delivers to
+        self.deliveries: list[tuple[Slot, bool]] = []  # (target, its type equals this one's)
         self.input_action: Action | None = None
+        self.dynamic: tuple = ()  # its input action's writes `x[k]` (`_dynamic_writes`), when tracked
 
 
 class ActionInstance:
@@ -134,8 +137,11 @@ class Engine:
                     slot = self.slots[(leaf.path, action.channel, index)]
                     if channel.direction == "input":
                         slot.input_action = action
+                        slot.dynamic = _dynamic_writes(action) if self.track_dependencies else ()
                         continue
                     instance = ActionInstance(leaf, action, index, slot, rank)
+                    if not self.track_dependencies:
+                        instance.dynamic = ()
                     rank += 1
                     mine.append(instance)
                     for cell in instance.reads:
@@ -147,6 +153,11 @@ class Engine:
             for src, dst in expand(self.flat, source, target):
                 self.slots[(src.path, src.channel, src.index)].targets.append(
                     self.slots[(dst.path, dst.channel, dst.index)])
+        for slot in self.slots.values():
+            # an input whose type equals the output's: its values were checked as they left
+            slot.deliveries = [(target, slot.type is not None and target.type is not None
+                                and (target.type is slot.type or target.type == slot.type))
+                               for target in slot.targets]
 
     def _affected(self, leaf: Leaf, writes: frozenset, index: int | None) -> list[ActionInstance]:
         """Instances of `leaf` whose precondition reads a cell that `writes` (at `index`) may change.
@@ -268,14 +279,12 @@ class Engine:
                             f"{action.label} fired at {now:.6g}, after its deadline {deadline:.6g}")
         plain = None
         emit = True
-        dynamic = instance.dynamic if self.track_dependencies else ()
+        dynamic = instance.dynamic
         if dynamic:
             before = [getattr(iota, source, None) for _, source in dynamic]
         if action.value is not None:
             try:
-                value = action.value(iota, index)
-                slot.type.check(value)
-                plain = slot.type.to_plain(value)
+                plain = slot.type.checked_plain(action.value(iota, index))
             except BadValue as exc:
                 self._violation(now, leaf.path, action.channel, index, "bad_value",
                                 f"{action.label}: output value rejected: {exc}")
@@ -304,8 +313,8 @@ class Engine:
             if other is not instance:
                 self._evaluate(other, now)
         if emit:
-            for target in slot.targets:
-                self._deliver(target, plain, now)
+            for target, checked in slot.deliveries:
+                self._deliver(target, plain, now, checked)
 
     def _external_input(self, item: tuple, now: float) -> None:
         path, channel, index, value, meta = item
@@ -331,8 +340,11 @@ class Engine:
             return
         self._deliver(slot, value, now)
 
-    def _deliver(self, slot: Slot, plain: Any, now: float) -> None:
-        """An input event: always enabled, never blocked; rejected only if it breaks its contract."""
+    def _deliver(self, slot: Slot, plain: Any, now: float, checked: bool = False) -> None:
+        """An input event: always enabled, never blocked; rejected only if it breaks its contract.
+        `checked`: `plain` is what the input's own type (or an equal one) accepted as an output
+        value in `checked_plain`, so `from_checked_plain` builds the value without checking
+        again what that proved (see iotad.kernel.types)."""
         leaf, channel, index = slot.leaf, slot.channel, slot.index
         if now < slot.last + slot.switching - self.input_tolerance and self.reject_early_inputs:
             self._violation(now, leaf.path, channel.name, index, "switching_time",
@@ -342,7 +354,7 @@ class Engine:
         value = None
         if slot.type is not None:
             try:
-                value = slot.type.from_plain(plain)
+                value = slot.type.from_checked_plain(plain) if checked else slot.type.from_plain(plain)
             except BadValue as exc:
                 self._violation(now, leaf.path, channel.name, index, "bad_value",
                                 f"input {channel.name}: {exc}; rejected")
@@ -352,7 +364,7 @@ class Engine:
         action = slot.input_action
         if action is None:
             return
-        dynamic = _dynamic_writes(action) if self.track_dependencies else ()
+        dynamic = slot.dynamic
         if dynamic:
             before = [getattr(leaf.iota, source, None) for _, source in dynamic]
         if action.do is not None:

@@ -4,6 +4,19 @@ A type knows how to check a value (range included), copy it (so that two IOTAs n
 mutable value), turn it into plain data for traces and msgpack (`to_plain`), build it back
 (`from_plain`), and describe itself as JSON Schema. Enum values are their names (plain `str`),
 so traces and payloads read the same as the specification.
+
+Two shortcuts serve the engine's hot path (every output, every bound input), each the exact
+equivalent of the slow pair it replaces, same values and same `BadValue` messages:
+
+- `checked_plain(value)` is `check(value)` then `to_plain(value)` in one pass over the value;
+- `from_checked_plain(plain)` is `from_plain(plain)` for plain data that `checked_plain` of this
+  type (or of an equal one) returned: what `check` proved it does not prove again, but it still
+  builds a fresh value (no list or record is shared with the sender or the trace) and still
+  rejects what `from_plain` rejects that `check` lets through (a struct field left unset, None).
+
+The fast paths accept values whose class is exactly the expected one (`int`, `float`, `list`,
+the struct's record class); anything else, and anything wrong, goes through the slow path, which
+gives the verdict and its message.
 """
 from __future__ import annotations
 
@@ -33,6 +46,15 @@ class Type:
         self.check(plain)
         return plain
 
+    def checked_plain(self, value: Any) -> Any:
+        """`check(value)`, then `to_plain(value)`; subclasses do both in one pass."""
+        self.check(value)
+        return self.to_plain(value)
+
+    def from_checked_plain(self, plain: Any) -> Any:
+        """`from_plain(plain)` where `plain` came from `checked_plain` of this type."""
+        return self.from_plain(plain)
+
     def default(self) -> Any:  # pragma: no cover - every type overrides it
         raise NotImplementedError
 
@@ -49,6 +71,24 @@ class _Number(Type):
 
     def __init__(self, low: float | None = None, high: float | None = None):
         self.low, self.high = low, high
+        self.checked_plain = self._fast_checker()
+
+    def _fast_checker(self):
+        """`checked_plain` as a closure: a value of exactly the expected class within the bounds
+        is returned at once (a NaN fails every comparison, so it takes the slow path)."""
+        lo = -math.inf if self.low is None else self.low
+        hi = math.inf if self.high is None else self.high
+        classes = tuple(c for c in self.py_types)  # bool is a subclass, never its exact class
+        first, second = (classes + classes)[:2]
+        check = self.check
+
+        def checked_plain(value: Any) -> Any:
+            cls = value.__class__
+            if (cls is first or cls is second) and lo <= value <= hi:
+                return value
+            check(value)  # raises for what is wrong; a subclass of int or float that is fine passes
+            return value
+        return checked_plain
 
     def __call__(self, low: float | None = None, high: float | None = None) -> "_Number":
         """`Float(0, 1)` is a float restricted to [0, 1]."""
@@ -88,6 +128,9 @@ class IntType(_Number):
     def default(self) -> int:
         return 0 if self.low is None else int(self.low)
 
+    def from_checked_plain(self, plain: Any) -> Any:
+        return plain
+
 
 class FloatType(_Number):
     name = "float"
@@ -102,6 +145,9 @@ class FloatType(_Number):
         self.check(plain)
         return float(plain)
 
+    def from_checked_plain(self, plain: Any) -> float:
+        return float(plain)
+
     def default(self) -> float:
         return 0.0 if self.low is None else float(self.low)
 
@@ -112,6 +158,15 @@ class BoolType(Type):
     def check(self, value: Any) -> None:
         if not isinstance(value, bool):
             raise BadValue(f"expected bool, got {type(value).__name__} {value!r}")
+
+    def checked_plain(self, value: Any) -> Any:
+        if value is True or value is False:
+            return value
+        self.check(value)
+        return value
+
+    def from_checked_plain(self, plain: Any) -> Any:
+        return plain
 
     def default(self) -> bool:
         return False
@@ -135,6 +190,15 @@ class EnumType(Type):
     def check(self, value: Any) -> None:
         if value not in self._set or not isinstance(value, str):
             raise BadValue(f"{value!r} is not a member of enum {self.name} {list(self.members)}")
+
+    def checked_plain(self, value: Any) -> Any:
+        if value.__class__ is str and value in self._set:
+            return value
+        self.check(value)
+        return value
+
+    def from_checked_plain(self, plain: Any) -> Any:
+        return plain
 
     def default(self) -> str:
         return self.members[0]
@@ -180,9 +244,30 @@ class StructType(Type):
         self.fields: dict[str, Type] = {k: _as_type(v) for k, v in fields.items()}
         self.field_names = tuple(self.fields)
         self.record = type(name, (Record,), {"__slots__": self.field_names, "_type": self})
+        self._checked_fields = tuple((n, t.checked_plain) for n, t in self.fields.items())
+        self._built_fields = tuple((n, t.from_checked_plain) for n, t in self.fields.items())
 
     def __call__(self, *args: Any, **fields: Any) -> Record:
         return self.record(*args, **fields)
+
+    def checked_plain(self, value: Any) -> Any:
+        if value.__class__ is self.record:
+            try:
+                return {name: None if (v := getattr(value, name)) is None else checked(v)
+                        for name, checked in self._checked_fields}
+            except BadValue:
+                pass  # the slow path below says which field, in its words
+        self.check(value)
+        return self.to_plain(value)
+
+    def from_checked_plain(self, plain: Any) -> Any:
+        new = object.__new__(self.record)
+        for name, build in self._built_fields:
+            v = plain[name]
+            if v is None:  # check lets an unset field through; from_plain does not
+                return self.from_plain(plain)
+            object.__setattr__(new, name, build(v))
+        return new
 
     def check(self, value: Any) -> None:
         if not isinstance(value, Record) or value._type is not self:
@@ -245,6 +330,24 @@ class ArrayType(Type):
     def __init__(self, element: Type, length: int):
         self.element, self.length = _as_type(element), int(length)
         self.name = f"{self.element.name}[{self.length}]"
+        self._checked_element = self.element.checked_plain
+        self._built_element = self.element.from_checked_plain
+        # elements that are their own plain data and come back as they are (int, bool, enum)
+        self._plain_elements = type(self.element).from_checked_plain in _IDENTITY_BUILDS
+
+    def checked_plain(self, value: Any) -> Any:
+        if value.__class__ is list and len(value) == self.length:
+            try:
+                return list(map(self._checked_element, value))
+            except BadValue:
+                pass  # the slow path below says which element, in its words
+        self.check(value)
+        return self.to_plain(value)
+
+    def from_checked_plain(self, plain: Any) -> list:
+        if self._plain_elements:
+            return list(plain)  # a fresh list: the receiver never shares the sender's
+        return list(map(self._built_element, plain))
 
     def check(self, value: Any) -> None:
         if not isinstance(value, (list, tuple)) or len(value) != self.length:
@@ -313,3 +416,7 @@ def to_plain(value: Any) -> Any:
     if isinstance(value, (list, tuple)):
         return [to_plain(v) for v in value]
     return value
+
+
+# `from_checked_plain` of these returns its argument: an array of them is copied as a list
+_IDENTITY_BUILDS = (IntType.from_checked_plain, BoolType.from_checked_plain, EnumType.from_checked_plain)

@@ -8,6 +8,7 @@ from __future__ import annotations
 from typing import Any
 
 from iotad.kernel.compose import Composite
+from iotad.launcher.bus_logger import is_bus_logger
 from iotad.launcher.system_file import CAN_RX, CAN_TX, System, instantiate
 
 
@@ -15,7 +16,8 @@ def compose(system: System) -> Composite:
     """The system as one composite named after it; raises what instantiating a node raises."""
     from iotad.can.virtual_bus import CanBus
 
-    components: list[Any] = [instantiate(node) for node in system.nodes.values()]
+    # a bus's real-time logger (bus_logger.py) is left out: here the bus model logs its frames
+    components: list[Any] = [instantiate(node) for node in system.nodes.values() if not is_bus_logger(system, node.name)]
     binds = [(str(b.source), str(b.target)) for b in system.bindings]
     for bus in system.buses.values():
         components.append(CanBus(bus.name, stations=len(bus.stations), bitrate=bus.bitrate))

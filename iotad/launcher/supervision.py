@@ -105,12 +105,19 @@ class Launcher:
     `node_argv(config_path)` builds a node's command line: `python -m iotad.host CONFIG` by
     default; tests pass a stand-in. `out` receives every line the launcher prints."""
 
+    # iotad.launcher.access_control.AccessControl (set by `iotad run` before `run()`), or None:
+    # no authentication, no access control, zenoh's defaults.
+    access: Any = None
+
     def __init__(self, system: System, *, host: str | None = None, port: int | None = None,
                  until: float | None = None, record: bool = True, record_path: str | None = None,
                  origin: float | None = None, log_dir: str | None = None,
                  node_argv: Callable[[str], list[str]] | None = None, console: Any = None,
-                 live_table: bool | None = None, stop_timeouts: tuple[float, float] = (3.0, 2.0)):
+                 live_table: bool | None = None, stop_timeouts: tuple[float, float] = (3.0, 2.0),
+                 record_max_size: int | None = None, record_max_duration: float | None = None):
         self.system, self.host, self.until = system, host, until
+        # split the recording into numbered files (`iotad record --max-size/--max-duration`)
+        self.record_max_size, self.record_max_duration = record_max_size, record_max_duration
         self.hub = with_port(system.listen, port) if port is not None else list(system.listen)
         self.record, self.record_path = record, record_path
         self.origin = origin
@@ -196,14 +203,17 @@ class Launcher:
 
     def _open_session(self) -> None:
         from iotad.host.transport import open_session
+        from iotad.launcher.can_env import unresolved
 
         system = self.system
+        if (problem := unresolved(system, self.host)) is not None:  # [[can]] interface = "env", none set
+            raise LauncherError(problem)
         if system.opens_hub(self.host):
             listen, connect = self.hub, list(system.connect)
         else:
             listen, connect = system.listen_for(self.host), self.hub
         try:
-            self.session = open_session(listen, connect)
+            self.session = open_session(listen, connect, **(self.access.hub_options() if self.access else {}))
         except Exception as exc:  # noqa: BLE001 - zenoh says why in its message
             text = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
             if "Address already in use" in text:
@@ -211,6 +221,8 @@ class Launcher:
                                     "choose another with --port") from None
             raise LauncherError(f"cannot open the hub session (listen {listen}, connect {connect}): {text}") from None
         session = self.session
+        for line in (self.access.opened(listen) if self.access and system.opens_hub(self.host) else ()):
+            self.view.line(line)
         base = f"{wire.PREFIX}/{system.name}"
         self._publisher = session.declare_publisher(wire.launcher_key(system.name))
         self._declared.append(self._publisher)
@@ -283,11 +295,16 @@ class Launcher:
         argv = [sys.executable, "-m", "iotad", "record", f"{wire.PREFIX}/{system.name}/**",
                 "-o", str(output), "--system-file", str(system.path), "--ready-file", str(ready),
                 "--from-traces"]  # one wake-up per trace burst, not per message: see iotad.recording.recorder
+        if self.record_max_size is not None:
+            argv += ["--max-size", str(self.record_max_size)]
+        if self.record_max_duration is not None:
+            argv += ["--max-duration", repr(float(self.record_max_duration))]
         for endpoint in self.hub:
             argv += ["--connect", endpoint]
         for endpoint in system.listen_for(self.host):
             argv += ["--listen", endpoint]
         self.recorder = Child("recorder", argv, log=self.run_dir / "recorder.log",
+                              env=self.access.recorder_env() if self.access else None,
                               on_exit=lambda child, code: self.events.put(("recorder", child.pid, code)))
         self.recorder.start()
         self._recorder_ready = ready
@@ -517,6 +534,8 @@ class Launcher:
         path = self.run_dir / f"{run.name.replace('/', '.')}.json"
         path.write_text(json.dumps(config, indent=1))
         run.child.argv = self.node_argv(str(path))
+        if self.access is not None:
+            run.child.env = self.access.node_env(run.name)  # its own credentials (IOTAD_CREDENTIALS)
         run.last_beat = run.live_since = run.lost_since = None
         try:
             run.child.start()
@@ -616,6 +635,8 @@ class Launcher:
             session.close()
         if self._own_dir and not any(r.state == "failed" for r in self.runs.values()):
             shutil.rmtree(self.run_dir, ignore_errors=True)
+        if self.access is not None:
+            self.access.close()  # the credentials never outlive the run
 
     def summary(self) -> list[str]:
         """Lines for the end of a run: what each output carried, who received it, violations."""
@@ -654,6 +675,8 @@ class Launcher:
                          + ", ".join(str(p) for p in self.recordings))
         if self.recording_lost:
             lines.append(f"  RECORDING INCOMPLETE: {self.recording_lost}")
+        if self.access is not None:
+            lines += self.access.summary_lines()
         if not self._own_dir or any(r.state == "failed" for r in self.runs.values()):
             lines.append(f"  configs and logs: {self.run_dir}")
         return lines

@@ -55,13 +55,13 @@ _SYSTEM_NAME = re.compile(r"^[A-Za-z_][\w-]*$")
 _ENDPOINT = re.compile(r"^\s*([A-Za-z_][\w/-]*)\.([A-Za-z_]\w*)(?:\[(\d+)\])?\s*$")
 
 _SYSTEM_KEYS = {"name", "time_unit", "endpoints", "hub_host", "heartbeat_period", "heartbeat_timeout",
-                "start_timeout", "external", "deadline_tolerance", "arrival_tolerance", "input_queue"}
+                "start_timeout", "external", "deadline_tolerance", "arrival_tolerance", "input_queue", "debug"}
 # In TOML a key written after a [[node]] or [[bind]] table belongs to that table.
 _TABLE_HINT = {"external": " (a top-level key must come before the first table; or put it in [system])"}
 _NODE_KEYS = {"name", "spec", "iota", "python", "params", "restart", "max_restarts", "backoff", "host",
               "after", "policy", "seed", "required", "input_queue"}
 _TOP_KEYS = {"system", "node", "bind", "external", "hosts", "can"}
-_CAN_KEYS = {"name", "interface", "channel", "bitrate", "stations", "options"}
+_CAN_KEYS = {"name", "interface", "channel", "bitrate", "stations", "options", "log"}
 CAN_TX, CAN_RX = "can_tx", "can_rx"  # the two channels of a node on a CAN bus
 PEER_RESTART = "peer_restart"  # an input the node host feeds when a peer restarts (iotad.host.peer_restart)
 DEFAULT_INPUT_QUEUE = 1000     # inputs a node host holds for its engine before it drops (and counts) more
@@ -137,10 +137,13 @@ class CanBusSpec:
     stations: list[str] = field(default_factory=list)
     options: dict[str, Any] = field(default_factory=dict)
     entry: str = ""
+    log: bool = True  # real time: a bus logger node named after the bus (iotad/launcher/bus_logger.py)
 
     def port_config(self) -> dict[str, Any]:
         """The node host's `can` config (docs/internals.md): what it opens with python-can."""
-        return {"bus": self.name, "interface": self.interface, "channel": self.channel,
+        from iotad.launcher.can_env import resolved
+        interface, channel = resolved(self.interface, self.channel)  # interface = "env": the environment's
+        return {"bus": self.name, "interface": interface, "channel": channel,
                 "bitrate": self.bitrate, "options": dict(self.options)}
 
 
@@ -169,6 +172,8 @@ class System:
     external: set[Port] = field(default_factory=set)
     hosts: dict[str, HostSpec] = field(default_factory=dict)
     buses: dict[str, CanBusSpec] = field(default_factory=dict)
+    # [system.debug] allow_pub: inputs `iotad pub` may write into under access control
+    allow_pub: set[Port] = field(default_factory=set)
 
     def bus_of(self, node: str) -> CanBusSpec | None:
         """The CAN bus `node` is a station of, if any."""
@@ -216,6 +221,9 @@ class System:
         bus = self.bus_of(node)
         if bus is not None:
             config["can"] = bus.port_config()
+        elif node in self.buses:  # the bus's own logger (bus_logger.py)
+            from iotad.launcher.bus_logger import logger_port_config
+            config["can"] = logger_port_config(self.buses[node])
         if spec.policy is not None:
             config["policy"] = spec.policy
         if spec.seed is not None:
@@ -258,6 +266,8 @@ class _Parser:
         self.parse_hosts(system)
         self.parse_nodes(system)
         self.parse_buses(system)
+        from iotad.launcher.bus_logger import add_bus_loggers
+        add_bus_loggers(system)  # one implicit node per logged bus, named after it
         if check and not self.errors:
             self.load_channels(system)
             self.check_stations(system)
@@ -269,6 +279,7 @@ class _Parser:
             self.check_external(system, raw_external)
             if in_system:
                 self.check_external(system, in_system, "[system] external")
+            self.check_allow_pub(system)
             if not self.errors:  # an input whose binding failed is not also "unbound"
                 self.check_inputs_covered(system)
         if self.errors:
@@ -593,6 +604,30 @@ class _Parser:
             members = [port.index] if port.index is not None else channel.members()
             system.external.update(Port(port.node, port.channel, k) for k in members)
 
+    def check_allow_pub(self, system: System) -> None:
+        """[system.debug] allow_pub = ["node.input", "node.input[k]"]: the inputs `iotad pub` may
+        write into when access control is on (docs/access-control.md)."""
+        raw = self.data.get("system", {}).get("debug") if isinstance(self.data.get("system"), dict) else None
+        if raw is None:
+            return
+        where = "[system.debug]"
+        if not isinstance(raw, dict):
+            self.error(where, "must be a table: { allow_pub = [\"node.input[k]\", ...] }")
+            return
+        for key in sorted(set(raw) - {"allow_pub"}):
+            self.error(where, f"unknown key {key!r} (expected allow_pub)")
+        entries = raw.get("allow_pub", [])
+        if not isinstance(entries, list):
+            self.error(f"{where} allow_pub", "must be a list such as [\"scheduler.req[1]\"]")
+            return
+        for number, text in enumerate(entries):
+            entry = f"{where} allow_pub[{number}]" + (f" ({text!r})".replace("'", '"') if isinstance(text, str) else "")
+            resolved = self.resolve(system, text, entry, "input")
+            if resolved is not None:
+                port, channel = resolved
+                members = [port.index] if port.index is not None else channel.members()
+                system.allow_pub.update(Port(port.node, port.channel, k) for k in members)
+
     # ------------------------------------------------------------ [[can]]
     def parse_buses(self, system: System) -> None:
         for number, raw in enumerate(self.table_list("can"), 1):
@@ -617,11 +652,19 @@ class _Parser:
                     bus.channel = raw["channel"]
                 else:
                     self.error(entry, f"channel must be a string such as \"vcan0\", got {raw['channel']!r}")
+                if interface == "env":
+                    self.error(entry, "interface = \"env\" takes the channel from IOTAD_CAN_CHANNEL too: "
+                                      "leave channel out")
             bitrate = raw.get("bitrate", bus.bitrate)
             if isinstance(bitrate, bool) or not isinstance(bitrate, int) or not 10_000 <= bitrate <= 1_000_000:
                 self.error(entry, f"bitrate must be an integer from 10000 to 1000000 bit/s, got {bitrate!r}")
             else:
                 bus.bitrate = bitrate
+            if "log" in raw:
+                if isinstance(raw["log"], bool):
+                    bus.log = raw["log"]
+                else:
+                    self.error(entry, f"log must be true or false, got {raw['log']!r}")
             options = raw.get("options", {})
             if not isinstance(options, dict):
                 self.error(entry, "options must be a table of python-can bus arguments")
@@ -658,6 +701,7 @@ class _Parser:
     def check_inputs_covered(self, system: System) -> None:
         bound = {b.target for b in system.bindings}
         bound |= {Port(station, CAN_RX, None) for bus in system.buses.values() for station in bus.stations}
+        bound |= {Port(bus, CAN_RX, None) for bus in system.buses}  # a bus logger's, fed by its bus
         for node in system.nodes.values():
             restart = node.channels.get(PEER_RESTART)
             if restart is not None and restart.direction == "input":

@@ -994,14 +994,20 @@ class DeliveryChecker:
         taken: dict[str, set[int]] = {s: set() for s in stations}
         last_taken: dict[str, int] = {}
         strays: list[tuple[float | None, str | None, tuple, Any]] = []
+        nameless: list[tuple[float | None, tuple]] = []  # a real bus's log: no station, and none sent it
         end = max((m.t for m in log if m.t is not None), default=None)
+        # a real-time log is a node (iotad.can.frame_log.BusLogger): it logs only while it runs
+        logger = self.life.get(bus) if not self.virtual and bus not in self.system.bus_nodes else None
         for message in log:
             value = message.value if isinstance(message.value, dict) else {}
             station = value.get("station")
             frame, t = _frame(value), message.t
             if station is None:  # a listener that cannot tell the sender: the station that sent it first
                 heads = [(sent[x][waiting[x][frame][0]][0], x) for x in stations if waiting[x].get(frame)]
-                s = min(heads)[1] if heads else stations[0]
+                if not heads:
+                    nameless.append((t, frame))
+                    continue
+                s = min(heads)[1]
             else:
                 s = stations[station] if isinstance(station, int) and 0 <= station < len(stations) else None
             queue = waiting[s].get(frame) if s is not None else None
@@ -1042,12 +1048,31 @@ class DeliveryChecker:
             links[s].unexplained += 1
             self._finding(links[s], "unexplained", t, f"the bus carried frame {_frame_text(frame)} from {s}, "
                           f"and {s}'s trace holds no such can_tx")
+        for t, frame in nameless:  # heard on a real bus, no station's can_tx: altered, or not a node's
+            twins = [(sent[x][k][0], x, k) for x in stations for k in range(len(sent[x]))
+                     if k not in taken[x] and k not in altered[x] and sent[x][k][1][:3] == frame[:3]
+                     and (t is None or sent[x][k][0] <= t + self.tolerance)]
+            if twins:  # the latest one sent by then: earlier ones may predate the logger
+                _, s, k = max(twins)
+                altered[s].add(k)
+                links[s].altered += 1
+                self._finding(links[s], "altered", sent[s][k][0], f"{s} sent frame {_frame_text(sent[s][k][1])}, "
+                              f"the bus carried {_frame_text(frame)}" + ("" if t is None else f" at t={t:.6g}"))
+                continue
+            self.report.notes.append(DeliveryFinding(
+                "foreign", f"can {bus}: (bus)", t, f"the bus carried frame {_frame_text(frame)}, which no "
+                "station's can_tx sent (a device that is not a node, or a station's final frames)", False, ()))
         for s in stations:
             for k, (t_sent, frame) in enumerate(sent[s]):
                 if k in taken[s] or k in altered[s]:
                     continue
-                if fifo and k < last_taken.get(s, -1):
+                down = _logger_down(logger, bus, t_sent, window) if logger is not None else None
+                if down is not None:
+                    verdict, reason = "unjudged", down
+                elif fifo and k < last_taken.get(s, -1):
                     verdict, reason = "lost", f"the bus carried frames {s} sent after it"
+                elif logger is not None and logger.seen:
+                    verdict, reason = "lost", f"the bus logger {bus} was running"
                 elif end is not None and t_sent + window <= end:
                     verdict, reason = "lost", f"the bus logged frames until t={end:.6g}"
                 else:
@@ -1059,6 +1084,24 @@ class DeliveryChecker:
                 else:
                     links[s].unjudged += 1
                     self._finding(links[s], "not judged", t_sent, f"frame {_frame_text(frame)}: {reason}", False)
+
+
+def _logger_down(life: _Life, bus: str, t: float, window: float) -> str | None:
+    """Why the real-time bus logger `bus` could not have logged a frame sent at `t` (it had not
+    started, was down, or the run ended within `window`), or None: it was listening."""
+    if not life.seen:
+        return f"the bus logger {bus} has no trace in this recording"
+    starts = [run[0] for run in life.runs]
+    k = _last_at_or_before(starts, t)
+    if k < 0:
+        return f"sent before the bus logger {bus} started (t={starts[0]:.6g}): it could not hear it"
+    last = life.runs[k][1]
+    if t + window <= last:
+        return None
+    if k + 1 < len(life.runs):
+        return (f"sent while the bus logger {bus} was down: its last sign of life at t={last:.6g}, "
+                f"restarted at t={life.runs[k + 1][0]:.6g}")
+    return f"in flight when the run ended: the bus logger {bus}'s last sign of life is at t={last:.6g}"
 
 
 def _frame(value: Any) -> tuple:

@@ -536,8 +536,7 @@ class EngineRecorder:
         for leaf in self.flat.leaves:
             rel = leaf.path[len(prefix):] if leaf.path.startswith(prefix) else leaf.path
             self.node_path[leaf.path] = rel or leaf.path
-        self._seq: dict[str, int] = {}
-        self._ids: dict[str, int] = {}
+        self._ids: dict[str, list] = {}  # topic -> [channel id, next sequence]
         self._specs: dict[str, dict] = {}
         self._cache: dict[str, dict] = {}
         for leaf in self.flat.leaves:
@@ -553,22 +552,68 @@ class EngineRecorder:
         sink.attach("system.json", "application/json", json.dumps(
             {"name": self.system, "nodes": {p: {k: s[k] for k in ("source", "params")} for p, s in self._specs.items()},
              "bindings": bindings}, default=_plain).encode(), origin_ns)
+        self._writers()
 
-    def _put(self, topic: str, ns: int, value: Any) -> None:
-        channel_id = self._ids.get(topic)
-        if channel_id is None:
+    # The hot path (bench/worlds.py): per event, one dict look-up for its node's @trace topic (and
+    # one for an output's key), one msgpack pack each (one Packer: the bytes of `packb`), and the
+    # sink's fast writer, whose batch goes into the chunk every COMMIT_EVERY events and before a
+    # new channel is registered, so the file keeps the order of `write` calls one by one.
+    COMMIT_EVERY = 4096
+
+    def _topic(self, topic: str) -> list:
+        """[channel id, next sequence] of a topic, registered on first use."""
+        state = self._ids.get(topic)
+        if state is None:
             name, schema = schema_for_topic(topic, self._specs, self._cache)
-            channel_id = self._ids[topic] = self.sink.channel(topic, name, schema)
-        seq = self._seq.get(topic, 0)
-        self._seq[topic] = seq + 1
-        self.sink.write(channel_id, ns, ns, seq, packb(value))
+            self._commit()  # the messages before it go first, as with one `write` at a time
+            state = self._ids[topic] = [self.sink.channel(topic, name, schema), 0]
+        return state
+
+    def _writers(self) -> None:
+        fast = getattr(self.sink, "fast_writer", None)
+        self._write = fast() if fast is not None else self.sink.write
+        self._write_pair = getattr(self.sink, "write_pair", None)
+        self._commit = getattr(self.sink, "commit", lambda: None)
+        self._pack = msgpack.Packer(use_bin_type=True).pack
+        self._nodes: dict[str, tuple[str, list]] = {}  # event's iota -> (node path, its @trace topic)
+        self._outputs: dict[tuple, list] = {}  # (iota, channel, index) -> its key's topic
+        self._pending = 0
 
     def __call__(self, event: dict) -> None:
-        path = self.node_path.get(event["iota"], event["iota"])
+        if self._pending >= self.COMMIT_EVERY:
+            self._commit()
+            self._pending = 0
+        self._pending += 1
+        iota = event["iota"]
+        node = self._nodes.get(iota)
+        if node is None:
+            path = self.node_path.get(iota, iota)
+            node = self._nodes[iota] = (path, self._topic(wire.trace_key(self.system, path)))
+        path, trace = node
         ns = self.origin_ns + int(round(event["t"] * self.time_unit * 1e9))
-        self._put(wire.trace_key(self.system, path), ns, dict(event, iota=path))
-        if event["kind"] == "output":
-            self._put(wire.channel_key(self.system, path, event["action"], event["index"]), ns, event["value"])
+        pack = self._pack
+        data = pack(dict(event, iota=path))
+        seq = trace[1]
+        trace[1] = seq + 1
+        if event["kind"] != "output":
+            self._write(trace[0], ns, ns, seq, data)
+            return
+        key = (iota, event["action"], event["index"])
+        output = self._outputs.get(key)
+        if output is None:  # the first output on this key: its trace event, then its channel
+            self._write(trace[0], ns, ns, seq, data)
+            output = self._outputs[key] = self._topic(wire.channel_key(self.system, path, key[1], key[2]))
+            sequence = output[1]
+            output[1] = sequence + 1
+            self._write(output[0], ns, ns, sequence, pack(event["value"]))
+            return
+        sequence = output[1]
+        output[1] = sequence + 1
+        if self._write_pair is None:
+            self._write(trace[0], ns, ns, seq, data)
+            self._write(output[0], ns, ns, sequence, pack(event["value"]))
+        else:
+            self._write_pair(trace[0], ns, ns, seq, data, output[0], ns, sequence, pack(event["value"]))
 
 
 def record_run(root: Any, output: str | Path, until: float, inputs: Iterable[dict] = (), policy: Any = None,
@@ -946,7 +991,11 @@ def copy_recording(recording: Recording, output: str | Path, convert: Callable[[
             sink.writer.add_attachment(attachment.create_time, attachment.log_time, attachment.name,
                                        attachment.media_type, attachment.data)
         for name, data in recording.metadata.items():
+            if name == SET_METADATA:
+                continue  # the copy holds the messages itself: it is no set file
             sink.writer.add_metadata(name, data)
+        if recording.files:  # a split recording made one file: say which files it was
+            sink.add_metadata("iotad.joined", {"files": [Path(f).name for f in recording.files]})
         for name, data in (extra_metadata or {}).items():
             sink.add_metadata(name, data)
         count = 0

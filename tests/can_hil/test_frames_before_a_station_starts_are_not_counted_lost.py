@@ -28,6 +28,7 @@ name = "can0"
 interface = "{can_tier.interface}"
 channel = "{can_tier.channel}"
 stations = ["pinger", "echo"]
+log = false  # no bus logger: one process less to start on the one vCPU of user-mode Linux
 """)
     recording = tmp_path / "pingpong.mcap"
     can_tier.run([sys.executable, "-m", "iotad", "run", str(system), "--until", "12", "--plain", "--port", "0",

@@ -17,6 +17,7 @@ EPILOG = """\
 examples:
   iotad candump arm.mcap                                every frame put on the bus, by its sender
   iotad candump arm.mcap --rx --node odrives            what the simulated ODrives received
+  iotad candump arm.mcap --log                          what the bus itself carried (its log topic)
   iotad candump arm.mcap --message Heartbeat --axis 3   axis 3's heartbeats
   iotad candump arm.mcap --start 2 --end 2.1 --count 50
   iotad candump --live examples/arm_can.toml            a running system's bus ([[can]], python-can)
@@ -26,7 +27,8 @@ examples:
 Times are the recording's seconds (the receive time stamp on a live bus). Frames CAN Simple does
 not know end in 'unknown', known ones of the wrong shape in 'malformed: ...'. See docs/can.md."""
 
-ACTIONS = {"tx": ("can_tx",), "rx": ("can_rx",), "all": ("can_tx", "can_rx", "tx", "rx")}
+ACTIONS = {"tx": ("can_tx",), "rx": ("can_rx",), "all": ("can_tx", "can_rx", "tx", "rx"),
+           "log": ("frames",)}  # the bus's own log: the modelled bus's, or a real bus's logger node
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -47,6 +49,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                            help="recording: the frames nodes received (can_rx) instead of those sent")
     direction.add_argument("--all", action="store_const", dest="direction", const="all",
                            help="recording: every frame event, sent and received (and the modelled bus's)")
+    direction.add_argument("--log", action="store_const", dest="direction", const="log",
+                           help="recording: the bus's own log (iota/SYSTEM/BUS/frames), every frame it carried "
+                                "in its order: the modelled bus's, or in real time the bus logger's")
     parser.set_defaults(direction="tx")
     parser.add_argument("--node", action="append", metavar="NAME", help="only this node's events (repeatable)")
     parser.add_argument("--message", action="append", metavar="NAME",

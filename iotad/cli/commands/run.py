@@ -7,6 +7,7 @@ import argparse
 import sys
 
 from iotad.cli import port, positive_float
+from iotad.cli.commands.record import byte_size
 
 ORDER = 20
 
@@ -16,6 +17,8 @@ examples:
   iotad run --check examples/figure2.toml        only check the file (exit 2 on an error)
   iotad run sys.toml --host arm --port 7500      run the nodes of host "arm" of a multi-host system
   iotad run examples/figure2.toml --until 20 -o recordings/fig2.mcap --plain
+  iotad run examples/figure2.toml -o recordings/fig2.mcap --max-size 100M --max-duration 600
+                                                 a long run: fig2_0.mcap, fig2_1.mcap... read as one
   iotad run examples/figure2.toml --virtual --until 60     the same IOTAs in one process, virtual time
 
 The system file format (nodes, bindings, endpoints, time_unit, restart policies, hosts) is
@@ -55,8 +58,15 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--host", metavar="NAME",
                         help="run only the nodes with host = NAME (multi-host systems; one launcher per host)")
     parser.add_argument("--no-record", action="store_true", help="do not start 'iotad record'")
+    parser.add_argument("--insecure", action="store_true",
+                        help="no access control: any process reaching the hub may publish on any key "
+                             "(default: each node authenticated, writing only its outputs; docs/access-control.md)")
     parser.add_argument("-o", "--record-to", metavar="FILE",
                         help="recording file (default recordings/<system>-<time>.mcap)")
+    parser.add_argument("--max-size", type=byte_size, default=None, metavar="SIZE",
+                        help="split the recording: a new file once one holds SIZE bytes (100M, 1G; see 'iotad record')")
+    parser.add_argument("--max-duration", type=positive_float, default=None, metavar="S",
+                        help="split the recording: a new file once one spans S seconds")
     parser.add_argument("--origin", type=positive_float, metavar="WALLTIME",
                         help="wall-clock time (time.time()) that is t=0 for every node (default: now, "
                              "or the hub launcher's for a --host that does not hold the hub)")
@@ -94,9 +104,17 @@ def run(args: argparse.Namespace) -> int:
         buses = f", {len(system.buses)} CAN bus(es)" if system.buses else ""
         print(f"{system.file}: ok: system {system.name!r}, {len(system.nodes)} nodes, "
               f"{inputs} channel bindings, {len(system.external)} external inputs{buses}")
+        from iotad.launcher.access_policy import derive
+
+        print("\n".join(derive(system).lines()))
         return 0
     if args.virtual:
         from iotad.cli.virtual_run import run_virtual
+
+        if args.max_size is not None or args.max_duration is not None:
+            from iotad.cli import CliError
+
+            raise CliError("--max-size and --max-duration split a real-time run's recording, not a --virtual one")
 
         return run_virtual(system, args)
     for option in ("inputs", "seed"):
@@ -128,6 +146,8 @@ def launch(system, args: argparse.Namespace, summary_hook=None) -> int:
             raise CliError(f"--log-dir {args.log_dir}: cannot create it: {exc.strerror or exc}") from None
         if not os.access(log_dir, os.W_OK):
             raise CliError(f"--log-dir {args.log_dir}: not writable")
+    if args.no_record and (getattr(args, "max_size", None) or getattr(args, "max_duration", None)):
+        raise CliError("--max-size and --max-duration split the recording: not with --no-record")
     if getattr(args, "record_to", None) and Path(args.record_to).is_dir():
         raise CliError(f"-o {args.record_to}: is a directory; name the .mcap file to write")
     port = args.port
@@ -135,7 +155,10 @@ def launch(system, args: argparse.Namespace, summary_hook=None) -> int:
         port = free_port()
     launcher = Launcher(system, host=args.host, port=port, until=args.until, record=not args.no_record,
                         record_path=args.record_to, origin=args.origin, log_dir=args.log_dir,
-                        live_table=False if args.plain else None)
+                        live_table=False if args.plain else None,
+                        record_max_size=getattr(args, "max_size", None),
+                        record_max_duration=getattr(args, "max_duration", None))
+    launcher.access = access_for(system, args)
     viewer = None
     if getattr(args, "view", None) is not None and system.opens_hub(args.host):
         from iotad.cli.commands.view import ViewerProcess
@@ -149,6 +172,7 @@ def launch(system, args: argparse.Namespace, summary_hook=None) -> int:
     finally:
         if viewer is not None:
             viewer.stop()
+        launcher.access.close()
     print(f"summary of {system.name}" + (f" (host {args.host})" if args.host else "") + ":")
     for line in launcher.summary():
         print(line)
@@ -156,3 +180,21 @@ def launch(system, args: argparse.Namespace, summary_hook=None) -> int:
         code = summary_hook(launcher, code)
     sys.stdout.flush()
     return code
+
+
+def access_for(system, args: argparse.Namespace):
+    """Access control for this run (docs/access-control.md): on unless --insecure; off, with a
+    warning, for a system spread over hosts, whose other launchers could not get credentials."""
+    import os
+
+    from iotad.host.credentials import ENV
+    from iotad.launcher.access_control import AccessControl
+
+    if getattr(args, "insecure", False):
+        return AccessControl.off(system, "--insecure")
+    if args.host is not None or any(node.host for node in system.nodes.values()):
+        return AccessControl.off(system, "not yet for systems spread over hosts")
+    access = AccessControl(system)
+    if getattr(args, "view", None) is not None:
+        os.environ[ENV] = access.tools_file()  # the `iotad view` child reads with the tools' credentials
+    return access

@@ -1,0 +1,166 @@
+"""Credentials for zenoh's user-password authentication: the private files that `iotad run`
+makes for one run, and how a process finds its own (docs/access-control.md).
+
+`iotad run` makes a fresh directory (mode 0700, files 0600) under the system's temporary
+directory, never in the repository or a recording: one `USER.json` per user (`{"user",
+"password"}`, random passwords of 192 bits) and the hub's `dictionary.txt` (`user:password`
+lines, what zenoh's `transport/auth/usrpwd/dictionary_file` reads). A child of the launcher
+learns its file from the environment variable `IOTAD_CREDENTIALS`; a command-line tool started by
+hand finds the tools' file through a pointer `hub-PORT` in the per-user directory
+`$TMPDIR/iotad-UID` (0700), which `iotad run` writes once its hub listens on PORT.
+"""
+from __future__ import annotations
+
+import json
+import os
+import re
+import secrets
+import shutil
+import stat
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Iterable
+
+ENV = "IOTAD_CREDENTIALS"
+HUB_USER = "iotad-hub"
+
+
+class CredentialsError(ValueError):
+    """Credentials that cannot be used; `str()` is one line for the user."""
+
+
+@dataclass(frozen=True)
+class Credentials:
+    user: str
+    password: str
+    dictionary: str | None = None  # the hub's: the `user:password` file it checks others against
+
+    def zenoh_usrpwd(self) -> dict:
+        """The value of zenoh's `transport/auth/usrpwd`."""
+        value = {"user": self.user, "password": self.password}
+        if self.dictionary:
+            value["dictionary_file"] = self.dictionary
+        return value
+
+
+def load(path: str | Path) -> Credentials:
+    try:
+        data = json.loads(Path(path).read_text())
+    except OSError as exc:
+        raise CredentialsError(f"cannot read credentials {path}: {exc.strerror or exc}") from None
+    except json.JSONDecodeError:
+        raise CredentialsError(f"credentials {path}: not JSON") from None
+    if not isinstance(data, dict) or not all(isinstance(data.get(k), str) and data.get(k) for k in ("user", "password")):
+        raise CredentialsError(f"credentials {path}: expected {{\"user\": ..., \"password\": ...}}")
+    return Credentials(data["user"], data["password"])
+
+
+def from_env() -> Credentials | None:
+    """The credentials the launcher gave this process (`IOTAD_CREDENTIALS`), or None."""
+    path = os.environ.get(ENV)
+    return load(path) if path else None
+
+
+def user_dir() -> Path:
+    """Where pointers to running systems' tool credentials live: private to this user."""
+    return Path(tempfile.gettempdir()) / f"iotad-{os.getuid()}"
+
+
+def _private_dir(path: Path) -> bool:
+    try:
+        info = path.lstat()
+    except OSError:
+        return False
+    return stat.S_ISDIR(info.st_mode) and info.st_uid == os.getuid() and not info.st_mode & 0o077
+
+
+def _port(endpoint: str) -> str | None:
+    match = re.search(r":(\d+)$", endpoint.strip())
+    return match.group(1) if match else None
+
+
+def for_endpoints(endpoints: Iterable[str]) -> Credentials | None:
+    """A tool's credentials for a hub at `endpoints`: `IOTAD_CREDENTIALS` when set, else the ones
+    `iotad run` advertised for that port (only from a private directory of this user)."""
+    found = from_env()
+    if found is not None:
+        return found
+    folder = user_dir()
+    if not _private_dir(folder):
+        return None
+    for endpoint in endpoints:
+        port = _port(endpoint)
+        pointer = folder / f"hub-{port}"
+        if port is None or not pointer.is_file():
+            continue
+        target = Path(pointer.read_text().strip())
+        if _private_dir(target.parent) and target.is_file():
+            try:
+                return load(target)
+            except CredentialsError:
+                continue
+    return None
+
+
+class CredentialStore:
+    """One run's credentials: a private directory with one file per user and the hub's
+    dictionary. `remove()` deletes it all (and the pointer), which the launcher does at its end."""
+
+    def __init__(self, users: Iterable[str], parent: str | None = None):
+        self.folder = Path(tempfile.mkdtemp(prefix="iotad-credentials-", dir=parent))
+        os.chmod(self.folder, 0o700)
+        self._passwords = {user: secrets.token_urlsafe(24) for user in [HUB_USER, *users]}
+        for user, password in self._passwords.items():
+            if ":" in user or "\n" in user:
+                raise CredentialsError(f"user name {user!r} cannot hold ':' or a line break")
+            self._write(self.file_of(user), json.dumps({"user": user, "password": password}))
+        self.dictionary = self.folder / "dictionary.txt"
+        self._write(self.dictionary, "".join(f"{u}:{p}\n" for u, p in self._passwords.items()))
+        self.pointer: Path | None = None
+
+    @staticmethod
+    def _write(path: Path, text: str) -> None:
+        fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+        with os.fdopen(fd, "w") as stream:
+            stream.write(text)
+
+    def file_of(self, user: str) -> Path:
+        return self.folder / (re.sub(r"[^\w.-]", "_", user) + ".json")
+
+    def credentials(self, user: str) -> Credentials:
+        return Credentials(user, self._passwords[user])
+
+    def hub(self) -> Credentials:
+        return Credentials(HUB_USER, self._passwords[HUB_USER], str(self.dictionary))
+
+    def advertise(self, endpoints: Iterable[str], user: str) -> None:
+        """Let tools started by hand find `user`'s file for the hub at `endpoints`."""
+        folder = user_dir()
+        folder.mkdir(mode=0o700, exist_ok=True)
+        if not _private_dir(folder):
+            return  # someone else's or an open directory: tools then need IOTAD_CREDENTIALS
+        for endpoint in endpoints:
+            port = _port(endpoint)
+            if port is None:
+                continue
+            pointer = folder / f"hub-{port}"
+            temporary = folder / f".hub-{port}.{os.getpid()}"
+            temporary.unlink(missing_ok=True)
+            self._write(temporary, str(self.file_of(user)))
+            os.replace(temporary, pointer)
+            self.pointer = pointer
+            return
+
+    def remove(self) -> None:
+        if self.pointer is not None:
+            try:
+                if self.pointer.read_text().strip().startswith(str(self.folder)):
+                    self.pointer.unlink()
+            except OSError:
+                pass
+            self.pointer = None
+        shutil.rmtree(self.folder, ignore_errors=True)
+
+
+__all__ = ["ENV", "Credentials", "CredentialsError", "CredentialStore", "for_endpoints", "from_env", "load"]

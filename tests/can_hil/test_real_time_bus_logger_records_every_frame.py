@@ -1,0 +1,131 @@
+"""In real time each [[can]] bus has a bus logger, a listen-only node named after the bus: a
+ping-pong over the best CAN tier records `iota/pingpong/can0/frames` with every frame both
+stations sent (ids, data, each station's order), `iotad check` matches each station's can_tx
+against it (`can can0: STATION -> (bus)`, clean), `iotad candump --log` prints it, and a frame a
+station sent that the logger never heard is reported lost. The file says `interface = "env"`:
+the tier's bus (IOTAD_CAN_INTERFACE, IOTAD_CAN_CHANNEL), whichever tier it is."""
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import pytest
+
+from iotad.can.frame import Frame
+from iotad.cli import main
+from iotad.recording.delivery import check_delivery
+from iotad.recording.mcap_io import packb, read_recording
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "recording"))
+from wire_tamper import rewrite  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[2]
+IOTAS = ROOT / "tests" / "system_iotas.py"
+LOG = "iota/pingpong/can0/frames"
+
+
+@pytest.fixture(scope="module")
+def pingpong(can_tier, tmp_path_factory):
+    tmp_path = tmp_path_factory.mktemp("bus_log")
+    system = tmp_path / "pingpong.toml"
+    system.write_text(f"""[system]
+name = "pingpong"
+[[node]]
+name = "pinger"
+python = "{IOTAS}:CanPinger"
+params = {{ period = 0.05 }}
+[[node]]
+name = "echo"
+python = "{IOTAS}:CanEcho"
+[[can]]
+name = "can0"
+interface = "env"
+stations = ["pinger", "echo"]
+""")
+    recording = tmp_path / "pingpong.mcap"
+    can_tier.run([sys.executable, "-m", "iotad", "run", str(system), "--until", "11", "--plain", "--port", "0",
+                  "-o", str(recording), "--log-dir", str(tmp_path / "logs")], timeout=180, cwd=str(tmp_path)).check()
+    return recording
+
+
+def sent_by(recording, node):
+    return [Frame.from_value(e["value"]) for e in recording.trace()
+            if e.get("node", e.get("iota")) == node and e["action"] == "can_tx" and e["kind"] == "output"]
+
+
+def test_the_log_holds_every_frame_both_stations_sent_in_their_order(pingpong):
+    recording = read_recording(pingpong)
+    logged = [m.value for m in recording.messages if m.topic == LOG]
+    assert all(record["station"] is None for record in logged)  # a real bus does not say who sent it
+    frames = [Frame.from_value(record) for record in logged]
+    for node, ident in (("pinger", 0x10), ("echo", 0x11)):
+        sent, heard = sent_by(recording, node), [f for f in frames if f.id == ident]
+        assert len(heard) >= 10, (node, len(heard), len(sent))
+        # the logger hears from its start on: a run of the station's frames, in its order; only
+        # frames sent before it started or in flight at the stop may be missing
+        first = sent.index(heard[0])
+        assert sent[first:first + len(heard)] == heard, node
+    # each answer is on the bus after the ping it answers
+    order = {(f.id, f.data): k for k, f in enumerate(frames)}
+    assert all(order[(0x10, f.data)] < k for k, f in enumerate(frames) if f.id == 0x11 and (0x10, f.data) in order)
+
+
+def test_check_matches_each_station_against_the_log_and_candump_prints_it(pingpong, capsys):
+    report = check_delivery(read_recording(pingpong))
+    links = {link.label: link for link in report.links}
+    for station in ("pinger", "echo"):
+        link = links[f"can can0: {station} -> (bus)"]
+        assert link.problems == 0 and link.delivered >= 10 and link.delivered + link.unjudged == link.sent
+    assert not [f for f in report.findings if f.problem and "can0" in f.link]
+    main(["check", str(pingpong)])  # conformance may see deadline misses on a slow tier: not asserted
+    out = capsys.readouterr().out
+    assert "can can0: pinger -> (bus)" in out and "can can0: echo -> (bus)" in out
+    assert main(["candump", str(pingpong), "--log"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert len(lines) == links["can0.frames -> (wire)"].sent
+    assert all(line.split()[0] == "can0" and line.split()[2] == "frames" for line in lines)
+    assert {line.split()[3] for line in lines} == {"010", "011"}
+
+
+def test_a_frame_the_logger_never_heard_is_reported_lost(pingpong, tmp_path):
+    recording = read_recording(pingpong)
+    pings = [m.value for m in recording.messages if m.topic == LOG and m.value["id"] == 0x10]
+    victim = pings[len(pings) // 2]["data"][0]
+
+    def is_victim(value):
+        value = value.get("value") if isinstance(value, dict) and "kind" in value else value
+        return isinstance(value, dict) and value.get("id") == 0x10 and (value.get("data") or [None])[0] == victim
+
+    def unheard(messages):  # the log and the logger's own trace (its can_rx and frames) lose that ping
+        return [m for m in messages if not (m.topic in (LOG, "iota/pingpong/can0/@trace") and is_victim(m.value))]
+
+    report = check_delivery(read_recording(rewrite(pingpong, tmp_path / "unheard.mcap", unheard)))
+    problems = [(f.code, f.link) for f in report.findings if f.problem]
+    assert problems == [("lost", "can can0: pinger -> (bus)")]
+    finding = next(f for f in report.findings if f.problem)
+    assert f"frame 0x010 [{victim:02X}]" in finding.message and "never went on the bus" in finding.message
+
+
+def test_a_frame_no_station_sent_is_a_note_and_a_changed_one_altered(pingpong, tmp_path):
+    """The log's sender is unknown: a frame on it that no station's can_tx sent may be a device
+    that is not a node (or a station's final frames), so it is a note, not a problem; one whose
+    data changed while a station's frame of that id is missing is altered."""
+    def with_frame(message, **fields):
+        return replace(message, data=packb(dict(message.value, **fields)))
+
+    def made_up(messages):
+        k = [i for i, m in enumerate(messages) if m.topic == LOG][5]
+        extra = replace(with_frame(messages[k], id=0x7FF), sequence=99999, publish_time=messages[k].publish_time + 1,
+                        log_time=messages[k].log_time + 1)
+        return messages[:k + 1] + [extra] + messages[k + 1:]
+
+    def changed(messages):
+        k = [i for i, m in enumerate(messages) if m.topic == LOG and m.value["id"] == 0x10][5]
+        return messages[:k] + [with_frame(messages[k], data=[0xEE] + [0] * 7)] + messages[k + 1:]
+
+    report = check_delivery(read_recording(rewrite(pingpong, tmp_path / "made_up.mcap", made_up)))
+    assert not [f for f in report.findings if f.problem and f.link.startswith("can ")]
+    assert any(f.code == "foreign" and "0x7FF" in f.message and "no station's can_tx sent" in f.message
+               for f in report.notes)
+    report = check_delivery(read_recording(rewrite(pingpong, tmp_path / "changed.mcap", changed)))
+    bus_problems = [(f.code, f.link) for f in report.findings if f.problem and f.link.startswith("can ")]
+    assert bus_problems == [("altered", "can can0: pinger -> (bus)")]
