@@ -26,7 +26,7 @@ def _outputs(recording: Recording, channel: str) -> dict[str, list[tuple[float, 
     return out
 
 
-def is_buggy(recording: Recording) -> bool:
+def matches(recording: Recording) -> bool:
     channels = {topic.rsplit("/", 1)[-1] for topic in recording.topics()}
     return {"pose", "mood", "landmark"} <= channels
 

@@ -19,7 +19,7 @@ COUNTS = (("spawned", "on the belt so far", "#777777"), ("placed", "placed in th
 HOLDER_COLOURS = ("#3a6ea5", "#e08a00", "#2a9d3f", "#8e44ad")
 
 
-def is_conveyor(recording: Recording) -> bool:
+def matches(recording: Recording) -> bool:
     channels = {topic.rsplit("/", 1)[-1] for topic in recording.topics()}
     return {"tally", "mdl_command"} <= channels
 

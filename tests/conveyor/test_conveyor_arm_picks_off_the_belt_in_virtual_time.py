@@ -85,9 +85,9 @@ def test_no_violation_and_iotad_check_passes(run):
 
 
 def test_iotad_plot_draws_the_picks_and_who_held_the_arm(run, tmp_path):
-    from iotad.recording.conveyor_plot import conveyor_data, is_conveyor
+    from iotad.recording.conveyor_plot import conveyor_data, matches
     recording = read_recording(run["path"])
-    assert is_conveyor(recording)
+    assert matches(recording)
     data = conveyor_data(recording)
     holders = [who for _, _, who in data["spans"]]
     assert holders[0] == 0 and holders.count(1) == 2  # vision first, then two picks

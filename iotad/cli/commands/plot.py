@@ -44,26 +44,20 @@ def run(args: argparse.Namespace) -> int:
                        f"{', '.join(FORMATS)}")
     output_file(args.output)
     recording = load(args.file)
-    from iotad.recording.buggy_plot import is_buggy
-    if is_buggy(recording):  # Buggy's channels: its arena, path and moods (Figures 4 and 5)
-        try:
-            from iotad.recording.buggy_plot import plot as plot_buggy
-            print(f"wrote {plot_buggy(recording, args.output, args.title)}")
-        except ImportError:
-            raise CliError("plotting needs matplotlib: pip install 'iotad[plot]'") from None
-        except RecordingError as exc:
-            raise CliError(str(exc)) from None
-        return 0
-    from iotad.recording.conveyor_plot import is_conveyor
-    if is_conveyor(recording):  # the conveyor arm's channels: its objects and who held the arm (Figure 1)
-        try:
-            from iotad.recording.conveyor_plot import plot as plot_conveyor
-            print(f"wrote {plot_conveyor(recording, args.output, args.title)}")
-        except ImportError:
-            raise CliError("plotting needs matplotlib: pip install 'iotad[plot]'") from None
-        except RecordingError as exc:
-            raise CliError(str(exc)) from None
-        return 0
+    # A robot's own picture when the recording is of one (Buggy: Figures 4 and 5; the conveyor
+    # arm: its picks and who held it); else the scheduler's timeline.
+    import importlib
+
+    for module in ("iotad.recording.buggy_plot", "iotad.recording.conveyor_plot"):
+        picture = importlib.import_module(module)
+        if picture.matches(recording):
+            try:
+                print(f"wrote {picture.plot(recording, args.output, args.title)}")
+            except ImportError:
+                raise CliError("plotting needs matplotlib: pip install 'iotad[plot]'") from None
+            except RecordingError as exc:
+                raise CliError(str(exc)) from None
+            return 0
     try:
         from iotad.recording.timeline_plot import plot
     except ImportError:
