@@ -417,3 +417,12 @@ def mdl_interpreter(name: str | None = None, **params) -> MdlInterpreter:
 
 
 __all__ = ["MdlInterpreter", "interpreter_class", "mdl_interpreter"]
+
+
+def __getattr__(name: str):
+    """`MdlInterpreter7` and the like, by name: a recording names the class of each node it
+    holds, and `iotad check` / `iotad replay` rebuild the node by that name from this module."""
+    prefix = "MdlInterpreter"
+    if name.startswith(prefix) and name[len(prefix):].isdigit() and int(name[len(prefix):]) >= 1:
+        return interpreter_class(int(name[len(prefix):]))
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
