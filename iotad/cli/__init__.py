@@ -141,7 +141,7 @@ def build_parser() -> argparse.ArgumentParser:
             "processes over zenoh, record it to MCAP, then replay and check the recording against the specs.", 78),
         epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--version", action="version", version=f"iotad {__version__}")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND", help=argparse.SUPPRESS)
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", help=argparse.SUPPRESS, prog="iotad")
     modules = []
     for info in pkgutil.iter_modules(commands.__path__):
         modules.append(importlib.import_module(f"{commands.__name__}.{info.name}"))

@@ -145,6 +145,7 @@ CASES = [
     (["ls", *FAST], "no zenoh peer at tcp/127.0.0.1:9"),
     (["ls", "--connect", "garbage"], "expected a zenoh endpoint"),
     (["ls", "--timeout", "0"], "--timeout: expected a number > 0"),
+    (["export", "{d}/good.mcap", "-o", "{d}/x.mcap"], "iotad: error: export: the following arguments are required: --json (see 'iotad export --help')"),
     (["echo", "iota/**", *FAST], "is a system running?"),
     (["echo", "bad//key"], "not a key expression"),
     (["echo", "iota/**", "--count", "-1"], "--count: expected a whole number > 0"),
