@@ -146,6 +146,7 @@ name = "bench_bus"
 interface = "{interface}"
 channel = "{channel}"
 stations = ["motor"]
+log = false  # no bus logger process: the bench measures the motor node alone (this process watches the bus)
 """
 JOINTS, RATE, SCALE = 6, 500.0, 1e-4   # setpoint k carries position k * SCALE rad (mod 20000)
 

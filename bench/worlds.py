@@ -1,23 +1,28 @@
 """Virtual-time speed of the paper's robots, as a multiple of real time, and where the time goes.
 
-    .venv/bin/python bench/worlds.py [--seconds 60] [--world buggy]
+    .venv/bin/python bench/worlds.py [--seconds 60] [--world buggy] [--repeat 3]
 
-One function per world (`buggy` here; the conveyor arm adds its own). Each runs the example system
-file in one process in virtual time, as `iotad run --virtual` does, three ways:
+Goals (issue 12): Buggy >= 100x real time, the conveyor arm >= 20x, recorded (what
+`iotad run --virtual -o` does). One function per world; each runs the example system file in one
+process in virtual time, as `iotad run --virtual` does, three ways:
 
-1. recorded to MCAP (what `iotad run --virtual -o` does): the speed users see;
-2. not recorded (no sink): the baseline; recording's cost is the difference;
-3. not recorded, with timers around every IOTA's own code (preconditions, values, do-blocks) and
-   around the world's methods (PyBullet ray casts, the kinematic step). The split: PyBullet/world,
-   CAN (the bus model, the CAN motor node, the simulated ODrives' axes and frames), behaviours (the
-   ESPRIT IOTAs), the engine (scheduling, checks, delivery: the rest of run 2), and recording
-   (run 1 minus run 2). Timers add their own cost to run 3, so its shares are of run 3's time.
+1. recorded to MCAP: the speed users see;
+2. not recorded (no sink): the baseline; recording's cost is run 1 minus run 2;
+3. not recorded, with timers around every IOTA's own code (preconditions, time bounds, values,
+   do-blocks) and around the world's methods (PyBullet ray casts and steps, the camera, inverse
+   kinematics). The timers cost time themselves, so run 3's parts are scaled to run 2's time:
+   the split's parts add up to the recorded run. "engine" is what is left: scheduling, windows,
+   value checks and deliveries, the events' dicts.
 
-Figures only; timings on a shared machine vary from run to run.
+Runs 1 and 2 are repeated (--repeat) and the best taken: the machine is shared, and the best run
+is the one least disturbed. A second baseline is measured in the same process: the engine alone
+on a trivial system (two IOTAs ping-ponging a counter), its cost per firing; each world's cost
+per firing is given as a multiple of it. Figures only; timings on a shared machine vary.
 """
 from __future__ import annotations
 
 import argparse
+import gc
 import sys
 import tempfile
 import time
@@ -27,34 +32,46 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from iotad.kernel.api import Input, Iota, Output  # noqa: E402
 from iotad.kernel.clock import VirtualClock  # noqa: E402
-from iotad.kernel.compose import flatten  # noqa: E402
+from iotad.kernel.compose import Composite, flatten  # noqa: E402
 from iotad.kernel.engine import Engine  # noqa: E402
 from iotad.kernel.policy import Eager  # noqa: E402
+from iotad.kernel.types import Int  # noqa: E402
 from iotad.launcher.in_process import compose  # noqa: E402
 from iotad.launcher.system_file import load_system  # noqa: E402
 from iotad.recording.mcap_io import EngineRecorder, McapSink  # noqa: E402
 
+GOALS = {"buggy": 100.0, "conveyor": 20.0}  # x real time, recorded
 
-def _run(system, seconds: float, record: Path | None = None, timed=None) -> tuple[float, int]:
+
+def _run(system, seconds: float, record: Path | None = None, timed=None) -> tuple[float, int, int]:
+    """(wall seconds, firings, events) of one run of `system` for `seconds` of virtual time."""
     root = compose(system)
     if timed is not None:
         timed(root)
-    sinks = []
+    events = [0]
+
+    def count(event: dict) -> None:
+        events[0] += 1
+
+    sinks = [count]
     if record is not None:
         sink = McapSink(record)
-        sinks.append(EngineRecorder(sink, root, system.name, time_unit=system.time_unit))
+        sinks.insert(0, EngineRecorder(sink, root, system.name, time_unit=system.time_unit))
     engine = Engine(root, VirtualClock(), Eager(), record=False, sinks=sinks)
+    gc.freeze()  # as `iotad run --virtual` does: full collections skip the system's own objects
     started = time.perf_counter()
     engine.run(seconds)
     if record is not None:
         sink.finish()
     wall = time.perf_counter() - started
+    gc.unfreeze()  # the next run's system is another
     for leaf in flatten(root).leaves:
         close = getattr(leaf.iota, "close", None)
         if callable(close):
             close()
-    return wall, engine.firings
+    return wall, engine.firings, events[0]
 
 
 def _timer(totals: dict, key: str, fn):
@@ -67,110 +84,154 @@ def _timer(totals: dict, key: str, fn):
     return timed
 
 
-def buggy(seconds: float = 60.0) -> dict:
-    """examples/buggy.toml: speed recorded and not, and the cost split."""
-    system = load_system(ROOT / "examples" / "buggy.toml")
-    with tempfile.TemporaryDirectory() as folder:
-        recorded, firings = _run(system, seconds, Path(folder) / "buggy.mcap")
-    bare, _ = _run(system, seconds)
-    totals: dict[str, float] = defaultdict(float)
+def _time_actions(leaf, totals: dict, key: str) -> None:
+    for action in leaf.iota.iota_spec.actions:
+        for part in ("when", "lower", "upper", "value", "do"):
+            fn = getattr(action, part)
+            if fn is not None:
+                object.__setattr__(action, part, _timer(totals, key, fn))
 
-    def group(path: str) -> str:
-        name = path.split("/")[1] if "/" in path else path
-        return {"can0": "CAN", "motor": "CAN", "body": "CAN"}.get(name, "behaviours")
+
+def _measure(system, seconds: float, repeat: int, group, world_methods: dict[str, tuple[str, ...]],
+             subtract: dict[str, str]) -> dict:
+    """The three runs. `group(path)`: the part a leaf's own code counts to; `world_methods`: the
+    part -> the methods of a leaf's `plant` (or other attribute) timed as that part; `subtract`:
+    a world part -> the leaf part whose timers include it (moved, not counted twice)."""
+    recorded, bare = [], []
+    for _ in range(repeat):
+        with tempfile.TemporaryDirectory() as folder:
+            wall, firings, events = _run(system, seconds, Path(folder) / "run.mcap")
+        recorded.append(wall)
+        bare.append(_run(system, seconds)[0])
+    totals: dict[str, float] = defaultdict(float)
 
     def instrument(root) -> None:
         seen = set()
         for leaf in flatten(root).leaves:
-            spec = leaf.iota.iota_spec
-            if id(spec) in seen:
-                continue
-            seen.add(id(spec))
-            key = group(leaf.path)
-            for action in spec.actions:
-                for part in ("when", "value", "do"):
-                    fn = getattr(action, part)
-                    if fn is not None:
-                        object.__setattr__(action, part, _timer(totals, key, fn))
-            plant = getattr(leaf.iota, "plant", None)
-            if plant is not None:  # the world's time counts as PyBullet, not as the body's CAN work
-                for method in ("step", "proximity", "crack_vector", "pose", "read_joints", "apply_torques"):
-                    inner = _timer(totals, "PyBullet/world", getattr(plant, method))
-                    setattr(plant, method, inner)
+            if id(leaf.iota.iota_spec) not in seen:  # actions belong to the spec, shared by its instances
+                seen.add(id(leaf.iota.iota_spec))
+                _time_actions(leaf, totals, group(leaf.path))
+            for part, (attribute, *methods) in world_methods.items():
+                holder = getattr(leaf.iota, attribute, None)
+                for method in methods if holder is not None else ():
+                    if callable(getattr(holder, method, None)):
+                        setattr(holder, method, _timer(totals, part, getattr(holder, method)))
 
-    timed, _ = _run(system, seconds, timed=instrument)
-    # body's action timers include its world calls: move those to PyBullet/world only
-    totals["CAN"] -= totals["PyBullet/world"]
-    engine = timed - sum(totals.values())
-    split = {"engine": engine, **totals}
-    return {"world": "buggy", "virtual_s": seconds, "firings": firings, "recorded_wall_s": recorded,
-            "bare_wall_s": bare, "timed_wall_s": timed, "recording_s": recorded - bare, "split_s": split}
+    timed = _run(system, seconds, timed=instrument)[0]
+    for part, whole in subtract.items():
+        totals[whole] -= totals[part]
+    split = {"engine": timed - sum(totals.values()), **totals}
+    scale = min(bare) / timed  # the timers' own cost out: the parts add up to the baseline
+    split = {name: seconds * scale for name, seconds in split.items()}
+    split["recording"] = max(0.0, min(recorded) - min(bare))
+    return {"virtual_s": seconds, "firings": firings, "events": events, "recorded_wall_s": min(recorded),
+            "bare_wall_s": min(bare), "timed_wall_s": timed, "split_s": split,
+            "runs": {"recorded": recorded, "bare": bare}}
 
 
-def conveyor(seconds: float = 60.0) -> dict:
-    """examples/conveyor.toml: speed recorded and not, and the cost split (PyBullet: the world's
-    step, joints and camera, and the interpreter's inverse kinematics; CAN: the bus model, the
-    motor node and the simulated axes; vision, the other controllers, the engine, recording)."""
+def buggy(seconds: float = 60.0, repeat: int = 3) -> dict:
+    """examples/buggy.toml: the CAN bus, the motor node and the body's simulated ODrives are
+    CAN; the body's world calls (ray casts, the kinematic step) are PyBullet/world."""
+    system = load_system(ROOT / "examples" / "buggy.toml")
+
+    def group(path: str) -> str:
+        name = path.split("/")[1] if "/" in path else path
+        return {"can0": "CAN", "motor": "CAN", "body": "CAN"}.get(name, "behaviours (ESPRIT)")
+
+    world = {"PyBullet/world": ("plant", "step", "proximity", "crack_vector", "pose", "read_joints", "apply_torques")}
+    return {"world": "buggy", **_measure(system, seconds, repeat, group, world, {"PyBullet/world": "CAN"})}
+
+
+def conveyor(seconds: float = 60.0, repeat: int = 3) -> dict:
+    """examples/conveyor.toml: CAN (the bus model, the motor node, the simulated axes), PyBullet
+    (the world's step, joints and camera), PyBullet IK (the interpreter's inverse kinematics),
+    vision, the MDL interpreter, the other controllers, the engine, recording."""
     system = load_system(ROOT / "examples" / "conveyor.toml")
-    with tempfile.TemporaryDirectory() as folder:
-        recorded, firings = _run(system, seconds, Path(folder) / "conveyor.mcap")
-    bare, _ = _run(system, seconds)
-    totals: dict[str, float] = defaultdict(float)
     groups = {"arm_bus": "CAN", "motor": "CAN", "sim": "CAN", "vision": "vision (segmentation)",
               "interpreter": "MDL interpreter"}
 
-    def instrument(root) -> None:
-        for leaf in flatten(root).leaves:
-            key = groups.get(leaf.path.split("/")[-1], "planning, manipulation, scheduler")
-            for action in leaf.iota.iota_spec.actions:
-                for part in ("when", "value", "do"):
-                    fn = getattr(action, part)
-                    if fn is not None:
-                        object.__setattr__(action, part, _timer(totals, key, fn))
-            plant = getattr(leaf.iota, "plant", None)
-            if plant is not None:  # the sim's world calls count as PyBullet, not as its axes' CAN work
-                for method in ("step", "read_joints", "apply_torques", "camera_image", "end_effector_pose"):
-                    setattr(plant, method, _timer(totals, "PyBullet/world", getattr(plant, method)))
-            kinematics = getattr(leaf.iota, "_kinematics", None)
-            if kinematics is not None:
-                kinematics.solve = _timer(totals, "PyBullet IK", kinematics.solve)
+    def group(path: str) -> str:
+        return groups.get(path.split("/")[-1], "planning, manipulation, scheduler")
 
-    timed, _ = _run(system, seconds, timed=instrument)
-    totals["CAN"] -= totals["PyBullet/world"]
-    totals["MDL interpreter"] -= totals["PyBullet IK"]
-    engine = timed - sum(totals.values())
-    split = {"engine": engine, **totals}
-    return {"world": "conveyor", "virtual_s": seconds, "firings": firings, "recorded_wall_s": recorded,
-            "bare_wall_s": bare, "timed_wall_s": timed, "recording_s": recorded - bare, "split_s": split}
+    world = {"PyBullet/world": ("plant", "step", "read_joints", "apply_torques", "camera_image", "end_effector_pose"),
+             "PyBullet IK": ("_kinematics", "solve")}
+    return {"world": "conveyor", **_measure(system, seconds, repeat, group, world,
+                                            {"PyBullet/world": "CAN", "PyBullet IK": "MDL interpreter"})}
 
 
 WORLDS = {"buggy": buggy, "conveyor": conveyor}
 
 
-def report(result: dict) -> None:
-    v = result["virtual_s"]
-    print(f"{result['world']}: {v:g} s of virtual time, {result['firings']} firings")
-    print(f"  recorded (iotad run --virtual -o):  {result['recorded_wall_s']:6.2f} s wall  "
-          f"{v / result['recorded_wall_s']:6.1f}x real time")
-    print(f"  not recorded (baseline):            {result['bare_wall_s']:6.2f} s wall  "
-          f"{v / result['bare_wall_s']:6.1f}x real time  (recording costs "
-          f"{result['recorded_wall_s'] / result['bare_wall_s']:.2f}x the baseline)")
-    print(f"  {result['firings'] / result['bare_wall_s']:.0f} firings/s in the baseline")
-    timed = result["timed_wall_s"]
-    print(f"  cost split (run with timers, {timed:.2f} s; recording from the first two runs):")
-    parts = dict(result["split_s"], recording=result["recording_s"])
-    whole = timed + result["recording_s"]
-    for name, seconds in sorted(parts.items(), key=lambda kv: -kv[1]):
-        print(f"    {name:16s} {seconds:6.2f} s  {100 * seconds / whole:5.1f} %")
+# ------------------------------------------------------------------ the trivial baseline
+class _Player(Iota):
+    inp = Input(Int)
+    out = Output(Int)
+
+    def init(self):
+        self.ball = None
+
+    @inp.input
+    def got(self, x):
+        self.ball = x
+
+    @out.action(value=lambda self: self.ball + 1, when=lambda self: self.ball is not None, after=0.001)
+    def hit(self):
+        self.ball = None
+
+
+def trivial_engine(firings: int = 100_000, repeat: int = 3) -> float:
+    """Seconds per firing of the engine alone: two IOTAs ping-ponging a counter (an output, a
+    bound input, one precondition each), not recorded. The best of `repeat` runs."""
+    best = float("inf")
+    for _ in range(repeat):
+        first = _Player("ping")
+        first.ball = 0
+        root = Composite("pingpong", first, _Player("pong"), bind=[("ping.out", "pong.inp"), ("pong.out", "ping.inp")])
+        engine = Engine(root, VirtualClock(), Eager(), record=False)
+        started = time.perf_counter()
+        engine.run(firings * 0.001)
+        best = min(best, (time.perf_counter() - started) / max(engine.firings, 1))
+    return best
+
+
+def report(result: dict, per_firing_trivial: float) -> None:
+    v, firings = result["virtual_s"], result["firings"]
+    recorded, bare = result["recorded_wall_s"], result["bare_wall_s"]
+    goal = GOALS.get(result["world"])
+    print(f"{result['world']}: {v:g} s of virtual time, {firings} firings, {result['events']} events "
+          f"(best of {len(result['runs']['bare'])} runs each)")
+    print(f"  {'':34s} {'wall s':>7s} {'x real time':>12s}  {'vs baseline':>11s}")
+    print(f"  {'recorded (iotad run --virtual -o)':34s} {recorded:7.3f} {v / recorded:11.1f}x  {recorded / bare:10.2f}x"
+          + (f"   goal >= {goal:g}x: {'met' if v / recorded >= goal else 'NOT met'}" if goal else ""))
+    print(f"  {'not recorded (the baseline)':34s} {bare:7.3f} {v / bare:11.1f}x  {1:10.2f}x")
+    per_firing = bare / max(firings, 1)
+    print(f"  per firing: {per_firing * 1e6:.1f} us not recorded, {recorded / max(firings, 1) * 1e6:.1f} us recorded; "
+          f"the engine alone on a trivial system (ping-pong): {per_firing_trivial * 1e6:.2f} us "
+          f"-> this world costs {per_firing / per_firing_trivial:.1f}x the trivial firing")
+    print(f"  cost split of the recorded run ({recorded:.3f} s; component timers scaled to the baseline, "
+          f"recording = recorded - baseline):")
+    print(f"    {'part':26s} {'s':>7s} {'%':>6s} {'us/firing':>10s} {'x trivial':>10s}")
+    for name, seconds in sorted(result["split_s"].items(), key=lambda kv: -kv[1]):
+        print(f"    {name:26s} {seconds:7.3f} {100 * seconds / recorded:5.1f}% {seconds / max(firings, 1) * 1e6:10.2f} "
+              f"{seconds / max(firings, 1) / per_firing_trivial:10.2f}")
+    slowest = max(result["split_s"].items(), key=lambda kv: kv[1])[0]
+    print(f"  slowest part: {slowest}")
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--seconds", type=float, default=60.0, help="virtual seconds per run")
+    parser.add_argument("--seconds", type=float, default=60.0, help="virtual seconds per run (default 60)")
     parser.add_argument("--world", choices=sorted(WORLDS), action="append", help="which world(s); default all")
+    parser.add_argument("--repeat", type=int, default=3, help="runs of each kind, the best taken (default 3)")
     args = parser.parse_args()
+    if args.seconds <= 0 or args.repeat < 1:
+        parser.error("--seconds must be positive and --repeat at least 1")
+    trivial = trivial_engine(repeat=args.repeat)
     for name in args.world or sorted(WORLDS):
-        report(WORLDS[name](args.seconds))
+        if not (ROOT / "examples" / f"{name}.toml").exists():
+            print(f"{name}: examples/{name}.toml is not there; skipped")
+            continue
+        report(WORLDS[name](args.seconds, args.repeat), trivial)
     return 0
 
 

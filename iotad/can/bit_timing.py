@@ -109,7 +109,7 @@ def _crc_table() -> list[int]:
 
 
 _CRC_TABLE = _crc_table()
-_RUNS = re.compile("0+|1+")
+_RUNS = re.compile("0{4,}|1{4,}")  # the runs that can hold a stuff bit
 
 
 def _exact_frame_bits(id: int, extended: bool, rtr: bool, data: bytes, dlc: int) -> int:
@@ -133,11 +133,15 @@ def _exact_frame_bits(id: int, extended: bool, rtr: bool, data: bytes, dlc: int)
     for shift in range(n - head - 8, -1, -8):
         crc = ((crc << 8) & 0x7FFF) ^ table[((crc >> 7) ^ (region >> shift)) & 0xFF]
     n += 15
-    # stuff bits run by run: a run of `length` equal bits, `carry` (0 or 1) of which a stuff bit of
-    # the same value just before it began, gets one stuff bit at its 5th bit and every 5 after
+    # stuff bits run by run: a run of `length` equal bits gets one stuff bit at its 5th bit and
+    # every 5 after, counting as its first bit a stuff bit of the same value that the run just
+    # before it ended with (`carry`). Only runs of 4 or more can get one (4 after such a carry).
     stuff = carry = 0
+    end = -1
     for run in _RUNS.finditer(format(region << 15 | crc, f"0{n}b")):
-        extra = run.end() - run.start() - 5 + carry
+        start = run.start()
+        extra = run.end() - start - 5 + (carry if start == end else 0)
+        end = run.end()
         if extra >= 0:
             stuff += 1 + extra // 5
             carry = 1 if extra % 5 == 0 else 0

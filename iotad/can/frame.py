@@ -19,6 +19,8 @@ if TYPE_CHECKING:  # python-can is imported only where a python-can message is m
 CAN_FRAME = Struct("canFrame", id=Int(0, 0x1FFFFFFF), extended=Bool, rtr=Bool, dlc=Int(0, 8),
                    data=Array(Int(0, 255), 8))
 
+_FRAME_RECORD = CAN_FRAME.record
+
 STANDARD_ID_MAX = 0x7FF
 EXTENDED_ID_MAX = 0x1FFFFFFF
 
@@ -72,6 +74,12 @@ class Frame:
     @classmethod
     def from_value(cls, value: Any) -> "Frame":
         """The frame of a CAN_FRAME value (a record, or its plain dict as traces and payloads hold it)."""
+        if value.__class__ is _FRAME_RECORD:  # the usual case, the checks below in one go
+            id, extended, rtr, dlc, data = value.id, value.extended, value.rtr, value.dlc, value.data
+            if (id is not None and extended is not None and rtr is not None and dlc.__class__ is int
+                    and 0 <= dlc <= 8 and data.__class__ is list and len(data) == 8):
+                rtr = bool(rtr)
+                return cls(int(id), bytes(dlc) if rtr else bytes(data[:dlc]), rtr=rtr, extended=bool(extended))
         get = value.get if isinstance(value, dict) else (lambda name: getattr(value, name, None))
         fields = {name: get(name) for name in CAN_FRAME.field_names}
         missing = [name for name, v in fields.items() if v is None]

@@ -259,9 +259,39 @@ def decode(frame: Frame) -> Message:
     if frame.dlc != spec.dlc:
         raise MalformedFrame(f"{spec.name} frame 0x{frame.id:03X} (node {node}) has DLC {frame.dlc}, "
                              f"the protocol gives {spec.dlc}: {frame.data.hex(' ') or 'no data'}")
+    fast = _UNPACKERS.get(spec.cmd_id)
+    if fast is not None:  # byte-aligned signals: one struct.unpack, the same values as from_raw's
+        unpack, names, scales = fast
+        raw = unpack(frame.data)
+        values = dict(zip(names, raw)) if scales is None else \
+            {n: (r if k == 1 else r * k) for n, r, k in zip(names, raw, scales)}
+        return Message(node, spec.name, values)
     bits = int.from_bytes(frame.data, "little")
     values = {s.name: s.from_raw((bits >> s.start) & ((1 << s.length) - 1)) for s in spec.signals}
     return Message(node, spec.name, values)
+
+
+def _unpacker(spec: MessageSpec):
+    """(unpack, names, scales or None) of a message whose signals are whole bytes, little-endian,
+    8, 16 or 32 bits, in order and apart; None for any other (bit fields, 48-bit numbers)."""
+    codes = {("u", 8): "B", ("u", 16): "H", ("u", 32): "I", ("i", 8): "b", ("i", 16): "h", ("i", 32): "i",
+             ("f", 32): "f"}
+    layout, at = "<", 0
+    for signal in spec.signals:
+        code = codes.get((signal.kind, signal.length))
+        if code is None or signal.start % 8 or signal.start < at or (signal.kind == "f" and signal.scale != 1):
+            return None
+        layout += "x" * ((signal.start - at) // 8) + code
+        at = signal.start + signal.length
+    if not spec.signals or at > 8 * spec.dlc:
+        return None
+    layout += "x" * ((8 * spec.dlc - at) // 8)
+    scales = tuple(signal.scale for signal in spec.signals)
+    return (struct.Struct(layout).unpack, tuple(s.name for s in spec.signals),
+            None if all(k == 1 for k in scales) else scales)
+
+
+_UNPACKERS = {spec.cmd_id: found for spec in MESSAGES.values() if (found := _unpacker(spec)) is not None}
 
 
 def describe(message: Message) -> str:

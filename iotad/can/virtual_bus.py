@@ -80,6 +80,7 @@ class CanBus(Iota):
         self.elapsed = 0.0
         self.busy_time_reported = 0.0
         self.max_waiting = 0
+        self.won = None               # (station, position, frame) of the arbitration in progress
         self.log = []                 # CAN_BUS_FRAME records of frames that ended, not yet out
 
     @property
@@ -93,11 +94,13 @@ class CanBus(Iota):
         self.max_waiting = max(self.max_waiting, sum(len(q) for q in self.waiting))
 
     # The start-of-frame bit: whoever has a frame waiting by its end takes part in arbitration.
-    @arbitrate.action(value=lambda self: self._winner()[2],
+    @arbitrate.action(value=lambda self: self._pick(),
                       when=lambda self: self.current is None and any(self.waiting),
                       after=lambda self: 1.0 / self.bitrate)
     def arbitrated(self):
-        station, position, _ = self._winner()
+        # the value function, run just before in the same firing, found the winner
+        won, self.won = self.won, None
+        station, position, _ = won if won is not None else self._winner()
         self.current = self.waiting[station].pop(position)
         self.sender = station
         self.frame_time = frame_bits_of(self.current, self.stuffing) / self.bitrate
@@ -117,6 +120,11 @@ class CanBus(Iota):
                    after=lambda self: self.finish_delay)
     def finished(self):
         self._free()
+
+    def _pick(self):
+        """The frame that wins arbitration now; its place is kept for the do-block."""
+        self.won = self._winner()
+        return self.won[2]
 
     def _winner(self) -> tuple:
         """(station, position in its queue, frame) of the frame that wins arbitration now."""

@@ -13,13 +13,15 @@ from __future__ import annotations
 
 import heapq
 import math
+from functools import partial
+from types import MethodType
 from typing import Any, Callable, Iterable
 
 from iotad.kernel.clock import Clock, VirtualClock
 from iotad.kernel.compose import Endpoint, Flat, Leaf, expand, flatten
-from iotad.kernel.model import ALL_STATE, ANY, INDEX, Action, Channel, is_by_state, window_ok
+from iotad.kernel.model import ALL_STATE, ANY, INDEX, Action, Channel, is_by_state
 from iotad.kernel.policy import Eager
-from iotad.kernel.types import BadValue
+from iotad.kernel.types import BadValue, same_checks
 
 INF = math.inf
 STOP = object()  # post this to a real clock's inbox to make `run` return
@@ -29,7 +31,7 @@ class Slot:
     """One channel (one index of a family) of one leaf: its last event time and switching time."""
 
     __slots__ = ("leaf", "channel", "index", "switching", "last", "targets", "input_action", "type", "deliveries",
-                 "dynamic")
+                 "dynamic", "do")
 
     def __init__(self, leaf: Leaf, channel: Channel, index: int | None):
         self.leaf, self.channel, self.index = leaf, channel, index
@@ -37,26 +39,44 @@ class Slot:
         self.last = -INF
         self.type = channel.type
         self.targets: list[Slot] = []        # bound inputs an output delivers to
-        self.deliveries: list[tuple[Slot, bool]] = []  # (target, its type equals this one's)
+        self.deliveries: list[tuple[Slot, bool]] = []  # (target, its type checks what this one does)
         self.input_action: Action | None = None
         self.dynamic: tuple = ()  # its input action's writes `x[k]` (`_dynamic_writes`), when tracked
+        self.do: Callable | None = None  # its input action's do-block bound (`bind`): do(value)
 
 
 class ActionInstance:
     """One locally controlled action at one index: its window while enabled."""
 
     __slots__ = ("leaf", "action", "index", "slot", "rank", "enabled", "gen", "te", "lower", "upper",
-                 "fire_at", "affects", "iota", "when", "reads", "dynamic", "failing")
+                 "fire_at", "affects", "iota", "when", "value", "do", "after", "before", "reads", "dynamic",
+                 "failing")
 
     def __init__(self, leaf: Leaf, action: Action, index: int | None, slot: Slot, rank: int):
         self.leaf, self.action, self.index, self.slot, self.rank = leaf, action, index, slot, rank
-        self.iota, self.when = leaf.iota, action.when
+        self.iota = leaf.iota
+        # the action's functions bound to (iota, index): called with no arguments
+        self.when, self.value, self.do = (bind(action.when, leaf.iota, index), bind(action.value, leaf.iota, index),
+                                          bind(action.do, leaf.iota, index))
+        self.after, self.before = bind(action.lower, leaf.iota, index), bind(action.upper, leaf.iota, index)
         self.enabled, self.gen = False, 0
         self.te = self.lower = self.upper = self.fire_at = 0.0
         self.affects: list[ActionInstance] | None = None  # computed on first firing
         self.dynamic = _dynamic_writes(action)
         self.failing = False  # its precondition raised at its last evaluation
         self.reads = _concrete(action.reads, index)
+
+
+def bind(fn: Callable | None, iota: Any, index: int | None) -> Callable | None:
+    """`fn(iota, index, *more)` as a callable taking `*more`. A function that the Python API
+    wrapped only to drop the index (`api._self_only`) is bound to `iota` itself: the same call,
+    one Python frame fewer."""
+    if fn is None:
+        return None
+    own = getattr(fn, "iotad_self_only", None)
+    if own is not None:
+        return MethodType(own, iota)
+    return partial(fn, iota, index)
 
 
 def _dynamic_writes(action: Action) -> tuple:
@@ -137,6 +157,7 @@ class Engine:
                     slot = self.slots[(leaf.path, action.channel, index)]
                     if channel.direction == "input":
                         slot.input_action = action
+                        slot.do = bind(action.do, leaf.iota, index)
                         slot.dynamic = _dynamic_writes(action) if self.track_dependencies else ()
                         continue
                     instance = ActionInstance(leaf, action, index, slot, rank)
@@ -154,10 +175,8 @@ class Engine:
                 self.slots[(src.path, src.channel, src.index)].targets.append(
                     self.slots[(dst.path, dst.channel, dst.index)])
         for slot in self.slots.values():
-            # an input whose type equals the output's: its values were checked as they left
-            slot.deliveries = [(target, slot.type is not None and target.type is not None
-                                and (target.type is slot.type or target.type == slot.type))
-                               for target in slot.targets]
+            # an input whose type checks what the output's does: its values were checked as they left
+            slot.deliveries = [(target, same_checks(slot.type, target.type)) for target in slot.targets]
 
     def _affected(self, leaf: Leaf, writes: frozenset, index: int | None) -> list[ActionInstance]:
         """Instances of `leaf` whose precondition reads a cell that `writes` (at `index`) may change.
@@ -282,9 +301,9 @@ class Engine:
         dynamic = instance.dynamic
         if dynamic:
             before = [getattr(iota, source, None) for _, source in dynamic]
-        if action.value is not None:
+        if instance.value is not None:
             try:
-                plain = slot.type.checked_plain(action.value(iota, index))
+                plain = slot.type.checked_plain(instance.value())
             except BadValue as exc:
                 self._violation(now, leaf.path, action.channel, index, "bad_value",
                                 f"{action.label}: output value rejected: {exc}")
@@ -292,9 +311,9 @@ class Engine:
             except Exception as exc:  # noqa: BLE001 - a fault in a spec is a violation, not a crash
                 self._runtime_error(now, instance, "value", exc)
                 emit = False
-        if action.do is not None:
+        if instance.do is not None:
             try:
-                action.do(iota, index)
+                instance.do()
             except Exception as exc:  # noqa: BLE001
                 self._runtime_error(now, instance, "do", exc)
         self.firings += 1
@@ -309,9 +328,7 @@ class Engine:
         if dynamic:
             affects = self._with_dynamic(leaf, affects, dynamic, before)
         self._evaluate(instance, now)
-        for other in affects:
-            if other is not instance:
-                self._evaluate(other, now)
+        self._evaluate_all(affects, now, instance)
         if emit:
             for target, checked in slot.deliveries:
                 self._deliver(target, plain, now, checked)
@@ -367,9 +384,9 @@ class Engine:
         dynamic = slot.dynamic
         if dynamic:
             before = [getattr(leaf.iota, source, None) for _, source in dynamic]
-        if action.do is not None:
+        if slot.do is not None:
             try:
-                action.do(leaf.iota, index, value)
+                slot.do(value)
             except Exception as exc:  # noqa: BLE001
                 self._violation(now, leaf.path, channel.name, index, "runtime_error",
                                 f"{action.label}: {type(exc).__name__}: {exc}")
@@ -379,8 +396,7 @@ class Engine:
             affects = self._input_affects[key] = self._affected(leaf, action.writes, index)
         if dynamic:
             affects = self._with_dynamic(leaf, affects, dynamic, before)
-        for other in affects:
-            self._evaluate(other, now)
+        self._evaluate_all(affects, now)
 
     def _evaluate(self, instance: ActionInstance, now: float) -> None:
         when = instance.when
@@ -388,7 +404,7 @@ class Engine:
             holds = True
         else:
             try:
-                holds = when(instance.iota, instance.index)
+                holds = when()
                 instance.failing = False
             except Exception as exc:  # noqa: BLE001
                 # Reported when it starts failing, not at every evaluation: how often a
@@ -404,18 +420,43 @@ class Engine:
             instance.enabled = False
             instance.gen += 1  # the window is dropped; its heap entry goes stale
 
+    def _evaluate_all(self, instances: list[ActionInstance], now: float, skip: Any = None) -> None:
+        """`_evaluate` of each of `instances` but `skip`, inlined: the engine's hottest loop."""
+        for instance in instances:
+            if instance is skip:
+                continue
+            when = instance.when
+            if when is None:
+                holds = True
+            else:
+                try:
+                    holds = when()
+                except Exception as exc:  # noqa: BLE001 - as in _evaluate
+                    if not instance.failing:
+                        self._runtime_error(now, instance, "when", exc)
+                        instance.failing = True
+                    holds = False
+                else:
+                    instance.failing = False
+            if holds:
+                if not instance.enabled:
+                    self._enable(instance, now)
+            elif instance.enabled:
+                instance.enabled = False
+                instance.gen += 1
+
     def _enable(self, instance: ActionInstance, now: float) -> None:
-        action, iota, index = instance.action, instance.iota, instance.index
         instance.enabled = True
         instance.gen += 1
         try:
-            lower = 0.0 if action.lower is None else float(action.lower(iota, index))
-            upper = INF if action.upper is None else float(action.upper(iota, index))
+            lower = 0.0 if instance.after is None else float(instance.after())
+            upper = INF if instance.before is None else float(instance.before())
         except Exception as exc:  # noqa: BLE001
             self._runtime_error(now, instance, "time bound", exc)
             lower, upper = INF, INF
         else:
-            if not window_ok(lower, upper):
+            if not 0.0 <= lower <= upper:  # window_ok: false for a NaN too
+                action, index = instance.action, instance.index
                 self._violation(now, instance.leaf.path, action.channel, index, "bad_window",
                                 f"{action.label}: window [{lower:g}, {upper:g}] is empty or negative")
                 lower, upper = INF, INF

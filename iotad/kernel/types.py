@@ -20,6 +20,7 @@ gives the verdict and its message.
 """
 from __future__ import annotations
 
+import keyword
 import math
 from typing import Any
 
@@ -246,6 +247,8 @@ class StructType(Type):
         self.record = type(name, (Record,), {"__slots__": self.field_names, "_type": self})
         self._checked_fields = tuple((n, t.checked_plain) for n, t in self.fields.items())
         self._built_fields = tuple((n, t.from_checked_plain) for n, t in self.fields.items())
+        if all(n.isidentifier() and not keyword.iskeyword(n) for n in self.field_names):
+            _compile_struct(self)
 
     def __call__(self, *args: Any, **fields: Any) -> Record:
         return self.record(*args, **fields)
@@ -262,11 +265,14 @@ class StructType(Type):
 
     def from_checked_plain(self, plain: Any) -> Any:
         new = object.__new__(self.record)
-        for name, build in self._built_fields:
-            v = plain[name]
-            if v is None:  # check lets an unset field through; from_plain does not
-                return self.from_plain(plain)
-            object.__setattr__(new, name, build(v))
+        try:
+            for name, build in self._built_fields:
+                v = plain[name]
+                if v is None:  # check lets an unset field through; from_plain does not
+                    raise BadValue(name)
+                object.__setattr__(new, name, build(v))
+        except BadValue:  # here or in a field: the slow path says what, from the top
+            return self.from_plain(plain)
         return new
 
     def check(self, value: Any) -> None:
@@ -334,6 +340,8 @@ class ArrayType(Type):
         self._built_element = self.element.from_checked_plain
         # elements that are their own plain data and come back as they are (int, bool, enum)
         self._plain_elements = type(self.element).from_checked_plain in _IDENTITY_BUILDS
+        if type(self.element) in (IntType, FloatType, BoolType) and self.length <= 16:
+            _compile_array(self)
 
     def checked_plain(self, value: Any) -> Any:
         if value.__class__ is list and len(value) == self.length:
@@ -347,7 +355,10 @@ class ArrayType(Type):
     def from_checked_plain(self, plain: Any) -> list:
         if self._plain_elements:
             return list(plain)  # a fresh list: the receiver never shares the sender's
-        return list(map(self._built_element, plain))
+        try:
+            return list(map(self._built_element, plain))
+        except BadValue:  # an element's unset field: the slow path says which, from the top
+            return self.from_plain(plain)
 
     def check(self, value: Any) -> None:
         if not isinstance(value, (list, tuple)) or len(value) != self.length:
@@ -418,5 +429,122 @@ def to_plain(value: Any) -> Any:
     return value
 
 
+def same_checks(a: Type | None, b: Type | None) -> bool:
+    """Whether every value `a.check` accepts `b.check` accepts too, and `b` builds it back from
+    `a`'s plain data as `b.from_plain` would: the same type, an equal one, or one spelled the same
+    (two loads of one ESPRIT file make two struct types with the same fields). The engine then
+    delivers an output of type `a` to an input of type `b` with `b.from_checked_plain`."""
+    if a is None or b is None:
+        return False
+    if a is b or a == b:
+        return True
+    kind = type(a)
+    if kind is not type(b):
+        return False
+    if kind is EnumType:
+        return a._set == b._set
+    if kind is ArrayType:
+        return a.length == b.length and same_checks(a.element, b.element)
+    if kind is StructType:
+        return a.field_names == b.field_names and all(same_checks(a.fields[n], b.fields[n]) for n in a.field_names)
+    return False
+
 # `from_checked_plain` of these returns its argument: an array of them is copied as a list
 _IDENTITY_BUILDS = (IntType.from_checked_plain, BoolType.from_checked_plain, EnumType.from_checked_plain)
+
+
+def _compile_struct(struct: StructType) -> None:
+    """Straight-line code for a struct's hot paths, the exact equivalent of the generic methods
+    (`StructType.checked_plain`, `from_checked_plain`, `Record.__init__` with every field named):
+    a number, bool or enum field is checked inline when its value is of the plain class and in
+    range, anything else calls the field type's own function, which decides as before."""
+    env: dict[str, Any] = {"R": struct.record, "BadValue": BadValue, "slow_check": struct.check,
+                           "slow_plain": struct.to_plain, "slow_from": struct.from_plain,
+                           "new": object.__new__, "NAMES": frozenset(struct.field_names),
+                           "generic_init": Record.__init__, "float": float}
+    check, build, init = [], [], []
+    for k, (name, ftype) in enumerate(struct.fields.items()):
+        env[f"c{k}"], env[f"b{k}"] = ftype.checked_plain, ftype.from_checked_plain
+        kind = type(ftype)
+        check.append(f"        v{k} = value.{name}")
+        if kind in (IntType, FloatType):
+            env[f"lo{k}"] = -math.inf if ftype.low is None else ftype.low
+            env[f"hi{k}"] = math.inf if ftype.high is None else ftype.high
+            plain_class = "v{k}.__class__ is int" if kind is IntType else \
+                "(v{k}.__class__ is float or v{k}.__class__ is int)"
+            check.append(f"        if not ({plain_class.format(k=k)} and lo{k} <= v{k} <= hi{k}) and v{k} is not None:")
+        elif kind is BoolType:
+            check.append(f"        if v{k} is not True and v{k} is not False and v{k} is not None:")
+        elif kind is EnumType:
+            env[f"set{k}"] = ftype._set
+            check.append(f"        if not (v{k}.__class__ is str and v{k} in set{k}) and v{k} is not None:")
+        else:
+            check.append(f"        if v{k} is not None:")
+        check.append(f"            v{k} = c{k}(v{k})")
+        build.append(f"        v = plain[{name!r}]")
+        build.append("        if v is None:")
+        build.append("            raise BadValue  # check lets an unset field through; from_plain does not")
+        if kind in (IntType, BoolType, EnumType):
+            build.append(f"        r.{name} = v")
+        elif kind is FloatType:
+            build.append(f"        r.{name} = float(v)")
+        else:
+            build.append(f"        r.{name} = b{k}(v)")
+        init.append(f"        self.{name} = fields[{name!r}]")
+    items = ", ".join(f"{name!r}: v{k}" for k, name in enumerate(struct.field_names))
+    source = "\n".join([
+        "def checked_plain(value):",
+        "    if value.__class__ is R:",
+        "      try:",
+        *check,
+        f"        return {{{items}}}",
+        "      except BadValue:",
+        "        pass  # the slow path below says which field, in its words",
+        "    slow_check(value)",
+        "    return slow_plain(value)",
+        "",
+        "def from_checked_plain(plain):",
+        "    r = new(R)",
+        "    try:",
+        *(build or ["        pass"]),
+        "    except BadValue:  # here or in a field: the slow path says what, from the top",
+        "        return slow_from(plain)",
+        "    return r",
+        "",
+        "def __init__(self, *args, **fields):",
+        "    if not args and fields.keys() == NAMES:",
+        *(init or ["        pass"]),
+        "    else:",
+        "        generic_init(self, *args, **fields)",
+    ])
+    exec(compile(source, f"<struct {struct.name}>", "exec"), env)
+    struct.checked_plain = env["checked_plain"]
+    struct.from_checked_plain = env["from_checked_plain"]
+    struct.record.__init__ = env["__init__"]
+
+
+def _compile_array(array: ArrayType) -> None:
+    """`checked_plain` of a short array of numbers or bools as one unrolled test: a list of the
+    right length whose items all are of the plain class and in range is copied as it is (what
+    `to_plain` gives); anything else takes the generic method, which decides as before."""
+    element, n = array.element, array.length
+    names = [f"a{k}" for k in range(n)]
+    if type(element) is BoolType:
+        tests = [f"({a} is True or {a} is False)" for a in names]
+    else:
+        plain = "{a}.__class__ is int" if type(element) is IntType else "({a}.__class__ is float or {a}.__class__ is int)"
+        tests = [f"{plain.format(a=a)} and lo <= {a} <= hi" for a in names]
+    env = {"generic": ArrayType.checked_plain.__get__(array), "n": n,
+           "lo": -math.inf if getattr(element, "low", None) is None else element.low,
+           "hi": math.inf if getattr(element, "high", None) is None else element.high}
+    unpack = f"        {', '.join(names)}{',' if n == 1 else ''} = value" if n else "        pass"
+    source = "\n".join([
+        "def checked_plain(value):",
+        "    if value.__class__ is list and len(value) == n:",
+        unpack,
+        f"        if {' and '.join(tests) or 'True'}:",
+        "            return value[:]",
+        "    return generic(value)",
+    ])
+    exec(compile(source, f"<array {array.name}>", "exec"), env)
+    array.checked_plain = env["checked_plain"]

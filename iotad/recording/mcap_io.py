@@ -519,6 +519,12 @@ def schema_for_topic(topic: str, specs: dict[str, dict], cache: dict[str, dict])
 
 
 # ------------------------------------------------------------------------------------ engine sink
+_EVENT_KEYS = ("t", "iota", "action", "index", "kind", "value")  # an engine event's, in its order
+_EVENT_HEAD = b"\x86\xa1t"  # msgpack: a map of 6, the key "t"
+_VALUE_KEY = b"\xa5value"
+_FLOAT64 = struct.Struct(">Bd").pack  # msgpack's float 64: 0xCB, big-endian double
+
+
 class EngineRecorder:
     """An Engine sink that writes what a system of node hosts would publish: every event of a
     leaf on `iota/<system>/<path>/@trace`, every output on its channel key. Virtual time `t`
@@ -575,45 +581,70 @@ class EngineRecorder:
         self._write_pair = getattr(self.sink, "write_pair", None)
         self._commit = getattr(self.sink, "commit", lambda: None)
         self._pack = msgpack.Packer(use_bin_type=True).pack
-        self._nodes: dict[str, tuple[str, list]] = {}  # event's iota -> (node path, its @trace topic)
-        self._outputs: dict[tuple, list] = {}  # (iota, channel, index) -> its key's topic
+        self._entries: dict[tuple, list] = {}  # (iota, channel, index, kind) -> `_entry`
         self._pending = 0
+
+    def _entry(self, event: dict, key: tuple | None) -> list:
+        """[its fields packed (None: not an engine's event), node path, @trace topic, output topic
+        (None until the first output)] of an event's (iota, channel, index, kind); kept by `key`."""
+        iota = event["iota"]
+        path = self.node_path.get(iota, iota)
+        trace = self._topic(wire.trace_key(self.system, path))
+        middle = None
+        if key is not None:
+            middle = self._pack({"iota": path, "action": event["action"], "index": event["index"],
+                                 "kind": event["kind"]})[1:] + _VALUE_KEY
+        output = None
+        if event["kind"] == "output":
+            output = self._ids.get(wire.channel_key(self.system, path, event["action"], event["index"]))
+        entry = [middle, path, trace, output]
+        if key is not None:
+            self._entries[key] = entry
+        return entry
 
     def __call__(self, event: dict) -> None:
         if self._pending >= self.COMMIT_EVERY:
             self._commit()
             self._pending = 0
         self._pending += 1
-        iota = event["iota"]
-        node = self._nodes.get(iota)
-        if node is None:
-            path = self.node_path.get(iota, iota)
-            node = self._nodes[iota] = (path, self._topic(wire.trace_key(self.system, path)))
-        path, trace = node
-        ns = self.origin_ns + int(round(event["t"] * self.time_unit * 1e9))
+        t = event["t"]
+        ns = self.origin_ns + int(round(t * self.time_unit * 1e9))
         pack = self._pack
-        data = pack(dict(event, iota=path))
+        value = pack(event.get("value"))
+        kind = event["kind"]
+        try:
+            key = (event["iota"], event["action"], event["index"], kind)
+            entry = self._entries.get(key)
+        except TypeError:  # an unhashable field: not from an engine
+            key = entry = None
+        if entry is None:
+            entry = self._entry(event, key)
+        middle, path, trace, output = entry
+        if middle is not None and tuple(event) == _EVENT_KEYS:
+            # the bytes of pack(dict(event, iota=path)), its value packed once for both messages:
+            # map header, "t", t, then iota/action/index/kind (packed once), "value", value
+            data = b"".join((_EVENT_HEAD, _FLOAT64(0xCB, t) if t.__class__ is float else pack(t), middle, value))
+        else:
+            data = pack(dict(event, iota=path))
         seq = trace[1]
         trace[1] = seq + 1
-        if event["kind"] != "output":
+        if kind != "output":
             self._write(trace[0], ns, ns, seq, data)
             return
-        key = (iota, event["action"], event["index"])
-        output = self._outputs.get(key)
         if output is None:  # the first output on this key: its trace event, then its channel
             self._write(trace[0], ns, ns, seq, data)
-            output = self._outputs[key] = self._topic(wire.channel_key(self.system, path, key[1], key[2]))
+            output = entry[3] = self._topic(wire.channel_key(self.system, path, event["action"], event["index"]))
             sequence = output[1]
             output[1] = sequence + 1
-            self._write(output[0], ns, ns, sequence, pack(event["value"]))
+            self._write(output[0], ns, ns, sequence, value)
             return
         sequence = output[1]
         output[1] = sequence + 1
         if self._write_pair is None:
             self._write(trace[0], ns, ns, seq, data)
-            self._write(output[0], ns, ns, sequence, pack(event["value"]))
+            self._write(output[0], ns, ns, sequence, value)
         else:
-            self._write_pair(trace[0], ns, ns, seq, data, output[0], ns, sequence, pack(event["value"]))
+            self._write_pair(trace[0], ns, ns, seq, data, output[0], ns, sequence, value)
 
 
 def record_run(root: Any, output: str | Path, until: float, inputs: Iterable[dict] = (), policy: Any = None,
