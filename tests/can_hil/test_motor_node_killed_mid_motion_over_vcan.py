@@ -6,7 +6,7 @@ vcan0 in user-mode Linux here), its motor node killed with SIGKILL while the arm
 - the launcher restarts the node (restart = "on-failure"), which clears the errors, re-arms every
   axis, and the arm moves again and ends within 0.01 rad of the trajectory's last waypoint.
 
-One run (about a minute in user-mode Linux: the nodes take 10-30 s to start there; it stops 16 s
+One run (about a minute in user-mode Linux: the nodes take 10-30 s to start there; it stops 14 s
 after the restarted node is live, time for the rest of the trajectory and to settle) serves every
 test; every assertion reads the recording's timestamps, none the wall clock. The legs are longer
 than the example's, so that the kill lands mid-motion, and the axes beat every 10 ms, so that a
@@ -36,7 +36,7 @@ def run(can_tier, tmp_path_factory):
                             motor={"heartbeat_period": "0.01", "lost_after": "20", "encoder_period": "0.05"})
     recording = folder / "arm.mcap"
     result = can_tier.run([str(ROOT / ".venv" / "bin" / "python"), str(ROOT / "tests" / "can_hil" / "arm_driver.py"),
-                           str(system), str(recording), "--kill-after", str(KILL_AFTER), "--run-for", "22"],
+                           str(system), str(recording), "--kill-after", str(KILL_AFTER), "--run-for", "14"],
                           timeout=400, cwd=str(ROOT)).check()
     driver = json.loads(next(line for line in result.output.splitlines() if line.startswith("DRIVER {"))[7:])
     assert driver["killed_pid"] and driver["lives"] == 2, result.output[-3000:]

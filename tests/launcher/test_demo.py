@@ -6,8 +6,10 @@ from launcher_helpers import ROOT, free_port
 
 
 def test_demo_produces_commit_abort_and_reject(tmp_path):
-    # cwd is the temp dir, so the recording lands in tmp_path/recordings.
-    result = subprocess.run([sys.executable, "-m", "iotad", "demo", "--until", "15", "--plain",
+    # cwd is the temp dir, so the recording lands in tmp_path/recordings. The default 20 s: vision's
+    # COMMIT comes with its last request, after manipulation's second pick (12.4 s after the
+    # nodes start, `iotad demo --virtual`), and on a busy machine the nodes take a few seconds to start.
+    result = subprocess.run([sys.executable, "-m", "iotad", "demo", "--plain",
                              "--port", str(free_port())], capture_output=True, text=True, timeout=60,
                             cwd=tmp_path, start_new_session=True)
     out = result.stdout
