@@ -114,8 +114,13 @@ class Launcher:
                  origin: float | None = None, log_dir: str | None = None,
                  node_argv: Callable[[str], list[str]] | None = None, console: Any = None,
                  live_table: bool | None = None, stop_timeouts: tuple[float, float] = (3.0, 2.0),
-                 record_max_size: int | None = None, record_max_duration: float | None = None):
+                 record_max_size: int | None = None, record_max_duration: float | None = None,
+                 after_live: bool = False):
         self.system, self.host, self.until = system, host, until
+        # count `until` from the moment every node is first live, not from the launch: start-up
+        # (imports, PyBullet worlds) can take 10-30 s in user-mode Linux and would eat the run
+        self.after_live = after_live
+        self._live_at: float | None = None
         # split the recording into numbered files (`iotad record --max-size/--max-duration`)
         self.record_max_size, self.record_max_duration = record_max_size, record_max_duration
         self.hub = with_port(system.listen, port) if port is not None else list(system.listen)
@@ -402,9 +407,11 @@ class Launcher:
                 return
             now = time.monotonic()
             self._supervise(now)
-            if self.until is not None and now - self._started >= self.until:
+            since = self._until_counts_from(now)
+            if since is not None and now - since >= self.until:
                 self._stop_reason = "until"
-                self.view.line(f"--until {self.until:g} s reached: stopping")
+                after = " after every node was live" if self.after_live else ""
+                self.view.line(f"--until {self.until:g} s{after} reached: stopping")
                 return
             if self.runs and all(r.finished for r in self.runs.values()):
                 self._stop_reason = "all nodes ended"
@@ -495,6 +502,20 @@ class Launcher:
         if run.child.last_signal == signal.SIGTERM:
             return f": it did not stop within {interrupt:g} s of SIGINT; stopped by SIGTERM"
         return ""
+
+    def _until_counts_from(self, now: float) -> float | None:
+        """When --until's seconds began (None: no --until, or not every node live yet). With
+        after_live, a node that has ended for good counts as live, so a failed start cannot keep
+        the run going for ever."""
+        if self.until is None:
+            return None
+        if not self.after_live:
+            return self._started
+        if self._live_at is None and self.runs and any(r.state == "running" for r in self.runs.values()) \
+                and all(r.state == "running" or r.finished for r in self.runs.values()):
+            self._live_at = now
+            self.view.line(f"every node is live: --until {self.until:g} s counts from now")
+        return self._live_at
 
     def _supervise(self, now: float) -> None:
         system = self.system

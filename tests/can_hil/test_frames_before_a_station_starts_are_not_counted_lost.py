@@ -15,6 +15,7 @@ def test_frames_sent_before_the_echo_started_are_not_judged_and_the_rest_deliver
     system = tmp_path / "pingpong.toml"
     system.write_text(f"""[system]
 name = "pingpong"
+start_timeout = 60.0  # nodes start slowly in user-mode Linux
 [[node]]
 name = "pinger"
 python = "{IOTAS}:CanPinger"
@@ -31,7 +32,7 @@ stations = ["pinger", "echo"]
 log = false  # no bus logger: one process less to start on the one vCPU of user-mode Linux
 """)
     recording = tmp_path / "pingpong.mcap"
-    can_tier.run([sys.executable, "-m", "iotad", "run", str(system), "--until", "12", "--plain", "--port", "0",
+    can_tier.run([sys.executable, "-m", "iotad", "run", str(system), "--until", "6", "--after-live", "--plain", "--port", "0",
                   "-o", str(recording), "--log-dir", str(tmp_path / "logs")], timeout=180, cwd=str(tmp_path)).check()
     report = check_delivery(read_recording(recording))
     link = next(link for link in report.links if link.label == "can can0: pinger -> echo")

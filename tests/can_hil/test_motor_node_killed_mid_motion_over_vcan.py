@@ -17,6 +17,7 @@ import json
 import pytest
 
 pytest.importorskip("pybullet")
+pytestmark = pytest.mark.timeout(300)  # the run's start-up alone can take a minute in user-mode Linux
 
 from arm_hil import (CLOSED_LOOP, FINAL, ROOT, after_the_kill, motor_starts, settled_positions,  # noqa: E402
                      system_variant)
@@ -25,7 +26,7 @@ from iotad.recording.mcap_io import read_recording  # noqa: E402
 STEP = 0.005            # the example's simulated step_period
 KILL_AFTER = 3.0        # s after the motor node is live (the first leg runs 0.5-4.5 s after its first state)
 TWO_PI = 6.283185307179586
-BRAKE_SETTLE = 0.25     # s of the axis's time after its first IDLE heartbeat
+BRAKE_SETTLE = 0.4      # s of the axis's time after its first IDLE heartbeat
 
 
 @pytest.fixture(scope="module")
@@ -68,15 +69,15 @@ def test_every_axis_is_idle_with_a_watchdog_error_within_100_ms_of_its_last_comm
 
 
 def test_nothing_moves_between_the_watchdog_and_the_restart(run):
-    # The brake is a stiff spring, not a wall: it takes the joint where it engaged and gives a
-    # little under gravity (about 1 mrad, settled within 0.4 s of the axis's time). It may give
-    # at most 5 mrad; after BRAKE_SETTLE nothing may move (the virtual-time watchdog test has
-    # the same bound, judged 70 ms after the trip).
+    # The brake is a stiff spring, not a wall (PyBullet's position motor, sim/worlds/arm.py): it
+    # takes the joint where it engaged and gives a little under gravity, 0.5-6 mrad by the pose
+    # the kill caught, settled within 0.4 s of the axis's time. It may give at most 10 mrad;
+    # after BRAKE_SETTLE nothing may move (the virtual-time watchdog test has the same bound).
     for node, axis in run["after"]["axes"].items():
         held = [turns for _, turns in axis["held"]]
         still = [turns for since, turns in axis["held"] if since >= BRAKE_SETTLE]
         assert len(still) >= 3, f"axis {node}: too few encoder estimates while it was idle"
-        assert (max(held) - min(held)) * TWO_PI < 0.005, f"axis {node} gave way under the brake"
+        assert (max(held) - min(held)) * TWO_PI < 0.01, f"axis {node} gave way under the brake"
         assert (max(still) - min(still)) * TWO_PI < 0.002, f"axis {node} moved while idle"
 
 

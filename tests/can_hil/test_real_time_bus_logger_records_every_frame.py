@@ -29,6 +29,7 @@ def pingpong(can_tier, tmp_path_factory):
     system = tmp_path / "pingpong.toml"
     system.write_text(f"""[system]
 name = "pingpong"
+start_timeout = 60.0  # nodes start slowly in user-mode Linux
 [[node]]
 name = "pinger"
 python = "{IOTAS}:CanPinger"
@@ -42,7 +43,7 @@ interface = "env"
 stations = ["pinger", "echo"]
 """)
     recording = tmp_path / "pingpong.mcap"
-    can_tier.run([sys.executable, "-m", "iotad", "run", str(system), "--until", "11", "--plain", "--port", "0",
+    can_tier.run([sys.executable, "-m", "iotad", "run", str(system), "--until", "6", "--after-live", "--plain", "--port", "0",
                   "-o", str(recording), "--log-dir", str(tmp_path / "logs")], timeout=180, cwd=str(tmp_path)).check()
     return recording
 

@@ -52,6 +52,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                         help="check the file (nodes, channels, bindings) and exit: 0 fine, 2 errors")
     parser.add_argument("--until", type=positive_float, metavar="SECONDS",
                         help="stop everything after SECONDS of wall-clock time (default: run until Ctrl-C)")
+    parser.add_argument("--after-live", action="store_true",
+                        help="count --until from the moment every node is first live, not from the launch, "
+                             "so that start-up (imports, PyBullet worlds; 10-30 s in user-mode Linux) is not "
+                             "counted (no effect with --virtual, where everything starts at 0)")
     parser.add_argument("--port", type=port, metavar="PORT",
                         help="hub port instead of the system file's (0: any free port; default: the file's "
                              "[system.endpoints] listen, else 7447)")
@@ -157,7 +161,8 @@ def launch(system, args: argparse.Namespace, summary_hook=None) -> int:
                         record_path=args.record_to, origin=args.origin, log_dir=args.log_dir,
                         live_table=False if args.plain else None,
                         record_max_size=getattr(args, "max_size", None),
-                        record_max_duration=getattr(args, "max_duration", None))
+                        record_max_duration=getattr(args, "max_duration", None),
+                        after_live=getattr(args, "after_live", False))
     launcher.access = access_for(system, args)
     viewer = None
     if getattr(args, "view", None) is not None and system.opens_hub(args.host):
