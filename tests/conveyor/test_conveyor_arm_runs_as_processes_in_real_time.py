@@ -1,9 +1,9 @@
 """examples/conveyor.toml as seven processes in real time (`iotad run`, zenoh, the CAN bus in the
-udp_multicast tier: a private network namespace, multicast on its loopback): a smoke run of 40 s
-with one object. The whole chain works across processes: camera frames reach vision, sightings
-reach planning, both controllers' requests reach the scheduler, its programs reach the
-interpreter, setpoints reach the motor node and over CAN the simulated controllers, and the arm
-moves. Every assertion reads the recording.
+udp_multicast tier: a private network namespace, multicast on its loopback): a smoke run of 32 s
+from the moment every node is live, with one object. The whole chain works across processes: camera
+frames reach vision, sightings reach planning, both controllers' requests reach the scheduler, its
+programs reach the interpreter, setpoints reach the motor node and over CAN the simulated
+controllers, and the arm moves. Every assertion reads the recording.
 
 Not asserted: that the object is placed. On this shared machine the world runs slower than the
 wall clock (a late physics step runs late; docs/conveyor.md) and the pick's timing, predicted from
@@ -28,7 +28,7 @@ def run(tmp_path_factory):
     folder = tmp_path_factory.mktemp("conveyor_rt")
     system = system_variant(folder, cube_count=1, bus=(bus.interface, bus.channel))
     recording = folder / "conveyor.mcap"
-    result = bus.run([IOTAD, "run", str(system), "--until", "40", "--port", "0", "-o", str(recording)],
+    result = bus.run([IOTAD, "run", str(system), "--until", "32", "--after-live", "--port", "0", "-o", str(recording)],
                      timeout=300, cwd=str(ROOT))
     assert result.returncode == 0, result.output[-3000:]
     return {"events": list(read_recording(recording).trace()), "output": result.output}

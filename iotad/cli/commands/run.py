@@ -20,11 +20,13 @@ examples:
   iotad run examples/figure2.toml -o recordings/fig2.mcap --max-size 100M --max-duration 600
                                                  a long run: fig2_0.mcap, fig2_1.mcap... read as one
   iotad run examples/figure2.toml --virtual --until 60     the same IOTAs in one process, virtual time
+  iotad run examples/arm_can.toml --until 8 --after-live   8 s from the moment every node is live
 
 The system file format (nodes, bindings, endpoints, time_unit, restart policies, hosts) is
-docs/system-file.md. --until is wall-clock seconds; spec times are in the spec's time units,
-time_unit seconds each. Exit status: 0 when every node stopped cleanly, 1 when a node failed or
-the recording was lost, 2 for a bad system file or option, 130 on Ctrl-C.
+docs/system-file.md. --until is wall-clock seconds from the launch (--after-live: from the moment
+every node is live); spec times are in the spec's time units, time_unit seconds each. Exit
+status: 0 when every node stopped cleanly, 1 when a node failed or the recording was lost, 2 for a
+bad system file or option, 130 on Ctrl-C.
 
 A node whose process exits, whose liveliness token vanishes or whose heartbeat stops is
 restarted by its restart policy (never | on-failure | always, backoff doubling, max_restarts).
