@@ -171,8 +171,10 @@ def motor_loop(seconds: float, rate: float = RATE, port: int = 7447) -> dict:
     system = folder / "canbench.toml"
     system.write_text(MOTOR_SYSTEM.format(port=port, period=1.0 / rate, joints=joints, interface=interface,
                                           channel=channel))
+    # --insecure: this process publishes the setpoints from outside the system, which access
+    # control (on by default) would refuse; bench/access_control.py measures what it costs
     launcher = subprocess.Popen([str(Path(sys.executable).with_name("iotad")), "run", str(system), "--no-record",
-                                 "--plain"], cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                                 "--plain", "--insecure"], cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                                 start_new_session=True)
     bus = raw_bus()
     stop = threading.Event()
