@@ -151,8 +151,15 @@ def _flatten(node: Any, path: str, leaves: list[Leaf], bindings: list) -> dict[s
         mapped[name] = ("input", resolve(target, "input"))
     for name, target in node.outputs.items():
         mapped[name] = ("output", resolve(target, "output"))
+    fed = set()
     for source, target in node.bindings:
-        bindings.append((resolve(source, "output"), resolve(target, "input")))
+        resolved = resolve(target, "input")
+        bindings.append((resolve(source, "output"), resolved))
+        fed.add(resolved)
+    # an own input fed here by a component's output is not the composite's to expose: its parent
+    # could bind it a second time, and a system would list it as an input nobody feeds
+    own_channels = {name: (direction, endpoint) for name, (direction, endpoint) in own_channels.items()
+                    if not (direction == "input" and endpoint in fed)}
     return {**own_channels, **mapped}
 
 

@@ -5,7 +5,7 @@ import json
 import pytest
 
 from iotad import cli
-from iotad.kernel.compose import Composite
+from iotad.kernel.compose import Composite, flatten
 from iotad.esprit import EspritError, load_iota, load_text
 from recorded_systems import COMPOSITE
 from iotad.kernel.model import ANY, INDEX, Instance
@@ -211,6 +211,24 @@ def test_composite_component_parameters():
     assert root.own is None and root.components["inner"].own.P == 0.25
     trace = run_script(root, [{"t": 0.0, "action": "go", "index": None, "value": None, "iota": None}], 5).trace
     assert [(e["t"], e["value"]) for e in trace if e["action"] == "out"] == [(0.75, 2)]
+
+
+def test_an_own_input_fed_by_a_component_is_not_external():
+    """A composite's own input bound from one of its components is the composite's business: its
+    parent sees only `seen`, and nobody may bind `got` a second time."""
+    root = load_iota("""
+    iota src: -> out(int)/0 { states int n = 0; actions out(n) when n < 3 after 1 do n = n + 1; }
+    iota watch: got(int)/0 -> seen(int)/0 {
+      include src s;
+      s.out -> got;
+      states int last = -1; bool due = false;
+      actions
+      got(x) do { last = x; due = true; }
+      seen(last * 10) when due do due = false;
+    }""")
+    assert {name: direction for name, (direction, _) in flatten(root).external.items()} == {"seen": "output"}
+    trace = run_script(root, [], 10).trace
+    assert [(e["t"], e["value"]) for e in trace if e["action"] == "seen"] == [(1.0, 0), (2.0, 10), (3.0, 20)]
 
 
 def test_load_api_and_module(tmp_path):
