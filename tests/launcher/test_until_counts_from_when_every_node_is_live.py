@@ -3,34 +3,28 @@ a slow start-up (imports, PyBullet worlds; 10-30 s in user-mode Linux) does not 
 Without it, --until counts from the launch. Both read from the launcher's lines and the recording."""
 import subprocess
 import sys
+from pathlib import Path
 
 from iotad.recording.mcap_io import read_recording
 
-SLOW_NODE = '''
+TESTS = Path(__file__).resolve().parents[1]
+# tests/system_iotas.py's Source, going live about 3 s after it is started (a slow start-up)
+SLOW_NODE = f"""
+import sys
 import time
 
-from iotad import Int, Iota, Output, Param
-
-time.sleep(3.0)  # a slow start-up: this node goes live about 3 s after it is started
-
-
-class SlowSource(Iota):
-    period = Param(0.1)
-    out = Output(Int, switching=0.1)
-
-    def init(self):
-        self.n = 0
-
-    @out.action(value=lambda self: self.n, after="period")
-    def sent(self):
-        self.n += 1
-'''
+time.sleep(3.0)
+sys.path.insert(0, {str(TESTS)!r})
+from system_iotas import Source  # noqa: E402
+"""
 
 
 def run_slow_system(tmp_path, *extra):
     (tmp_path / "slow_node.py").write_text(SLOW_NODE)
     system = tmp_path / "slow.toml"
-    system.write_text('[system]\nname = "slow"\n\n[[node]]\nname = "slow"\npython = "slow_node.py:SlowSource"\n')
+    # time_unit 0.1: Source sends every 0.1 s
+    system.write_text('[system]\nname = "slow"\ntime_unit = 0.1\n\n[[node]]\nname = "slow"\n'
+                      'python = "slow_node.py:Source"\n')
     recording = tmp_path / "slow.mcap"
     result = subprocess.run([sys.executable, "-m", "iotad", "run", str(system), "--until", "1", *extra,
                              "--port", "0", "--plain", "-o", str(recording)],
