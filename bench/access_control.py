@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import argparse
 import queue
-import signal
 import statistics
 import subprocess
 import sys
@@ -24,6 +23,7 @@ import zenoh  # noqa: E402
 
 from iotad.host import credentials, wire  # noqa: E402
 from iotad.host.transport import free_port, open_session  # noqa: E402
+from iotad.launcher.processes import interrupt_then_kill  # noqa: E402
 
 SYSTEM = """
 [system]
@@ -92,12 +92,7 @@ def one_round(folder: Path, secure: bool, samples: int, warmup: int = 200) -> li
     finally:
         if session is not None:
             session.close()
-        launcher.send_signal(signal.SIGINT)
-        try:
-            launcher.wait(20)
-        except subprocess.TimeoutExpired:
-            launcher.kill()
-            launcher.wait()
+        interrupt_then_kill(launcher, 20)
         out.close()
 
 

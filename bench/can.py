@@ -20,7 +20,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import signal
 import statistics
 import subprocess
 import sys
@@ -157,12 +156,11 @@ def motor_loop(seconds: float, rate: float = RATE, port: int = 7447) -> dict:
     import tempfile
     import threading
 
-    import can
-
     from iotad.can import odrive
     from iotad.can.bit_timing import frame_bits
     from iotad.host import wire
     from iotad.host.transport import open_tool_session
+    from iotad.launcher.processes import interrupt_then_kill
 
     interface, channel = os.environ["IOTAD_CAN_INTERFACE"], os.environ["IOTAD_CAN_CHANNEL"]
     joints = ", ".join(f'{{ name = "j{k}", node_id = {k + 1}, position_min = -6.3, position_max = 6.3 }}'
@@ -270,12 +268,7 @@ def motor_loop(seconds: float, rate: float = RATE, port: int = 7447) -> dict:
             publisher.undeclare()
         if session is not None:
             session.close()
-        launcher.send_signal(signal.SIGINT)
-        try:
-            launcher.wait(20)
-        except subprocess.TimeoutExpired:
-            os.killpg(launcher.pid, signal.SIGKILL)
-            launcher.wait()
+        interrupt_then_kill(launcher, 20)
         bus.shutdown()
     latencies, missed = [], 0
     period = 1.0 / rate

@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import signal
 import subprocess
 import sys
 import tempfile
@@ -195,6 +194,7 @@ def main() -> int:
         parser.error("--warmup must be shorter than the run (--minutes)")
 
     from iotad.host.transport import free_port
+    from iotad.launcher.processes import interrupt_then_kill
 
     with tempfile.TemporaryDirectory(prefix="iotad-soak-") as tmp:
         tmp = Path(tmp)
@@ -220,13 +220,7 @@ def main() -> int:
                 time.sleep(0.1)
             code = launcher.wait(60)
         finally:
-            if launcher.poll() is None:
-                launcher.send_signal(signal.SIGINT)
-                try:
-                    launcher.wait(15)
-                except subprocess.TimeoutExpired:
-                    os.killpg(launcher.pid, signal.SIGKILL)
-                    launcher.wait()
+            interrupt_then_kill(launcher, 15)
             out.close()
         text = (tmp / "launcher.out").read_text()
         if code != 0 or len(samples) < 2:
@@ -248,7 +242,7 @@ def main() -> int:
             print(f"  {topic:<28} {recorded:>9} / {published:<9} lost {published - recorded}")
         print(f"  total lost {lost_total}; recorder gaps {figures['gaps']}; recording {size / 2**20:.1f} MB")
         print(f"resident size (MB): start (t={t0:.0f} s)"
-              + (f", after 1 min" if at_1min else "") + f", end (t={t1:.0f} s); growth per minute after minute 1")
+              + (", after 1 min" if at_1min else "") + f", end (t={t1:.0f} s); growth per minute after minute 1")
         for role in last:
             a, b = first.get(role), last.get(role)
             if a is None or b is None:

@@ -32,15 +32,15 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from iotad.kernel.api import Input, Iota, Output  # noqa: E402
 from iotad.kernel.clock import VirtualClock  # noqa: E402
-from iotad.kernel.compose import Composite, flatten  # noqa: E402
+from iotad.kernel.compose import flatten  # noqa: E402
 from iotad.kernel.engine import Engine  # noqa: E402
 from iotad.kernel.policy import Eager  # noqa: E402
-from iotad.kernel.types import Int  # noqa: E402
 from iotad.launcher.in_process import compose  # noqa: E402
 from iotad.launcher.system_file import load_system  # noqa: E402
 from iotad.recording.mcap_io import EngineRecorder, McapSink  # noqa: E402
+
+from kernel import ping_pong  # noqa: E402  (bench/kernel.py: the same trivial system)
 
 GOALS = {"buggy": 100.0, "conveyor": 20.0}  # x real time, recorded
 
@@ -163,31 +163,12 @@ WORLDS = {"buggy": buggy, "conveyor": conveyor}
 
 
 # ------------------------------------------------------------------ the trivial baseline
-class _Player(Iota):
-    inp = Input(Int)
-    out = Output(Int)
-
-    def init(self):
-        self.ball = None
-
-    @inp.input
-    def got(self, x):
-        self.ball = x
-
-    @out.action(value=lambda self: self.ball + 1, when=lambda self: self.ball is not None, after=0.001)
-    def hit(self):
-        self.ball = None
-
-
 def trivial_engine(firings: int = 100_000, repeat: int = 3) -> float:
     """Seconds per firing of the engine alone: two IOTAs ping-ponging a counter (an output, a
     bound input, one precondition each), not recorded. The best of `repeat` runs."""
     best = float("inf")
     for _ in range(repeat):
-        first = _Player("ping")
-        first.ball = 0
-        root = Composite("pingpong", first, _Player("pong"), bind=[("ping.out", "pong.inp"), ("pong.out", "ping.inp")])
-        engine = Engine(root, VirtualClock(), Eager(), record=False)
+        engine = Engine(ping_pong(), VirtualClock(), Eager(), record=False)
         started = time.perf_counter()
         engine.run(firings * 0.001)
         best = min(best, (time.perf_counter() - started) / max(engine.firings, 1))

@@ -153,6 +153,22 @@ def stop_all(children: Sequence[Child], interrupt_timeout: float = 3.0, terminat
                     break
 
 
+def interrupt_then_kill(proc: subprocess.Popen, patience: float = 15.0) -> int:
+    """Stop a process started with `start_new_session=True` (an `iotad run` a tool or bench
+    started): SIGINT, its clean stop; SIGKILL to its whole group if it has not ended within
+    `patience` s. Returns its exit status."""
+    if proc.poll() is None:
+        proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(patience)
+        except subprocess.TimeoutExpired:
+            try:
+                os.killpg(proc.pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+    return proc.wait()
+
+
 @dataclass
 class RestartPolicy:
     """When to start a node again after it exits, and how long to wait first.

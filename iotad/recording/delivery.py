@@ -883,10 +883,7 @@ class DeliveryChecker:
             links = {s: Link(f"can {bus}: {s} -> {receiver}", "can", (s, receiver), sent=len(sent[s]))
                      for s in senders}
             self.report.links += list(links.values())
-            waiting: dict[str, dict[tuple, deque]] = {s: {} for s in senders}
-            for s in senders:
-                for k, (_, frame) in enumerate(sent[s]):
-                    waiting[s].setdefault(frame, deque()).append(k)
+            waiting = _frame_queues(sent, senders)
             taken: dict[str, set[int]] = {s: set() for s in senders}
             last_taken: dict[str, int] = {}
             foreign: list[tuple[float, tuple]] = []
@@ -987,10 +984,7 @@ class DeliveryChecker:
         window = GRACE / self.unit
         links = {s: Link(f"can {bus}: {s} -> (bus)", "can", (s,), sent=len(sent[s])) for s in stations}
         self.report.links += list(links.values())
-        waiting: dict[str, dict[tuple, deque]] = {s: {} for s in stations}
-        for s in stations:
-            for k, (_, frame) in enumerate(sent[s]):
-                waiting[s].setdefault(frame, deque()).append(k)
+        waiting = _frame_queues(sent, stations)
         taken: dict[str, set[int]] = {s: set() for s in stations}
         last_taken: dict[str, int] = {}
         strays: list[tuple[float | None, str | None, tuple, Any]] = []
@@ -1102,6 +1096,16 @@ def _logger_down(life: _Life, bus: str, t: float, window: float) -> str | None:
         return (f"sent while the bus logger {bus} was down: its last sign of life at t={last:.6g}, "
                 f"restarted at t={life.runs[k + 1][0]:.6g}")
     return f"in flight when the run ended: the bus logger {bus}'s last sign of life is at t={last:.6g}"
+
+
+def _frame_queues(sent: dict[str, list], stations) -> dict[str, dict[tuple, deque]]:
+    """Per station: each frame it sent -> the indices of its sends of that frame, in order (a
+    receiver's or the log's copy is matched to the earliest one not yet taken)."""
+    waiting: dict[str, dict[tuple, deque]] = {s: {} for s in stations}
+    for s in stations:
+        for k, (_, frame) in enumerate(sent[s]):
+            waiting[s].setdefault(frame, deque()).append(k)
+    return waiting
 
 
 def _frame(value: Any) -> tuple:
