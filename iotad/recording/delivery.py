@@ -962,13 +962,17 @@ class DeliveryChecker:
                         verdict, reason = self.life[receiver].judge(t_sent, window, receiver)
                     else:
                         verdict, reason = "unjudged", f"{receiver} is not in this recording"
-                    if verdict == "lost":
-                        links[s].lost += 1
-                        self._finding(links[s], "lost", t_sent, f"frame {_frame_text(frame)} sent at t={t_sent:.6g} "
-                                      f"never reached {receiver}; {reason}")
-                    else:
-                        links[s].unjudged += 1
-                        self._finding(links[s], "not judged", t_sent, f"frame {_frame_text(frame)}: {reason}", False)
+                    self._unmatched_frame(links[s], verdict, reason, t_sent, frame, f"never reached {receiver}")
+
+    def _unmatched_frame(self, link: Link, verdict: str, reason: str, t_sent: float, frame: tuple,
+                         missed: str) -> None:
+        """A sent frame nobody matched: counted and reported lost, or not judged, by `verdict`."""
+        if verdict == "lost":
+            link.lost += 1
+            self._finding(link, "lost", t_sent, f"frame {_frame_text(frame)} sent at t={t_sent:.6g} {missed}; {reason}")
+        else:
+            link.unjudged += 1
+            self._finding(link, "not judged", t_sent, f"frame {_frame_text(frame)}: {reason}", False)
 
     def _check_bus_log(self, bus: str, stations: list[str], sent: dict[str, list[tuple[float, tuple]]]) -> None:
         """Each station's can_tx frames against the bus's own log of the frames it carried (the
@@ -1071,13 +1075,7 @@ class DeliveryChecker:
                     verdict, reason = "lost", f"the bus logged frames until t={end:.6g}"
                 else:
                     verdict, reason = "unjudged", "in flight (queued or on the bus) when the run ended"
-                if verdict == "lost":
-                    links[s].lost += 1
-                    self._finding(links[s], "lost", t_sent, f"frame {_frame_text(frame)} sent at t={t_sent:.6g} "
-                                  f"never went on the bus; {reason}")
-                else:
-                    links[s].unjudged += 1
-                    self._finding(links[s], "not judged", t_sent, f"frame {_frame_text(frame)}: {reason}", False)
+                self._unmatched_frame(links[s], verdict, reason, t_sent, frame, "never went on the bus")
 
 
 def _logger_down(life: _Life, bus: str, t: float, window: float) -> str | None:
