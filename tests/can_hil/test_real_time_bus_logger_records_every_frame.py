@@ -10,6 +10,7 @@ from pathlib import Path
 
 import pytest
 
+from pingpong import run_pingpong
 from iotad.can.frame import Frame
 from iotad.cli import main
 from iotad.recording.delivery import check_delivery
@@ -18,34 +19,13 @@ from iotad.recording.mcap_io import packb, read_recording
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "recording"))
 from wire_tamper import rewrite  # noqa: E402
 
-ROOT = Path(__file__).resolve().parents[2]
-IOTAS = ROOT / "tests" / "system_iotas.py"
 LOG = "iota/pingpong/can0/frames"
 
 
 @pytest.fixture(scope="module")
 def pingpong(can_tier, tmp_path_factory):
     tmp_path = tmp_path_factory.mktemp("bus_log")
-    system = tmp_path / "pingpong.toml"
-    system.write_text(f"""[system]
-name = "pingpong"
-start_timeout = 60.0  # nodes start slowly in user-mode Linux
-[[node]]
-name = "pinger"
-python = "{IOTAS}:CanPinger"
-params = {{ period = 0.05 }}
-[[node]]
-name = "echo"
-python = "{IOTAS}:CanEcho"
-[[can]]
-name = "can0"
-interface = "env"
-stations = ["pinger", "echo"]
-""")
-    recording = tmp_path / "pingpong.mcap"
-    can_tier.run([sys.executable, "-m", "iotad", "run", str(system), "--until", "6", "--after-live", "--plain", "--port", "0",
-                  "-o", str(recording), "--log-dir", str(tmp_path / "logs")], timeout=180, cwd=str(tmp_path)).check()
-    return recording
+    return run_pingpong(can_tier, tmp_path)
 
 
 def new_problems(original, report):
