@@ -39,14 +39,15 @@ def test_ls_lists_the_node_and_its_channels(live):
     assert "intro/echo" in text.stdout and "iota/intro/echo/out" in text.stdout
 
 
-def test_pub_into_the_node_and_echo_its_output(live):
+def echo_while_publishing(live, key: str, count: int, value: str) -> list[dict]:
+    """`iotad echo KEY --count N --json` while `iotad pub` sends `value` into the node's input:
+    echo is ready once it receives, so publish until it has seen N (bounded by pub --count)."""
     hub, node = live
-    echo = subprocess.Popen([sys.executable, "-m", "iotad", "echo", f"{node.base}/out", "--count", "3", "--json",
-                             "--timeout", "20", "--connect", hub.endpoint],
+    echo = subprocess.Popen([sys.executable, "-m", "iotad", "echo", f"{node.base}/{key}", "--count", str(count),
+                             "--json", "--timeout", "20", "--connect", hub.endpoint],
                             cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
-        # echo is ready once it receives: publish until it has seen three (bounded by pub --count)
-        pub = iotad("pub", f"{node.base}/inp", "5", "--count", "40", "--rate", "20", "--connect", hub.endpoint)
+        pub = iotad("pub", f"{node.base}/inp", value, "--count", "40", "--rate", "20", "--connect", hub.endpoint)
         assert pub.returncode == 0, pub.stderr
         out, err = echo.communicate(timeout=25)
     finally:
@@ -54,7 +55,12 @@ def test_pub_into_the_node_and_echo_its_output(live):
             echo.kill()
             echo.wait()
     assert echo.returncode == 0, err
-    records = [json.loads(line) for line in out.splitlines()]
+    return [json.loads(line) for line in out.splitlines()]
+
+
+def test_pub_into_the_node_and_echo_its_output(live):
+    _, node = live
+    records = echo_while_publishing(live, "out", 3, "5")
     assert len(records) == 3 and all(r["value"] == 5 and r["key"] == f"{node.base}/out" for r in records)
     assert [r["seq"] for r in records] == list(range(records[0]["seq"], records[0]["seq"] + 3))
 
@@ -69,20 +75,7 @@ def test_echo_flags_gaps():
 
 
 def test_echo_prints_each_event_of_a_trace_burst(live):
-    hub, node = live
-    echo = subprocess.Popen([sys.executable, "-m", "iotad", "echo", f"{node.base}/@trace", "--count", "4", "--json",
-                             "--timeout", "20", "--connect", hub.endpoint],
-                            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        pub = iotad("pub", f"{node.base}/inp", "6", "--count", "40", "--rate", "20", "--connect", hub.endpoint)
-        assert pub.returncode == 0, pub.stderr
-        out, err = echo.communicate(timeout=25)
-    finally:
-        if echo.poll() is None:
-            echo.kill()
-            echo.wait()
-    assert echo.returncode == 0, err
-    records = [json.loads(line) for line in out.splitlines()]
+    records = echo_while_publishing(live, "@trace", 4, "6")
     assert len(records) == 4 and all(isinstance(r["value"], dict) and r["value"]["iota"] == "echo" for r in records)
     assert [r["seq"] for r in records] == list(range(records[0]["seq"], records[0]["seq"] + 4))
 

@@ -174,7 +174,9 @@ def test_window_kept_while_precondition_stays_true():
     assert events(engine, "output")[0]["value"] == 2
 
 
-def test_switching_time_delays_a_second_action_on_the_same_channel():
+def two_on_one_channel(name: str, second_within: tuple[float, float]) -> Iota:
+    """Two actions enabled at 0 on one output with switching time 1; the second's window is
+    `second_within`."""
     class Two(Iota):
         out = Output(Int, switching=1.0)
 
@@ -185,31 +187,21 @@ def test_switching_time_delays_a_second_action_on_the_same_channel():
         def first(self):
             self.a = False
 
-        @out.action(value=2, when=lambda self: self.b, within=(0, 5))
+        @out.action(value=2, when=lambda self: self.b, within=second_within)
         def second(self):
             self.b = False
 
-    engine = run(Two("two"), [], 10)
+    return Two(name)
+
+
+def test_switching_time_delays_a_second_action_on_the_same_channel():
+    engine = run(two_on_one_channel("two", (0, 5)), [], 10)
     assert [(e["t"], e["value"]) for e in events(engine, "output")] == [(0.0, 1), (1.0, 2)]
     assert not violations(engine)
 
 
 def test_window_made_unreachable_by_switching_time_is_a_violation():
-    class Tight(Iota):
-        out = Output(Int, switching=1.0)
-
-        def init(self):
-            self.a = self.b = True
-
-        @out.action(value=1, when=lambda self: self.a)
-        def first(self):
-            self.a = False
-
-        @out.action(value=2, when=lambda self: self.b, within=(0, 0.5))
-        def second(self):
-            self.b = False
-
-    engine = run(Tight("tight"), [], 10)
+    engine = run(two_on_one_channel("tight", (0, 0.5)), [], 10)
     [violation] = violations(engine, "unreachable_window")
     assert violation["t"] == 0.0 and "past its window" in violation["value"]["message"]
     assert times(engine, "out", "output") == [0.0, 1.0]  # still fires, at the earliest legal time
