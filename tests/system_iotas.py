@@ -1,6 +1,33 @@
-"""Tiny IOTAs for the system-file and launcher tests: just enough channels to bind."""
+"""Tiny IOTAs for the system-file and launcher tests: just enough channels to bind; and the
+ping-pong system over a CAN bus that many of them run."""
+from pathlib import Path
+
 from iotad import Float, Input, Int, Iota, Output, Param
 from iotad.can.frame import CAN_FRAME, Frame
+
+PINGPONG_BUS = 'name = "can0"\ninterface = "socketcan"\nchannel = "vcan0"\nstations = ["pinger", "echo"]'
+
+
+def pingpong_system(period: float, *, system: str = "", pinger: str = "CanPinger", echo: str = "",
+                    bus: str = PINGPONG_BUS) -> str:
+    """A system file's text: `pinger` (CanPinger: a frame every `period`) and CanEcho (answers
+    each) on the bus can0. `system` and `echo` add lines to the [system] table and the echo's
+    [[node]]; `bus` is the whole [[can]] table, which ends the text (more may be appended)."""
+    here = Path(__file__).resolve()
+    return f"""[system]
+name = "pingpong"
+{system}
+[[node]]
+name = "pinger"
+python = "{here}:{pinger}"
+params = {{ period = {period} }}
+[[node]]
+name = "echo"
+python = "{here}:CanEcho"
+{echo}
+[[can]]
+{bus}
+"""
 
 
 class Source(Iota):

@@ -3,30 +3,16 @@
 import sys
 from pathlib import Path
 
-IOTAS = Path(__file__).resolve().parents[1] / "system_iotas.py"
+from system_iotas import pingpong_system
 
 
 def run_pingpong(can_tier, folder: Path, *, echo: str = "", bus: str = "") -> Path:
     """Runs it in `can_tier` and returns the recording. `echo` adds lines to the echo's
     [[node]], `bus` to the [[can]] table (which says `interface = "env"`: the tier's bus)."""
     system = folder / "pingpong.toml"
-    system.write_text(f"""[system]
-name = "pingpong"
-start_timeout = 60.0  # nodes start slowly in user-mode Linux
-[[node]]
-name = "pinger"
-python = "{IOTAS}:CanPinger"
-params = {{ period = 0.05 }}
-[[node]]
-name = "echo"
-python = "{IOTAS}:CanEcho"
-{echo}
-[[can]]
-name = "can0"
-interface = "env"
-stations = ["pinger", "echo"]
-{bus}
-""")
+    system.write_text(pingpong_system(
+        0.05, system="start_timeout = 60.0  # nodes start slowly in user-mode Linux", echo=echo,
+        bus='name = "can0"\ninterface = "env"\nstations = ["pinger", "echo"]\n' + bus))
     recording = folder / "pingpong.mcap"
     can_tier.run([sys.executable, "-m", "iotad", "run", str(system), "--until", "6", "--after-live", "--plain",
                   "--port", "0", "-o", str(recording), "--log-dir", str(folder / "logs")],

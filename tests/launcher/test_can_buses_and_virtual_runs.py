@@ -9,28 +9,16 @@ from iotad.can.frame import Frame
 from iotad.cli import main
 from iotad.launcher.system_file import SystemFileError, load_system
 from iotad.recording.mcap_io import read_recording
+from system_iotas import PINGPONG_BUS, pingpong_system
 
 ROOT = Path(__file__).resolve().parents[2]
-IOTAS = Path(__file__).resolve().parents[1] / "system_iotas.py"
 
-PING_PONG = """[system]
-name = "pingpong"
-[[node]]
-name = "pinger"
-python = "IOTAS:{pinger}"
-params = {{ period = 0.01 }}
-[[node]]
-name = "echo"
-python = "IOTAS:CanEcho"
-[[can]]
-{bus}
-"""
-GOOD_BUS = 'name = "can0"\ninterface = "socketcan"\nchannel = "vcan0"\nstations = ["pinger", "echo"]'
+GOOD_BUS = PINGPONG_BUS
 
 
 def write(tmp_path: Path, bus: str = GOOD_BUS, pinger: str = "CanPinger") -> Path:
     path = tmp_path / "pingpong.toml"
-    path.write_text(PING_PONG.format(bus=bus, pinger=pinger).replace("IOTAS", str(IOTAS)))
+    path.write_text(pingpong_system(0.01, bus=bus, pinger=pinger))
     return path
 
 

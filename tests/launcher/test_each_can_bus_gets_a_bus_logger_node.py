@@ -12,25 +12,9 @@ from iotad.launcher.bus_logger import LOGGER_REF, is_bus_logger
 from iotad.launcher.in_process import compose
 from iotad.launcher.system_file import SystemFileError, load_system
 from iotad.recording.mcap_io import read_recording
+from system_iotas import PINGPONG_BUS, pingpong_system
 
-IOTAS = Path(__file__).resolve().parents[1] / "system_iotas.py"
-SYSTEM = f"""[system]
-name = "pingpong"
-time_unit = 0.001
-[[node]]
-name = "pinger"
-python = "{IOTAS}:CanPinger"
-params = {{ period = 10 }}
-[[node]]
-name = "echo"
-python = "{IOTAS}:CanEcho"
-[[can]]
-name = "can0"
-interface = "socketcan"
-channel = "vcan0"
-bitrate = 500000
-stations = ["pinger", "echo"]
-"""
+SYSTEM = pingpong_system(10, system="time_unit = 0.001", bus=PINGPONG_BUS + "\nbitrate = 500000")
 
 
 def write(tmp_path: Path, extra: str = "") -> Path:

@@ -10,25 +10,11 @@ import pytest
 from iotad.cli import main
 from iotad.recording.delivery import check_delivery
 from iotad.recording.mcap_io import packb, read_recording
+from system_iotas import pingpong_system
 from wire_tamper import index_of, rewrite, with_value
 
 ROOT = Path(__file__).resolve().parents[2]
-IOTAS = ROOT / "tests" / "system_iotas.py"
-SYSTEM = f"""[system]
-name = "pingpong"
-[[node]]
-name = "pinger"
-python = "{IOTAS}:CanPinger"
-params = {{ period = 0.01 }}
-[[node]]
-name = "echo"
-python = "{IOTAS}:CanEcho"
-[[can]]
-name = "can0"
-interface = "socketcan"
-channel = "vcan0"
-stations = ["pinger", "echo"]
-"""
+SYSTEM = pingpong_system(0.01)
 
 
 def record(directory: Path, until: str) -> Path:
