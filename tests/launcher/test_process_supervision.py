@@ -9,6 +9,7 @@ import time
 import pytest
 
 from iotad.launcher.processes import Child, RestartPolicy, describe_exit
+from launcher_helpers import wait_until
 
 
 def gone(pid: int) -> bool:
@@ -18,15 +19,6 @@ def gone(pid: int) -> bool:
             return stat.read().rsplit(")", 1)[1].split()[0] in ("Z", "X")
     except FileNotFoundError:
         return True
-
-
-def wait_until(condition, timeout: float, step: float = 0.02) -> bool:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if condition():
-            return True
-        time.sleep(step)
-    return condition()
 
 
 def python_child(tmp_path, name: str, code: str) -> Child:

@@ -16,17 +16,9 @@ from iotad.cli import main
 from iotad.recording.mcap_io import read_recording
 from iotad.host.transport import open_session
 from launcher_helpers import free_port
+from node_harness import wait_for
 
 ROOT = Path(__file__).resolve().parents[2]
-
-
-def wait_for(predicate, timeout, what):
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if predicate():
-            return
-        time.sleep(0.01)
-    raise AssertionError(f"timed out after {timeout} s waiting for {what}")
 
 
 class RecorderProcess:
@@ -38,7 +30,7 @@ class RecorderProcess:
             [sys.executable, "-m", "iotad.cli", "record", *keys, "-o", str(self.output),
              "--listen", f"tcp/127.0.0.1:{self.port}", "--ready-file", str(ready), "--quiet", *extra],
             cwd=ROOT, stderr=subprocess.PIPE, text=True)
-        wait_for(lambda: ready.exists() or self.proc.poll() is not None, 20, "the recorder to subscribe")
+        wait_for(lambda: ready.exists() or self.proc.poll() is not None, 20, what="the recorder to subscribe")
         assert self.proc.poll() is None, self.proc.stderr.read()
 
     def stop(self, sig=signal.SIGINT):
@@ -63,7 +55,7 @@ def session_for():
 
 
 def matched(publisher):
-    wait_for(lambda: publisher.matching_status.matching, 10, "the recorder's subscription to reach the publisher")
+    wait_for(lambda: publisher.matching_status.matching, 10, what="the recorder's subscription to reach the publisher")
 
 
 def test_publish_time_gaps_spec_and_clean_stop(tmp_path, session_for):
@@ -89,7 +81,7 @@ def test_publish_time_gaps_spec_and_clean_stop(tmp_path, session_for):
                                "value": {"violation": "bad_value", "message": "m"}}),
                   attachment=wire.encode_attachment(0))
         # the recorder flushes every 50 ms: read the growing file until all six are in it
-        wait_for(lambda: len(read_recording(recorder.output).messages) >= 6, 10, "the messages in the file")
+        wait_for(lambda: len(read_recording(recorder.output).messages) >= 6, 10, what="the messages in the file")
     finally:
         assert recorder.stop() == 0
         queryable.undeclare()
@@ -186,7 +178,7 @@ def test_trace_sourced_messages_gaps_and_injected_inputs(tmp_path, session_for):
         for event in (received, injected):
             trace.put(wire.encode(event), attachment=wire.encode_attachment(trace_seq))
             trace_seq += 1
-        wait_for(lambda: len(read_recording(recorder.output).messages) >= 8 + 7, 10, "the messages in the file")
+        wait_for(lambda: len(read_recording(recorder.output).messages) >= 8 + 7, 10, what="the messages in the file")
     finally:
         assert recorder.stop() == 0
     recording = read_recording(recorder.output)
@@ -216,7 +208,7 @@ def test_trace_sourced_records_a_node_and_iotad_pub_into_its_input(tmp_path, ses
         assert main(["pub", "iota/t/echo/inp", "7", "--count", "3", "--rate", "50", "--wait", "10",
                      "--connect", f"tcp/127.0.0.1:{recorder.port}"]) == 0
         wait_for(lambda: sum(m.topic == "iota/t/echo/out" for m in read_recording(recorder.output).messages) >= 3,
-                 10, "the echo's answers in the file")
+                 10, what="the echo's answers in the file")
     finally:
         node.send_signal(signal.SIGINT)
         node.wait(20)
@@ -298,7 +290,7 @@ def test_trace_bursts_are_split_into_events_and_malformed_ones_are_recorded(tmp_
                   attachment=wire.encode_attachment(40, 55))  # after what could not be counted: no gap
         wait_for(lambda: len(read_recording(recorder.output).malformed()) >= 3
                  and sum(m.topic == "iota/t/pub/ack/0" for m in read_recording(recorder.output).messages) >= 7,
-                 10, "the messages in the file")
+                 10, what="the messages in the file")
     finally:
         assert recorder.stop() == 0
     recording = read_recording(recorder.output)

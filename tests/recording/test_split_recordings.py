@@ -16,19 +16,11 @@ from iotad.host import wire
 from iotad.host.transport import open_session
 from iotad.recording.mcap_io import SET_METADATA, read_recording, set_files
 from launcher_helpers import free_port
+from node_harness import wait_for
 
 ROOT = Path(__file__).resolve().parents[2]
 KEY = "iota/s/src/out"
 PROBE = "iota/s/src/probe"  # published until every recorder hears the source; not compared
-
-
-def wait_for(predicate, timeout, what):
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if predicate():
-            return
-        time.sleep(0.01)
-    raise AssertionError(f"timed out after {timeout} s waiting for {what}")
 
 
 class Recorder:
@@ -41,7 +33,7 @@ class Recorder:
             [sys.executable, "-m", "iotad.cli", "record", "iota/s/**", "-o", str(output),
              "--listen", f"tcp/127.0.0.1:{self.port}", "--ready-file", str(ready), "--quiet", *extra],
             cwd=ROOT, stderr=subprocess.PIPE, text=True)
-        wait_for(lambda: ready.exists() or self.proc.poll() is not None, 30, "the recorder to subscribe")
+        wait_for(lambda: ready.exists() or self.proc.poll() is not None, 30, what="the recorder to subscribe")
         assert self.proc.poll() is None, self.proc.stderr.read()
 
     def stop(self, sig=signal.SIGINT) -> int:
@@ -119,9 +111,9 @@ def test_split_set_of_three_or_more_files_reads_back_as_the_unsplit_recording(tm
         for _ in range(4):  # a batch, then wait for the next file: at least 4 files with messages
             before = len(members(split.output))
             source.batch()
-            wait_for(lambda: len(members(split.output)) > before, 20, f"file {before + 1} of the set")
+            wait_for(lambda: len(members(split.output)) > before, 20, what=f"file {before + 1} of the set")
         wait_for(lambda: received(split.output) == source.sent and received(whole.output) == source.sent,
-                 20, "every message in both recordings")
+                 20, what="every message in both recordings")
     finally:
         source.close()
     assert split.stop() == 0 and whole.stop() == 0
@@ -153,10 +145,10 @@ def test_recorder_killed_mid_set_leaves_earlier_files_whole_and_the_last_recover
         before = len(members(recorder.output))
         while len([f for f in members(recorder.output) if received(f)]) < 3:
             source.batch()  # into the file in progress, then wait for the next one to begin
-            wait_for(lambda: len(members(recorder.output)) > before, 20, f"file {before + 1} of the set")
+            wait_for(lambda: len(members(recorder.output)) > before, 20, what=f"file {before + 1} of the set")
             before = len(members(recorder.output))
         source.batch()  # into the file just begun, which the kill cuts
-        wait_for(lambda: received(recorder.output) == source.sent, 20, "the last batch in the file")
+        wait_for(lambda: received(recorder.output) == source.sent, 20, what="the last batch in the file")
         assert recorder.stop(signal.SIGKILL) == -signal.SIGKILL
     finally:
         source.close()
