@@ -8,16 +8,7 @@ import time
 import pytest
 
 from iotad.host import wire
-from node_harness import ECHO, ROOT, Hub, Node, node_config, wait_for, wait_ready
-
-
-@pytest.fixture
-def hub():
-    hub = Hub()
-    try:
-        yield hub
-    finally:
-        hub.close()
+from node_harness import ECHO, ROOT, Node, node_config, wait_for, wait_ready
 
 
 @pytest.fixture

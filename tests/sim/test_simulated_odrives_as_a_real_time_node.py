@@ -2,21 +2,10 @@
 heartbeats at their period by the wall clock, an axis armed over CAN, and its watchdog."""
 import time
 
-import pytest
-
 from iotad.can import odrive
 from iotad.can.frame import CAN_FRAME, Frame
 from iotad.host import wire
-from node_harness import Hub, Node, node_config, wait_for, wait_ready
-
-
-@pytest.fixture
-def hub():
-    hub = Hub()
-    try:
-        yield hub
-    finally:
-        hub.close()
+from node_harness import Node, node_config, wait_for, wait_ready
 
 
 def frames(hub, node, name, node_id):
