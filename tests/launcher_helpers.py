@@ -16,6 +16,7 @@ import zenoh
 
 from iotad.host import wire
 from iotad.host.transport import open_session
+from iotad.launcher.processes import interrupt_then_kill
 
 ROOT = Path(__file__).resolve().parents[1]
 IOTAS = Path(__file__).resolve().parent / "system_iotas.py"
@@ -115,12 +116,7 @@ def stop_launcher(proc: subprocess.Popen, patience: float = 15.0) -> None:
     if proc.poll() is not None:
         return
     kids = children_of(proc.pid)
-    proc.send_signal(signal.SIGINT)
-    try:
-        proc.wait(patience)
-    except subprocess.TimeoutExpired:
-        os.killpg(proc.pid, signal.SIGKILL)
-        proc.wait(10)
+    interrupt_then_kill(proc, patience)
     for pid in kids:  # the launcher (or the parent-death signal) should have done it; be sure
         if not gone(pid):
             os.kill(pid, signal.SIGKILL)
