@@ -373,11 +373,21 @@ class _Life:
         start, last = self.runs[k]
         if t + grace <= last:
             return "lost", f"{who} was running until t={last:.6g}"
-        if k + 1 < len(self.runs):
-            return "lost", (f"sent while {who} was down: its last sign of life at t={last:.6g}, "
-                            f"restarted at t={self.runs[k + 1][0]:.6g}")
+        down = self.down(t, grace, who)
+        if down is not None:
+            return "lost", down
         return "unjudged", (f"in flight when the run ended: {who}'s last sign of life is at t={last:.6g}, "
                             f"less than {grace:g} after the send")
+
+    def down(self, t: float, grace: float, who: str) -> str | None:
+        """Why a message sent at `t` found `who` between two runs (dead, not yet restarted), or None."""
+        if self.virtual_end is not None or not self.seen:
+            return None
+        k = _last_at_or_before([run[0] for run in self.runs], t)
+        if k < 0 or k + 1 >= len(self.runs) or t + grace <= self.runs[k][1]:
+            return None
+        return (f"sent while {who} was down: its last sign of life at t={self.runs[k][1]:.6g}, "
+                f"restarted at t={self.runs[k + 1][0]:.6g}")
 
     def before_start(self, t: float) -> bool:
         """Sent before the first start of a real-time node's engine (never in virtual time)."""
@@ -957,7 +967,9 @@ class DeliveryChecker:
                         # not started could not hear it, whatever it heard later
                         verdict, reason = life.judge(t_sent, window, receiver)
                     elif k < last_taken.get(s, -1):
-                        verdict, reason = "lost", f"{receiver} received frames {s} sent after it"
+                        verdict = "lost"
+                        reason = (life is not None and life.down(t_sent, window, receiver)) or \
+                            f"{receiver} received frames {s} sent after it"
                     elif receiver in self.life:
                         verdict, reason = self.life[receiver].judge(t_sent, window, receiver)
                     else:

@@ -5,16 +5,23 @@ from pathlib import Path
 
 from system_iotas import pingpong_system
 
+# User-mode Linux runs every process on one emulated vCPU: under CI load a node can go seconds
+# without a heartbeat, and the default 3 s heartbeat_timeout would kill it as frozen.
+SYSTEM = "start_timeout = 60.0\nheartbeat_timeout = 15.0"
+
 
 def run_pingpong(can_tier, folder: Path, *, echo: str = "", bus: str = "") -> Path:
     """Runs it in `can_tier` and returns the recording. `echo` adds lines to the echo's
-    [[node]], `bus` to the [[can]] table (which says `interface = "env"`: the tier's bus)."""
+    [[node]], `bus` to the [[can]] table (which says `interface = "env"`: the tier's bus).
+    A node the launcher restarted fails the run here: these tests judge one life of each node."""
     system = folder / "pingpong.toml"
     system.write_text(pingpong_system(
-        0.05, system="start_timeout = 60.0  # nodes start slowly in user-mode Linux", echo=echo,
+        0.05, system=SYSTEM, echo=echo,
         bus='name = "can0"\ninterface = "env"\nstations = ["pinger", "echo"]\n' + bus))
     recording = folder / "pingpong.mcap"
-    can_tier.run([sys.executable, "-m", "iotad", "run", str(system), "--until", "6", "--after-live", "--plain",
-                  "--port", "0", "-o", str(recording), "--log-dir", str(folder / "logs")],
-                 timeout=180, cwd=str(folder)).check()
+    run = can_tier.run([sys.executable, "-m", "iotad", "run", str(system), "--until", "6", "--after-live", "--plain",
+                        "--port", "0", "-o", str(recording), "--log-dir", str(folder / "logs")],
+                       timeout=180, cwd=str(folder)).check()
+    restarts = [line for line in run.output.splitlines() if "restarted (#" in line or "killing pid" in line]
+    assert not restarts, "a node was killed or restarted:\n" + run.output[-3000:]
     return recording
