@@ -180,9 +180,14 @@ def motor_loop(seconds: float, rate: float = RATE, port: int = 7447) -> dict:
     arrivals: dict[tuple[int, int], float] = {}              # (setpoint k, node id) -> Set_Input_Pos time
     lock = threading.Lock()
 
+    # python-can's udp_multicast hands every frame back to its sender, so listen() already sees
+    # this process's own frames there; counting them here too would count them twice
+    own_frames_come_back = interface == "udp_multicast"
+
     def send(message):
         bus.send(message)
-        frames_seen.append((time.time(), message.arbitration_id, bytes(message.data), message.is_remote_frame))
+        if not own_frames_come_back:
+            frames_seen.append((time.time(), message.arbitration_id, bytes(message.data), message.is_remote_frame))
 
     def odrives():
         """Six axes, always in closed loop: heartbeats at 10 Hz, encoder estimates at rate each."""

@@ -28,12 +28,19 @@ INTERFACES = ("socketcan", "udp_multicast", "virtual")
 ENV = "env"  # not an interface: "the bus the environment names" (a tier's IOTAD_CAN_INTERFACE/CHANNEL)
 UDP_GROUP = "239.74.163.2"   # the project's IPv4 group for udp_multicast buses
 UDP_PORT = 43113
+OWN_WAIT, OWN_LIMIT = 2.0, 4096  # udp_multicast: s a sent frame may take to come back; sends remembered at most
+
 VIRTUAL_CHANNEL = "iotad"
 
 ENV_INTERFACE, ENV_CHANNEL, ENV_TIER = "IOTAD_CAN_INTERFACE", "IOTAD_CAN_CHANNEL", "IOTAD_CAN_TIER"
 
 TIER_HINT = ("run it with a CAN bus: `python -m iotad.can.tiers run -- CMD...` (vcan0 in a private "
              "network namespace, or in user-mode Linux where the kernel has no CAN; docs/can.md)")
+
+
+def _content(msg) -> tuple:
+    """What tells one frame from another: equal contents are interchangeable on a bus."""
+    return msg.arbitration_id, msg.is_extended_id, msg.is_remote_frame, msg.dlc, bytes(msg.data)
 
 
 class BusUnavailable(RuntimeError):
@@ -51,8 +58,13 @@ class RealTimeBus:
         self.name = f"{interface}:{channel}"
         self.sent = self.received = 0
         # udp_multicast hands every frame back to its sender: remember what was sent and drop
-        # one matching frame per send. Equal frames are interchangeable, so counting is enough.
-        self._own: deque | None = deque() if filter_own else None
+        # one matching frame per send. Equal frames are interchangeable, so counting is enough:
+        # frame content -> send times of those not back yet, so that a frame from another
+        # station costs one dict lookup (a control loop hears thousands a second).
+        self._own: dict[tuple, deque] | None = {} if filter_own else None
+        self._outstanding = 0            # sends not back yet, over every content
+        self._next_sweep = 0.0
+        self.clock = time.monotonic
 
     def describe(self) -> str:
         return f"{self.interface} bus on {self.channel}"
@@ -60,16 +72,15 @@ class RealTimeBus:
     def send(self, msg, timeout: float | None = None) -> None:
         """Send a `can.Message` or a `Frame`."""
         if isinstance(msg, Frame):
-            frame, msg = msg, msg.to_can_message()
-        elif hasattr(msg, "arbitration_id"):
-            frame = Frame.from_can_message(msg) if self._own is not None else None
-        else:
+            msg = msg.to_can_message()
+        elif not hasattr(msg, "arbitration_id"):
             raise FrameError(f"send needs a can.Message or a Frame, got {type(msg).__name__} {msg!r}")
         if self._own is not None:
-            now = time.monotonic()
-            self._own.append((now, frame))
-            while self._own and (len(self._own) > 4096 or now - self._own[0][0] > 2.0):
-                self._own.popleft()  # lost in a socket buffer: it will never come back
+            now = self.clock()
+            self._own.setdefault(_content(msg), deque()).append(now)
+            self._outstanding += 1
+            if self._outstanding > OWN_LIMIT or now >= self._next_sweep:
+                self._sweep(now)
         self.bus.send(msg, timeout=timeout)
         self.sent += 1
 
@@ -106,15 +117,29 @@ class RealTimeBus:
                 continue
 
     def _drop_own(self, message) -> bool:
-        try:
-            frame = Frame.from_can_message(message)
-        except FrameError:
+        content = _content(message)
+        times = self._own.get(content)
+        if not times:
             return False
-        for k, (_, mine) in enumerate(self._own):
-            if mine == frame:
-                del self._own[k]
-                return True
-        return False
+        times.popleft()
+        self._outstanding -= 1
+        if not times:
+            del self._own[content]
+        return True
+
+    def _sweep(self, now: float) -> None:
+        """Forget sends older than OWN_WAIT s: lost in a socket buffer, they will never come back."""
+        self._next_sweep = now + OWN_WAIT / 4
+        for content in list(self._own):
+            times = self._own[content]
+            while times and now - times[0] > OWN_WAIT:
+                times.popleft()
+                self._outstanding -= 1
+            if not times:
+                del self._own[content]
+        if self._outstanding > OWN_LIMIT:  # a flood within OWN_WAIT: none of it is worth a scan
+            self._own.clear()
+            self._outstanding = 0
 
     def fileno(self) -> int:
         return self.bus.fileno()
