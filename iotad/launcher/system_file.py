@@ -268,6 +268,7 @@ class _Parser:
         self.parse_buses(system)
         from iotad.launcher.bus_logger import add_bus_loggers
         add_bus_loggers(system)  # one implicit node per logged bus, named after it
+        self.check_after(system)  # after the loggers: a node may start after a bus's logger
         if check and not self.errors:
             self.load_channels(system)
             self.check_stations(system)
@@ -390,12 +391,6 @@ class _Parser:
         hosts_used = {n.host for n in system.nodes.values() if n.host is not None}
         if hosts_used and any(n.host is None for n in system.nodes.values()):
             self.error("[[node]]", "either every node names its host or none does")
-        for node in system.nodes.values():
-            for other in node.after:
-                if other not in system.nodes:
-                    self.error(node.entry, f"after names unknown node {other!r}")
-                elif other == node.name:
-                    self.error(node.entry, "a node cannot start after itself")
         if system.hub_host is None and hosts_used:
             system.hub_host = next(n.host for n in system.nodes.values())
         if system.hub_host is not None and hosts_used and system.hub_host not in hosts_used | set(system.hosts):
@@ -629,6 +624,16 @@ class _Parser:
                 system.allow_pub.update(Port(port.node, port.channel, k) for k in members)
 
     # ------------------------------------------------------------ [[can]]
+    def check_after(self, system: System) -> None:
+        for node in system.nodes.values():
+            for other in node.after:
+                if other == node.name:
+                    self.error(node.entry, "a node cannot start after itself")
+                elif other not in system.nodes:
+                    bus = system.buses.get(other)
+                    hint = f" (bus {other!r} has no logger node: it says log = false)" if bus is not None else ""
+                    self.error(node.entry, f"after names unknown node {other!r}{hint}")
+
     def parse_buses(self, system: System) -> None:
         for number, raw in enumerate(self.table_list("can"), 1):
             entry = f"[[can]] #{number}" + (f" (name={raw['name']!r})".replace("'", '"') if "name" in raw else "")

@@ -1004,7 +1004,10 @@ class DeliveryChecker:
         taken: dict[str, set[int]] = {s: set() for s in stations}
         last_taken: dict[str, int] = {}
         strays: list[tuple[float | None, str | None, tuple, Any]] = []
-        nameless: list[tuple[float | None, tuple]] = []  # a real bus's log: no station, and none sent it
+        # a real bus's log: no station, and none sent it; with the send time of the frame logged
+        # before it (the log is in bus order, so a changed frame was sent after that one)
+        nameless: list[tuple[float | None, tuple, float | None]] = []
+        previous_sent: float | None = None
         end = max((m.t for m in log if m.t is not None), default=None)
         # a real-time log is a node (iotad.can.frame_log.BusLogger): it logs only while it runs
         logger = self.life.get(bus) if not self.virtual and bus not in self.system.bus_nodes else None
@@ -1015,7 +1018,7 @@ class DeliveryChecker:
             if station is None:  # a listener that cannot tell the sender: the station that sent it first
                 heads = [(sent[x][waiting[x][frame][0]][0], x) for x in stations if waiting[x].get(frame)]
                 if not heads:
-                    nameless.append((t, frame))
+                    nameless.append((t, frame, previous_sent))
                     continue
                 s = min(heads)[1]
             else:
@@ -1029,7 +1032,7 @@ class DeliveryChecker:
                 continue
             k = queue.popleft()
             taken[s].add(k)
-            t_sent = sent[s][k][0]
+            t_sent = previous_sent = sent[s][k][0]
             if fifo and k < last_taken.get(s, -1):
                 self._finding(links[s], "reordered", t_sent, f"frame {_frame_text(frame)} went on the bus at "
                               f"t={t:.6g}, after a frame {s} sent later")
@@ -1058,12 +1061,17 @@ class DeliveryChecker:
             links[s].unexplained += 1
             self._finding(links[s], "unexplained", t, f"the bus carried frame {_frame_text(frame)} from {s}, "
                           f"and {s}'s trace holds no such can_tx")
-        for t, frame in nameless:  # heard on a real bus, no station's can_tx: altered, or not a node's
+        for t, frame, floor in nameless:  # heard on a real bus, no station's can_tx: altered, or not a node's
             twins = [(sent[x][k][0], x, k) for x in stations for k in range(len(sent[x]))
                      if k not in taken[x] and k not in altered[x] and sent[x][k][1][:3] == frame[:3]
                      and (t is None or sent[x][k][0] <= t + self.tolerance)]
-            if twins:  # the latest one sent by then: earlier ones may predate the logger
-                _, s, k = max(twins)
+            if twins:
+                # the first one sent after the frame logged before it; else the latest sent by then
+                # (earlier ones may predate the logger). Not simply the latest: a real-time log's
+                # time is when the logger published, and frames sent after the logger stopped are
+                # missing from it too.
+                later = [twin for twin in twins if floor is not None and twin[0] >= floor - window]
+                _, s, k = min(later) if later else max(twins)
                 altered[s].add(k)
                 links[s].altered += 1
                 self._finding(links[s], "altered", sent[s][k][0], f"{s} sent frame {_frame_text(sent[s][k][1])}, "

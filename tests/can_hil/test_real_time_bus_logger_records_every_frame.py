@@ -107,8 +107,11 @@ def test_a_frame_no_station_sent_is_a_note_and_a_changed_one_altered(pingpong, t
                         log_time=messages[k].log_time + 1)
         return messages[:k + 1] + [extra] + messages[k + 1:]
 
+    original = []
+
     def changed(messages):
         k = [i for i, m in enumerate(messages) if m.topic == LOG and m.value["id"] == 0x10][5]
+        original.append(messages[k].value["data"][0])
         return messages[:k] + [with_frame(messages[k], data=[0xEE] + [0] * 7)] + messages[k + 1:]
 
     report = check_delivery(read_recording(rewrite(pingpong, tmp_path / "made_up.mcap", made_up)))
@@ -119,3 +122,7 @@ def test_a_frame_no_station_sent_is_a_note_and_a_changed_one_altered(pingpong, t
     report = check_delivery(read_recording(rewrite(pingpong, tmp_path / "changed.mcap", changed)))
     assert {(f.code, f.link) for f in new_problems(pingpong, report)} == {
         ("altered", "can can0: pinger -> (bus)"), ("altered", "can0.frames -> (wire)")}
+    # the frame named is the one changed, not another of its id missing from the log (the pinger's
+    # frames sent after the logger stopped are missing too)
+    altered = next(f for f in report.findings if f.code == "altered" and f.link == "can can0: pinger -> (bus)")
+    assert f"pinger sent frame 0x010 [{original[0]:02X}], the bus carried 0x010 [EE]" in altered.message

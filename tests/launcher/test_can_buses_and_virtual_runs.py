@@ -68,6 +68,16 @@ def test_a_node_cannot_sit_on_two_buses(tmp_path):
     assert "node 'echo' is already a station of bus 'can0'" in errors(tmp_path, bus=bus)
 
 
+def test_a_node_may_start_after_a_bus_logger_and_is_told_when_the_bus_has_none(tmp_path):
+    path = tmp_path / "pingpong.toml"
+    path.write_text(pingpong_system(0.01, echo='after = ["can0"]'))
+    assert load_system(path).nodes["echo"].after == ["can0"]  # the logger of can0 is a node
+    path.write_text(pingpong_system(0.01, echo='after = ["can0"]', bus=GOOD_BUS + "\nlog = false"))
+    with pytest.raises(SystemFileError) as caught:
+        load_system(path)
+    assert "after names unknown node 'can0' (bus 'can0' has no logger node: it says log = false)" in str(caught.value)
+
+
 def test_iotad_run_check_accepts_the_bus(tmp_path, capsys):
     assert main(["run", "--check", str(write(tmp_path))]) == 0
     assert "ok: system" in capsys.readouterr().out
