@@ -71,8 +71,10 @@ def test_every_axis_is_idle_with_a_watchdog_error_within_100_ms_of_its_last_comm
 def test_nothing_moves_between_the_watchdog_and_the_restart(run):
     # The brake is a stiff spring, not a wall (PyBullet's position motor, sim/worlds/arm.py): it
     # takes the joint where it engaged and gives a little under gravity, 0.5-6 mrad by the pose
-    # the kill caught, settled within 0.4 s of the axis's time. It may give at most 10 mrad;
-    # after BRAKE_SETTLE nothing may move (the virtual-time watchdog test has the same bound).
+    # the kill caught, and a joint braked while moving stops within its braking distance (3 mrad
+    # at 0.9 rad/s for the heaviest), settled within 0.4 s of the axis's time. It may give at
+    # most 10 mrad; after BRAKE_SETTLE nothing may move (the virtual-time watchdog test has the
+    # same bound).
     for node, axis in run["after"]["axes"].items():
         held = [turns for _, turns in axis["held"]]
         still = [turns for since, turns in axis["held"] if since >= BRAKE_SETTLE]
