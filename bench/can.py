@@ -150,6 +150,24 @@ log = false  # no bus logger process: the bench measures the motor node alone (t
 JOINTS, RATE, SCALE = 6, 500.0, 1e-4   # setpoint k carries position k * SCALE rad (mod 20000)
 
 
+def motor_pid() -> int:
+    """The motor node's process (the launcher's child running its node host)."""
+    for entry in Path("/proc").iterdir():
+        try:
+            argv = (entry / "cmdline").read_bytes().split(b"\0")
+        except OSError:
+            continue
+        if b"iotad.host" in argv and any(a.endswith(b"motor.json") for a in argv):
+            return int(entry.name)
+    raise SystemExit("the motor node's process is not to be found")
+
+
+def cpu_seconds(pid: int) -> float:
+    """User and system CPU time of a process, every thread."""
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
 def motor_loop(seconds: float, rate: float = RATE, port: int = 7447) -> dict:
     """Part 2: the motor node fed at `rate`, this process as its six ODrives."""
     import math
@@ -250,6 +268,7 @@ def motor_loop(seconds: float, rate: float = RATE, port: int = 7447) -> dict:
         with lock:
             arrivals.clear()
         first, begin = k, time.time()
+        node_cpu = cpu_seconds(motor_pid())
         frames_seen.clear()
         start = time.perf_counter()
         late_publish = 0
@@ -264,6 +283,7 @@ def motor_loop(seconds: float, rate: float = RATE, port: int = 7447) -> dict:
             elif delay < -1.0 / rate:
                 late_publish += 1
         end = time.time()
+        node_cpu = cpu_seconds(motor_pid()) - node_cpu
         time.sleep(0.5)   # the last frames
     finally:
         stop.set()
@@ -289,7 +309,7 @@ def motor_loop(seconds: float, rate: float = RATE, port: int = 7447) -> dict:
             "missed": missed, "missed_pct": 100.0 * missed / max(1, len(published)),
             "lost": sum(1 for k in published if arrivals.get((k, 1)) is None), "late_publish": late_publish,
             "frames": sum(1 for t, *_ in frames_seen if begin <= t <= end), "seconds": span,
-            "bus_load_pct": 100.0 * bits / (span * 1e6)}
+            "bus_load_pct": 100.0 * bits / (span * 1e6), "node_cpu_pct": 100.0 * node_cpu / span}
 
 
 def virtual_arm(seconds: float = 5.0) -> dict:
@@ -379,6 +399,7 @@ def main() -> int:
               f"{motor['late_publish']} published more than a cycle late)")
         print(f"  bus load: {motor['bus_load_pct']:.1f} % of 1 Mbit/s ({motor['frames']} frames, "
               f"{motor['frames'] / motor['seconds']:.0f} frames/s)")
+        print(f"  motor node CPU: {motor['node_cpu_pct']:.0f} % of one core (every thread of its process)")
     arm = virtual_arm()
     print(f"\nexamples/arm_can.toml in virtual time, one process (this host, no tier): {arm['virtual_s']:.0f} s "
           f"in {arm['wall_s']:.2f} s wall = {arm['speed']:.1f}x real time ({arm['events']} trace events)")
