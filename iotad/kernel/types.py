@@ -268,9 +268,7 @@ class StructType(Type):
         try:
             for name, build in self._built_fields:
                 v = plain[name]
-                if v is None:  # check lets an unset field through; from_plain does not
-                    raise BadValue(name)
-                object.__setattr__(new, name, build(v))
+                object.__setattr__(new, name, None if v is None else build(v))
         except BadValue:  # here or in a field: the slow path says what, from the top
             return self.from_plain(plain)
         return new
@@ -316,7 +314,8 @@ class StructType(Type):
         new = object.__new__(self.record)
         for name, ftype in self.fields.items():
             try:
-                object.__setattr__(new, name, ftype.from_plain(plain[name]))
+                # an unset field (NULL in the paper) passes check and goes out as None: it comes in so
+                object.__setattr__(new, name, None if plain[name] is None else ftype.from_plain(plain[name]))
             except BadValue as exc:
                 raise BadValue(f"{self.name}.{name}: {exc}") from None
         return new
@@ -482,14 +481,12 @@ def _compile_struct(struct: StructType) -> None:
             check.append(f"        if v{k} is not None:")
         check.append(f"            v{k} = c{k}(v{k})")
         build.append(f"        v = plain[{name!r}]")
-        build.append("        if v is None:")
-        build.append("            raise BadValue  # check lets an unset field through; from_plain does not")
         if kind in (IntType, BoolType, EnumType):
-            build.append(f"        r.{name} = v")
+            build.append(f"        r.{name} = v")  # an unset field (None) included
         elif kind is FloatType:
-            build.append(f"        r.{name} = float(v)")
+            build.append(f"        r.{name} = None if v is None else float(v)")
         else:
-            build.append(f"        r.{name} = b{k}(v)")
+            build.append(f"        r.{name} = None if v is None else b{k}(v)")
         init.append(f"        self.{name} = fields[{name!r}]")
     items = ", ".join(f"{name!r}: v{k}" for k, name in enumerate(struct.field_names))
     source = "\n".join([
