@@ -9,7 +9,7 @@ URDF order, plus "gripper" on the xArm6. How each is driven:
   `brake_torque` times the joint's effort limit (more solver iterations while any joint is
   braked: with 10 the chain creeps under gravity). A brake twice as strong as the drive (the
   default 2) stops the heaviest joint braked at 0.9 rad/s within 3 mrad; as strong as the drive,
-  it overshot 12 mrad, 20 mrad in a slowed real-time run, before it pulled back. The
+  it overshot 12 mrad, 21 mrad in a slowed real-time run, before it pulled back. The
   URDF's joint damping (1 Nm s/rad) is replaced by `joint_damping`: PyBullet applies damping
   explicitly, and 1 Nm s/rad on the 1.6e-3 kg m^2 wrist is unstable at 240 Hz.
 - The gripper: its six finger joints are mimic joints of `drive_joint` (PyBullet ignores
