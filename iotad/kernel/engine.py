@@ -227,8 +227,7 @@ class Engine:
             return
         self._started = True
         now = self.clock.now()
-        for instance in self.instances:
-            self._evaluate(instance, now)
+        self._evaluate_all(self.instances, now)
 
     def post(self, path: str | None, channel: str, value: Any = None, index: int | None = None,
              t: float | None = None, meta: Any = None) -> None:
@@ -399,29 +398,11 @@ class Engine:
         self._evaluate_all(affects, now)
 
     def _evaluate(self, instance: ActionInstance, now: float) -> None:
-        when = instance.when
-        if when is None:
-            holds = True
-        else:
-            try:
-                holds = when()
-                instance.failing = False
-            except Exception as exc:  # noqa: BLE001
-                # Reported when it starts failing, not at every evaluation: how often a
-                # precondition is evaluated is the engine's business, not part of the trace.
-                if not instance.failing:
-                    self._runtime_error(now, instance, "when", exc)
-                    instance.failing = True
-                holds = False
-        if holds:
-            if not instance.enabled:
-                self._enable(instance, now)
-        elif instance.enabled:
-            instance.enabled = False
-            instance.gen += 1  # the window is dropped; its heap entry goes stale
+        self._evaluate_all((instance,), now)
 
     def _evaluate_all(self, instances: list[ActionInstance], now: float, skip: Any = None) -> None:
-        """`_evaluate` of each of `instances` but `skip`, inlined: the engine's hottest loop."""
+        """Each of `instances` but `skip`: enable it if its precondition now holds (its window
+        opens), drop its window if it no longer does. The engine's hottest loop."""
         for instance in instances:
             if instance is skip:
                 continue
@@ -431,7 +412,9 @@ class Engine:
             else:
                 try:
                     holds = when()
-                except Exception as exc:  # noqa: BLE001 - as in _evaluate
+                except Exception as exc:  # noqa: BLE001
+                    # Reported when it starts failing, not at every evaluation: how often a
+                    # precondition is evaluated is the engine's business, not part of the trace.
                     if not instance.failing:
                         self._runtime_error(now, instance, "when", exc)
                         instance.failing = True
@@ -443,7 +426,7 @@ class Engine:
                     self._enable(instance, now)
             elif instance.enabled:
                 instance.enabled = False
-                instance.gen += 1
+                instance.gen += 1  # the window is dropped; its heap entry goes stale
 
     def _enable(self, instance: ActionInstance, now: float) -> None:
         instance.enabled = True
