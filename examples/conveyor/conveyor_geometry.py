@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 BELT_X = 0.45            # m: the belt's centre line
 BELT_TOP = 0.10          # m: its surface
 CUBE = 0.04              # m: cube edge
@@ -29,29 +31,36 @@ def hand_pose(x: float, y: float, z_tool: float) -> dict:
 
 def segment(rgb: bytes, width: int, height: int) -> list[tuple[int, float, float, int]]:
     """Coloured blobs of an image: (colour class, mean column, mean row, pixels), biggest first.
-    A pixel belongs to a class when it is saturated and nearest that class's colour; blobs are
-    4-connected components of one class."""
+    A pixel belongs to a class when it is saturated and nearest that class's colour (its channels
+    and the class's each scaled to a peak of 1; the first class on a tie); blobs are 4-connected
+    components of one class.
+
+    Classifying pixels is numpy (a camera frame is 1,600 of them, ten a second: per pixel in
+    Python it was 7% of the conveyor's virtual-time run); the components walk only the saturated
+    pixels, a few dozen."""
+    pixels = np.frombuffer(rgb, dtype=np.uint8, count=3 * width * height).reshape(-1, 3) / 255.0
+    peak, low = pixels.max(axis=1), pixels.min(axis=1)
+    saturated = np.flatnonzero(peak - low >= MIN_SATURATION)
     labels = [-1] * (width * height)
-    for p in range(width * height):
-        r, g, b = rgb[3 * p] / 255.0, rgb[3 * p + 1] / 255.0, rgb[3 * p + 2] / 255.0
-        if max(r, g, b) - min(r, g, b) < MIN_SATURATION:
-            continue
-        norm = max(r, g, b)
-        r, g, b = r / norm, g / norm, b / norm
-        labels[p] = min(range(len(REFERENCE)), key=lambda k: _distance((r, g, b), REFERENCE[k]))
-    blobs, seen = [], [False] * (width * height)
-    for start in range(width * height):
-        if labels[start] < 0 or seen[start]:
+    if saturated.size:
+        scaled = pixels[saturated] / peak[saturated, None]
+        distances = np.stack([((scaled[:, 0] - r) ** 2 + (scaled[:, 1] - g) ** 2) + (scaled[:, 2] - b) ** 2
+                              for r, g, b in _SCALED_REFERENCE], axis=1)
+        for p, colour in zip(saturated.tolist(), distances.argmin(axis=1).tolist()):
+            labels[p] = colour
+    blobs, seen = [], set()
+    for start in saturated.tolist():
+        if start in seen:
             continue
         colour, stack, members = labels[start], [start], []
-        seen[start] = True
+        seen.add(start)
         while stack:
             p = stack.pop()
             members.append(p)
             col, row = p % width, p // width
             for q, ok in ((p - 1, col > 0), (p + 1, col < width - 1), (p - width, row > 0), (p + width, row < height - 1)):
-                if ok and not seen[q] and labels[q] == colour:
-                    seen[q] = True
+                if ok and q not in seen and labels[q] == colour:
+                    seen.add(q)
                     stack.append(q)
         if len(members) >= MIN_PIXELS:
             blobs.append((colour, sum(p % width for p in members) / len(members),
@@ -60,9 +69,7 @@ def segment(rgb: bytes, width: int, height: int) -> list[tuple[int, float, float
     return blobs
 
 
-def _distance(a, b) -> float:
-    peak = max(b)
-    return sum((x - y / peak) ** 2 for x, y in zip(a, b))
+_SCALED_REFERENCE = tuple(tuple(c / max(colour) for c in colour) for colour in REFERENCE)
 
 
 def pixel_ray(col: float, row: float, width: int, height: int, fov: float, forward, up):

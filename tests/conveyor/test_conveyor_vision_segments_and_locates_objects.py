@@ -93,3 +93,33 @@ def test_the_image_type_checks_sizes_and_records_base64():
         RGB_IMAGE.from_plain("not base64 at all!")
     with pytest.raises(BadValue, match="expected base64 text"):
         RGB_IMAGE.from_plain(12)
+
+
+def _image(width, height, pixels):
+    """Grey (unsaturated) everywhere but at `pixels`: {(col, row): (r, g, b)}."""
+    rgb = bytearray([128] * (3 * width * height))
+    for (col, row), colour in pixels.items():
+        rgb[3 * (row * width + col):3 * (row * width + col) + 3] = bytes(colour)
+    return bytes(rgb)
+
+
+def test_segmentation_rules_on_a_drawn_image():
+    # a 6x4 image: a red L of 3 pixels (4-connected), a red pixel touching it only diagonally (its
+    # own blob, too small), a dark green pair on the right edge (its channels 0.51 apart: saturated;
+    # scaled to its peak, nearest green), a pale pixel below the saturation threshold (not a blob)
+    red, green = (230, 25, 25), (10, 140, 10)
+    pixels = {(0, 0): red, (0, 1): red, (1, 1): red, (2, 2): red,
+              (5, 2): green, (5, 3): green, (3, 0): (200, 150, 150)}
+    blobs = segment(_image(6, 4, pixels), 6, 4)
+    assert blobs == [(0, 1 / 3, 2 / 3, 3), (1, 5.0, 2.5, 2)]
+
+
+def test_each_reference_colour_is_its_own_class_and_brightness_does_not_matter():
+    from conveyor_geometry import MIN_SATURATION, REFERENCE
+    for k, colour in enumerate(REFERENCE):
+        for scale in (1.0, 0.7, 0.3):  # 0.3: too dark to be saturated
+            rgb = tuple(round(255 * c * scale) for c in colour)
+            saturated = (max(rgb) - min(rgb)) / 255 >= MIN_SATURATION
+            assert saturated == (scale > 0.5), (colour, scale)
+            blobs = segment(_image(3, 3, {(1, 1): rgb, (1, 2): rgb}), 3, 3)
+            assert blobs == ([(k, 1.0, 1.5, 2)] if saturated else []), (colour, scale)
