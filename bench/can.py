@@ -295,17 +295,23 @@ def motor_loop(seconds: float, rate: float = RATE, port: int = 7447) -> dict:
             session.close()
         interrupt_then_kill(launcher, 20)
         bus.shutdown()
-    latencies, missed = [], 0
+    latencies, last_frames, spreads, missed = [], [], [], 0
     period = 1.0 / rate
     for k, sent in published.items():
         got = [arrivals.get((k, node)) for node in range(1, JOINTS + 1)]
         if got[0] is not None:
             latencies.append(got[0] - sent)
+        if all(t is not None for t in got):
+            # the hop to the node (first frame) and the node's own sending (first to last frame)
+            last_frames.append(max(got) - sent)
+            spreads.append(max(got) - min(got))
         if any(t is None or t - sent > period for t in got):
             missed += 1
     bits = sum(frame_bits(i, False, rtr, data) for t, i, data, rtr in frames_seen if begin <= t <= end)
     span = end - begin
-    return {"setpoint_to_frame": percentiles(latencies) if latencies else None, "setpoints": len(published),
+    return {"setpoint_to_frame": percentiles(latencies) if latencies else None,
+            "setpoint_to_last_frame": percentiles(last_frames) if last_frames else None,
+            "first_to_last_frame": percentiles(spreads) if spreads else None, "setpoints": len(published),
             "missed": missed, "missed_pct": 100.0 * missed / max(1, len(published)),
             "lost": sum(1 for k in published if arrivals.get((k, 1)) is None), "late_publish": late_publish,
             "frames": sum(1 for t, *_ in frames_seen if begin <= t <= end), "seconds": span,
@@ -394,6 +400,11 @@ def main() -> int:
             print(f"  setpoint published -> Set_Input_Pos on the bus: p50 {hop['p50_us'] / 1000:.3f} ms, "
                   f"p99 {hop['p99_us'] / 1000:.3f} ms, max {hop['max_us'] / 1000:.1f} ms "
                   f"(x{hop['p50_us'] / raw['p50_us']:.1f} / x{hop['p99_us'] / raw['p99_us']:.1f} the raw round trip)")
+        last, spread = motor.get("setpoint_to_last_frame"), motor.get("first_to_last_frame")
+        if last and spread:
+            print(f"  ... to the last of its {JOINTS} frames: p50 {last['p50_us'] / 1000:.3f} ms, "
+                  f"p99 {last['p99_us'] / 1000:.3f} ms; first to last frame: p50 {spread['p50_us'] / 1000:.3f} ms, "
+                  f"p99 {spread['p99_us'] / 1000:.3f} ms (the node's own sending)")
         print(f"  control cycles missed: {motor['missed']} of {motor['setpoints']} = {motor['missed_pct']:.2f} % "
               f"(a setpoint whose {JOINTS} frames were not all on the bus within a cycle, {1000 / args.rate:g} ms; {motor['lost']} never came; "
               f"{motor['late_publish']} published more than a cycle late)")

@@ -229,12 +229,14 @@ class NodeHost:
         seq = port[1]
         port[1] = seq + 1
         send_ns = time.time_ns()
-        port[0].put(wire.encode(event["value"]), attachment=wire.encode_attachment(seq, send_ns))
-        event["key"], event["seq"], event["send_ns"] = port[2], seq, send_ns
         if self.can is not None and (event["iota"], event["action"], event["index"]) == self._can_source:
+            # the frame first: the bus is the latency-critical path (a motor setpoint's frames go
+            # out one firing each), the zenoh copy is for watchers and the recorder
             problem = self.can.send(event["value"])
             if problem is not None:
                 self._report(event["t"], CAN_TX, None, "can_send_failed", problem)
+        port[0].put(wire.encode(event["value"]), attachment=wire.encode_attachment(seq, send_ns))
+        event["key"], event["seq"], event["send_ns"] = port[2], seq, send_ns
 
     def _last_can_frames(self) -> None:
         """Frames the IOTA asks to send as it stops (`final_can_frames()`, e.g. a motor node's
