@@ -263,9 +263,25 @@ class Engine:
                 break  # the deadline was `until`, or nothing is left to happen
         return self.trace
 
-    def _fire_due(self, now: float) -> None:
+    def fire_due(self, count: int) -> int:
+        """Fire at most `count` of the action instances due at the clock's present time, in the
+        order `run` fires them; returns how many fired. Replay puts a recorded input after the
+        firings that came before it at its instant this way (`deliver` then delivers it)."""
+        self.start()
+        try:
+            return self._fire_due(self.clock.now(), count)
+        except Halted:
+            return 0
+
+    def deliver(self, path: str | None, channel: str, value: Any = None, index: int | None = None) -> None:
+        """An external input at the clock's present time, at once (`post` queues one instead)."""
+        self.start()
+        self._external_input((path, channel, index, value, None), self.clock.now())
+
+    def _fire_due(self, now: float, limit: float = INF) -> int:
         heap = self._heap
-        while heap and heap[0][0] <= now:
+        fired = 0
+        while fired < limit and heap and heap[0][0] <= now:
             fire_at, _, gen, instance = heapq.heappop(heap)
             if instance.gen != gen or not instance.enabled:
                 continue
@@ -285,6 +301,8 @@ class Engine:
                 self.halted = True
                 raise Halted()
             self._fire(instance, now)
+            fired += 1
+        return fired
 
     def _fire(self, instance: ActionInstance, now: float) -> None:
         leaf, action, index, iota = instance.leaf, instance.action, instance.index, instance.iota

@@ -8,6 +8,7 @@ by `tolerance` (a real process fires a little after its window opens, the replay
 """
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass
 from typing import Any, Callable
@@ -72,13 +73,31 @@ def replay_node(recording: Recording, node: str, tolerance: float = 0.01,
     # Inputs bound to an output inside the node (a composite) are delivered by that output's
     # firing in the replay too: their recorded input events are not posted again.
     bound = {id(target) for slot in engine.slots.values() for target in slot.targets}
+    # Each input goes in where the recording has it: after what fired before it, also at its
+    # own instant. In a virtual run of a whole system, an input and the node's own firings often
+    # share an instant, in the order of the system's actions (another node's output may come
+    # after this node's); the node alone would take the input first.
+    instant, fired_then = None, 0   # the instant of the last event, local firings in it so far
+    fired_at_t = 0                  # local firings of the replay at the clock's instant
     for event in events:
-        if event.get("kind") == "input":
-            slot = engine.slots.get((mapping[event.get("iota", "")], event["action"], event.get("index")))
-            if slot is not None and id(slot) in bound:
-                continue
-            engine.post(mapping[event.get("iota", "")], event["action"], event.get("value"), event.get("index"),
-                        t=float(event["t"]))
+        t, kind = float(event["t"]), event.get("kind")
+        if t != instant:
+            instant, fired_then = t, 0
+        if kind in ("output", "internal"):
+            fired_then += 1
+        if kind != "input":
+            continue
+        slot = engine.slots.get((mapping[event.get("iota", "")], event["action"], event.get("index")))
+        if slot is not None and id(slot) in bound:
+            continue
+        if engine.now() < t:
+            engine.run(math.nextafter(t, -math.inf))  # everything due before its instant
+            engine.clock.wait(t)                       # the clock at its instant, nothing fired yet
+            fired_at_t = 0
+        fired_at_t += engine.fire_due(fired_then - fired_at_t) if fired_then > fired_at_t else 0
+        if engine.halted:
+            break
+        engine.deliver(mapping[event.get("iota", "")], event["action"], event.get("value"), event.get("index"))
     end = max(float(e["t"]) for e in events)
     engine.run(end + tolerance)
     recorded = [e for e in events if e.get("kind") in kinds]
