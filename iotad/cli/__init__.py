@@ -185,9 +185,10 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 0
+    from iotad.recording.mcap_io import RecordingError
     try:
         return int(args.func(args) or 0)
-    except CliError as exc:
+    except (CliError, RecordingError) as exc:  # bad input, a damaged recording among it
         print(f"iotad: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

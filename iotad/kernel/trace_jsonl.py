@@ -22,7 +22,12 @@ def dumps(event: dict) -> str:
     t = ordered["t"]
     if isinstance(t, float) and math.isfinite(t) and t == int(t) and abs(t) < 1e15:
         ordered["t"] = float(t)
-    return json.dumps(ordered, default=_default, allow_nan=False, ensure_ascii=False)
+    try:
+        return json.dumps(ordered, default=_default, allow_nan=False, ensure_ascii=False)
+    except ValueError:
+        # an infinite value (a field declared `in [0, inf]` may be inf): JSON has no token for
+        # it; written as `Infinity`, the extension that Python's json (`read` here) reads back
+        return json.dumps(ordered, default=_default, allow_nan=True, ensure_ascii=False)
 
 
 def write(events: Iterable[dict], out: IO[str]) -> int:

@@ -251,6 +251,8 @@ def recorded_system(recording: Recording) -> RecordedSystem | str:
             data = json.loads(json_text)
         except ValueError as exc:
             return f"the recorded system.json is not JSON: {exc}"
+        if not isinstance(data, dict):
+            return f"the recorded system.json is a {type(data).__name__}, not a JSON object"
         pairs = [tuple(p) for p in data.get("bindings", []) if isinstance(p, (list, tuple)) and len(p) == 2]
         root = recording.info.get("root") or data.get("name") or name
         prefix = f"{root}/"

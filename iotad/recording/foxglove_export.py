@@ -9,7 +9,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from iotad.recording.mcap_io import McapSink, Recording, unpackb
+from iotad.recording.mcap_io import McapSink, Recording
 
 
 def _is_object_schema(schema: dict) -> bool:
@@ -52,7 +52,7 @@ def export_json(recording: Recording, output: str | Path) -> int:
                 channel_id = sink.writer.register_channel(channel.topic, "json", schema_id, dict(channel.metadata))
                 entry = ids[message.topic] = (channel_id, wrap)
             channel_id, wrap = entry
-            value = unpackb(message.data)
+            value = message.value  # a damaged payload: RecordingError, naming the message
             if wrap or not isinstance(value, dict):
                 value = {"value": value}
             data = json.dumps(value, separators=(",", ":"), default=repr).encode()

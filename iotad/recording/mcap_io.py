@@ -26,6 +26,7 @@ import importlib.util
 import inspect
 import json
 import linecache
+import math
 import struct
 import sys
 import time
@@ -77,6 +78,24 @@ PERMISSIVE_SCHEMA: dict = {"title": "any msgpack value"}  # unknown type: anythi
 
 class RecordingError(Exception):
     """A file is not a readable iotad recording (one-line message)."""
+
+
+def _trace_event_problem(event: dict) -> str:
+    """Why a decoded `@trace` map is not a trace event the tools can read ("" if it is one)."""
+    t = event.get("t")
+    if t.__class__ not in (int, float) or not math.isfinite(t):
+        return f"its time t is {t!r}, not a finite number"
+    for name in ("kind", "action"):
+        if not isinstance(event.get(name), str):
+            return f"its {name} is {event.get(name)!r}, not a string"
+    if not isinstance(event.get("iota", ""), str):
+        return f"its iota is {event.get('iota')!r}, not a string"
+    index = event.get("index")
+    if index is not None and index.__class__ is not int:
+        return f"its index is {index!r}, not an integer"
+    if event["kind"] == "violation" and not isinstance(event.get("value"), dict):
+        return f"a violation whose value is {event.get('value')!r}, not a map"
+    return ""
 
 
 def packb(value: Any) -> bytes:
@@ -677,7 +696,12 @@ class RecordedMessage:
 
     @property
     def value(self) -> Any:
-        return unpackb(self.data)
+        try:
+            return unpackb(self.data)
+        except Exception as exc:  # noqa: BLE001 - msgpack raises several kinds for bad bytes
+            raise RecordingError(f"message #{self.sequence} on {self.topic} (log time {self.log_time} ns): "
+                                 f"its payload is not msgpack ({type(exc).__name__}: {str(exc) or 'malformed'}); "
+                                 f"the recording is damaged") from None
 
 
 @dataclass
@@ -717,7 +741,8 @@ class Recording:
                     spec = json.loads(attachment.data)
                 except ValueError:
                     continue
-                out[attachment.name[5:-5]] = spec
+                if isinstance(spec, dict):  # anything else is damage: the node reads as having no spec
+                    out[attachment.name[5:-5]] = spec
         for node, t in self.start_times().items():
             if node in out and isinstance(out[node], dict):
                 out[node]["engine_start"] = t
@@ -787,6 +812,10 @@ class Recording:
                 continue
             event = message.value
             if isinstance(event, dict):
+                problem = _trace_event_problem(event)
+                if problem:
+                    raise RecordingError(f"message #{message.sequence} on {message.topic} (log time "
+                                         f"{message.log_time} ns) is no trace event: {problem}; the recording is damaged")
                 if not starts and event.get("kind") == wire.START_KIND:
                     continue
                 event.setdefault("node", parsed[1])

@@ -56,7 +56,14 @@ def node_root(recording: Recording, node: str) -> Any:
     if node not in specs:
         known = ", ".join(sorted(specs)) or "none"
         raise RecordingError(f"no spec of node {node!r} in {recording.path} (nodes with specs: {known})")
-    return build_node(specs[node], node)
+    try:
+        return build_node(specs[node], node)
+    except RecordingError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - a stored spec that no longer builds: ESPRIT, Python, params
+        first = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+        raise RecordingError(f"the spec of node {node!r} stored in {recording.path} does not build: "
+                             f"{type(exc).__name__}: {first}") from None
 
 
 def replay_node(recording: Recording, node: str, tolerance: float = 0.01,

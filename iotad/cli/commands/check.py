@@ -132,6 +132,16 @@ def run(args: argparse.Namespace) -> int:
         raise CliError(f"{args.file} holds no node specs: nothing to check against")
     all_ok = True
     limit = 10**9 if args.all else 20
+    # What cannot be checked is said, and is no pass: a node without a (readable) spec, a
+    # recording cut short (its end is missing, and with it what happened there).
+    unchecked = [] if args.node else _unchecked(recording, specs)
+    for node in unchecked:
+        print(f"{node}: NOT CHECKED: the recording holds no readable spec of it "
+              f"(its spec/{node}.json attachment is missing or not a JSON object)")
+    if not recording.complete:
+        print(f"{args.file}: INCOMPLETE recording ({recording.truncated_reason or 'cut short'}): only what it "
+              f"holds is checked, and a window still open where it ends is not judged; "
+              f"'iotad recover {args.file}' rewrites it whole")
     for node in nodes:
         try:
             root = node_root(recording, node)
@@ -153,10 +163,22 @@ def run(args: argparse.Namespace) -> int:
         if delivery.checked:
             delivered = delivery.ok
             all_ok &= delivery.ok
-    if all_ok:
+    if all_ok and not unchecked and recording.complete:
         verdict = "every node conforms to its spec" + (", every message was delivered as sent" if delivered else "")
     else:
-        what = [w for w, bad in (("conformance", not conforms), ("delivery", delivered is False)) if bad]
+        what = [w for w, bad in (("conformance", not conforms), ("delivery", delivered is False),
+                                 (f"{len(unchecked)} node(s) not checked", unchecked),
+                                 ("the recording is incomplete", not recording.complete)) if bad]
         verdict = f"PROBLEMS FOUND ({' and '.join(what)})"
     print(f"check: {verdict} (tolerance {tolerance:g})")
-    return 0 if all_ok else 1
+    return 0 if all_ok and not unchecked and recording.complete else 1
+
+
+def _unchecked(recording, specs: dict) -> list[str]:
+    """Nodes the recording says ran (listed in its metadata, or with events of their own on
+    @trace) but holds no readable spec of. A virtual run's root composite is no node: the
+    engine's violations about its external inputs are all it records."""
+    listed = recording.info.get("nodes")
+    named = {n for n in listed if isinstance(n, str)} if isinstance(listed, list) else set()
+    active = {e.get("node") for e in recording.trace() if e.get("kind") in ("input", "output", "internal")}
+    return sorted(n for n in named | active if n and n not in specs)

@@ -1,0 +1,142 @@
+"""A damaged recording is bad input: every reader says which message or attachment is damaged,
+in one line with exit status 2, never an internal error; and `iotad check` never passes what it
+could not check (a node without a readable spec, a recording cut short)."""
+import json
+import math
+
+import pytest
+
+from iotad.cli import main
+from iotad.kernel.trace_jsonl import dumps, read
+from iotad.recording.mcap_io import McapSink, packb, read_recording, record_run
+from recorded_systems import COMPOSITE, figure2
+
+READERS = [["info"], ["check"], ["replay", "--node", "scheduler"], ["export", "--json", "-o", "{out}"]]
+
+
+@pytest.fixture(scope="module")
+def recorded(tmp_path_factory):
+    path = tmp_path_factory.mktemp("rec") / "fig2.mcap"
+    record_run(figure2(), path, until=30)
+    return path
+
+
+def rewrite(source, target, data=lambda topic, k, data: data, attachment=lambda name, data: data):
+    """Copy a recording message by message: `data(topic, k, bytes)` is the k-th message of that
+    topic's new payload; `attachment(name, bytes)` an attachment's (None drops it)."""
+    recording = read_recording(source)
+    sink = McapSink(target)
+    for item in recording.attachments:
+        changed = attachment(item.name, item.data)
+        if changed is not None:
+            sink.attach(item.name, item.media_type, changed)
+    for name, fields in recording.metadata.items():
+        sink.writer.add_metadata(name, fields)
+    seen = {}
+    for message in recording.messages:
+        k = seen[message.topic] = seen.get(message.topic, -1) + 1
+        channel = sink.channel(message.topic, "any", {})
+        sink.write(channel, message.log_time, message.publish_time, message.sequence,
+                   data(message.topic, k, message.data))
+    sink.finish()
+    return target
+
+
+def first_trace_event(change):
+    """A payload rewrite of the scheduler's first trace event."""
+    def data(topic, k, payload):
+        if topic.endswith("scheduler/@trace") and k == 0:
+            return change(payload)
+        return payload
+    return data
+
+
+def run(args, tmp_path, capsys):
+    status = main([a.replace("{out}", str(tmp_path / "out.mcap")) for a in args])
+    captured = capsys.readouterr()
+    return status, captured.err.strip().splitlines()
+
+
+@pytest.mark.parametrize("reader", READERS, ids=lambda r: r[0])
+@pytest.mark.parametrize("damage, says", [
+    (lambda payload: b"\xc1\xc1garbage", "its payload is not msgpack"),
+    (lambda payload: b"", "its payload is not msgpack"),
+    (lambda payload: packb({"t": "x", "iota": "scheduler", "action": "req", "index": 0, "kind": "input",
+                            "value": None}), "its time t is 'x', not a finite number"),
+    (lambda payload: packb({"t": 1.0, "iota": "scheduler", "index": 0, "kind": "input", "value": None}),
+     "its action is None, not a string"),
+    (lambda payload: packb({"t": 1.0, "iota": "scheduler", "action": "req", "index": 0, "kind": "violation",
+                            "value": "oops"}), "a violation whose value is 'oops', not a map"),
+], ids=["garbage", "empty", "t-not-a-number", "no-action", "violation-not-a-map"])
+def test_a_damaged_trace_message_is_named_in_one_line(recorded, tmp_path, capsys, reader, damage, says):
+    path = rewrite(recorded, tmp_path / "damaged.mcap", data=first_trace_event(damage))
+    status, err = run([reader[0], str(path), *reader[1:]], tmp_path, capsys)
+    if reader[0] == "export" and "not msgpack" not in says:
+        assert status == 0  # export copies what it cannot read as a trace event: only bytes matter
+        return
+    assert status == 2, err
+    assert len(err) == 1 and err[0].startswith("iotad: error: message #0 on iota/figure2/scheduler/@trace"), err
+    assert says in err[0] and "the recording is damaged" in err[0]
+
+
+def _break_spec(node, change):
+    def broken(name, data):
+        if name != f"spec/{node}.json":
+            return data
+        spec = json.loads(data)
+        spec["text"] = change(spec["text"])
+        return json.dumps(spec).encode()
+    return broken
+
+
+def test_a_stored_spec_that_no_longer_builds_is_named(recorded, tmp_path, capsys):
+    # Python: the requester's and scheduler's stored source
+    path = rewrite(recorded, tmp_path / "spec.mcap",
+                   attachment=_break_spec("scheduler", lambda text: text.replace("class Scheduler", "class Scheduler $", 1)))
+    for args in (["check", str(path)], ["replay", str(path), "--node", "scheduler"]):
+        status, err = run(args, tmp_path, capsys)
+        assert status == 2 and len(err) == 1, err
+        assert "scheduler" in err[0] and "SyntaxError" in err[0]
+    # ESPRIT: a composite IOTA's stored text
+    from iotad.esprit import load_text
+    esprit = tmp_path / "clocked.mcap"
+    record_run(load_text(COMPOSITE, "clocked.iota").factory("clocked")("clocked"), esprit, until=5,
+               inputs=[{"t": 0.0, "action": "go"}])
+    path = rewrite(esprit, tmp_path / "esprit.mcap", attachment=_break_spec("clocked", lambda text: "$" + text))
+    status, err = run(["check", str(path)], tmp_path, capsys)
+    assert status == 2 and len(err) == 1, err
+    assert "the spec of node 'clocked' stored in" in err[0] and "does not build: EspritError" in err[0]
+
+
+@pytest.mark.parametrize("damage", [lambda data: None, lambda data: b"{not json", lambda data: b"[1, 2]"],
+                         ids=["dropped", "not-json", "a-list"])
+def test_check_does_not_pass_a_node_it_could_not_check(recorded, tmp_path, capsys, damage):
+    path = rewrite(recorded, tmp_path / "nospec.mcap",
+                   attachment=lambda name, data: damage(data) if name == "spec/scheduler.json" else data)
+    assert main(["check", str(path)]) == 1
+    out = capsys.readouterr().out
+    assert "scheduler: NOT CHECKED: the recording holds no readable spec of it" in out
+    assert "vision: conforms" in out or "vision:" in out  # the others are still checked
+    assert "check: PROBLEMS FOUND (1 node(s) not checked)" in out
+
+
+def test_check_does_not_pass_a_recording_cut_short(recorded, tmp_path, capsys):
+    data = recorded.read_bytes()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(data[:len(data) * 2 // 3])
+    assert not read_recording(cut).complete
+    assert main(["check", str(cut)]) == 1
+    out = capsys.readouterr().out
+    assert "INCOMPLETE recording" in out and f"iotad recover {cut}" in out
+    assert "check: PROBLEMS FOUND (the recording is incomplete)" in out
+    assert main(["check", str(recorded)]) == 0  # the whole one passes
+    assert "every node conforms" in capsys.readouterr().out
+
+
+def test_an_infinite_value_in_a_trace_line_is_written_and_read_back():
+    event = {"t": 1.0, "iota": "s", "action": "req", "index": 0, "kind": "input",
+             "value": {"epoch": math.inf, "timeout": 1.0}}
+    line = dumps(event)
+    assert '"epoch": Infinity' in line
+    assert next(read([line]))["value"]["epoch"] == math.inf
+    assert "Infinity" not in dumps(dict(event, value={"epoch": 2.0}))  # plain JSON when it can be
