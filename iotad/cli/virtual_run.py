@@ -59,7 +59,8 @@ def run_virtual(system, args: argparse.Namespace) -> int:
     until = args.until / system.time_unit  # --until is seconds; the engine counts spec units
     for entry in inputs:
         if entry["t"] <= until:
-            engine.post(entry.get("iota"), entry["action"], entry.get("value"), entry.get("index"), t=entry["t"])
+            engine.post(_input_path(entry.get("iota"), root.instance_name, engine.leaves, args.inputs),
+                        entry["action"], entry.get("value"), entry.get("index"), t=entry["t"])
     # The system's objects (specs, worlds, grammars) live as long as the run: full garbage
     # collections need not walk them (~30 ms each, a few % of a minute of Buggy recorded).
     gc.freeze()
@@ -99,6 +100,19 @@ def run_virtual(system, args: argparse.Namespace) -> int:
     if output is not None:
         print(f"  recording: {output}  (iotad info|check|plot {output})")
     return 1 if engine.halted else 0
+
+
+def _input_path(name: str | None, root: str, leaves, script: str) -> str | None:
+    """The engine path of an input script's "iota": a node's name as the system file gives it
+    ("scheduler"), or its full path ("figure2/scheduler"); none: the system's external input."""
+    if name is None or name in leaves:
+        return name
+    full = f"{root}/{name}"
+    if full in leaves:
+        return full
+    nodes = sorted({path[len(root) + 1:].split("/")[0] for path in leaves if path.startswith(root + "/")})
+    raise CliError(f"--inputs {script}: no node {name!r} in this system (nodes: {', '.join(nodes)}; "
+                   f"leave \"iota\" out for the system's external inputs)")
 
 
 def _read_inputs(path: str) -> list[dict]:

@@ -3,6 +3,8 @@
 format every reading command takes."""
 from pathlib import Path
 
+import json
+
 import pytest
 
 from iotad.can.frame import Frame
@@ -136,3 +138,19 @@ def test_virtual_run_refuses_what_it_cannot_do_with_a_clear_message(tmp_path, ca
     assert main(["run", str(write(tmp_path))] + args) != 0
     captured = capsys.readouterr()
     assert expected in captured.err and "Traceback" not in captured.err
+
+
+def test_an_input_script_names_a_node_as_the_system_file_does(tmp_path, capsys):
+    request = {"control": {"w": 0.2, "k": 1.0}, "epoch": 1.0, "timeout": 1.0, "priority": 9}
+    for name in ("scheduler", "figure2/scheduler"):  # the node's name, or its full path
+        script = tmp_path / "in.jsonl"
+        script.write_text(json.dumps({"t": 1.5, "iota": name, "action": "req", "index": 1, "value": request}) + "\n")
+        out = tmp_path / f"{name.replace('/', '-')}.mcap"
+        assert main(["run", str(ROOT / "examples/figure2.toml"), "--virtual", "--until", "3", "-o", str(out),
+                     "--inputs", str(script)]) == 0
+        inputs = [e for e in read_recording(out).trace("scheduler") if e["kind"] == "input" and e["t"] == 1.5]
+        assert [(e["action"], e["index"], e["value"]["priority"]) for e in inputs] == [("req", 1, 9)], name
+    script.write_text(json.dumps({"t": 1.0, "iota": "ghost", "action": "req", "index": 0, "value": request}) + "\n")
+    assert main(["run", str(ROOT / "examples/figure2.toml"), "--virtual", "--until", "3", "--no-record",
+                 "--inputs", str(script)]) == 2
+    assert "no node 'ghost' in this system (nodes: manipulation, scheduler, vision" in capsys.readouterr().err
