@@ -1,9 +1,8 @@
 """`[[can]]` in system files (every check trips on a file and passes on its twin), and `iotad run
 --virtual`: the file's nodes and its CAN buses in one process in virtual time, recorded in the
 format every reading command takes."""
-from pathlib import Path
-
 import json
+from pathlib import Path
 
 import pytest
 
