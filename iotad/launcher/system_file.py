@@ -633,6 +633,12 @@ class _Parser:
                     bus = system.buses.get(other)
                     hint = f" (bus {other!r} has no logger node: it says log = false)" if bus is not None else ""
                     self.error(node.entry, f"after names unknown node {other!r}{hint}")
+        cycle = _after_cycle({name: [o for o in node.after if o in system.nodes and o != name]
+                              for name, node in system.nodes.items()})
+        if cycle:
+            self.error(system.nodes[cycle[0]].entry,
+                       f"after goes round in a circle, so none of these could ever start: {' -> '.join(cycle)} "
+                       f"(each waits for the next to be live)")
 
     def parse_buses(self, system: System) -> None:
         for number, raw in enumerate(self.table_list("can"), 1):
@@ -790,3 +796,30 @@ def with_port(endpoints: list[str], port: int) -> list[str]:
         head, sep, tail = endpoint.rpartition(":")
         out.append(f"{head}:{port}" if sep and tail.split("#")[0].isdigit() else endpoint)
     return out
+
+
+def _after_cycle(after: dict[str, list[str]]) -> list[str]:
+    """A cycle of `after` (node -> the nodes it starts after) as [a, b, ..., a], or []."""
+    state: dict[str, int] = {}  # 1: on the path being walked, 2: done
+    path: list[str] = []
+
+    def walk(node: str) -> list[str]:
+        state[node] = 1
+        path.append(node)
+        for other in after.get(node, ()):
+            if state.get(other) == 1:
+                return path[path.index(other):] + [other]
+            if other not in state:
+                found = walk(other)
+                if found:
+                    return found
+        path.pop()
+        state[node] = 2
+        return []
+
+    for node in after:
+        if node not in state:
+            found = walk(node)
+            if found:
+                return found
+    return []

@@ -100,6 +100,11 @@ CASES = [
      '[[node]]\nname = "d"\npython = "IOTAS:Stub"\nparams = { exit_code = 1 }\n', "cannot instantiate its IOTA"),
     ("after unknown node", '[[node]]\nname = "d"\npython = "IOTAS:Stub"\nafter = ["x"]\n',
      '[[node]]\nname = "d"\npython = "IOTAS:Stub"\nafter = []\n', "after names unknown node 'x'"),
+    ("after in a circle", '[[node]]\nname = "a"\npython = "IOTAS:Stub"\nafter = ["c"]\n'
+     '[[node]]\nname = "b"\npython = "IOTAS:Stub"\nafter = ["a"]\n[[node]]\nname = "c"\npython = "IOTAS:Stub"\nafter = ["b"]\n',
+     '[[node]]\nname = "a"\npython = "IOTAS:Stub"\n'
+     '[[node]]\nname = "b"\npython = "IOTAS:Stub"\nafter = ["a"]\n[[node]]\nname = "c"\npython = "IOTAS:Stub"\nafter = ["b", "a"]\n',
+     "after goes round in a circle, so none of these could ever start: a -> c -> b -> a"),
     ("hosts on some nodes only", '[[node]]\nname = "d"\npython = "IOTAS:Stub"\nhost = "a"\n'
      '[[node]]\nname = "e"\npython = "IOTAS:Stub"\n',
      '[[node]]\nname = "d"\npython = "IOTAS:Stub"\nhost = "a"\n[[node]]\nname = "e"\npython = "IOTAS:Stub"\nhost = "b"\n',
