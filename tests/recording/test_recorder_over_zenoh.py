@@ -22,9 +22,9 @@ ROOT = Path(__file__).resolve().parents[2]
 
 
 class RecorderProcess:
-    def __init__(self, tmp_path, keys, *extra):
+    def __init__(self, tmp_path, keys, *extra, output=None):
         self.port = free_port()
-        self.output = tmp_path / "rec.mcap"
+        self.output = output or tmp_path / "rec.mcap"
         ready = tmp_path / "ready"
         self.proc = subprocess.Popen(
             [sys.executable, "-m", "iotad.cli", "record", *keys, "-o", str(self.output),
@@ -311,3 +311,10 @@ def test_trace_bursts_are_split_into_events_and_malformed_ones_are_recorded(tmp_
     assert "undecodable" in malformed[1]["message"] and malformed[1]["data"] == b"\xc1\xc1"
     assert "neither" in malformed[2]["message"]
     assert recording.metadata["iotad.stats"]["malformed"] == "3"
+
+
+def test_missing_folders_of_the_output_are_created(tmp_path):
+    output = tmp_path / "new" / "deeper" / "rec.mcap"
+    recorder = RecorderProcess(tmp_path, ["iota/t/**"], output=output)
+    assert recorder.stop() == 0
+    assert read_recording(output).complete

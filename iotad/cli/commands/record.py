@@ -107,6 +107,10 @@ def run(args: argparse.Namespace) -> int:
     output = Path(args.output)
     if output.is_dir():
         raise CliError(f"-o {args.output}: is a directory; name the .mcap file to write")
+    try:
+        output.parent.mkdir(parents=True, exist_ok=True)  # as the help says, and as `run -o` does
+    except OSError as exc:
+        raise CliError(f"-o {args.output}: cannot create its folder: {exc.strerror or exc}") from None
     if args.system_file is not None:
         if Path(args.system_file).is_dir():
             raise CliError(f"--system-file {args.system_file}: is a directory")
