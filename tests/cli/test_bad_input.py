@@ -88,6 +88,8 @@ CASES = [
     (["run", SYSTEM, "--until", "-1"], "--until: expected a number > 0"),
     (["run", SYSTEM, "--until", "nan"], "--until: expected a number > 0"),
     (["run", SYSTEM, "--port", "70000"], "--port: expected a port number 0-65535"),
+    (["run", SYSTEM, "--view", "99999"], "--view: expected a port number 0-65535"),  # before anything starts
+    (["view", "--port", "99999"], "--port: expected a port number 0-65535"),
     (["run", SYSTEM, "--host", "nosuch"], "no node has host = 'nosuch'"),
     (["run", SYSTEM, "-o", "{d}/folder"], "is a directory"),
     (["run", SYSTEM, "--log-dir", "{d}/empty.toml/logs"], "--log-dir"),
@@ -131,7 +133,7 @@ CASES = [
     # iotad record (fails before subscribing)
     (["record", "-o", "{d}/r.mcap"], "nothing to record"),
     (["record", "iota/x/**", "-o", "{d}/folder"], "is a directory"),
-    (["record", "iota/x/**", "-o", "{d}/empty.toml/r.mcap"], "Not a directory"),
+    (["record", "iota/x/**", "-o", "{d}/empty.toml/r.mcap"], "empty.toml is not a directory"),
     (["record", "bad//key", "-o", "{d}/r.mcap"], "not a key expression"),
     (["record", "iota/x/**", "-o", "{d}/r.mcap", "--duration", "-1"], "--duration: expected a number > 0"),
     (["record", "iota/x/**", "-o", "{d}/r.mcap", "--duration", "nan"], "--duration: expected a number > 0"),

@@ -98,7 +98,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from iotad.cli import CliError
+    from iotad.cli import CliError, output_file
     from iotad.recording.recorder import Recorder
     from iotad.host.transport import DEFAULT_LISTEN
 
@@ -107,6 +107,7 @@ def run(args: argparse.Namespace) -> int:
     output = Path(args.output)
     if output.is_dir():
         raise CliError(f"-o {args.output}: is a directory; name the .mcap file to write")
+    output_file(args.output)  # a folder, or a path under a file: one line
     try:
         output.parent.mkdir(parents=True, exist_ok=True)  # as the help says, and as `run -o` does
     except OSError as exc:

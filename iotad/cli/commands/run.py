@@ -79,7 +79,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--log-dir", metavar="DIR",
                         help="keep node configs and logs in DIR (default: a temp dir, removed unless a node failed)")
     parser.add_argument("--plain", action="store_true", help="plain event lines even on a terminal")
-    parser.add_argument("--view", nargs="?", type=int, const=8765, metavar="WS_PORT",
+    parser.add_argument("--view", nargs="?", type=port, const=8765, metavar="WS_PORT",
                         help="also serve the system to Foxglove (iotad view) on ws://127.0.0.1:WS_PORT (default 8765)")
     parser.add_argument("--virtual", action="store_true",
                         help="run every node in this process in virtual time (needs --until, in virtual seconds)")

@@ -9,7 +9,7 @@ import queue
 import sys
 import time
 
-from iotad.cli import CliError, positive_float
+from iotad.cli import CliError, port, positive_float
 from iotad.cli.commands.ls import add_connect, tool_session
 
 ORDER = 46
@@ -32,7 +32,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                         help="take the hub endpoint and the system name from this file")
     parser.add_argument("--system", metavar="NAME", help="only this system (default: the file's, or every system)")
     parser.add_argument("--host", default="127.0.0.1", help="address the WebSocket server listens on (default 127.0.0.1)")
-    parser.add_argument("--port", type=int, default=8765, help="WebSocket port (default 8765; 0: any free port)")
+    parser.add_argument("--port", type=port, default=8765, help="WebSocket port (default 8765; 0: any free port)")
     parser.add_argument("--until", type=positive_float, metavar="S", help="stop after S seconds (default: Ctrl-C)")
     add_connect(parser)
     parser.set_defaults(func=run)
@@ -53,8 +53,6 @@ def run(args: argparse.Namespace) -> int:
         args.system = args.system or system.name
         if not args.connect:
             args.connect = [e.replace("0.0.0.0", "127.0.0.1") for e in system.listen]
-    if not 0 <= args.port <= 65535:
-        raise CliError(f"--port {args.port}: not a TCP port")
     try:
         import foxglove
     except ImportError:
