@@ -155,6 +155,7 @@ CASES = [
     (["pub", "iota/x/y", "{bad"], "value is not JSON"),
     (["pub", "iota/x/y", "1", "--rate", "0"], "--rate: expected a number > 0"),
     (["pub", "iota/x/y", "1", "--count", "-1"], "--count: expected a whole number >= 0"),
+    (["pub", "iota/x/y", "{\"n\": 99999999999999999999999}"], "value cannot be sent: Integer value out of range"),
     (["pub", "iota/x/*", "1"], "no wildcards"),
     (["pub", "iota/x/y", "1", *FAST], "no zenoh peer"),
     (["hz", "iota/**", "--window", "1"], "--window must be at least 2"),

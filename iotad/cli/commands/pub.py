@@ -55,7 +55,10 @@ def run(args: argparse.Namespace) -> int:
         raise CliError("--rate must be positive")
     if "*" in args.key:
         raise CliError(f"{args.key}: a key to publish on has no wildcards ('*', '**')")
-    payload = wire.encode(value)
+    try:
+        payload = wire.encode(value)
+    except (OverflowError, ValueError, TypeError) as exc:  # msgpack: an integer past 64 bits
+        raise CliError(f"value cannot be sent: {exc} (integers are at most 64 bits)") from None
     session = tool_session(args)
     try:
         publisher = session.declare_publisher(args.key, congestion_control=zenoh.CongestionControl.BLOCK)
