@@ -34,15 +34,25 @@ def load_object(reference: str, base: Path | None = None) -> Any:
             sys.modules[module_name] = module
             try:
                 spec.loader.exec_module(module)
-            except Exception as exc:
+            except (Exception, SystemExit) as exc:
                 del sys.modules[module_name]
-                raise LoadError(f"{path}: {type(exc).__name__}: {exc}") from exc
+                raise LoadError(f"{path}: {_why(exc)}") from exc
     else:
         try:
             module = importlib.import_module(where)
         except ImportError as exc:
             raise LoadError(f"{reference!r}: cannot import {where}: {exc}") from exc
+        except SystemExit as exc:
+            raise LoadError(f"{reference!r}: {_why(exc)}") from exc
     try:
         return getattr(module, name)
     except AttributeError:
         raise LoadError(f"{reference!r}: {where} has no {name}") from None
+
+
+def _why(exc: BaseException) -> str:
+    # A module that calls sys.exit() as it loads would end whoever loads it (the CLI, a node
+    # host) silently, with its status: it is a load error like any other.
+    if isinstance(exc, SystemExit):
+        return f"it called sys.exit({exc.code!r}) as it loaded"
+    return f"{type(exc).__name__}: {exc}"

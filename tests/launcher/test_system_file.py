@@ -228,3 +228,11 @@ def test_switching_times_that_name_a_parameter_are_checked_with_the_nodes_values
     assert ok.nodes["slow"].channels["inp"].switching_time == 1.0
     with pytest.raises(SystemFileError, match="may send every 0.5 time units"):
         load_system(write(tmp_path, '[system]\nname = "t"\nexternal = ["fast.inp"]\n' + ECHOES.format(echo=echo, sender=0.5), "bad.toml"))
+
+
+def test_a_node_file_that_calls_sys_exit_as_it_loads_is_an_error_not_an_exit(tmp_path):
+    (tmp_path / "exits.py").write_text("import sys\nsys.exit(3)\n")
+    body = '[[node]]\nname = "d"\npython = "exits.py:Anything"\n'
+    with pytest.raises(SystemFileError) as caught:  # not SystemExit: the CLI and the launcher go on
+        load_system(write(tmp_path, body))
+    assert "exits.py: it called sys.exit(3) as it loaded" in str(caught.value)
