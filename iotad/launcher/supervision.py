@@ -62,6 +62,8 @@ class NodeRun:
     last_beat: float | None = None
     killed_for: str | None = None  # why the launcher killed it (stale heartbeat...), reported on exit
     last_code: int | None = None
+    went_live: bool = False       # its liveliness token was seen at least once
+    failures: int = 0             # exits with a failure status, not counting the run's stop
 
     @property
     def name(self) -> str:
@@ -180,8 +182,13 @@ class Launcher:
             self._restore_signals(previous)
         if self._stop_reason in _SIGNAL_STATUS:
             return _SIGNAL_STATUS[self._stop_reason]
-        failed = any(r.state == "failed" for r in self.runs.values())
+        failed = any(r.state == "failed" for r in self.runs.values()) or self.never_live()
         return 1 if failed or self.recording_lost else 0
+
+    def never_live(self) -> list[str]:
+        """Nodes that failed every time they started and never went live: the run ended (its
+        --until) while the restart policy still retried them, but the system never ran whole."""
+        return [r.name for r in self.runs.values() if not r.went_live and r.failures]
 
     # ------------------------------------------------------------------ set-up
     def _install_signals(self) -> dict:
@@ -442,6 +449,7 @@ class Launcher:
                 return
             if present and run.state in ("starting", "lost"):
                 run.state, run.live_since, run.lost_since = "running", when, None
+                run.went_live = True
                 self._event("live", run, f"live (pid {run.child.pid})")
             elif not present and run.state == "running" and run.child.running():
                 run.state, run.lost_since = "lost", when
@@ -465,6 +473,7 @@ class Launcher:
             return
         reason = f" after {run.killed_for}" if run.killed_for else ""
         run.killed_for = None
+        run.failures += code != 0
         tail = "" if code == 0 else _log_tail(run.child.log)
         what = f"{describe_exit(code)}{reason} after {uptime:.1f} s"
         if uptime >= run.policy.healthy_after:
@@ -687,6 +696,9 @@ class Launcher:
         for run in self.runs.values():
             if run.restarts:
                 lines.append(f"  {run.name}: restarted {run.restarts} time(s)")
+            if run.name in self.never_live():
+                lines.append(f"  {run.name}: NEVER LIVE: it failed {run.failures} time(s), last with "
+                             f"{describe_exit(run.last_code)} (its output above says why); the run's exit status is 1")
         if len(self.recordings) == 1 and not self.recording_lost:
             lines.append(f"  recording: {self.recordings[0]}")
         elif len(self.recordings) == 1:

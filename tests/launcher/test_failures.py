@@ -134,6 +134,29 @@ backoff = 0.1
     assert "motor driver not found" in giveup[0]
 
 
+def test_a_run_that_ends_while_a_node_never_went_live_exits_1(tmp_path):
+    """The run's --until comes while the restart policy still retries a node that fails at every
+    start: the system never ran whole, and the exit status says so (it was 0)."""
+    path = write_system(tmp_path, "neverlive", f"""
+[[node]]
+name = "n"
+python = "{IOTAS}:Rogue"
+params = {{ exit_code = 2, exit_after = 0.0, stderr = "n: no CAN bus" }}
+max_restarts = 100
+backoff = 0.2
+[[node]]
+name = "good"
+python = "{IOTAS}:Rogue"
+params = {{ token = true, beat = true, exit_after = 60 }}
+""")
+    run, lines = in_process(tmp_path, path, node_argv=stub_argv(), until=1.5)
+    assert run.run() == 1, texts(lines)
+    assert run.runs["n"].state != "failed"  # not given up: still being retried when the run ended
+    summary = "\n".join(run.summary())
+    assert f"n: NEVER LIVE: it failed {run.runs['n'].failures} time(s), last with exit 2" in summary
+    assert run.runs["n"].failures >= 2 and "good: NEVER LIVE" not in summary
+
+
 # ---------------------------------------------------------------------------- flooding
 
 def test_node_flooding_its_receiver_is_recorded_as_violations_and_the_system_stays_up(tmp_path):
