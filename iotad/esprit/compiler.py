@@ -20,6 +20,8 @@ from .runtime import (all_of, any_of, c_div, c_mod, cp, esprit_inhibit, esprit_n
                       ix, ix_set, restarted, uninhibit)
 from .typesys import VOID, ArrayOf, describe
 
+MAX_ARRAY = 1_000_000  # elements of one state array: more is a slip (a parameter off by powers of ten)
+
 
 @dataclass
 class Module:
@@ -268,6 +270,8 @@ class Compiler:
                         length = size_fn(iota, None)
                         if isinstance(length, bool) or not isinstance(length, int) or length < 0:
                             raise ValueError(f"array length must be a whole number >= 0, got {length!r}")
+                        if length > MAX_ARRAY:
+                            raise ValueError(f"array length {length} is past the limit of {MAX_ARRAY} elements")
                         if isinstance(d.init, S.Aggregate):
                             if len(value) != length:
                                 raise ValueError(f"{len(value)} initial values for {length} elements")

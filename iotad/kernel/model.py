@@ -25,6 +25,8 @@ ANY = "*"
 ALL_STATE = frozenset({("*", ANY)})
 
 
+MAX_FAMILY = 10_000  # members of one channel family (`size=`)
+
 def by_state(name: str) -> tuple[str, str]:
     """A write key "the element indexed by state variable `name`" (`request[current_master]`).
     Only for writes, and only where the do-block assigns `name` at most once outside loops: the
@@ -135,6 +137,11 @@ class IotaSpec:
         size = params[channel.size] if isinstance(channel.size, str) else channel.size
         if not isinstance(size, int) or isinstance(size, bool) or size < 0:
             raise SpecError(f"{self.name}: size of {channel.name} must be a whole number >= 0, got {size!r}")
+        if size > MAX_FAMILY:
+            # every member is an action instance the engine evaluates: a million of them takes
+            # seconds to build and is almost surely a slip of the keyboard
+            raise SpecError(f"{self.name}: size of {channel.name} is {size}; a channel family has at most "
+                            f"{MAX_FAMILY} members")
         return size
 
 

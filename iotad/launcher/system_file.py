@@ -725,7 +725,8 @@ class _Parser:
                        if channel.direction == "input" for k in channel.members()
                        if Port(node.name, channel.name, k) not in bound | system.external]
             if missing:
-                self.error(node.entry, f"input(s) {', '.join(missing)} neither bound nor declared external "
+                shown = ", ".join(missing[:8]) + (f" and {len(missing) - 8} more" if len(missing) > 8 else "")
+                self.error(node.entry, f"input(s) {shown} neither bound nor declared external "
                                        f"(add a [[bind]] or external = [\"{missing[0]}\"])")
 
 

@@ -207,7 +207,11 @@ def cmd_run(args: argparse.Namespace) -> int:
     def emit(event: dict) -> None:
         out.write(trace.dumps(event) + "\n")
 
-    run_script(root, inputs, args.until, make_policy(args.policy, args.seed), record=False, sinks=[emit])
+    from iotad.kernel.model import SpecError
+    try:
+        run_script(root, inputs, args.until, make_policy(args.policy, args.seed), record=False, sinks=[emit])
+    except SpecError as exc:  # found as the engine builds its actions: a family too large, say
+        return _fail(str(exc))
     out.flush()
     return 0
 
