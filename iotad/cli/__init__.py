@@ -94,16 +94,11 @@ def port(text: str) -> int:
 
 
 def endpoint(text: str) -> str:
-    """A zenoh endpoint such as tcp/127.0.0.1:7447; checked here so zenoh's own error (a Rust
-    source path) never reaches the user."""
-    protocol, slash, address = text.partition("/")
-    address = address.split("?", 1)[0].split("#", 1)[0]  # metadata and config are zenoh's business
-    if not slash or not protocol or not address or (protocol in ("tcp", "udp", "tls", "quic")
-                                                    and not address.rpartition(":")[2].isdigit()):
-        raise argparse.ArgumentTypeError(f"expected a zenoh endpoint PROTOCOL/ADDRESS:PORT such as "
-                                         f"tcp/127.0.0.1:7447, got {text!r}")
-    if protocol in ("tcp", "udp", "tls", "quic") and int(address.rpartition(":")[2]) > 65535:
-        raise argparse.ArgumentTypeError(f"port out of range in {text!r} (0-65535)")
+    """A zenoh endpoint such as tcp/127.0.0.1:7447 (an argparse type)."""
+    from iotad.host.transport import endpoint_problem
+    problem = endpoint_problem(text)
+    if problem:
+        raise argparse.ArgumentTypeError(problem)
     return text
 
 

@@ -16,6 +16,21 @@ DEFAULT_LISTEN = ("tcp/127.0.0.1:0",)  # port 0: the OS picks a free loopback po
 DEFAULT_HUB_ENDPOINT = "tcp/127.0.0.1:7447"
 
 
+def endpoint_problem(text: object) -> str:
+    """Why `text` is not a zenoh endpoint such as tcp/127.0.0.1:7447 ("" when it is one): checked
+    before zenoh sees it, so that zenoh's own error (a Rust source path) never reaches the user."""
+    if not isinstance(text, str):
+        return f"expected a zenoh endpoint PROTOCOL/ADDRESS:PORT such as tcp/127.0.0.1:7447, got {text!r}"
+    protocol, slash, address = text.partition("/")
+    address = address.split("?", 1)[0].split("#", 1)[0]  # metadata and config are zenoh's business
+    ip = protocol in ("tcp", "udp", "tls", "quic")
+    if not slash or not protocol or not address or (ip and not address.rpartition(":")[2].isdigit()):
+        return f"expected a zenoh endpoint PROTOCOL/ADDRESS:PORT such as tcp/127.0.0.1:7447, got {text!r}"
+    if ip and int(address.rpartition(":")[2]) > 65535:
+        return f"port out of range in {text!r} (0-65535)"
+    return ""
+
+
 def make_config(listen: Iterable[str] = DEFAULT_LISTEN, connect: Iterable[str] = (), mode: str = "peer",
                 extra: dict | None = None, credentials: Credentials | None = None) -> zenoh.Config:
     """`extra` maps zenoh config paths (e.g. "transport/link/tx/queue/size/data") to JSON values;

@@ -46,7 +46,7 @@ from pathlib import Path
 from typing import Any
 
 from iotad.host import wire
-from iotad.host.transport import DEFAULT_HUB_ENDPOINT
+from iotad.host.transport import DEFAULT_HUB_ENDPOINT, endpoint_problem
 
 RESTART_MODES = ("never", "on-failure", "always")
 LOOPBACK_LISTEN = ["tcp/127.0.0.1:0"]
@@ -332,9 +332,9 @@ class _Parser:
                     value = endpoints[key]
                     if isinstance(value, str):
                         value = [value]
-                    if not _endpoint_list(value):
-                        self.error(entry, f"endpoints.{key} must be a list of endpoints such as "
-                                          f"\"tcp/127.0.0.1:7447\", got {endpoints[key]!r}")
+                    problem = _endpoint_list_problem(value)
+                    if problem:
+                        self.error(entry, f"endpoints.{key}: {problem}")
                     else:
                         setattr(system, key, value)
             if not system.listen:
@@ -361,10 +361,11 @@ class _Parser:
             host = HostSpec(name)
             if "listen" in table:
                 value = [table["listen"]] if isinstance(table["listen"], str) else table["listen"]
-                if _endpoint_list(value) and value:
-                    host.listen = value
+                problem = _endpoint_list_problem(value) or ("" if value else "an empty list: it must listen somewhere")
+                if problem:
+                    self.error(entry, f"listen: {problem}")
                 else:
-                    self.error(entry, f"listen must be a list of endpoints, got {table['listen']!r}")
+                    host.listen = value
             system.hosts[name] = host
 
     # ------------------------------------------------------------ [[node]]
@@ -776,8 +777,11 @@ def _queue_size(value: Any) -> bool:
     return isinstance(value, int) and not isinstance(value, bool) and value >= 1
 
 
-def _endpoint_list(value: Any) -> bool:
-    return isinstance(value, list) and all(isinstance(e, str) and "/" in e for e in value)
+def _endpoint_list_problem(value: Any) -> str:
+    """Why `value` is not a list of zenoh endpoints ("" when it is one)."""
+    if not isinstance(value, list):
+        return f"expected a list of endpoints such as [\"tcp/127.0.0.1:7447\"], got {value!r}"
+    return next((problem for problem in map(endpoint_problem, value) if problem), "")
 
 
 def _same_type(a: Any, b: Any) -> bool:

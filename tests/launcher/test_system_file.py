@@ -109,6 +109,10 @@ CASES = [
      '[[node]]\nname = "e"\npython = "IOTAS:Stub"\n',
      '[[node]]\nname = "d"\npython = "IOTAS:Stub"\nhost = "a"\n[[node]]\nname = "e"\npython = "IOTAS:Stub"\nhost = "b"\n',
      "every node names its host or none"),
+    ("hub port out of range", '[system]\nname = "t"\n[system.endpoints]\nlisten = ["tcp/127.0.0.1:99999"]\n'
+     '[[node]]\nname = "d"\npython = "IOTAS:Stub"\n',
+     '[system]\nname = "t"\n[system.endpoints]\nlisten = ["tcp/127.0.0.1:9999"]\n[[node]]\nname = "d"\npython = "IOTAS:Stub"\n',
+     "endpoints.listen: port out of range in 'tcp/127.0.0.1:99999' (0-65535)"),
     ("bad time_unit", '[system]\nname = "t"\ntime_unit = 0\n[[node]]\nname = "d"\npython = "IOTAS:Stub"\n',
      '[system]\nname = "t"\ntime_unit = 0.001\n[[node]]\nname = "d"\npython = "IOTAS:Stub"\n', "time_unit"),
     ("bind unknown node", ss(sink="Sink", to="dts.inp"), ss(sink="Sink", to="dst.inp"),
