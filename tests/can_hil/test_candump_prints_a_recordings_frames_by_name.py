@@ -66,7 +66,10 @@ def test_bad_input_is_one_line_of_error(recording, capsys, tmp_path):
                           ([recording, "--message", "Hello"], "not a CAN Simple message"),
                           ([recording, "--node", "trajectory"], "no CAN frame events of node(s) trajectory"),
                           ([], "give a recording"), ([recording, "--interface", "virtual"], "are for --live"),
-                          (["--live", "--start", "1"], "a live bus has none of them")):
+                          (["--live", "--start", "1"], "a live bus has none of them"),
+                          ([recording, "--start", "5", "--end", "1"], "--start 5 is after --end 1"),
+                          ([recording, "--start", "100"], "no CAN frame events between 100 s and the end (its frames span 0 to"),
+                          ([recording, "--axis", "99"], "--axis 99: an ODrive node id is 0 to 63")):
         code, out, err = dump(capsys, *args)
         assert code == 2 and message in err and len(err.strip().splitlines()) == 1, (args, err)
 

@@ -93,6 +93,11 @@ class _Filter:
 def run(args: argparse.Namespace) -> int:
     from iotad.cli import CliError
 
+    if args.start is not None and args.end is not None and args.start > args.end:
+        raise CliError(f"--start {args.start:g} is after --end {args.end:g}: no frame can lie between them")
+    for axis in args.axis or ():
+        if not 0 <= axis <= 0x3F:  # CAN Simple: node id = arbitration id >> 5 of an 11-bit id
+            raise CliError(f"--axis {axis}: an ODrive node id is 0 to 63")
     if args.live:
         if args.start is not None or args.end is not None or args.direction != "tx" or args.node:
             raise CliError("--start, --end, --rx, --all and --node read a recording; a live bus has none of them")
@@ -138,6 +143,12 @@ def recorded(args: argparse.Namespace, keep: _Filter) -> int:
     events = frame_events(recording, args.direction, set(args.node or ()), args.start, args.end)
     if not events:
         nodes = f" of node(s) {', '.join(args.node)}" if args.node else ""
+        if args.start is not None or args.end is not None:
+            span = f"between {args.start or 0:g} s and {'the end' if args.end is None else f'{args.end:g} s'}"
+            everything = frame_events(recording, args.direction, set(args.node or ()))
+            if everything:
+                raise CliError(f"{args.source}: no CAN frame events{nodes} {span} (its frames span "
+                               f"{everything[0][0]:g} to {everything[-1][0]:g} s)")
         raise CliError(f"{args.source}: no CAN frame events{nodes} (nodes on a [[can]] bus record can_tx and can_rx)")
     width = max(len(node) for _, node, *_ in events)
     shown = 0
