@@ -56,3 +56,21 @@ def _why(exc: BaseException) -> str:
     if isinstance(exc, SystemExit):
         return f"it called sys.exit({exc.code!r}) as it loaded"
     return f"{type(exc).__name__}: {exc}"
+
+
+def iota_factory(reference: str, base: Path | None = None) -> Any:
+    """`load_object`, checked to make IOTAs: an `Iota` or `Composite` subclass, or a function
+    (which returns one); a module or another class is a LoadError that says what it is."""
+    import inspect
+
+    from iotad.kernel.api import Iota
+    from iotad.kernel.compose import Composite
+
+    found = load_object(reference, base)
+    if inspect.ismodule(found):
+        raise LoadError(f"{reference!r}: {found.__name__} is a module, not an IOTA class")
+    if inspect.isclass(found) and not issubclass(found, (Iota, Composite)):
+        raise LoadError(f"{reference!r}: {found.__name__} is a class but not an IOTA (a subclass of iotad.Iota)")
+    if not callable(found):
+        raise LoadError(f"{reference!r}: {type(found).__name__} {found!r} is not an IOTA class")
+    return found

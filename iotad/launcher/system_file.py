@@ -739,8 +739,8 @@ def instantiate(node: NodeSpec) -> Any:
     if node.source["kind"] == "esprit":
         from iotad.esprit import load_iota
         return load_iota(node.source["file"], iota=node.source.get("iota"), name=leaf_name, **node.params)
-    from iotad.kernel.python_loader import load_object
-    factory = load_object(node.source["ref"])
+    from iotad.kernel.python_loader import iota_factory
+    factory = iota_factory(node.source["ref"])
     return factory(leaf_name, **node.params)
 
 
