@@ -66,6 +66,7 @@ CASES = [
     (["spec", "run", SPEC, "--until", "-1"], "--until: expected a number >= 0, got '-1'"),
     (["spec", "run", SPEC, "--until", "nan"], "--until: expected a number >= 0"),
     # a parameter off by powers of ten: refused at once, not minutes of building (nor a hang)
+    (["spec", "run", SPEC, "--until", "1", "--param", "N=2", "--param", "N=3"], "--param N is given twice"),
     (["spec", "run", SPEC, "--until", "1", "--param", "N=20000"], "size of req is 20000; a channel family has at most 10000"),
     (["spec", "run", SPEC, "--until", "1", "--param", "N=100000000"], "array length 100000000 is past the limit of 1000000"),
     (["spec", "run", SPEC, "--until", "abc"], "--until: expected a number >= 0, got 'abc'"),

@@ -62,6 +62,8 @@ def parse_params(items: list[str]) -> dict:
         key, sep, text = item.partition("=")
         if not sep or not key:
             raise CliError(f"--param {item!r}: expected K=V")
+        if key in params:
+            raise CliError(f"--param {key} is given twice")
         try:
             params[key] = json.loads(text)
         except ValueError:

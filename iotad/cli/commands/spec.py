@@ -185,6 +185,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         key, sep, value = item.partition("=")
         if not sep or not key.strip():
             return _fail(f"--param {item!r}: expected NAME=VALUE")
+        if key.strip() in params:
+            return _fail(f"--param {key.strip()} is given twice")
         params[key.strip()] = _param_value(value.strip())
     inputs = []
     if args.inputs:
