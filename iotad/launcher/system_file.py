@@ -308,7 +308,10 @@ class _Parser:
                     "deadline_tolerance", "arrival_tolerance"):
             if key in raw:
                 value = raw[key]
-                if _positive(value):
+                if key == "time_unit" and _positive(value) and value < 1e-6:
+                    # recordings keep times in whole nanoseconds: finer spec units would merge events
+                    self.error(entry, f"time_unit must be at least 1e-6 s (a microsecond), got {value!r}")
+                elif _positive(value):
                     setattr(system, key, float(value))
                 else:
                     self.error(entry, f"{key} must be a positive number of seconds, got {value!r}")
