@@ -368,12 +368,44 @@ def parse(source: Source) -> S.Program:
     return parse_with(_lark(), source, "file")
 
 
+def _unclosed_comment(text: str) -> int | None:
+    """Where a /* comment opens that no */ closes (outside // comments and strings), or None."""
+    k, n = 0, len(text)
+    while k < n:
+        if text.startswith("//", k):
+            k = text.find("\n", k)
+            if k < 0:
+                return None
+        elif text.startswith("/*", k):
+            end = text.find("*/", k + 2)
+            if end < 0:
+                return k
+            k = end + 2
+            continue
+        elif text[k] == '"':
+            end = text.find('"', k + 1)
+            if end < 0:
+                return None
+            k = end
+        k += 1
+    return None
+
+
 def parse_with(parser: Lark, source: Source, unit: str = "file") -> Any:
     """`source` parsed by `parser` (a whole spec, or one expression) into syntax; every syntax
     error an EspritError at its line and column ("unexpected end of <unit>" at the end)."""
     text = source.text
     try:
-        tree = parser.parse(text)
+        try:
+            tree = parser.parse(text)
+        except UnexpectedInput:
+            # a comment whose */ never comes reads as code from its /* on: say that, where it opens
+            opened = _unclosed_comment(text)
+            if opened is None:
+                raise
+            line = text.count("\n", 0, opened) + 1
+            raise source.error((line, opened - (text.rfind("\n", 0, opened) + 1) + 1),
+                               "comment /* ... is never closed by */") from None
     except UnexpectedToken as exc:
         if exc.token.type == "$END":
             raise source.error(None, f"unexpected end of {unit}; expected {_expected(exc.expected)}") from None

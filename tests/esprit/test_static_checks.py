@@ -155,6 +155,8 @@ def test_all_errors_are_listed():
     ("iota a: -> out()/1 { actions out() when x == }", (1, 46), "unexpected '}'"),
     ("iota a: -> out()/1 {", (1, 21), "unexpected end of file"),
     ("iota a: -> out()/1 { $ }", (1, 22), "unexpected character '$'"),
+    ("iota a: -> out()/1 { /* never closed\n actions out() }", (1, 22), "comment /* ... is never closed by */"),
+    ("iota a: -> out()/1 { actions out() when 4 /* never closed }", (1, 43), "comment /* ... is never closed by */"),
     ("iota a: -> out()/1 { actions out() do { for (i = 0; j < 3; i++) {} } }", (1, 53), "a for loop counts one variable"),
 ])
 def test_syntax_errors(text, where, message):
