@@ -417,7 +417,8 @@ class _Parser:
                 return None
             file = (self.base / raw["spec"]).resolve()
             if not file.is_file():
-                self.error(entry, f"spec file {raw['spec']!r} not found (looked at {file})")
+                found = "is a folder; name the .iota file in it" if file.is_dir() else "not found"
+                self.error(entry, f"spec file {raw['spec']!r} {found} (looked at {file})")
                 return None
             if "iota" in raw and not isinstance(raw["iota"], str):
                 self.error(entry, f"iota must be an IOTA name, got {raw['iota']!r}")
@@ -434,7 +435,8 @@ class _Parser:
             if where.endswith(".py"):
                 file = (self.base / where).resolve()
                 if not file.is_file():
-                    self.error(entry, f"python file {where!r} not found (looked at {file})")
+                    found = "is a folder; name the .py file in it" if file.is_dir() else "not found"
+                    self.error(entry, f"python file {where!r} {found} (looked at {file})")
                     return None
                 ref = f"{file}:{cls}"
             source = {"kind": "python", "ref": ref}

@@ -89,6 +89,8 @@ CASES = [
      '[[node]]\nname = "dst"\npython = "IOTAS:Stub"\n', "Input is a class but not an IOTA"),
     ("python names a module", '[[node]]\nname = "dst"\npython = "os:path"\n',
      '[[node]]\nname = "dst"\npython = "IOTAS:Stub"\n', "'os:path': posixpath is a module, not an IOTA class"),
+    ("spec names a folder", '[[node]]\nname = "dst"\nspec = "."\n',
+     '[[node]]\nname = "dst"\npython = "IOTAS:Stub"\n', "spec file '.' is a folder; name the .iota file in it"),
     ("missing spec file", '[[node]]\nname = "dst"\nspec = "nope.iota"\n',
      '[[node]]\nname = "dst"\npython = "IOTAS:Stub"\n', "spec file 'nope.iota' not found"),
     ("bad restart", '[[node]]\nname = "dst"\npython = "IOTAS:Stub"\nrestart = "sometimes"\n',
