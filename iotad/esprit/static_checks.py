@@ -424,6 +424,13 @@ class Checker:
                     stype = self.expr(d.size, _Scope(names), Int)
                     if stype is not None and not is_int(stype):
                         self.error(d.size.pos, f"an array length is an int, not {describe(stype)}")
+                    else:
+                        try:  # a constant length is judged here; one from a parameter when it is given
+                            length = self.fold(d.size, {})
+                        except NotConstant:
+                            length = 0
+                        if isinstance(length, int) and length < 0:
+                            self.error(d.size.pos, f"array length must be a whole number >= 0, got {length}")
                     vtype = None if element is None else ArrayOf(element)
                 if d.init is not None and element is not None:
                     # `x[N] = v` sets every element to v; `x[N] = {a, b}` gives them one by one

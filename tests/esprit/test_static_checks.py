@@ -26,6 +26,8 @@ CHECKS = {
     "undeclared_function": ("iota a: -> out(int)/1 { actions out(f(1)) }",
                             "extern int f(int) = \"builtins:abs\"; iota a: -> out(int)/1 { actions out(f(1)) }",
                             "undeclared function f"),
+    "negative_state_array": ("iota a: -> { states int v[-1] = 0; }", "iota a: -> { states int v[1] = 0; }",
+                             "array length must be a whole number >= 0, got -1"),
     "type_mismatch_init": ("iota a: -> { states bool b = 3; }", "iota a: -> { states bool b = true; }",
                            "b holds bool; the initial value is int"),
     "type_mismatch_assign": ("iota a: -> out()/1 { states int n = 0; actions out() do n = true; }",
