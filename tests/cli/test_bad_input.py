@@ -29,6 +29,7 @@ def files(tmp_path_factory):
     d = tmp_path_factory.mktemp("bad")
     (d / "empty.mcap").write_bytes(b"")
     (d / "empty.iota").write_text("")
+    (d / "types.iota").write_text("// only types\nstruct s { int x; };\n")
     (d / "empty.toml").write_text("")
     (d / "garbage.bin").write_bytes(bytes(range(256)) * 8)
     (d / "text.mcap").write_text("hello, not a recording\n")
@@ -57,6 +58,7 @@ CASES = [
     (["spec", "check", "missing.iota"], "cannot read missing.iota: no such file"),
     (["spec", "check", "{d}/folder"], "is a directory"),
     (["spec", "check", "{d}/empty.iota"], "the file is empty"),
+    (["spec", "check", "{d}/types.iota"], "the file declares no iota (only comments, types or constants)"),
     (["spec", "check", "{d}/garbage.bin"], "not UTF-8 text"),
     (["spec", "check", "{d}/bad.iota"], "1 error(s)"),
     (["spec", "check", "examples/scheduler.py"], "is Python"),

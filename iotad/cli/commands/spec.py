@@ -162,6 +162,9 @@ def cmd_check(args: argparse.Namespace) -> int:
         print(f"iotad: error: {args.file}: {len(errors)} error(s), {len(warnings)} warning(s)"
               + _hint(args.file), file=sys.stderr)
         return 2
+    from iotad.esprit import load_text
+    if not load_text(text, args.file).iotas:  # as `spec show` and `spec run` say
+        return _fail(f"{args.file}: the file declares no iota (only comments, types or constants)")
     print(f"{args.file}: ok ({len(warnings)} warning(s))")
     return 0
 
