@@ -325,13 +325,13 @@ class Engine:
                 self._violation(now, leaf.path, action.channel, index, "bad_value",
                                 f"{action.label}: output value rejected: {exc}")
                 emit = False
-            except Exception as exc:  # noqa: BLE001 - a fault in a spec is a violation, not a crash
+            except (Exception, SystemExit) as exc:  # noqa: BLE001 - a fault in a spec (sys.exit too) is a violation, not a crash
                 self._runtime_error(now, instance, "value", exc)
                 emit = False
         if instance.do is not None:
             try:
                 instance.do()
-            except Exception as exc:  # noqa: BLE001
+            except (Exception, SystemExit) as exc:  # noqa: BLE001
                 self._runtime_error(now, instance, "do", exc)
         self.firings += 1
         instance.enabled = False
@@ -404,7 +404,7 @@ class Engine:
         if slot.do is not None:
             try:
                 slot.do(value)
-            except Exception as exc:  # noqa: BLE001
+            except (Exception, SystemExit) as exc:  # noqa: BLE001
                 self._violation(now, leaf.path, channel.name, index, "runtime_error",
                                 f"{action.label}: {type(exc).__name__}: {exc}")
         key = (leaf.path, channel.name, index)
@@ -430,7 +430,7 @@ class Engine:
             else:
                 try:
                     holds = when()
-                except Exception as exc:  # noqa: BLE001
+                except (Exception, SystemExit) as exc:  # noqa: BLE001
                     # Reported when it starts failing, not at every evaluation: how often a
                     # precondition is evaluated is the engine's business, not part of the trace.
                     if not instance.failing:
@@ -452,7 +452,7 @@ class Engine:
         try:
             lower = 0.0 if instance.after is None else float(instance.after())
             upper = INF if instance.before is None else float(instance.before())
-        except Exception as exc:  # noqa: BLE001
+        except (Exception, SystemExit) as exc:  # noqa: BLE001
             self._runtime_error(now, instance, "time bound", exc)
             lower, upper = INF, INF
         else:

@@ -1,6 +1,7 @@
 """Review of the engine against docs/design.md section 4: corner cases found by trying to break it, and
 property tests (a run continued equals one long run; the engine's own traces pass the checker)."""
 import math
+import sys
 import threading
 import time
 
@@ -298,3 +299,26 @@ def test_a_late_process_is_still_a_deadline_miss():
     engine.fire_instance(instance, 0.5)
     engine.fire_instance(instance, 5.0)  # enabled at 0.5, window [0.5, 1.5]: 5.0 is late
     assert violations(engine) == [(0.5, "out", "unreachable_window"), (5.0, "out", "deadline_miss")]
+
+
+class Quitter(Iota):
+    """Calls sys.exit() in an output's do-block and in an input's: a fault like any other."""
+    inp = Input(Int)
+    out = Output(Int, switching=1)
+
+    @inp.input
+    def got(self, x):
+        sys.exit(x)
+
+    @out.action(value=lambda self: 1, after=1.0)
+    def sent(self):
+        sys.exit(4)
+
+
+def test_sys_exit_in_a_do_block_is_a_recorded_fault_not_the_end_of_the_run():
+    engine = Engine(Quitter("q"))
+    engine.post(None, "inp", 7, t=1.5)
+    engine.run(2.5)  # returns: the process (a CLI, a node host) is not ended by a spec
+    assert fired(engine) == [(1.0, "q", "out", None, 1), (2.0, "q", "out", None, 1)]
+    assert [(e["t"], e["value"]["message"]) for e in engine.trace if e["kind"] == "violation"] == [
+        (1.0, "out (do): SystemExit: 4"), (1.5, "inp(x): SystemExit: 7"), (2.0, "out (do): SystemExit: 4")]
