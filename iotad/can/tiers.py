@@ -191,7 +191,38 @@ def run(command: list[str], tier_name: str | None = None, *, timeout: float = 12
     return _run_process(chosen, list(command), argv, timeout, cwd, environment, stream)
 
 
-def _run_process(chosen: Tier, command, argv, timeout, cwd, environment, stream, console_of=None) -> TierRun:
+STOP_GRACE = 20.0  # seconds a stopped command gets for its own stop (the launcher: 3 + 2 s, then its recorder)
+
+
+class Terminated(BaseException):
+    """SIGTERM to the wrapper (`main`), raised where it waits so that the command is stopped as
+    for Ctrl-C: with the signal passed on, not killed."""
+
+    def __init__(self, signum: int):
+        super().__init__(signum)
+        self.signum = signum
+
+
+def _stop_gently(process: subprocess.Popen, signum: int) -> None:
+    """Pass `signum` on to the command's process group, as a terminal's Ctrl-C reaches every
+    process of its foreground group (a script's `subprocess.call` kills its child if only it is
+    told), and give it STOP_GRACE seconds to stop by itself (a launcher stops its nodes and
+    finishes its recording); a second Ctrl-C is passed on too."""
+    deadline = time.monotonic() + STOP_GRACE
+    while process.poll() is None and time.monotonic() < deadline:
+        try:
+            os.killpg(process.pid, signum)  # its own session: the group is the command's
+            process.wait(timeout=max(0.0, deadline - time.monotonic()))
+        except subprocess.TimeoutExpired:
+            break
+        except (KeyboardInterrupt, Terminated) as again:  # a second signal: the command hurries
+            signum = getattr(again, "signum", signal.SIGINT)
+        except ProcessLookupError:
+            break
+
+
+def _run_process(chosen: Tier, command, argv, timeout, cwd, environment, stream, console_of=None,
+                 forward_signals: bool = True) -> TierRun:
     started = time.monotonic()
     lines: list[str] = []
     process = subprocess.Popen(argv, cwd=cwd, env=environment, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
@@ -209,7 +240,11 @@ def _run_process(chosen: Tier, command, argv, timeout, cwd, environment, stream,
         raise TierTimeout(f"{shlex.join(command)} ran past {timeout:g} s in tier {chosen.name} and was killed"
                           f"\n--- output (tail) ---\n{run_.output[-3000:]}"
                           + (f"\n--- console (tail) ---\n{run_.console[-2000:]}" if run_.console else ""), run_)
-    except BaseException:
+    except BaseException as exc:
+        signum = signal.SIGINT if isinstance(exc, KeyboardInterrupt) else getattr(exc, "signum", None)
+        if signum is not None and forward_signals:
+            _stop_gently(process, signum)  # Ctrl-C or SIGTERM: the command's own stop, then the rest
+            reader.join(timeout=5)         # its last lines (a launcher's summary) reach the stream
         _kill_group(process)  # interrupted (Ctrl-C, a test's failure): nothing is left running
         raise
     finally:
@@ -320,8 +355,10 @@ def _run_uml(chosen: Tier, command, timeout, cwd, environment, stream, memory) -
         memory_dir = shm if shm.is_dir() and os.access(shm, os.W_OK) else workdir
         uml_env = {"PATH": "/usr/sbin:/usr/bin:/sbin:/bin", "TMPDIR": str(memory_dir)}
         try:
+            # a signal to the user-mode kernel would end it at once: the command is killed instead
             run_ = _run_process(chosen, command, argv, timeout, cwd, uml_env,
-                                None if stream is None else _ConsoleFilter(stream), console_of=_split_console)
+                                None if stream is None else _ConsoleFilter(stream), console_of=_split_console,
+                                forward_signals=False)
         except TierTimeout:
             raise
         output, console, ran = _split_console(run_.output)
@@ -400,6 +437,10 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     if not command:
         parser.error("no command: python -m iotad.can.tiers run -- CMD...")
+    def terminated(signum, frame):
+        raise Terminated(signum)
+
+    signal.signal(signal.SIGTERM, terminated)  # passed on to the command, as Ctrl-C is
     try:
         chosen = best_tier(args.tier)
         print(f"iotad-can: tier {chosen.name}: {chosen.description}", file=sys.stderr, flush=True)
@@ -409,6 +450,8 @@ def main(argv: list[str] | None = None) -> int:
         return 124 if isinstance(exc, TierTimeout) else 125
     except KeyboardInterrupt:
         return 130
+    except Terminated:
+        return 143
     return result.returncode
 
 

@@ -1,7 +1,9 @@
 """A real CAN bus through the `can_bus` fixture: python-can sends ODrive frames on the best tier
 (vcan, user-mode Linux, udp_multicast) and iotad's bus receives them decoded equal; the command's
-exit status comes back, a command past its time-out is killed with everything it started."""
+exit status comes back, a command past its time-out is killed with everything it started, and
+Ctrl-C or SIGTERM to the wrapper is passed on to the command, which stops its own way."""
 import json
+import signal
 import subprocess
 import sys
 import time
@@ -115,3 +117,39 @@ def test_an_unknown_or_unavailable_tier_is_a_clear_error():
     for name in missing:
         with pytest.raises(tiers.TierUnavailable, match=f"CAN tier '{name}' cannot run here"):
             tiers.best_tier(name)
+
+
+# A command that stops its own way on SIGINT or SIGTERM (as `iotad run` does: stops its nodes,
+# finishes its recording), and says how it stopped.
+STOPS_ITS_OWN_WAY = r'''
+import signal, sys, time
+def stop(signum, frame):
+    time.sleep(0.5)  # its own stop takes a while: the wrapper must wait for it
+    open(sys.argv[1], "w").write(signal.Signals(signum).name)
+    print("stopped by", signal.Signals(signum).name, flush=True)
+    sys.exit(0)
+signal.signal(signal.SIGINT, stop)
+signal.signal(signal.SIGTERM, stop)
+print("ready", flush=True)
+time.sleep(60)
+'''
+
+
+@pytest.mark.parametrize("signum, status", [(signal.SIGINT, 130), (signal.SIGTERM, 143)], ids=["SIGINT", "SIGTERM"])
+def test_the_wrapper_passes_ctrl_c_and_sigterm_on_to_the_command(tmp_path, signum, status):
+    how = tmp_path / "how"
+    wrapper = subprocess.Popen([sys.executable, "-m", "iotad.can.tiers", "run", "--tier", "udp_multicast", "--",
+                                sys.executable, "-c", STOPS_ITS_OWN_WAY, str(how)],
+                               stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    try:
+        assert wrapper.stdout.readline().strip() == "ready"
+        wrapper.send_signal(signum)
+        rest = wrapper.stdout.read()
+        assert wrapper.wait(timeout=30) == status
+    finally:
+        if wrapper.poll() is None:
+            wrapper.kill()
+            wrapper.wait()
+    # the command was told (not killed), stopped its own way, and its last words came through
+    assert how.read_text() == signum.name
+    assert f"stopped by {signum.name}" in rest
