@@ -20,7 +20,7 @@ from __future__ import annotations
 import copy
 import math
 from dataclasses import dataclass, field
-from typing import Any, Iterable
+from typing import Any, Callable, Iterable
 
 from iotad.kernel.clock import VirtualClock
 from iotad.kernel.engine import ActionInstance, Engine
@@ -92,6 +92,7 @@ class CheckReport:
     slack: dict[str, Slack] = field(default_factory=dict)
     recorded_violations: list[dict] = field(default_factory=list)
     tolerance: float = 0.0
+    restarts: list[float] = field(default_factory=list)  # when later processes of the node started
 
     @property
     def ok(self) -> bool:
@@ -101,6 +102,9 @@ class CheckReport:
         head = (f"{self.node}: {self.events} events, {self.firings} firings checked, "
                 f"{len(self.findings)} problem(s)" + ("" if self.ok else f"; first: {self.findings[0]}"))
         out = [head]
+        if self.restarts:
+            out.append(f"  restarted at t={', t='.join(f'{t:.6g}' for t in self.restarts)}: each run of its "
+                       f"process is checked from its own start")
         for finding in self.findings[:limit]:
             out.append(f"  {finding}")
         if len(self.findings) > limit:
@@ -360,6 +364,44 @@ def check_trace(root: Any, events: list[dict], *, node: str = "", tolerance: flo
     host's `start` event among `events` says it exactly and wins."""
     events, start = split_start(events, start)
     return TraceChecker(root, node, tolerance, start).check(events, until)
+
+
+def split_runs(events: list[dict], start: float = 0.0) -> list[tuple[float, list[dict]]]:
+    """A node's recorded trace as the runs of its process: (its engine start, its events) for
+    each `start` record (a restarted node has one per process), or one run from `start` when the
+    trace has none (an in-process recording)."""
+    runs: list[tuple[float, list[dict]]] = []
+    for event in events:
+        if event.get("kind") == START_KIND:
+            runs.append((float(event["t"]), []))
+        elif runs:
+            runs[-1][1].append(event)
+        else:  # before any start record: in-process, or a recording without them
+            runs.append((start, [event]))
+    return runs
+
+
+def check_runs(build: Callable[[], Any], events: list[dict], *, node: str = "", tolerance: float = 0.0,
+               start: float = 0.0) -> CheckReport:
+    """`check_trace` of every run of a node's process, each from its own start and a fresh
+    instance (`build()`): a restarted process starts from the spec's initial state, and a window
+    open when the process died is not judged. One report; `restarts` lists the later starts."""
+    runs = split_runs(events, start)
+    merged = CheckReport(node, tolerance=tolerance)
+    for number, (begun, run) in enumerate(runs):
+        report = TraceChecker(build(), node, tolerance, begun).check(run)
+        merged.events += report.events
+        merged.firings += report.firings
+        merged.findings += report.findings
+        merged.recorded_violations += report.recorded_violations
+        for label, slack in report.slack.items():
+            total = merged.slack.setdefault(label, Slack(label))
+            total.count += slack.count
+            total.after_open = min(total.after_open, slack.after_open)
+            total.before_close = min(total.before_close, slack.before_close)
+        if number:
+            merged.restarts.append(begun)
+    return merged
 
 
 def split_start(events: list[dict], start: float = 0.0) -> tuple[list[dict], float]:

@@ -13,7 +13,8 @@ import time
 from dataclasses import dataclass
 from typing import Any, Callable
 
-from iotad.recording.conformance import _same, align_paths, describe
+from iotad.host.wire import START_KIND
+from iotad.recording.conformance import _same, align_paths, describe, split_runs
 from iotad.kernel.clock import VirtualClock
 from iotad.kernel.engine import Engine
 from iotad.recording.mcap_io import Recording, RecordingError, build_node, start_time
@@ -68,11 +69,49 @@ def node_root(recording: Recording, node: str) -> Any:
 
 def replay_node(recording: Recording, node: str, tolerance: float = 0.01,
                 kinds: tuple = ("output",)) -> ReplayResult:
-    events = recording.trace(node)
-    if not events:
+    """Re-run `node` against its recorded inputs; each run of its process (a restarted node has
+    several) from its own start and initial state, as the process ran."""
+    events = recording.trace(node, starts=True)
+    if not any(e.get("kind") != START_KIND for e in events):
         raise RecordingError(f"node {node!r} has no @trace events in {recording.path}")
-    root = node_root(recording, node)
-    engine = Engine(root, VirtualClock(start_time(recording.specs.get(node))))
+    runs = split_runs(events, start_time(recording.specs.get(node)))
+    recorded, replayed = [], []
+    for number, (begun, run) in enumerate(runs):
+        mine = [e for e in run if e.get("kind") in kinds]
+        again = _replay_run(node_root(recording, node), begun, run, tolerance, kinds)
+        # A firing the recording may simply not have reached (it ended first, or the process was
+        # killed at that instant) is not a divergence.
+        end = max((float(e["t"]) for e in run), default=begun)
+        cut = end if number == len(runs) - 1 else math.nextafter(end, -math.inf)
+        while len(again) > len(mine) and again[-1]["t"] > cut:
+            again.pop()
+        recorded += mine
+        replayed += again
+    result = ReplayResult(node, recorded, replayed, tolerance, kinds=kinds)
+    for k in range(max(len(recorded), len(replayed))):
+        if k >= len(recorded):
+            result.divergence, result.reason = k, f"the replay has an extra event: {describe(replayed[k])}"
+            break
+        if k >= len(replayed):
+            result.divergence, result.reason = k, f"the replay never produced {describe(recorded[k])}"
+            break
+        a, b = recorded[k], replayed[k]
+        if (a["action"], a.get("index"), a.get("kind")) != (b["action"], b.get("index"), b.get("kind")) \
+                or not _same(a.get("value"), b.get("value")):
+            result.divergence, result.reason = k, f"recorded {describe(a)}, replayed {describe(b)}"
+            break
+        error = abs(float(a["t"]) - float(b["t"]))
+        result.max_time_error = max(result.max_time_error, error)
+        if error > tolerance:
+            result.divergence, result.reason = k, (f"{describe(a)} was replayed at t={b['t']:.6g}: "
+                                                   f"{error:.3g} apart, beyond the tolerance {tolerance:g}")
+            break
+    return result
+
+
+def _replay_run(root: Any, begun: float, events: list[dict], tolerance: float, kinds: tuple) -> list[dict]:
+    """The events of `kinds` that `root` makes when given the inputs of one recorded run."""
+    engine = Engine(root, VirtualClock(begun))
     mapping = align_paths((e.get("iota", "") for e in events), list(engine.leaves))
     reverse = {}
     for recorded_name, leaf in mapping.items():
@@ -105,33 +144,8 @@ def replay_node(recording: Recording, node: str, tolerance: float = 0.01,
         if engine.halted:
             break
         engine.deliver(mapping[event.get("iota", "")], event["action"], event.get("value"), event.get("index"))
-    end = max(float(e["t"]) for e in events)
-    engine.run(end + tolerance)
-    recorded = [e for e in events if e.get("kind") in kinds]
-    replayed = [dict(e, iota=reverse.get(e["iota"], e["iota"])) for e in engine.trace if e["kind"] in kinds]
-    # A firing the recording may simply not have reached (it ended first) is not a divergence.
-    while len(replayed) > len(recorded) and replayed[-1]["t"] > end:
-        replayed.pop()
-    result = ReplayResult(node, recorded, replayed, tolerance, kinds=kinds)
-    for k in range(max(len(recorded), len(replayed))):
-        if k >= len(recorded):
-            result.divergence, result.reason = k, f"the replay has an extra event: {describe(replayed[k])}"
-            break
-        if k >= len(replayed):
-            result.divergence, result.reason = k, f"the replay never produced {describe(recorded[k])}"
-            break
-        a, b = recorded[k], replayed[k]
-        if (a["action"], a.get("index"), a.get("kind")) != (b["action"], b.get("index"), b.get("kind")) \
-                or not _same(a.get("value"), b.get("value")):
-            result.divergence, result.reason = k, f"recorded {describe(a)}, replayed {describe(b)}"
-            break
-        error = abs(float(a["t"]) - float(b["t"]))
-        result.max_time_error = max(result.max_time_error, error)
-        if error > tolerance:
-            result.divergence, result.reason = k, (f"{describe(a)} was replayed at t={b['t']:.6g}: "
-                                                   f"{error:.3g} apart, beyond the tolerance {tolerance:g}")
-            break
-    return result
+    engine.run(max((float(e["t"]) for e in events), default=begun) + tolerance)
+    return [dict(e, iota=reverse.get(e["iota"], e["iota"])) for e in engine.trace if e["kind"] in kinds]
 
 
 # ------------------------------------------------------------------------------------ live
