@@ -233,6 +233,9 @@ class Launcher:
                                     "choose another with --port") from None
             raise LauncherError(f"cannot open the hub session (listen {listen}, connect {connect}): {text}") from None
         session = self.session
+        if system.opens_hub(self.host):  # with --port 0 this is the only place the port is told
+            tools = listen[0].replace("0.0.0.0", "127.0.0.1")
+            self.view.line(f"hub: {', '.join(listen)} (tools attach with --connect {tools}, e.g. iotad top --connect {tools})")
         for line in (self.access.opened(listen) if self.access and system.opens_hub(self.host) else ()):
             self.view.line(line)
         base = f"{wire.PREFIX}/{system.name}"

@@ -157,6 +157,20 @@ params = {{ token = true, beat = true, exit_after = 60 }}
     assert run.runs["n"].failures >= 2 and "good: NEVER LIVE" not in summary
 
 
+def test_the_launcher_says_where_its_hub_listens(tmp_path):
+    """With `--port 0` the OS picks the port: the launcher's line is the only place it is told."""
+    path = write_system(tmp_path, "hubline", f"""
+[[node]]
+name = "good"
+python = "{IOTAS}:Rogue"
+params = {{ token = true, beat = true, exit_after = 60 }}
+""")
+    run, lines = in_process(tmp_path, path, node_argv=stub_argv(), until=0.5)
+    assert run.run() == 0, texts(lines)
+    hub = run.hub[0]
+    assert f"hub: {hub} (tools attach with --connect {hub}, e.g. iotad top --connect {hub})" in texts(lines)
+
+
 # ---------------------------------------------------------------------------- flooding
 
 def test_node_flooding_its_receiver_is_recorded_as_violations_and_the_system_stays_up(tmp_path):
