@@ -162,6 +162,11 @@ class Launcher:
         self.view = StatusView(console, live_table, title=f"iotad run {system.file}")
 
     # ------------------------------------------------------------------ public
+    def discard(self) -> None:
+        """Remove what the launcher made before it ran (its run folder), for a run that never started."""
+        if self._own_dir:
+            shutil.rmtree(self.run_dir, ignore_errors=True)
+
     def request_stop(self, reason: str = "stop requested") -> None:
         """Thread-safe: ask the run loop to stop everything and return."""
         self._stop_asked.set()

@@ -165,21 +165,25 @@ def launch(system, args: argparse.Namespace, summary_hook=None) -> int:
                         record_max_size=getattr(args, "max_size", None),
                         record_max_duration=getattr(args, "max_duration", None),
                         after_live=getattr(args, "after_live", False))
-    launcher.access = access_for(system, args)
     viewer = None
-    if getattr(args, "view", None) is not None and system.opens_hub(args.host):
-        from iotad.cli.commands.view import ViewerProcess
-
-        hub = system.listen[0] if port is None else f"tcp/127.0.0.1:{port}"
-        viewer = ViewerProcess(hub.replace("0.0.0.0", "127.0.0.1"), system.name, args.view)
     try:
+        launcher.access = access_for(system, args)
+        if getattr(args, "view", None) is not None and system.opens_hub(args.host):
+            from iotad.cli.commands.view import ViewerProcess
+
+            hub = system.listen[0] if port is None else f"tcp/127.0.0.1:{port}"
+            viewer = ViewerProcess(hub.replace("0.0.0.0", "127.0.0.1"), system.name, args.view)
         code = launcher.run()
     except LauncherError as exc:
         raise CliError(str(exc)) from None
+    except KeyboardInterrupt:
+        launcher.discard()  # Ctrl-C before the launcher's own handling took over: leave nothing behind
+        raise
     finally:
         if viewer is not None:
             viewer.stop()
-        launcher.access.close()
+        if launcher.access is not None:
+            launcher.access.close()
     print(f"summary of {system.name}" + (f" (host {args.host})" if args.host else "") + ":")
     for line in launcher.summary():
         print(line)
