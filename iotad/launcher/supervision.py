@@ -188,7 +188,8 @@ class Launcher:
         if self._stop_reason in _SIGNAL_STATUS:
             return _SIGNAL_STATUS[self._stop_reason]
         failed = any(r.state == "failed" for r in self.runs.values()) or self.never_live()
-        return 1 if failed or self.recording_lost else 0
+        # a recorder that died mid-run left a gap between its files: what happened then is lost
+        return 1 if failed or self.recording_lost or self._recorder_restarts else 0
 
     def never_live(self) -> list[str]:
         """Nodes that failed every time they started and never went live: the run ended (its
@@ -713,7 +714,8 @@ class Launcher:
             lines.append(f"  recording (cut short: 'iotad recover' it): {self.recordings[0]}")
         elif self.recordings:
             lines.append(f"  recording in {len(self.recordings)} files (the recorder died): "
-                         + ", ".join(str(p) for p in self.recordings))
+                         + ", ".join(str(p) for p in self.recordings)
+                         + "; what happened between them is lost, so the run does not exit 0")
         if self.recording_lost:
             lines.append(f"  RECORDING INCOMPLETE: {self.recording_lost}")
         if self.access is not None:
