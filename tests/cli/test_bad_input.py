@@ -126,6 +126,7 @@ CASES = [
     (["replay", "{d}/good.mcap", "--node", "nosuch"], "node 'nosuch' is not in"),
     (["replay", "{d}/good.mcap", "--node", "scheduler", "--tolerance", "-1"], "--tolerance: expected a number >= 0"),
     (["replay", "{d}/good.mcap", "--live", "--rate", "0"], "--rate: expected a number > 0"),
+    (["replay", "{d}/good.mcap", "--live", "--start", "1000"], "--start 1000: past the end of the recording"),
     (["replay", "{d}/good.mcap", "--live", "--start", "-3"], "--start: expected a number >= 0"),
     (["replay", "{d}/good.mcap", "--live", "--connect", "garbage"], "expected a zenoh endpoint"),
     (["replay", "{d}/good.mcap", "--live", "--connect", DEAD], "cannot open a zenoh session"),

@@ -81,6 +81,8 @@ def live(args: argparse.Namespace, recording) -> int:
 
     if args.rate <= 0:
         raise CliError("--rate must be > 0")
+    if args.start and args.start > recording.duration():
+        raise CliError(f"--start {args.start:g}: past the end of the recording ({recording.duration():.3g} s long)")
     try:
         # A peer named with --connect must answer: publishing into the void is not a replay.
         session = open_session(args.listen or DEFAULT_LISTEN, args.connect,
