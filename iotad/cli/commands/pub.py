@@ -13,14 +13,19 @@ from .ls import add_connect, tool_session
 ORDER = 42
 
 EPILOG = """\
-examples (with 'iotad run examples/figure2.toml' running in another terminal):
+examples (with 'iotad run examples/figure2.toml --insecure' running in another terminal):
   iotad pub iota/figure2/scheduler/req/1 \\
       '{"control": {"w": 0.7, "k": 1.0}, "epoch": 1.0, "timeout": 1.0, "priority": 9}'
   iotad pub iota/some/node/tick null --count 0 --rate 10       10 Hz until Ctrl-C
 
 An input channel's key is iota/<system>/<node>/<channel>[/<index>] ('iotad ls' lists them);
 the node applies the value as an input event at the time it arrives, checking its type and
-switching time (a violation otherwise). See also: 'iotad echo KEY' to watch the answer."""
+switching time (a violation otherwise). See also: 'iotad echo KEY' to watch the answer.
+
+Access control, on by default in 'iotad run', lets tools publish only the inputs that the system
+file's [system.debug] allow_pub lists: the hub drops anything else, and zenoh does not tell the
+sender, so this command cannot say so. List the input there, or run the system with --insecure
+(docs/access-control.md)."""
 
 
 def register(sub: argparse._SubParsersAction) -> None:

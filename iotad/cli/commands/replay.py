@@ -15,8 +15,10 @@ examples:
   iotad replay recordings/fig2.mcap --live --loop --connect tcp/127.0.0.1:7447
 
 --tolerance is in spec time units; --rate is a speed factor; --start is seconds into the
-recording. --live shows a progress bar; watch it with 'iotad echo' or Foxglove. See also:
-'iotad check FILE' (conformance to the specs), 'iotad info FILE'."""
+recording. --live shows a progress bar; watch it with 'iotad echo' or Foxglove. Into a running
+system's hub, --live publishes as a tool: access control (on by default in 'iotad run') drops
+what [system.debug] allow_pub does not list, without telling the sender (docs/access-control.md).
+See also: 'iotad check FILE' (conformance to the specs), 'iotad info FILE'."""
 
 
 def register(sub: argparse._SubParsersAction) -> None:
