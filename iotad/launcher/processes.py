@@ -66,6 +66,7 @@ class Child:
         self.on_exit = on_exit
         self.proc: subprocess.Popen | None = None
         self.started_at = 0.0       # time.monotonic() of the last start
+        self.log_start = 0          # where the last start's output begins in `log` (it is appended to)
         self.code: int | None = None  # exit status of the last run (negative: killed by signal)
         self.last_signal: int | None = None  # the last signal sent to the current run (how it was stopped)
         self._waiter: threading.Thread | None = None
@@ -83,6 +84,7 @@ class Child:
         env = dict(os.environ if self.env is None else self.env)
         env.setdefault("PYTHONUNBUFFERED", "1")
         out = open(self.log, "ab") if self.log is not None else subprocess.DEVNULL
+        self.log_start = out.tell() if out is not subprocess.DEVNULL else 0
         try:
             self.proc = subprocess.Popen(wrapped_argv(self.argv), stdin=subprocess.DEVNULL, stdout=out,
                                          stderr=subprocess.STDOUT, cwd=self.cwd, env=env,

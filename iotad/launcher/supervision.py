@@ -302,7 +302,7 @@ class Launcher:
             stop_all([recorder], 1.0, 1.0)
             why = describe_exit(recorder.code) if recorder.code is not None else \
                 f"not subscribed after {deadline - recorder.started_at:.0f} s"
-            raise LauncherError(f"the recorder did not start ({why}){_log_tail(recorder.log)}\n"
+            raise LauncherError(f"the recorder did not start ({why}){_log_tail(recorder)}\n"
                                 "run without a recording with --no-record")
         self._recorder_ready = None
         self.recording = output
@@ -342,7 +342,7 @@ class Launcher:
         uptime = time.monotonic() - recorder.started_at
         state = "is complete" if code == 0 else f"was cut short: 'iotad recover {cut}' makes it whole"
         self._launcher_event("recorder", f"recorder: {describe_exit(code)} after {uptime:.1f} s; {cut} {state}"
-                             f"{_log_tail(recorder.log)}", code=code, file=str(cut))
+                             f"{_log_tail(recorder)}", code=code, file=str(cut))
         if self._shutting_down:
             self.recording_lost = f"the recorder ended with {describe_exit(code)} before the stop"
             return
@@ -483,7 +483,7 @@ class Launcher:
         reason = f" after {run.killed_for}" if run.killed_for else ""
         run.killed_for = None
         run.failures += code != 0
-        tail = "" if code == 0 else _log_tail(run.child.log)
+        tail = "" if code == 0 else _log_tail(run.child)
         what = f"{describe_exit(code)}{reason} after {uptime:.1f} s"
         if uptime >= run.policy.healthy_after:
             run.consecutive = 0
@@ -660,7 +660,7 @@ class Launcher:
                 self.recording_lost = self.recording_lost or f"the recorder ended with {describe_exit(recorder.code)}"
                 self.view.line(f"warning: the recorder ended with {describe_exit(recorder.code)}; "
                                f"'iotad recover {self.recording}' makes the file whole"
-                               f"{_log_tail(recorder.log)}")
+                               f"{_log_tail(recorder)}")
         self.view.update(self._rows(time.monotonic()))
         self.view.stop()
         for entity in reversed(self._declared):
@@ -729,13 +729,16 @@ class LauncherError(Exception):
     """The launcher cannot start (the hub endpoint is taken...): one line for the user."""
 
 
-def _log_tail(log: Path | None, lines: int = 4) -> str:
-    """The last lines of a child's output (its stderr, where errors go), for a report."""
+def _log_tail(child: Child | None, lines: int = 4) -> str:
+    """The last lines of a child's output since it last started (its stderr, where errors go;
+    the log holds every start's, one after the other), for a report."""
+    log = None if child is None else child.log
     if log is None:
         return ""
     try:
         with open(log, "rb") as stream:
-            stream.seek(max(0, stream.seek(0, os.SEEK_END) - 4096))  # a chatty log may be huge
+            # a chatty log may be huge; an earlier start's lines are not this one's
+            stream.seek(max(child.log_start, stream.seek(0, os.SEEK_END) - 4096))
             text = stream.read().decode(errors="replace").strip().splitlines()[-lines:]
     except OSError:
         return ""
