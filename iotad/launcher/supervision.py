@@ -480,7 +480,7 @@ class Launcher:
             run.state = "stopped"
             self._event("exit", run, f"stopped ({describe_exit(code)}){self._stop_escalation(run, code)}", code=code)
             return
-        reason = f" after {run.killed_for}" if run.killed_for else ""
+        reason = f" ({run.killed_for})" if run.killed_for else ""
         run.killed_for = None
         run.failures += code != 0
         tail = "" if code == 0 else _log_tail(run.child)

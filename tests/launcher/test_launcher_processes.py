@@ -84,6 +84,9 @@ def test_frozen_node_is_killed_and_restarted(observed_pair):
         print(f"\nfrozen node: detected and restarted, live again {back - frozen_at:.2f} s after SIGSTOP")
         assert wait_until(lambda: gone(pid), 5)
         assert node_pid(proc.pid, "src") not in (None, pid)
+        # the exit line says why it was killed, then how long it had run
+        exits = [line for line in proc.output.read_text().splitlines() if "src: killed by SIGKILL (no heartbeat for" in line]
+        assert exits and " s) after " in exits[0], proc.output.read_text()
     finally:
         if not gone(pid):
             os.kill(pid, signal.SIGKILL)
