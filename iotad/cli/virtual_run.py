@@ -9,7 +9,7 @@ import time
 from collections import Counter
 from pathlib import Path
 
-from iotad.cli import CliError
+from iotad.cli import CliError, output_file
 
 PROGRESS_EVERY = 1.0  # wall-clock seconds between progress lines
 
@@ -46,8 +46,7 @@ def run_virtual(system, args: argparse.Namespace) -> int:
     sinks.append(count)
     if not args.no_record:
         output = Path(args.record_to or f"recordings/{system.name}-virtual-{time.strftime('%Y%m%d-%H%M%S')}.mcap")
-        if output.is_dir():
-            raise CliError(f"-o {output}: is a directory; name the .mcap file to write")
+        output_file(str(output))  # a folder, or a path under a file: one line
         try:
             output.parent.mkdir(parents=True, exist_ok=True)
             sink = McapSink(output)

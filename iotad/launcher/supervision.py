@@ -751,6 +751,9 @@ def _label_order(item: tuple) -> tuple:
 
 def _unwritable(output: Path) -> str | None:
     """Why a recording cannot be written at `output` (checked before anything starts), or None."""
+    blocking = next((p for p in output.parents if p.exists() and not p.is_dir()), None)
+    if blocking is not None:
+        return f"{blocking} is a file, not a folder"
     try:
         output.parent.mkdir(parents=True, exist_ok=True)
     except OSError as exc:

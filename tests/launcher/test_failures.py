@@ -271,6 +271,8 @@ def test_unwritable_recording_path_is_an_error_before_any_node_starts(tmp_path, 
     assert result.returncode == 2, result.stdout + result.stderr
     # said by the launcher's check, or earlier by the command line's own check of -o
     assert str(target) in result.stderr and ("cannot record to" in result.stderr or "is a directory" in result.stderr)
+    if where == "under-a-file":
+        assert f"{tmp_path / 'plain'} is a file, not a folder" in result.stderr, result.stderr
     assert len(result.stderr.strip().splitlines()) == 1, result.stderr
     assert "Traceback" not in result.stderr and "started" not in result.stdout
 
