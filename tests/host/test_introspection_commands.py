@@ -93,3 +93,12 @@ def test_missing_peer_is_a_clear_error(command):
     result = iotad(*command, "--connect", "tcp/127.0.0.1:9", "--connect-timeout", "0.5")
     assert result.returncode == 2
     assert "no zenoh peer at tcp/127.0.0.1:9" in result.stderr and "Traceback" not in result.stderr
+
+
+def test_echo_past_its_timeout_says_what_it_got(live):
+    hub, node = live
+    quiet = iotad("echo", f"{node.base}/nothing-here", "--timeout", "0.5", "--connect", hub.endpoint)
+    assert quiet.returncode == 1
+    assert quiet.stderr.strip() == f"iotad echo: timeout: no message on {node.base}/nothing-here within 0.5 s"
+    some = iotad("echo", f"{node.base}/@heartbeat", "--count", "1000", "--timeout", "0.5", "--connect", hub.endpoint)
+    assert some.returncode == 1 and " of the 1000 messages wanted on " in some.stderr, some.stderr

@@ -71,8 +71,9 @@ def run(args: argparse.Namespace) -> int:
             if wait <= 0:
                 import sys
 
-                wanted = f"{args.count} messages" if args.count else "a message"
-                print(f"iotad echo: timeout: {seen} of {wanted} on {args.keyexpr} within {args.timeout:g} s",
+                got = (f"{seen} of the {args.count} messages wanted" if args.count
+                       else "no message" if not seen else f"{seen} messages")
+                print(f"iotad echo: timeout: {got} on {args.keyexpr} within {args.timeout:g} s",
                       file=sys.stderr)
                 return 1
             try:
