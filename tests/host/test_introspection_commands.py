@@ -102,3 +102,12 @@ def test_echo_past_its_timeout_says_what_it_got(live):
     assert quiet.stderr.strip() == f"iotad echo: timeout: no message on {node.base}/nothing-here within 0.5 s"
     some = iotad("echo", f"{node.base}/@heartbeat", "--count", "1000", "--timeout", "0.5", "--connect", hub.endpoint)
     assert some.returncode == 1 and " of the 1000 messages wanted on " in some.stderr, some.stderr
+
+
+def test_top_once_says_when_no_node_showed_itself(live):
+    hub, node = live
+    there = iotad("top", "--once", "1", "--system", "intro", "--connect", hub.endpoint)
+    assert there.returncode == 0 and "echo" in there.stdout, there.stderr
+    nobody = iotad("top", "--once", "1", "--system", "nosuch", "--connect", hub.endpoint)
+    assert nobody.returncode == 1
+    assert nobody.stderr.strip() == "iotad top: no node of system 'nosuch' showed itself within 1 s"

@@ -96,6 +96,10 @@ def run(args: argparse.Namespace) -> int:
         if args.once is not None:
             from rich.console import Console
             Console(file=sys.stdout, width=160).print(board.render())
+            if not board.nodes:  # a script reading the snapshot learns that nothing answered
+                where = f"of system {system!r} " if system else ""
+                print(f"iotad top: no node {where}showed itself within {args.once:g} s", file=sys.stderr)
+                return 1
         return 0
     finally:
         session.close()
