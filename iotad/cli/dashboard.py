@@ -178,8 +178,14 @@ class Dashboard:
         return rows
 
     def holder_lines(self) -> list[str]:
-        return [f"{h.scheduler}: {h.name}" + ("" if h.since is None else f" (since t={h.since:.2f})")
-                for h in self.holders.values()]
+        lines = []
+        for h in self.holders.values():
+            line = f"{h.scheduler}: {h.name}" + ("" if h.since is None else f" (since t={h.since:.2f})")
+            row = self.nodes.get(h.scheduler)
+            if row is not None and row.seen_gone and not row.alive:
+                line += ", last known: the scheduler is gone"  # a restarted one starts free
+            lines.append(line)
+        return lines
 
     def render(self) -> Any:
         """A rich renderable of the whole screen."""

@@ -52,6 +52,10 @@ def test_the_holder_follows_schedule_and_commit_and_is_named_from_the_spec():
     board.trace("scheduler", [{"t": 3.5, "kind": "internal", "action": "commit", "index": 0}, "junk"])
     assert board.holder_lines() == ["scheduler: free (since t=3.50)"]
     assert board.ignored == 1
+    board.alive("scheduler", True)
+    board.trace("scheduler", [{"t": 4.0, "kind": "internal", "action": "schedule", "index": 0}])
+    board.alive("scheduler", False)  # the system stopped, or the scheduler died: no longer known
+    assert board.holder_lines() == ["scheduler: vision (since t=4.00), last known: the scheduler is gone"]
 
 
 def test_rates_and_p99_latency_cover_the_last_window_only():
