@@ -14,9 +14,10 @@ ORDER = 30
 
 EPILOG = """\
 examples:
-  iotad record 'iota/figure2/**' -o recordings/fig2.mcap            (quote '**' for the shell)
+  iotad record 'iota/figure2/**' -o recordings/fig2.mcap --connect tcp/127.0.0.1:7447
+                                    (quote '**' for the shell; the hub 'iotad run' opens)
   iotad record --system-file examples/figure2.toml -o fig2.mcap --duration 30
-  iotad record 'iota/figure2/**' -o fig2.mcap --connect tcp/127.0.0.1:7447
+                                    (connects to the hub the system file names)
   iotad record --system-file examples/figure2.toml -o fig2.mcap --max-size 100M --max-duration 600
 
 'iotad run' starts a recorder by itself (-o FILE, or --no-record); use this command to record
@@ -77,7 +78,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--system-file", metavar="SYSTEM.toml", help="system file to store in the recording")
     parser.add_argument("--connect", action="append", default=[], metavar="EP", type=endpoint,
                         help="zenoh endpoint to connect to, e.g. tcp/127.0.0.1:7447 (repeatable; default: "
-                             "none, peers find the recorder through --listen and gossip)")
+                             "the hub of --system-file's [system.endpoints] listen; without --system-file none: "
+                             "peers find the recorder through --listen)")
     parser.add_argument("--listen", action="append", default=None, metavar="EP", type=endpoint,
                         help="zenoh endpoint to listen on (default tcp/127.0.0.1:0: any free loopback port)")
     parser.add_argument("--from-traces", action="store_true",
@@ -117,8 +119,9 @@ def run(args: argparse.Namespace) -> int:
             raise CliError(f"--system-file {args.system_file}: is a directory")
         if not Path(args.system_file).is_file():
             raise CliError(f"--system-file {args.system_file}: no such file")
+    connect = args.connect or _hub_of(args.system_file)
     try:
-        recorder = Recorder(args.keys, args.output, system_file=args.system_file, connect=args.connect,
+        recorder = Recorder(args.keys, args.output, system_file=args.system_file, connect=connect,
                             listen=args.listen or DEFAULT_LISTEN, flush_period=args.flush_period,
                             background=True,  # a process of its own: yield the CPU to the nodes
                             from_traces=args.from_traces, max_size=args.max_size,
@@ -159,3 +162,21 @@ def run(args: argparse.Namespace) -> int:
         print(f"recorded {stats['written']} messages to {where}; "
               f"{stats['gaps']} sequence gaps ({stats['missing']} missing)", file=sys.stderr)
     return 0
+
+
+def _hub_of(system_file: str | None) -> list[str]:
+    """Where the system file's `iotad run` opens its hub (its [system.endpoints] listen), for a
+    recorder given the file and no --connect: it records that system. None given: [] (listen only)."""
+    if system_file is None:
+        return []
+    import tomllib
+
+    from iotad.host.transport import DEFAULT_HUB_ENDPOINT
+    try:
+        table = tomllib.loads(Path(system_file).read_text())
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
+        return []  # the Recorder says what is wrong with the file
+    endpoints = table.get("system", {}).get("endpoints", {}) if isinstance(table.get("system"), dict) else {}
+    listen = endpoints.get("listen", [DEFAULT_HUB_ENDPOINT]) if isinstance(endpoints, dict) else []
+    listen = [listen] if isinstance(listen, str) else listen
+    return [e.replace("0.0.0.0", "127.0.0.1") for e in listen if isinstance(e, str)]
