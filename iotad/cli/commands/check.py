@@ -146,7 +146,6 @@ def run(args: argparse.Namespace) -> int:
               f"'iotad recover {args.file}' rewrites it whole")
     real_time = recording.info.get("clock") != "virtual"
     for node in nodes:
-        node_root(recording, node)  # a stored spec that does not build: one line, exit 2
         events = recording.trace(node, starts=True)
         if args.node and not events:
             raise CliError(f"node {node!r} has no @trace events in {args.file}")
