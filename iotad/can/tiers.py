@@ -437,6 +437,7 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     if not command:
         parser.error("no command: python -m iotad.can.tiers run -- CMD...")
+
     def terminated(signum, frame):
         raise Terminated(signum)
 
