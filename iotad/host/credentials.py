@@ -35,6 +35,9 @@ class Credentials:
     user: str
     password: str
     dictionary: str | None = None  # the hub's: the `user:password` file it checks others against
+    # the keys this user may publish on, where the run wrote them down (the tools' file): a tool
+    # can then say at once that the hub would drop a message, which zenoh never tells the sender
+    may_publish: tuple[str, ...] | None = None
 
     def zenoh_usrpwd(self) -> dict:
         """The value of zenoh's `transport/auth/usrpwd`."""
@@ -53,7 +56,10 @@ def load(path: str | Path) -> Credentials:
         raise CredentialsError(f"credentials {path}: not JSON") from None
     if not isinstance(data, dict) or not all(isinstance(data.get(k), str) and data.get(k) for k in ("user", "password")):
         raise CredentialsError(f"credentials {path}: expected {{\"user\": ..., \"password\": ...}}")
-    return Credentials(data["user"], data["password"])
+    allowed = data.get("may_publish")
+    if not (isinstance(allowed, list) and all(isinstance(k, str) for k in allowed)):
+        allowed = None
+    return Credentials(data["user"], data["password"], may_publish=None if allowed is None else tuple(allowed))
 
 
 def from_env() -> Credentials | None:
@@ -107,14 +113,19 @@ class CredentialStore:
     """One run's credentials: a private directory with one file per user and the hub's
     dictionary. `remove()` deletes it all (and the pointer), which the launcher does at its end."""
 
-    def __init__(self, users: Iterable[str], parent: str | None = None):
+    def __init__(self, users: Iterable[str], parent: str | None = None,
+                 may_publish: dict[str, list[str]] | None = None):
+        """`may_publish`: for some users, the keys they may publish on, written into their file."""
         self.folder = Path(tempfile.mkdtemp(prefix="iotad-credentials-", dir=parent))
         os.chmod(self.folder, 0o700)
         self._passwords = {user: secrets.token_urlsafe(24) for user in [HUB_USER, *users]}
         for user, password in self._passwords.items():
             if ":" in user or "\n" in user:
                 raise CredentialsError(f"user name {user!r} cannot hold ':' or a line break")
-            self._write(self.file_of(user), json.dumps({"user": user, "password": password}))
+            entry = {"user": user, "password": password}
+            if may_publish is not None and user in may_publish:
+                entry["may_publish"] = list(may_publish[user])
+            self._write(self.file_of(user), json.dumps(entry))
         self.dictionary = self.folder / "dictionary.txt"
         self._write(self.dictionary, "".join(f"{u}:{p}\n" for u, p in self._passwords.items()))
         self.pointer: Path | None = None

@@ -16,7 +16,11 @@ class AccessControl:
     def __init__(self, system: System, enabled: bool = True, why_off: str = ""):
         self.enabled, self.why_off = enabled, why_off
         self.policy: Policy | None = derive(system) if enabled else None
-        self.store: CredentialStore | None = CredentialStore(self.policy.users()) if self.policy else None
+        self.store: CredentialStore | None = None
+        if self.policy is not None:
+            # the tools' file says where they may publish: `iotad pub` refuses the rest itself
+            self.store = CredentialStore(self.policy.users(),
+                                         may_publish={TOOLS_USER: self.policy.grant(TOOLS_USER).publish})
 
     @classmethod
     def off(cls, system: System, why: str) -> "AccessControl":

@@ -16,6 +16,7 @@ import zenoh
 
 from launcher_helpers import free_port, launcher, wait_until
 
+from iotad.cli import main
 from iotad.host import credentials as creds
 from iotad.host import wire
 from iotad.host.transport import open_session
@@ -161,3 +162,22 @@ def test_credentials_are_private_files_and_the_tools_find_theirs_by_port(tmp_pat
     finally:
         store.remove()
     assert not store.folder.exists() and creds.for_endpoints(["tcp/127.0.0.1:1"]) is None
+
+
+def test_pub_refuses_a_key_the_hub_would_drop_and_says_where_to_allow_it(tmp_path, monkeypatch, capsys):
+    # the run writes into the tools' file where they may publish (allow_pub); `iotad pub` reads it
+    monkeypatch.delenv(creds.ENV, raising=False)
+    store = creds.CredentialStore(["iotad-tools"], may_publish={"iotad-tools": ["iota/s/arm/estop"]})
+    try:
+        assert creds.load(store.file_of("iotad-tools")).may_publish == ("iota/s/arm/estop",)
+        store.advertise(["tcp/127.0.0.1:9"], "iotad-tools")
+        assert main(["pub", "iota/s/motor/setpoints", "{}", "--connect", "tcp/127.0.0.1:9"]) == 2
+        err = capsys.readouterr().err
+        assert "iota/s/motor/setpoints: the hub there is under access control and would drop this" in err
+        assert "allow_pub (iota/s/arm/estop)" in err and "--insecure" in err
+        # an allowed key passes that check and goes on to the hub (none listens on port 9 here)
+        assert main(["pub", "iota/s/arm/estop", "true", "--connect", "tcp/127.0.0.1:9",
+                     "--connect-timeout", "0.5"]) == 2
+        assert "no zenoh peer at tcp/127.0.0.1:9" in capsys.readouterr().err
+    finally:
+        store.remove()

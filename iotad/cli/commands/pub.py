@@ -23,8 +23,9 @@ the node applies the value as an input event at the time it arrives, checking it
 switching time (a violation otherwise). See also: 'iotad echo KEY' to watch the answer.
 
 Access control, on by default in 'iotad run', lets tools publish only the inputs that the system
-file's [system.debug] allow_pub lists: the hub drops anything else, and zenoh does not tell the
-sender, so this command cannot say so. List the input there, or run the system with --insecure
+file's [system.debug] allow_pub lists: the hub drops anything else without telling the sender.
+The run writes those keys into the tools' credentials, so this command refuses any other key
+itself, with exit status 2. List the input there, or run the system with --insecure
 (docs/access-control.md)."""
 
 
@@ -50,6 +51,7 @@ def run(args: argparse.Namespace) -> int:
     import zenoh
 
     from iotad.host import wire
+    from iotad.host.transport import DEFAULT_HUB_ENDPOINT
     from iotad.cli import CliError
 
     try:
@@ -64,6 +66,7 @@ def run(args: argparse.Namespace) -> int:
         payload = wire.encode(value)
     except (OverflowError, ValueError, TypeError) as exc:  # msgpack: an integer past 64 bits
         raise CliError(f"value cannot be sent: {exc} (integers are at most 64 bits)") from None
+    _check_allowed(args.key, args.connect or [DEFAULT_HUB_ENDPOINT])
     session = tool_session(args)
     try:
         publisher = session.declare_publisher(args.key, congestion_control=zenoh.CongestionControl.BLOCK)
@@ -86,3 +89,22 @@ def run(args: argparse.Namespace) -> int:
         return 0
     finally:
         session.close()
+
+
+def _check_allowed(key: str, hub: list[str]) -> None:
+    """Under access control the hub drops what a tool publishes outside [system.debug] allow_pub,
+    and zenoh does not tell the sender: where the run wrote the tools' keys down, say it here."""
+    from iotad.cli import CliError
+    from iotad.host.credentials import CredentialsError, for_endpoints
+
+    try:
+        credentials = for_endpoints(hub)
+    except CredentialsError:
+        return  # the session says what is wrong with them
+    allowed = None if credentials is None else credentials.may_publish
+    if allowed is not None and key not in allowed:
+        listed = ", ".join(allowed) if allowed else "none"
+        raise CliError(f"{key}: the hub there is under access control and would drop this without a word: "
+                       f"tools may publish only on the inputs its system file lists in [system.debug] allow_pub "
+                       f"({listed}). List the input there, or run the system with --insecure "
+                       f"(docs/access-control.md)")
