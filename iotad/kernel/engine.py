@@ -325,7 +325,8 @@ class Engine:
                 self._violation(now, leaf.path, action.channel, index, "bad_value",
                                 f"{action.label}: output value rejected: {exc}")
                 emit = False
-            except (Exception, SystemExit) as exc:  # noqa: BLE001 - a fault in a spec (sys.exit too) is a violation, not a crash
+            # a fault in a spec (sys.exit() too) is a violation, not the end of the process
+            except (Exception, SystemExit) as exc:  # noqa: BLE001
                 self._runtime_error(now, instance, "value", exc)
                 emit = False
         if instance.do is not None:
