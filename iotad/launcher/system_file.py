@@ -42,6 +42,7 @@ import math
 import re
 import tomllib
 from dataclasses import dataclass, field
+from graphlib import CycleError, TopologicalSorter
 from pathlib import Path
 from typing import Any
 
@@ -809,23 +810,13 @@ def with_port(endpoints: list[str], port: int) -> list[str]:
 
 
 def _after_cycle(after: dict[str, list[str]]) -> list[str]:
-    """A cycle of `after` (node -> the nodes it starts after) as [a, b, ..., a], or []."""
-    state: dict[str, int] = {}  # 1: on the path being walked, 2: done
-    path: list[str] = []
-
-    def walk(node: str) -> list[str]:
-        state[node] = 1
-        path.append(node)
-        for other in after.get(node, ()):
-            if state.get(other) == 1:
-                return path[path.index(other):] + [other]
-            if other not in state:
-                found = walk(other)
-                if found:
-                    return found
-        path.pop()
-        state[node] = 2
-        return []
+    """A cycle of `after` (node -> the nodes it starts after) as [a, b, ..., a], each starting
+    after the next, or []."""
+    try:
+        TopologicalSorter(after).prepare()
+    except CycleError as exc:
+        return list(reversed(exc.args[1]))  # graphlib lists it in the other direction
+    return []
 
     for node in after:
         if node not in state:
