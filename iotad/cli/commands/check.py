@@ -185,5 +185,7 @@ def _unchecked(recording, specs: dict) -> list[str]:
     engine's violations about its external inputs are all it records."""
     listed = recording.info.get("nodes")
     named = {n for n in listed if isinstance(n, str)} if isinstance(listed, list) else set()
-    active = {e.get("node") for e in recording.trace() if e.get("kind") in ("input", "output", "internal")}
-    return sorted(n for n in named | active if n and n not in specs)
+    # only the traces of nodes without a spec are read here: the others are checked anyway
+    return sorted(n for n in (named | set(recording.nodes())) - set(specs)
+                  if n and (n in named or any(e.get("kind") in ("input", "output", "internal")
+                                              for e in recording.trace(n))))
