@@ -16,6 +16,12 @@ DEFAULT_LISTEN = ("tcp/127.0.0.1:0",)  # port 0: the OS picks a free loopback po
 DEFAULT_HUB_ENDPOINT = "tcp/127.0.0.1:7447"
 
 
+def reachable(endpoint: str) -> str:
+    """Where a client on this host reaches a hub listening on `endpoint` (on every interface: on
+    loopback)."""
+    return endpoint.replace("0.0.0.0", "127.0.0.1")
+
+
 def endpoint_problem(text: object) -> str:
     """Why `text` is not a zenoh endpoint such as tcp/127.0.0.1:7447 ("" when it is one): checked
     before zenoh sees it, so that zenoh's own error (a Rust source path) never reaches the user."""

@@ -220,7 +220,7 @@ class Launcher:
             signal.signal(signum, handler)
 
     def _open_session(self) -> None:
-        from iotad.host.transport import open_session
+        from iotad.host.transport import open_session, reachable
         from iotad.launcher.can_env import unresolved
 
         system = self.system
@@ -240,7 +240,7 @@ class Launcher:
             raise LauncherError(f"cannot open the hub session (listen {listen}, connect {connect}): {text}") from None
         session = self.session
         if system.opens_hub(self.host):  # with --port 0 this is the only place the port is told
-            tools = listen[0].replace("0.0.0.0", "127.0.0.1")
+            tools = reachable(listen[0])
             self.view.line(f"hub: {', '.join(listen)} (tools attach with --connect {tools}, e.g. iotad top --connect {tools})")
         for line in (self.access.opened(listen) if self.access and system.opens_hub(self.host) else ()):
             self.view.line(line)

@@ -112,6 +112,18 @@ def system_name(table: dict) -> str | None:
     return None
 
 
+def system_hub(table: dict) -> list[str]:
+    """Where a system file's `iotad run` opens its hub (its [system.endpoints] listen), as a
+    client reaches it (all interfaces: on loopback)."""
+    from iotad.host.transport import DEFAULT_HUB_ENDPOINT, reachable
+
+    system = table.get("system") if isinstance(table.get("system"), dict) else {}
+    endpoints = system.get("endpoints", {})
+    listen = endpoints.get("listen", [DEFAULT_HUB_ENDPOINT]) if isinstance(endpoints, dict) else []
+    listen = [listen] if isinstance(listen, str) else listen
+    return [reachable(e) for e in listen if isinstance(e, str)]
+
+
 class Recorder:
     """Record `keys` to `output` until `stop()`. `stats` counts what came and what was written."""
 

@@ -164,19 +164,15 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+
 def _hub_of(system_file: str | None) -> list[str]:
-    """Where the system file's `iotad run` opens its hub (its [system.endpoints] listen), for a
-    recorder given the file and no --connect: it records that system. None given: [] (listen only)."""
+    """Where to connect a recorder given a system file and no --connect: the hub its `iotad run`
+    opens, to record that system. None given: [] (listen only)."""
+    from iotad.recording.recorder import read_system_file, system_hub
+
     if system_file is None:
         return []
-    import tomllib
-
-    from iotad.host.transport import DEFAULT_HUB_ENDPOINT
     try:
-        table = tomllib.loads(Path(system_file).read_text())
-    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
+        return system_hub(read_system_file(system_file)[1])
+    except (OSError, UnicodeDecodeError, ValueError):
         return []  # the Recorder says what is wrong with the file
-    endpoints = table.get("system", {}).get("endpoints", {}) if isinstance(table.get("system"), dict) else {}
-    listen = endpoints.get("listen", [DEFAULT_HUB_ENDPOINT]) if isinstance(endpoints, dict) else []
-    listen = [listen] if isinstance(listen, str) else listen
-    return [e.replace("0.0.0.0", "127.0.0.1") for e in listen if isinstance(e, str)]

@@ -137,7 +137,7 @@ def launch(system, args: argparse.Namespace, summary_hook=None) -> int:
 
     from iotad.cli import CliError
     from iotad.launcher.supervision import Launcher, LauncherError
-    from iotad.host.transport import free_port
+    from iotad.host.transport import free_port, reachable
 
     if args.host is not None and args.host not in {n.host for n in system.nodes.values()}:
         hosts = sorted({n.host for n in system.nodes.values() if n.host}) or ["none declared"]
@@ -172,7 +172,7 @@ def launch(system, args: argparse.Namespace, summary_hook=None) -> int:
             from iotad.cli.commands.view import ViewerProcess
 
             hub = system.listen[0] if port is None else f"tcp/127.0.0.1:{port}"
-            viewer = ViewerProcess(hub.replace("0.0.0.0", "127.0.0.1"), system.name, args.view)
+            viewer = ViewerProcess(reachable(hub), system.name, args.view)
         code = launcher.run()
     except LauncherError as exc:
         raise CliError(str(exc)) from None

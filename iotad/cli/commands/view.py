@@ -44,6 +44,7 @@ def run(args: argparse.Namespace) -> int:
     from iotad.host import wire
 
     if args.system_file:
+        from iotad.host.transport import reachable
         from iotad.launcher.system_file import SystemFileError, load_system
 
         try:
@@ -52,7 +53,7 @@ def run(args: argparse.Namespace) -> int:
             raise CliError("; ".join(exc.errors)) from None
         args.system = args.system or system.name
         if not args.connect:
-            args.connect = [e.replace("0.0.0.0", "127.0.0.1") for e in system.listen]
+            args.connect = [reachable(e) for e in system.listen]
     try:
         import foxglove
     except ImportError:
