@@ -702,10 +702,11 @@ class Launcher:
         lines.append(f"  violations: {sum(violations.values())}"
                      + (" (" + ", ".join(f"{p} x{n}" for p, n in sorted(violations.items())) + ")" if violations else ""))
         lines += [f"    {example}" for example in examples]
+        never_live = self.never_live()
         for run in self.runs.values():
             if run.restarts:
                 lines.append(f"  {run.name}: restarted {run.restarts} time(s)")
-            if run.name in self.never_live():
+            if run.name in never_live:
                 lines.append(f"  {run.name}: NEVER LIVE: it failed {run.failures} time(s), last with "
                              f"{describe_exit(run.last_code)} (its output above says why); the run's exit status is 1")
         if len(self.recordings) == 1 and not self.recording_lost:
