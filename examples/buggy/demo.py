@@ -36,7 +36,7 @@ def main() -> int:
     system = Path(args.system).resolve()
     with _on_tier_bus(system) as path:
         print(f"Buggy as processes in real time for {seconds:g} s (CAN: {_bus_words()})", flush=True)
-        status = _call([str(BIN / "iotad"), "run", str(path), "--until", str(seconds), "-o", str(recording)])
+        status = _call([str(BIN / "iotad"), "run", str(path), "--until", str(seconds), "-o", str(recording), "--force"])
     if status == 130:
         print(f"stopped; the recording is whole: {recording}", file=sys.stderr)
         return status

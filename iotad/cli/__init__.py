@@ -118,6 +118,19 @@ def output_file(path: str, option: str = "-o") -> None:
             break
 
 
+def new_recording(path: str, force: bool, option: str = "-o") -> None:
+    """Refuse, with one line, to write a recording over one that is already there, unless `force`."""
+    import time
+    from iotad.recording.mcap_io import existing_recording
+
+    found = None if force else existing_recording(path)
+    if found is not None:
+        stat = found.stat()
+        written = time.strftime("%Y-%m-%d %H:%M:%S", time.localtime(stat.st_mtime))
+        raise CliError(f"{option} {path}: a recording is already there ({found}, {stat.st_size:,} bytes, "
+                       f"written {written}); name another file, or add --force to replace it")
+
+
 def key_expression(text: str) -> str:
     """A zenoh key expression: chunks separated by '/', none empty, no spaces or '#', '?', '$' misuse."""
     if not text or text.startswith("/") or text.endswith("/") or "//" in text or any(c in text for c in " #?"):

@@ -9,7 +9,7 @@ import time
 from collections import Counter
 from pathlib import Path
 
-from iotad.cli import CliError, output_file
+from iotad.cli import CliError, new_recording, output_file
 
 PROGRESS_EVERY = 1.0  # wall-clock seconds between progress lines
 
@@ -19,7 +19,7 @@ def run_virtual(system, args: argparse.Namespace) -> int:
     from iotad.kernel.engine import Engine
     from iotad.kernel.policy import Eager, Random
     from iotad.launcher.in_process import compose
-    from iotad.recording.mcap_io import EngineRecorder, McapSink
+    from iotad.recording.mcap_io import EngineRecorder, McapSink, unused_recording_path
 
     if args.until is None:
         raise CliError("--virtual needs --until SECONDS (virtual time; the run is as fast as the machine allows)")
@@ -45,8 +45,10 @@ def run_virtual(system, args: argparse.Namespace) -> int:
 
     sinks.append(count)
     if not args.no_record:
-        output = Path(args.record_to or f"recordings/{system.name}-virtual-{time.strftime('%Y%m%d-%H%M%S')}.mcap")
+        output = Path(args.record_to) if args.record_to else unused_recording_path(
+            f"recordings/{system.name}-virtual-{time.strftime('%Y%m%d-%H%M%S')}.mcap")
         output_file(str(output))  # a folder, or a path under a file: one line
+        new_recording(str(output), getattr(args, "force", False))
         try:
             output.parent.mkdir(parents=True, exist_ok=True)
             sink = McapSink(output)

@@ -35,6 +35,7 @@ from typing import Any, Callable
 from iotad.host import wire
 from iotad.launcher.processes import FAILED_TO_START, Child, RestartPolicy, describe_exit, stop_all
 from iotad.launcher.system_file import NodeSpec, Port, System, with_port
+from iotad.recording.mcap_io import unused_recording_path
 
 ALIVE = "@alive"
 HEARTBEAT = "@heartbeat"
@@ -288,7 +289,7 @@ class Launcher:
             output = Path(self.record_path)
         else:
             stamp = time.strftime("%Y%m%d-%H%M%S", time.localtime(self.origin))
-            output = Path("recordings") / f"{self.system.name}-{stamp}.mcap"
+            output = unused_recording_path(Path("recordings") / f"{self.system.name}-{stamp}.mcap")
         problem = _unwritable(output)
         if problem:
             raise LauncherError(f"cannot record to {output}: {problem}; choose another file with -o, "

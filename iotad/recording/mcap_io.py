@@ -1013,6 +1013,28 @@ def member_path(path: str | Path, number: int) -> Path:
     return path.with_name(f"{path.stem}_{number}{path.suffix or '.mcap'}")
 
 
+def existing_recording(path: str | Path) -> Path | None:
+    """The file a new recording at `path` would replace: `path` itself, or the first member of a
+    split recording of that name (`fig2_0.mcap`); None when there is none. Recordings are the
+    evidence of a run: `run -o` and `record -o` replace one only when told to (--force)."""
+    path = Path(path)
+    for candidate in (path, member_path(path, 0)):
+        if candidate.is_file():
+            return candidate
+    return None
+
+
+def unused_recording_path(path: str | Path) -> Path:
+    """`path`, or `path` with -2, -3... before its suffix: the first name no recording holds (two
+    runs started within the same second would otherwise share a time-stamped default name)."""
+    path = Path(path)
+    candidate, number = path, 2
+    while existing_recording(candidate) is not None:
+        candidate = path.with_name(f"{path.stem}-{number}{path.suffix}")
+        number += 1
+    return candidate
+
+
 def _records(stream: IO[bytes], recording: Recording) -> Iterator[Any]:
     """Records of the data section; stops quietly where a killed writer stopped writing."""
     reader = StreamReader(stream, record_size_limit=1 << 31)

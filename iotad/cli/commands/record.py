@@ -74,7 +74,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("keys", nargs="*", metavar="KEYEXPR", type=key_expression,
                         help="zenoh key expressions; 'iota/SYS/**' also covers SYS's @trace, @launcher "
                              "and @heartbeat keys (default: every key of the system file's system)")
-    parser.add_argument("-o", "--output", required=True, metavar="FILE", help="MCAP file to write")
+    parser.add_argument("-o", "--output", required=True, metavar="FILE",
+                        help="MCAP file to write (an existing recording is kept: see --force)")
+    parser.add_argument("--force", action="store_true",
+                        help="replace a recording already at FILE (default: refuse, so that none is lost)")
     parser.add_argument("--system-file", metavar="SYSTEM.toml", help="system file to store in the recording")
     parser.add_argument("--connect", action="append", default=[], metavar="EP", type=endpoint,
                         help="zenoh endpoint to connect to, e.g. tcp/127.0.0.1:7447 (repeatable; default: "
@@ -100,7 +103,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from iotad.cli import CliError, output_file
+    from iotad.cli import CliError, new_recording, output_file
     from iotad.recording.recorder import Recorder
     from iotad.host.transport import DEFAULT_LISTEN
 
@@ -110,6 +113,7 @@ def run(args: argparse.Namespace) -> int:
     if output.is_dir():
         raise CliError(f"-o {args.output}: is a directory; name the .mcap file to write")
     output_file(args.output)  # a folder, or a path under a file: one line
+    new_recording(args.output, args.force)
     try:
         output.parent.mkdir(parents=True, exist_ok=True)  # as the help says, and as `run -o` does
     except OSError as exc:

@@ -68,7 +68,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                         help="no access control: any process reaching the hub may publish on any key "
                              "(default: each node authenticated, writing only its outputs; docs/access-control.md)")
     parser.add_argument("-o", "--record-to", metavar="FILE",
-                        help="recording file (default recordings/<system>-<time>.mcap)")
+                        help="recording file (default recordings/<system>-<time>.mcap); an existing "
+                             "recording is kept: see --force")
+    parser.add_argument("--force", action="store_true",
+                        help="replace a recording already at -o FILE (default: refuse, so that none is lost)")
     parser.add_argument("--max-size", type=byte_size, default=None, metavar="SIZE",
                         help="split the recording: a new file once one holds SIZE bytes (100M, 1G; see 'iotad record')")
     parser.add_argument("--max-duration", type=positive_float, default=None, metavar="S",
@@ -135,7 +138,7 @@ def launch(system, args: argparse.Namespace, summary_hook=None) -> int:
     import os
     from pathlib import Path
 
-    from iotad.cli import CliError
+    from iotad.cli import CliError, new_recording
     from iotad.launcher.supervision import Launcher, LauncherError
     from iotad.host.transport import free_port, reachable
 
@@ -156,6 +159,8 @@ def launch(system, args: argparse.Namespace, summary_hook=None) -> int:
         raise CliError("--max-size and --max-duration split the recording: not with --no-record")
     if getattr(args, "record_to", None) and Path(args.record_to).is_dir():
         raise CliError(f"-o {args.record_to}: is a directory; name the .mcap file to write")
+    if getattr(args, "record_to", None) and not args.no_record:
+        new_recording(args.record_to, getattr(args, "force", False))
     port = args.port
     if port == 0:
         port = free_port()
