@@ -35,7 +35,6 @@ from typing import Any, Callable
 from iotad.host import wire
 from iotad.launcher.processes import FAILED_TO_START, Child, RestartPolicy, describe_exit, stop_all
 from iotad.launcher.system_file import NodeSpec, Port, System, with_port
-from iotad.recording.mcap_io import unused_recording_path
 
 ALIVE = "@alive"
 HEARTBEAT = "@heartbeat"
@@ -285,11 +284,9 @@ class Launcher:
         if find_spec("iotad.cli.commands.record") is None:
             self.view.line("warning: this iotad has no 'record' command; running without a recording")
             return
-        if self.record_path:
-            output = Path(self.record_path)
-        else:
-            stamp = time.strftime("%Y%m%d-%H%M%S", time.localtime(self.origin))
-            output = unused_recording_path(Path("recordings") / f"{self.system.name}-{stamp}.mcap")
+        if not self.record_path:  # the CLI names it (run.launch): the launcher does not know the file names
+            raise LauncherError("a recorded run needs record_path (the .mcap file to write)")
+        output = Path(self.record_path)
         problem = _unwritable(output)
         if problem:
             raise LauncherError(f"cannot record to {output}: {problem}; choose another file with -o, "

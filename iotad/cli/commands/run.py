@@ -159,13 +159,21 @@ def launch(system, args: argparse.Namespace, summary_hook=None) -> int:
         raise CliError("--max-size and --max-duration split the recording: not with --no-record")
     if getattr(args, "record_to", None) and Path(args.record_to).is_dir():
         raise CliError(f"-o {args.record_to}: is a directory; name the .mcap file to write")
-    if getattr(args, "record_to", None) and not args.no_record:
-        new_recording(args.record_to, getattr(args, "force", False))
+    record_to = getattr(args, "record_to", None)
+    if record_to and not args.no_record:
+        new_recording(record_to, getattr(args, "force", False))
+    elif not args.no_record:  # a new name: recordings/<system>-<date>-<time>.mcap, -2 in the same second
+        import time
+
+        from iotad.recording.mcap_io import unused_recording_path
+
+        stamp = time.strftime("%Y%m%d-%H%M%S", time.localtime(args.origin or time.time()))
+        record_to = str(unused_recording_path(Path("recordings") / f"{system.name}-{stamp}.mcap"))
     port = args.port
     if port == 0:
         port = free_port()
     launcher = Launcher(system, host=args.host, port=port, until=args.until, record=not args.no_record,
-                        record_path=args.record_to, origin=args.origin, log_dir=args.log_dir,
+                        record_path=record_to, origin=args.origin, log_dir=args.log_dir,
                         live_table=False if args.plain else None,
                         record_max_size=getattr(args, "max_size", None),
                         record_max_duration=getattr(args, "max_duration", None),
