@@ -113,7 +113,7 @@ def why_not(name: str) -> str | None:
         version = _uml_version()
         if not version or not all((UML_MODULES / version / "kernel" / m).exists() for m in CAN_MODULES):
             return f"the user-mode kernel's CAN modules are missing under {UML_MODULES}/{version or '<version>'}"
-        return None
+        return _probe_uml()
     if name == "udp_multicast":
         return _probe_netns(_UDP_SETUP, "cannot make a private network namespace with multicast on loopback")
     return f"unknown tier {name!r}"
@@ -153,6 +153,28 @@ def _probe_netns(setup: str, meaning: str) -> str | None:
     if "unshare" in detail:
         return f"no private network namespace (unshare -rn: {detail})"
     return f"{meaning} ({detail})"
+
+
+UML_PROBE_TIMEOUT = 60.0  # a boot takes ~2 s; a loaded machine (a test suite) may take far longer
+
+
+def _probe_uml() -> str | None:
+    """None if user-mode Linux boots here and makes vcan0, else what went wrong. Its files being
+    installed is not enough: on a host CPU with a large extended register state (AMX), Debian's
+    6.1 user-mode kernel panics at its first process ("ptrace set fp regs failed")."""
+    try:
+        _run_uml(tier("uml"), ["true"], UML_PROBE_TIMEOUT, "/", {}, None, "256M").check()
+    except TierTimeout:
+        return f"user-mode Linux did not boot within {UML_PROBE_TIMEOUT:g} s"
+    except (TierUnavailable, RuntimeError, OSError) as exc:
+        lines = [line.strip() for line in str(exc).splitlines() if line.strip()]
+        # the cause, where the console names one, before the panic it leads to
+        for word in ("ptrace", "iotad-can init", "panic", "did not report"):
+            telling = [line for line in lines if word in line]
+            if telling:
+                return f"user-mode Linux does not boot on this host ({telling[0]})"
+        return f"user-mode Linux does not boot on this host ({lines[0] if lines else 'no output'})"
+    return None
 
 
 @functools.cache

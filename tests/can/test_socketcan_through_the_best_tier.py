@@ -119,6 +119,35 @@ def test_an_unknown_or_unavailable_tier_is_a_clear_error():
             tiers.best_tier(name)
 
 
+PANIC_CONSOLE = """SELinux:  Initializing.
+mmapper_init - find_iomem failed
+userspace - ptrace set fp regs failed, errno = 14
+Kernel panic - not syncing: Attempted to kill init! exitcode=0x0000000b"""
+
+
+def test_a_user_mode_kernel_that_cannot_boot_is_not_chosen_and_says_why(monkeypatch):
+    """Installed is not enough: on a host CPU with AMX, Debian's 6.1 user-mode kernel panics at its
+    first process. The probe boots it once; a panic names its cause (not the harmless lines
+    before it), a hang is a time-out, and a kernel that boots is a tier."""
+    def panics(*args):
+        raise tiers.TierUnavailable("user-mode Linux did not report the command's exit status "
+                                    f"(kernel exit -6, command never started)\n--- console ---\n{PANIC_CONSOLE}")
+    monkeypatch.setattr(tiers, "_run_uml", panics)
+    assert tiers._probe_uml() == ("user-mode Linux does not boot on this host "
+                                  "(userspace - ptrace set fp regs failed, errno = 14)")
+
+    def hangs(chosen, command, *args):
+        raise tiers.TierTimeout("ran past", tiers.TierRun(chosen, command, -9, "", 60.0))
+    monkeypatch.setattr(tiers, "_run_uml", hangs)
+    assert tiers._probe_uml() == f"user-mode Linux did not boot within {tiers.UML_PROBE_TIMEOUT:g} s"
+
+    def boots(chosen, command, *args):
+        assert command == ["true"]
+        return tiers.TierRun(chosen, command, 0, "", 2.0)
+    monkeypatch.setattr(tiers, "_run_uml", boots)
+    assert tiers._probe_uml() is None
+
+
 # A command that stops its own way on SIGINT or SIGTERM (as `iotad run` does: stops its nodes,
 # finishes its recording), and says how it stopped.
 STOPS_ITS_OWN_WAY = r'''

@@ -21,10 +21,12 @@ COMMANDS = {"Set_Input_Pos", "Set_Input_Vel", "Set_Input_Torque", "Set_Axis_Stat
 
 
 def system_variant(folder: Path, *, segment: float | None = None, odrives: dict | None = None,
-                   motor: dict | None = None, port: int | None = None, bus: tuple[str, str] | None = None) -> Path:
+                   motor: dict | None = None, port: int | None = None, bus: tuple[str, str] | None = None,
+                   backoff: float | None = None) -> Path:
     """examples/arm_can.toml with other leg times and odrives and motor params (key -> TOML
-    value text, replacing or adding) and another bus (interface, channel: what a tier gives),
-    written into `folder`; the trajectory's file stays where it is."""
+    value text, replacing or adding), another bus (interface, channel: what a tier gives) and
+    another wait before the motor node's restart (`backoff`, seconds), written into `folder`;
+    the trajectory's file stays where it is."""
     text = EXAMPLE.read_text()
     text = text.replace('python = "arm_trajectory.py:', f'python = "{ROOT / "examples" / "arm_trajectory.py"}:')
     if segment is not None:
@@ -47,6 +49,9 @@ def system_variant(folder: Path, *, segment: float | None = None, odrives: dict 
                             f'interface = "{bus[0]}"\nchannel = "{bus[1]}"')
     if port is not None:
         text = text.replace("tcp/127.0.0.1:7447", f"tcp/127.0.0.1:{port}")
+    if backoff is not None:
+        text, n = re.subn(r"(?m)^backoff = [0-9.]+$", f"backoff = {backoff}", text)
+        assert n == 1
     path = folder / "arm_can.toml"
     path.write_text(text)
     return path

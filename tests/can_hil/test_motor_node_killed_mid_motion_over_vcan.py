@@ -1,5 +1,6 @@
-"""examples/arm_can.toml as processes in real time on a SocketCAN bus (the best CAN tier: vcan, or
-vcan0 in user-mode Linux here), its motor node killed with SIGKILL while the arm moves:
+"""examples/arm_can.toml as processes in real time on the best CAN tier (vcan, vcan0 in user-mode
+Linux, or udp_multicast where user-mode Linux does not boot), its motor node killed with SIGKILL
+while the arm moves:
 
 - every simulated axis is IDLE with a watchdog error within 100 ms of the last command it got
   (in the axis's own time: its recorded steps), and stays put, braked, until the restart;
@@ -27,6 +28,10 @@ STEP = 0.005            # the example's simulated step_period
 KILL_AFTER = 3.0        # s after the motor node is live (the first leg runs 0.5-4.5 s after its first state)
 TWO_PI = 6.283185307179586
 BRAKE_SETTLE = 0.4      # s of the axis's time after its first IDLE heartbeat
+# s the launcher waits before it restarts the node: the axes stay braked at least this long, time
+# for BRAKE_SETTLE and a few encoder estimates after it, however fast the tier starts a process
+# (in user-mode Linux a start takes seconds; on udp_multicast on the host, a fraction of one)
+RESTART_AFTER = 1.5
 
 
 @pytest.fixture(scope="module")
@@ -34,7 +39,8 @@ def run(can_tier, tmp_path_factory):
     folder = tmp_path_factory.mktemp("arm_rt")
     system = system_variant(folder, segment=4.0, bus=(can_tier.interface, can_tier.channel),
                             odrives={"heartbeat_period": "0.01", "encoder_period": "0.05"},
-                            motor={"heartbeat_period": "0.01", "lost_after": "20", "encoder_period": "0.05"})
+                            motor={"heartbeat_period": "0.01", "lost_after": "20", "encoder_period": "0.05"},
+                            backoff=RESTART_AFTER)
     recording = folder / "arm.mcap"
     result = can_tier.run([str(ROOT / ".venv" / "bin" / "python"), str(ROOT / "tests" / "can_hil" / "arm_driver.py"),
                            str(system), str(recording), "--kill-after", str(KILL_AFTER), "--run-for", "14"],
