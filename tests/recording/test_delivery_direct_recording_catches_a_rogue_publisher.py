@@ -2,6 +2,7 @@
 subscription, a third witness between senders and receivers): the clean run's messages are all
 delivered as sent; a message published on the scheduler's ack key by someone else (`iotad pub`,
 a rogue publisher) is on the wire and taken by vision, and no sender claims it: unexplained."""
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -37,7 +38,9 @@ def recorded(tmp_path_factory):
     insecure = ["--insecure"] if "--insecure" in help_text else []
     system = iotad("run", str(FIGURE2), *insecure, "--no-record", "--until", "8", "--port", str(port), "--plain",
                    "--log-dir", str(directory / "logs"), out=directory / "run.out")
-    recorder = iotad("record", "-o", str(path), "--system-file", str(FIGURE2), "--connect", hub, "--duration", "10",
+    # The recorder runs until the system has ended (SIGINT then), not for a fixed time: under load
+    # the nodes can take seconds to go live, and a fixed span would cut the run's end off.
+    recorder = iotad("record", "-o", str(path), "--system-file", str(FIGURE2), "--connect", hub, "--duration", "120",
                      "--ready-file", str(ready), "--quiet", out=directory / "record.out")
     try:
         assert wait_until(ready.exists, 30), (directory / "record.out").read_text()
@@ -48,6 +51,7 @@ def recorded(tmp_path_factory):
                                 "--connect", hub, "--wait", "5", "--count", "3", "--rate", "5"], capture_output=True, text=True, timeout=30, cwd=ROOT)
         assert rogue.returncode == 0, rogue.stdout + rogue.stderr
         assert system.wait(60) == 0, (directory / "run.out").read_text()[-3000:]
+        recorder.send_signal(signal.SIGINT)
         assert recorder.wait(30) == 0, (directory / "record.out").read_text()[-3000:]
     finally:
         stop_launcher(system)
@@ -78,5 +82,9 @@ def test_every_message_of_the_system_itself_was_delivered_as_sent(recorded):
         # rejected: a real ack right after a rogue one breaks vision's switching time, recorded
         assert link.delivered + link.unjudged + link.rejected == link.sent, link
     by_label = {link.label: link for link in report.links}
-    assert by_label["vision.req -> scheduler.req[0]"].delivered >= 2
+    # manipulation asks twice whatever the rogue does; vision may ask only once: a rogue COMMIT
+    # taken just before its first request makes the real answer, within ack's switching time of
+    # it, a rejected input, and vision waits for an answer that was refused (timing decides).
+    assert by_label["manipulation.req -> scheduler.req[1]"].delivered >= 2
+    assert by_label["vision.req -> scheduler.req[0]"].delivered >= 1
     assert by_label["scheduler.mdl_command -> (wire)"].delivered >= 2  # the recorder's own copy of each
