@@ -31,6 +31,7 @@ def files(tmp_path_factory):
     (d / "empty.iota").write_text("")
     (d / "types.iota").write_text("// only types\nstruct s { int x; };\n")
     (d / "empty.toml").write_text("")
+    (d / "nospec.toml").write_text("[system]\nname = 'x'\n[[node]]\nname = 'a'\n[[node]]\nname = 'b'\n")
     (d / "garbage.bin").write_bytes(bytes(range(256)) * 8)
     (d / "text.mcap").write_text("hello, not a recording\n")
     (d / "bad.toml").write_text("[system\nname = 'x'\n")
@@ -148,7 +149,10 @@ CASES = [
     (["record", "iota/x/**", "-o", "{d}/r.mcap", "--connect", "garbage"], "expected a zenoh endpoint"),
     (["record", "iota/x/**", "-o", "{d}/r.mcap", "--listen", "tcp/127.0.0.1:99999"], "port out of range"),
     (["record", "-o", "{d}/r.mcap", "--system-file", "missing.toml"], "--system-file missing.toml: no such file"),
-    (["record", "-o", "{d}/r.mcap", "--system-file", "{d}/bad.toml"], "not TOML"),
+    (["record", "-o", "{d}/r.mcap", "--system-file", "{d}/bad.toml"], "not valid TOML"),
+    (["record", "-o", "{d}/r.mcap", "--system-file", "{d}/empty.toml"], "the system has no nodes"),
+    (["record", "-o", "{d}/r.mcap", "--system-file", "{d}/nospec.toml"],
+     "give exactly one of spec = \"file.iota\" or python = \"file.py:Class\" (and 1 more: 'iotad run --check"),
     (["record", "-o", "{d}/r.mcap", "--system-file", "{d}/garbage.bin"], "not UTF-8 text"),
     # live tools: bad options, and nothing running at the peer
     (["ls", *FAST], "no zenoh peer at tcp/127.0.0.1:9"),

@@ -78,7 +78,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                         help="MCAP file to write (an existing recording is kept: see --force)")
     parser.add_argument("--force", action="store_true",
                         help="replace a recording already at FILE (default: refuse, so that none is lost)")
-    parser.add_argument("--system-file", metavar="SYSTEM.toml", help="system file to store in the recording")
+    parser.add_argument("--system-file", metavar="SYSTEM.toml", help="system file to store in the recording (refused if 'iotad run' would refuse its "
+                             "form; its nodes' code is not loaded)")
     parser.add_argument("--connect", action="append", default=[], metavar="EP", type=endpoint,
                         help="zenoh endpoint to connect to, e.g. tcp/127.0.0.1:7447 (repeatable; default: "
                              "the hub of --system-file's [system.endpoints] listen; without --system-file none: "
@@ -122,7 +123,9 @@ def run(args: argparse.Namespace) -> int:
         if Path(args.system_file).is_dir():
             raise CliError(f"--system-file {args.system_file}: is a directory")
         if not Path(args.system_file).is_file():
-            raise CliError(f"--system-file {args.system_file}: no such file")
+            what = "not a regular file" if Path(args.system_file).exists() else "no such file"
+            raise CliError(f"--system-file {args.system_file}: {what}")
+        _check_system_file(args.system_file)
     connect = args.connect or _hub_of(args.system_file)
     try:
         recorder = Recorder(args.keys, args.output, system_file=args.system_file, connect=connect,
@@ -167,6 +170,21 @@ def run(args: argparse.Namespace) -> int:
               f"{stats['gaps']} sequence gaps ({stats['missing']} missing)", file=sys.stderr)
     return 0
 
+
+
+def _check_system_file(path: str) -> None:
+    """Refuse a system file `iotad run` would refuse for its shape (nodes, keys, bindings' form),
+    before recording: a recording stores it for check and replay, which would fail on it later.
+    Its nodes' code is not loaded (check=False): the recorder must start at once, beside a
+    system that is already starting, and imports no robot code."""
+    from iotad.cli import CliError
+    from iotad.launcher.system_file import SystemFileError, load_system
+
+    try:
+        load_system(path, check=False)
+    except SystemFileError as exc:
+        more = f" (and {len(exc.errors) - 1} more: 'iotad run --check {path}' lists them)" if len(exc.errors) > 1 else ""
+        raise CliError(f"--system-file {path}: {exc.errors[0]}{more}") from None
 
 
 def _hub_of(system_file: str | None) -> list[str]:
