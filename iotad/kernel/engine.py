@@ -273,6 +273,13 @@ class Engine:
         except Halted:
             return 0
 
+    def next_due(self) -> float:
+        """When the next action instance is due (INF: none). Replay steps firing by firing with it."""
+        heap = self._heap
+        while heap and heap[0][3].gen != heap[0][2]:
+            heapq.heappop(heap)  # a dropped window
+        return heap[0][0] if heap else INF
+
     def deliver(self, path: str | None, channel: str, value: Any = None, index: int | None = None) -> None:
         """An external input at the clock's present time, at once (`post` queues one instead)."""
         self.start()

@@ -30,6 +30,8 @@ class ReplayResult:
     reason: str = ""
     max_time_error: float = 0.0
     kinds: tuple = ("output",)
+    reordered: int = 0              # replayed events taken out of order (real-time recordings)
+    real_time: bool = False         # the recording's clock was real (its divergences get a hint)
 
     @property
     def ok(self) -> bool:
@@ -37,8 +39,10 @@ class ReplayResult:
 
     def lines(self, context: int = 3) -> list[str]:
         if self.ok:
+            order = (f"; {self.reordered} in another order than the replay's, within the tolerance"
+                     if self.reordered else "")
             return [f"{self.node}: replay agrees: {len(self.recorded)} {'/'.join(self.kinds)} events, "
-                    f"largest time difference {self.max_time_error:.3g} (tolerance {self.tolerance:g})"]
+                    f"largest time difference {self.max_time_error:.3g} (tolerance {self.tolerance:g}){order}"]
         k = self.divergence
         out = [f"{self.node}: replay diverges at {'/'.join(self.kinds)} event #{k}: {self.reason}"]
         lo = max(0, k - context)
@@ -49,6 +53,10 @@ class ReplayResult:
                 out.append(f"   {mark} #{j} {describe(events[j])}")
             if k >= len(events):
                 out.append(f"   >> #{k} (none: the {title} run ends here)")
+        if self.real_time:
+            out.append(f"  (a real-time recording: this re-run fires at exact times, the process fired with its "
+                       f"clock's jitter; 'iotad check FILE --node {self.node}' follows the recorded firing times "
+                       f"and checks every value: docs/checking.md)")
         return out
 
 
@@ -68,9 +76,16 @@ def node_root(recording: Recording, node: str) -> Any:
 
 
 def replay_node(recording: Recording, node: str, tolerance: float = 0.01,
-                kinds: tuple = ("output",)) -> ReplayResult:
+                kinds: tuple = ("output",), reorder: bool | None = None) -> ReplayResult:
     """Re-run `node` against its recorded inputs; each run of its process (a restarted node has
-    several) from its own start and initial state, as the process ran."""
+    several) from its own start and initial state, as the process ran.
+
+    `reorder` (default: for real-time recordings): events within `tolerance` of each other may
+    agree in either order. A real process fires what is due within a few ms in the order its
+    clock saw it, jitter included; the replay fires them at their exact times, in the engine's
+    order. A virtual-time recording has that order exactly, and is compared in it."""
+    if reorder is None:
+        reorder = recording.info.get("clock") == "real"
     events = recording.trace(node, starts=True)
     if not any(e.get("kind") != START_KIND for e in events):
         raise RecordingError(f"node {node!r} has no @trace events in {recording.path}")
@@ -80,15 +95,21 @@ def replay_node(recording: Recording, node: str, tolerance: float = 0.01,
         mine = [e for e in run if e.get("kind") in kinds]
         again = _replay_run(node_root(recording, node), begun, run, tolerance, kinds)
         # A firing the recording may simply not have reached (it ended first, or the process was
-        # killed at that instant) is not a divergence.
+        # killed at that instant; a real process, a little late, up to `tolerance` before) is not
+        # a divergence.
         end = max((float(e["t"]) for e in run), default=begun)
         cut = end if number == len(runs) - 1 else math.nextafter(end, -math.inf)
+        if reorder:
+            cut -= tolerance
         while len(again) > len(mine) and again[-1]["t"] > cut:
             again.pop()
         recorded += mine
         replayed += again
-    result = ReplayResult(node, recorded, replayed, tolerance, kinds=kinds)
+    result = ReplayResult(node, recorded, replayed, tolerance, kinds=kinds,
+                          real_time=recording.info.get("clock") == "real")
     for k in range(max(len(recorded), len(replayed))):
+        if reorder and k < len(recorded) and k < len(replayed) and _moved_forward(recorded[k], replayed, k, tolerance):
+            result.reordered += 1
         if k >= len(recorded):
             result.divergence, result.reason = k, f"the replay has an extra event: {describe(replayed[k])}"
             break
@@ -109,6 +130,26 @@ def replay_node(recording: Recording, node: str, tolerance: float = 0.01,
     return result
 
 
+def _agree(a: dict, b: dict) -> bool:
+    return (a["action"], a.get("index"), a.get("kind")) == (b["action"], b.get("index"), b.get("kind")) \
+        and _same(a.get("value"), b.get("value"))
+
+
+def _moved_forward(wanted: dict, replayed: list[dict], k: int, tolerance: float) -> bool:
+    """If `replayed[k]` does not agree with the recorded event `wanted` but a later replayed event
+    within `tolerance` of it does (both in time), move that one to place k; True if moved."""
+    t = float(wanted["t"])
+    if _agree(wanted, replayed[k]) and abs(float(replayed[k]["t"]) - t) <= tolerance:
+        return False
+    for j in range(k + 1, len(replayed)):
+        if float(replayed[j]["t"]) > t + tolerance:
+            break
+        if _agree(wanted, replayed[j]) and abs(float(replayed[j]["t"]) - t) <= tolerance:
+            replayed.insert(k, replayed.pop(j))
+            return True
+    return False
+
+
 def _replay_run(root: Any, begun: float, events: list[dict], tolerance: float, kinds: tuple) -> list[dict]:
     """The events of `kinds` that `root` makes when given the inputs of one recorded run."""
     engine = Engine(root, VirtualClock(begun))
@@ -119,33 +160,56 @@ def _replay_run(root: Any, begun: float, events: list[dict], tolerance: float, k
     # Inputs bound to an output inside the node (a composite) are delivered by that output's
     # firing in the replay too: their recorded input events are not posted again.
     bound = {id(target) for slot in engine.slots.values() for target in slot.targets}
-    # Each input goes in where the recording has it: after what fired before it, also at its
-    # own instant. In a virtual run of a whole system, an input and the node's own firings often
-    # share an instant, in the order of the system's actions (another node's output may come
-    # after this node's); the node alone would take the input first.
-    instant, fired_then = None, 0   # the instant of the last event, local firings in it so far
-    fired_at_t = 0                  # local firings of the replay at the clock's instant
+    # Each input goes in where the recording has it: after the node's own firings recorded before
+    # it, and before those recorded after it. In a virtual run of a whole system, an input and the
+    # node's own firings often share an instant, in the order of the system's actions (another
+    # node's output may come after this node's): the node alone would take the input first. In a
+    # real-time run under load a firing can be late, after an input that came in meanwhile (it
+    # then sees that input): replayed on time, it would fire before the input and may differ.
+    recorded_fired = 0      # the node's firings (output, internal) the recording has so far
+    fired = _FiringCount(engine)
+    engine.start()          # its windows open at the run's start, not at the first input
     for event in events:
         t, kind = float(event["t"]), event.get("kind")
-        if t != instant:
-            instant, fired_then = t, 0
         if kind in ("output", "internal"):
-            fired_then += 1
+            recorded_fired += 1
         if kind != "input":
             continue
         slot = engine.slots.get((mapping[event.get("iota", "")], event["action"], event.get("index")))
         if slot is not None and id(slot) in bound:
             continue
-        if engine.now() < t:
-            engine.run(math.nextafter(t, -math.inf))  # everything due before its instant
-            engine.clock.wait(t)                       # the clock at its instant, nothing fired yet
-            fired_at_t = 0
-        fired_at_t += engine.fire_due(fired_then - fired_at_t) if fired_then > fired_at_t else 0
+        # what is due up to the input's instant, one firing at a time, while the recording has
+        # fired more than the replay: a firing it has after the input waits for the input
+        while fired.count() < recorded_fired and not engine.halted:
+            due = engine.next_due()
+            if due > t:
+                break
+            if engine.now() < due:
+                engine.clock.wait(due)
+            if engine.fire_due(recorded_fired - fired.count()) == 0 and engine.next_due() <= engine.now():
+                break  # nothing could fire now (every due one waits out a switching time)
         if engine.halted:
             break
+        if engine.now() < t:
+            engine.clock.wait(t)
         engine.deliver(mapping[event.get("iota", "")], event["action"], event.get("value"), event.get("index"))
     engine.run(max((float(e["t"]) for e in events), default=begun) + tolerance)
     return [dict(e, iota=reverse.get(e["iota"], e["iota"])) for e in engine.trace if e["kind"] in kinds]
+
+
+class _FiringCount:
+    """How many firings (outputs, internal actions) an engine's trace holds, counted as it grows."""
+
+    def __init__(self, engine: Engine):
+        self.trace, self.seen, self.fired = engine.trace, 0, 0
+
+    def count(self) -> int:
+        trace = self.trace
+        for k in range(self.seen, len(trace)):
+            if trace[k]["kind"] in ("output", "internal"):
+                self.fired += 1
+        self.seen = len(trace)
+        return self.fired
 
 
 # ------------------------------------------------------------------------------------ live
