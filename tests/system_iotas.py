@@ -146,3 +146,26 @@ class NotAStation(Iota):
     period = Param(0.01)
     can_tx = Output(Int, switching=0)
     can_rx = Input(CAN_FRAME, size=2, switching=0)
+
+
+class Ticker(Iota):
+    """Ticks every time unit with how many inputs it has had; echoes each input at once."""
+    inp = Input(Int, switching=0)
+    echo = Output(Int, switching=0)
+    tick = Output(Int, switching=0)
+
+    def init(self):
+        self.seen, self.pending = 0, []
+
+    @inp.input
+    def got(self, value):
+        self.seen += 1
+        self.pending.append(value)
+
+    @echo.action(value=lambda self: self.pending[0], when=lambda self: bool(self.pending))
+    def echoed(self):
+        self.pending.pop(0)
+
+    @tick.action(value=lambda self: self.seen, after=1.0)
+    def ticked(self):
+        pass

@@ -7,33 +7,9 @@ import dataclasses
 
 import pytest
 
-from iotad.kernel.api import Input, Iota, Output
-from iotad.kernel.types import Int
 from iotad.recording.mcap_io import read_recording, record_run
 from iotad.recording.replay import replay_node
-
-
-class Counter(Iota):
-    """Ticks every time unit with how many inputs it has had; echoes each input at once."""
-    inp = Input(Int, switching=0)
-    echo = Output(Int, switching=0)
-    tick = Output(Int, switching=0)
-
-    def init(self):
-        self.seen, self.pending = 0, []
-
-    @inp.input
-    def got(self, value):
-        self.seen += 1
-        self.pending.append(value)
-
-    @echo.action(value=lambda self: self.pending[0], when=lambda self: bool(self.pending))
-    def echoed(self):
-        self.pending.pop(0)
-
-    @tick.action(value=lambda self: self.seen, after=1.0)
-    def ticked(self):
-        pass
+from system_iotas import Ticker
 
 
 def late_first_tick(events: list[dict]) -> list[dict]:
@@ -53,7 +29,7 @@ def late_first_tick(events: list[dict]) -> list[dict]:
 @pytest.fixture
 def recordings(tmp_path):
     path = tmp_path / "counter.mcap"
-    record_run(Counter("counter"), path, until=3.5,
+    record_run(Ticker("counter"), path, until=3.5,
                inputs=[{"t": 1.02, "action": "inp", "value": 5}, {"t": 2.996, "action": "inp", "value": 7}])
     on_time = read_recording(path)
     late = dataclasses.replace(on_time)

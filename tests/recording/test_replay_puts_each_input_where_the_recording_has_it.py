@@ -9,36 +9,14 @@ from pathlib import Path
 
 import pytest
 
-from iotad.kernel.api import Input, Iota, Output
+from iotad.kernel.api import Iota, Output
 from iotad.kernel.compose import Composite, flatten
 from iotad.kernel.types import Int
 from iotad.recording.mcap_io import read_recording, record_run
 from iotad.recording.replay import replay_node
+from system_iotas import Ticker
 
 ROOT = Path(__file__).resolve().parents[2]
-
-
-class Ticker(Iota):
-    """Ticks every time unit with how many inputs it has had; echoes each input at once."""
-    inp = Input(Int, switching=0)
-    echo = Output(Int, switching=0)
-    tick = Output(Int, switching=0)
-
-    def init(self):
-        self.seen, self.pending = 0, []
-
-    @inp.input
-    def got(self, value):
-        self.seen += 1
-        self.pending.append(value)
-
-    @echo.action(value=lambda self: self.pending[0], when=lambda self: bool(self.pending))
-    def echoed(self):
-        self.pending.pop(0)
-
-    @tick.action(value=lambda self: self.seen, after=1.0)
-    def ticked(self):
-        pass
 
 
 class Sender(Iota):
