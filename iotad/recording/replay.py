@@ -108,7 +108,8 @@ def replay_node(recording: Recording, node: str, tolerance: float = 0.01,
     result = ReplayResult(node, recorded, replayed, tolerance, kinds=kinds,
                           real_time=recording.info.get("clock") == "real")
     for k in range(max(len(recorded), len(replayed))):
-        if reorder and k < len(recorded) and k < len(replayed) and _moved_forward(recorded[k], replayed, k, tolerance):
+        if reorder and k < min(len(recorded), len(replayed)) and _moved_forward(recorded[k], replayed, k,
+                                                                                 tolerance):
             result.reordered += 1
         if k >= len(recorded):
             result.divergence, result.reason = k, f"the replay has an extra event: {describe(replayed[k])}"

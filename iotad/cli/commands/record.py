@@ -78,8 +78,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                         help="MCAP file to write (an existing recording is kept: see --force)")
     parser.add_argument("--force", action="store_true",
                         help="replace a recording already at FILE (default: refuse, so that none is lost)")
-    parser.add_argument("--system-file", metavar="SYSTEM.toml", help="system file to store in the recording (refused if 'iotad run' would refuse its "
-                             "form; its nodes' code is not loaded)")
+    parser.add_argument("--system-file", metavar="SYSTEM.toml",
+                        help="system file to store in the recording (refused if 'iotad run' would refuse "
+                             "its form; its nodes' code is not loaded)")
     parser.add_argument("--connect", action="append", default=[], metavar="EP", type=endpoint,
                         help="zenoh endpoint to connect to, e.g. tcp/127.0.0.1:7447 (repeatable; default: "
                              "the hub of --system-file's [system.endpoints] listen; without --system-file none: "
@@ -183,7 +184,8 @@ def _check_system_file(path: str) -> None:
     try:
         load_system(path, check=False)
     except SystemFileError as exc:
-        more = f" (and {len(exc.errors) - 1} more: 'iotad run --check {path}' lists them)" if len(exc.errors) > 1 else ""
+        more = "" if len(exc.errors) == 1 else \
+            f" (and {len(exc.errors) - 1} more: 'iotad run --check {path}' lists them)"
         raise CliError(f"--system-file {path}: {exc.errors[0]}{more}") from None
 
 
