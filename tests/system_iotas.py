@@ -5,6 +5,8 @@ from pathlib import Path
 from iotad import Float, Input, Int, Iota, Output, Param
 from iotad.can.frame import CAN_FRAME, Frame
 
+from channels.messages import MODE
+
 PINGPONG_BUS = 'name = "can0"\ninterface = "socketcan"\nchannel = "vcan0"\nstations = ["pinger", "echo"]'
 
 
@@ -169,3 +171,16 @@ class Ticker(Iota):
     @tick.action(value=lambda self: self.seen, after=1.0)
     def ticked(self):
         pass
+
+
+class CommandReader(Iota):
+    """Takes the resume scheduler's mdl_command (a Figure 2 mode) and keeps it: a stand-in for
+    the MDL interpreter that a test can kill."""
+    mdl_command = Input(MODE, switching=1)
+
+    def init(self):
+        self.commands = []
+
+    @mdl_command.input
+    def got(self, mode):
+        self.commands.append(mode)

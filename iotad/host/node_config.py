@@ -26,6 +26,8 @@ class NodeConfig:
     listen: list[str] = field(default_factory=lambda: list(DEFAULT_LISTEN))
     connect: list[str] = field(default_factory=list)
     inputs: dict[str, list[str]] = field(default_factory=dict)  # "chan" or "chan/k" -> bound keys
+    # "chan" or "chan/k" of an output -> the node paths bound to read it (restart notices only)
+    readers: dict[str, list[str]] = field(default_factory=dict)
     heartbeat_period: float = 0.5
     # Seconds a firing may come after its window's end before it counts as a deadline miss: a
     # Python process wakes some tens of microseconds late, which is not the spec's fault.
@@ -53,7 +55,7 @@ class NodeConfig:
         return self.path.rsplit("/", 1)[-1]
 
 
-_KNOWN = {"system", "path", "source", "params", "time_unit", "origin", "listen", "connect", "inputs",
+_KNOWN = {"system", "path", "source", "params", "time_unit", "origin", "listen", "connect", "inputs", "readers",
           "heartbeat_period", "deadline_tolerance", "arrival_tolerance", "trace_period", "policy", "seed", "zenoh", "can",
           "input_queue"}
 
@@ -129,6 +131,11 @@ def from_dict(data: Any, where: str = "config") -> NodeConfig:
             isinstance(k, str) and isinstance(v, list) and all(isinstance(e, str) for e in v) for k, v in inputs.items()):
         raise ConfigError(f"{where}: inputs must map \"channel\" or \"channel/index\" to a list of keys")
     config.inputs = {k: list(v) for k, v in inputs.items()}
+    readers = data.get("readers", {})
+    if not isinstance(readers, dict) or not all(
+            isinstance(k, str) and isinstance(v, list) and all(isinstance(e, str) for e in v) for k, v in readers.items()):
+        raise ConfigError(f"{where}: readers must map \"channel\" or \"channel/index\" to a list of node paths")
+    config.readers = {k: list(v) for k, v in readers.items()}
     if "policy" in data:
         if data["policy"] not in ("eager", "random"):
             raise ConfigError(f"{where}: policy must be \"eager\" or \"random\"")

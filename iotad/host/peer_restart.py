@@ -7,8 +7,10 @@ the only way an IOTA sees anything: an input. An IOTA that waits on its peers de
 
     peer_restart = Input()                       # Python API; ESPRIT: peer_restart()/0
 
-(or an enum of its own input names, to learn which input's source restarted) and its node host
-feeds it one event each time a node bound to one of its inputs comes back after it went away:
+(or an enum of its own channel names, to learn through which of its channels the restarted peer
+was bound) and its node host feeds it one event each time a node bound to one of its inputs (a
+source it waits on) or one of its outputs (a reader that may have lost what it was sent: the MDL
+interpreter lost the program the scheduler sent it) comes back after it went away:
 its liveliness token `iota/<system>/<peer>/@alive` vanished (killed, crashed, stopped by the
 launcher as frozen) and reappeared. A node host declares the token after its subscribers, so a
 request sent on the notice reaches the new process. The notice arrives as an input from the
@@ -16,7 +18,8 @@ node's own key `iota/<system>/<node>/peer_restart`, so it is in the trace and th
 replay feeds it back like any input; `iotad pub` can send one by hand.
 
 What the IOTA makes of it is its own business (docs/failures.md): the Figure 2 requester takes a
-restart of the scheduler while it waits as an ABORT and goes on with its next request.
+restart of the scheduler while it waits as an ABORT and goes on with its next request; the
+resume scheduler sends its master's program again when the MDL interpreter restarts.
 
 `PeerWatch` is the piece that does the watching; it needs only a zenoh session, so a Python tool
 that is no IOTA can use it too.
@@ -31,32 +34,43 @@ from iotad.host import wire
 PEER_RESTART = "peer_restart"  # the reserved input channel a node host feeds
 
 
-def peers_of(system: str, own_path: str, inputs: dict[str, list[str]]) -> dict[str, list[str]]:
-    """peer node path -> the names of this node's inputs bound to that peer's outputs, from a node
-    config's `inputs` ("chan" or "chan/k" -> keys of the bound outputs)."""
+def peers_of(system: str, own_path: str, inputs: dict[str, list[str]],
+             readers: dict[str, list[str]] | None = None) -> dict[str, list[str]]:
+    """peer node path -> the names of this node's channels bound to that peer: its inputs bound
+    to the peer's outputs (a node config's `inputs`: "chan" or "chan/k" -> keys of the bound
+    outputs), then its outputs the peer reads (`readers`: "chan" or "chan/k" -> node paths)."""
     peers: dict[str, list[str]] = {}
-    for label, keys in inputs.items():
+
+    def add(peer: str, label: str) -> None:
+        if peer == own_path or peer.startswith("@"):
+            return
+        names = peers.setdefault(peer, [])
         name = label.split("/", 1)[0]
+        if name not in names:
+            names.append(name)
+
+    for label, keys in inputs.items():
         for key in keys:
             parsed = wire.parse_key(key)
-            if parsed is None or parsed[0] != system or parsed[1] == own_path or parsed[1].startswith("@"):
-                continue
-            names = peers.setdefault(parsed[1], [])
-            if name not in names:
-                names.append(name)
+            if parsed is not None and parsed[0] == system:
+                add(parsed[1], label)
+    for label, nodes in (readers or {}).items():
+        for node in nodes:
+            add(node, label)
     return peers
 
 
-def notice_values(channel_type: Any, inputs: Iterable[str]) -> list[Any]:
-    """The values of the notices for a peer that feeds `inputs`: one `None` for a channel
-    without a value; for an enum, each of those input names that is a member of it."""
+def notice_values(channel_type: Any, channels: Iterable[str]) -> list[Any]:
+    """The values of the notices for a peer bound to `channels` (this node's channel names):
+    one `None` for a channel without a value; for an enum, each of those names that is a member
+    of it (none: the IOTA does not care about that peer)."""
     if channel_type is None:
         return [None]
     members = getattr(channel_type, "members", None)
     if members is None:
-        raise ValueError(f"input {PEER_RESTART!r} must carry no value or an enum of input names, "
+        raise ValueError(f"input {PEER_RESTART!r} must carry no value or an enum of channel names, "
                          f"not {channel_type}")
-    return [name for name in inputs if name in members]
+    return [name for name in channels if name in members]
 
 
 class PeerWatch:
@@ -106,15 +120,15 @@ class PeerWatch:
 def watch_for_host(session: Any, config: Any, channel_type: Any, post: Callable[[Any], None]) -> PeerWatch | None:
     """The node host's watch: for a root IOTA with a `peer_restart` input, post a notice to the
     engine (`post`, never dropped by a full input queue) for each restart of a node bound to
-    one of its inputs. None when the IOTA has no such input or no peers."""
+    one of its inputs or outputs. None when the IOTA has no such input or no peers."""
     from iotad.host.host_clock import RawInput
 
-    peers = peers_of(config.system, config.path, config.inputs)
+    peers = peers_of(config.system, config.path, config.inputs, config.readers)
     if not peers:
         return None
     key = wire.channel_key(config.system, config.path, PEER_RESTART)
-    payloads = {peer: [wire.encode(value) for value in notice_values(channel_type, inputs)]
-                for peer, inputs in peers.items()}
+    payloads = {peer: [wire.encode(value) for value in notice_values(channel_type, channels)]
+                for peer, channels in peers.items()}
 
     def restarted(peer: str) -> None:
         for payload in payloads[peer]:

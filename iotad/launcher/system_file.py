@@ -210,12 +210,26 @@ class System:
                 wire.channel_key(self.name, source.node, source.channel, source.index))
         return inputs
 
+    def readers_of(self, node: str) -> dict[str, list[str]]:
+        """The node host's `readers`: "channel" or "channel/index" of an output -> the nodes bound
+        to read it (for restart notices: a reader's restart may have lost what it was sent)."""
+        readers: dict[str, list[str]] = {}
+        for binding in self.bindings:
+            if binding.source.node != node:
+                continue
+            source = binding.source
+            name = source.channel if source.index is None else f"{source.channel}/{source.index}"
+            nodes = readers.setdefault(name, [])
+            if binding.target.node not in nodes:
+                nodes.append(binding.target.node)
+        return readers
+
     def node_config(self, node: str, origin: float, hub: list[str]) -> dict[str, Any]:
         """The JSON config of `python -m iotad.host` (docs/internals.md, "Node host")."""
         spec = self.nodes[node]
         config = {"system": self.name, "path": spec.name, "source": spec.source, "params": spec.params,
                   "time_unit": self.time_unit, "origin": origin, "listen": self.listen_for(spec.host),
-                  "connect": list(hub), "inputs": self.inputs_of(node),
+                  "connect": list(hub), "inputs": self.inputs_of(node), "readers": self.readers_of(node),
                   "heartbeat_period": self.heartbeat_period,
                   "deadline_tolerance": self.deadline_tolerance, "arrival_tolerance": self.arrival_tolerance,
                   "input_queue": spec.input_queue if spec.input_queue is not None else self.input_queue}
@@ -726,7 +740,7 @@ class _Parser:
                 # fed by the node host (restart notices of its peers), never by a binding
                 if restart.size is not None or (restart.type is not None and not hasattr(restart.type, "members")):
                     self.error(node.entry, f"input {PEER_RESTART} (restart notices from the node host) must be "
-                                           f"one plain input with no value or an enum of input names")
+                                           f"one plain input with no value or an enum of channel names")
                 bound.add(Port(node.name, PEER_RESTART, None))
             missing = [str(Port(node.name, channel.name, k)) for channel in node.channels.values()
                        if channel.direction == "input" for k in channel.members()

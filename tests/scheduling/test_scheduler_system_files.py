@@ -66,7 +66,7 @@ def test_resume_system_over_zenoh_smoke(tmp_path):
                              "--port", str(free_port()), "--plain", "-o", str(out)],
                             capture_output=True, text=True, timeout=90, cwd=tmp_path, start_new_session=True)
     assert result.returncode == 0, result.stdout + result.stderr
-    assert "vision.urgency" in result.stdout and "violations: 0" in result.stdout
+    assert "vision.urgency" in result.stdout and "violations: 0" in result.stdout, result.stdout
     assert ("scheduler.ack[0]", "COMMIT") in {(line.split()[0], "COMMIT") for line in result.stdout.splitlines()
                                               if "COMMIT" in line}
     assert main(["check", str(out)]) == 0
