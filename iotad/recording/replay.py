@@ -30,8 +30,9 @@ class ReplayResult:
     reason: str = ""
     max_time_error: float = 0.0
     kinds: tuple = ("output",)
-    reordered: int = 0              # replayed events taken out of order (real-time recordings)
-    real_time: bool = False         # the recording's clock was real (its divergences get a hint)
+    reordered: int = 0              # replayed events taken out of order (free replay, real time)
+    real_time: bool = False         # the recording's clock was real
+    guided: bool = False            # the node's firings followed the recording's times
 
     @property
     def ok(self) -> bool:
@@ -39,6 +40,9 @@ class ReplayResult:
 
     def lines(self, context: int = 3) -> list[str]:
         if self.ok:
+            if self.guided:
+                return [f"{self.node}: replay agrees: {len(self.recorded)} {'/'.join(self.kinds)} events, every "
+                        f"value computed again, each firing at its recorded time"]
             order = (f"; {self.reordered} in another order than the replay's, within the tolerance"
                      if self.reordered else "")
             return [f"{self.node}: replay agrees: {len(self.recorded)} {'/'.join(self.kinds)} events, "
@@ -53,10 +57,13 @@ class ReplayResult:
                 out.append(f"   {mark} #{j} {describe(events[j])}")
             if k >= len(events):
                 out.append(f"   >> #{k} (none: the {title} run ends here)")
-        if self.real_time:
-            out.append(f"  (a real-time recording: this re-run fires at exact times, the process fired with its "
-                       f"clock's jitter; 'iotad check FILE --node {self.node}' follows the recorded firing times "
-                       f"and checks every value: docs/checking.md)")
+        if self.guided:
+            out.append(f"  (each firing at its recorded time; 'iotad check FILE --node {self.node}' says which "
+                       f"rule of the spec it breaks)")
+        elif self.real_time:
+            out.append("  (a free re-run of a real-time recording: it fires at exact times, the process fired "
+                       "with its clock's jitter; without --free the replay follows the recorded firing times: "
+                       "docs/checking.md)")
         return out
 
 
@@ -76,16 +83,26 @@ def node_root(recording: Recording, node: str) -> Any:
 
 
 def replay_node(recording: Recording, node: str, tolerance: float = 0.01,
-                kinds: tuple = ("output",), reorder: bool | None = None) -> ReplayResult:
+                kinds: tuple = ("output",), reorder: bool | None = None, guided: bool | None = None) -> ReplayResult:
     """Re-run `node` against its recorded inputs; each run of its process (a restarted node has
     several) from its own start and initial state, as the process ran.
 
-    `reorder` (default: for real-time recordings): events within `tolerance` of each other may
-    agree in either order. A real process fires what is due within a few ms in the order its
-    clock saw it, jitter included; the replay fires them at their exact times, in the engine's
-    order. A virtual-time recording has that order exactly, and is compared in it."""
+    `guided` (default: for real-time recordings): the node's own firings happen when and as the
+    recording has them (which enabled action, at what time: what the process's clock decided),
+    and every value is computed again from the spec and compared. This is replay as a debugger
+    means it: the nondeterminism (inputs, timing) from the log, the computation done again.
+    Otherwise (`--free`; always for virtual-time recordings, whose timing is the engine's own)
+    the node fires on its own at the eager policy's times, and times are compared too.
+
+    `reorder` (free replay of a real-time recording, by default): events within `tolerance` of
+    each other may agree in either order. A real process fires what is due within a few ms in
+    the order its clock saw it, jitter included; the replay fires them at their exact times, in
+    the engine's order. A virtual-time recording has that order exactly, and is compared in it."""
+    real_time = recording.info.get("clock") == "real"
+    if guided is None:
+        guided = real_time
     if reorder is None:
-        reorder = recording.info.get("clock") == "real"
+        reorder = real_time and not guided
     events = recording.trace(node, starts=True)
     if not any(e.get("kind") != START_KIND for e in events):
         raise RecordingError(f"node {node!r} has no @trace events in {recording.path}")
@@ -93,7 +110,8 @@ def replay_node(recording: Recording, node: str, tolerance: float = 0.01,
     recorded, replayed = [], []
     for number, (begun, run) in enumerate(runs):
         mine = [e for e in run if e.get("kind") in kinds]
-        again = _replay_run(node_root(recording, node), begun, run, tolerance, kinds)
+        root = node_root(recording, node)
+        again = (_guided_run if guided else _replay_run)(root, begun, run, tolerance, kinds)
         # A firing the recording may simply not have reached (it ended first, or the process was
         # killed at that instant; a real process, a little late, up to `tolerance` before) is not
         # a divergence.
@@ -105,8 +123,7 @@ def replay_node(recording: Recording, node: str, tolerance: float = 0.01,
             again.pop()
         recorded += mine
         replayed += again
-    result = ReplayResult(node, recorded, replayed, tolerance, kinds=kinds,
-                          real_time=recording.info.get("clock") == "real")
+    result = ReplayResult(node, recorded, replayed, tolerance, kinds=kinds, real_time=real_time, guided=guided)
     for k in range(max(len(recorded), len(replayed))):
         if reorder and k < min(len(recorded), len(replayed)) and _moved_forward(recorded[k], replayed, k,
                                                                                  tolerance):
@@ -196,6 +213,23 @@ def _replay_run(root: Any, begun: float, events: list[dict], tolerance: float, k
         engine.deliver(mapping[event.get("iota", "")], event["action"], event.get("value"), event.get("index"))
     engine.run(max((float(e["t"]) for e in events), default=begun) + tolerance)
     return [dict(e, iota=reverse.get(e["iota"], e["iota"])) for e in engine.trace if e["kind"] in kinds]
+
+
+def _guided_run(root: Any, begun: float, events: list[dict], tolerance: float, kinds: tuple) -> list[dict]:
+    """The events of `kinds` that `root` makes when each of its firings is the one the recording
+    has, at its time (the trace checker's way: an enabled instance of that channel and index, its
+    value computed by the spec; none enabled: no firing)."""
+    from iotad.recording.conformance import TraceChecker
+
+    checker = TraceChecker(root, tolerance=tolerance, start=begun)
+    made: list[dict] = []
+    checker.engine.sinks.append(lambda event: made.append(event) if event["kind"] in kinds else None)
+    checker.check(events)
+    mapping = align_paths((e.get("iota", "") for e in events), list(checker.engine.leaves))
+    reverse = {}
+    for recorded_name, leaf in mapping.items():
+        reverse.setdefault(leaf, recorded_name)
+    return [dict(e, iota=reverse.get(e["iota"], e["iota"])) for e in made]
 
 
 class _FiringCount:

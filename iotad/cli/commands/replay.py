@@ -11,6 +11,7 @@ EPILOG = """\
 examples:
   iotad replay recordings/fig2.mcap --node scheduler              re-run and compare its outputs
   iotad replay recordings/fig2.mcap --node scheduler --internal   internal events too
+  iotad replay recordings/buggy-demo.mcap --node body --free      fire at exact times, not the recorded ones
   iotad replay recordings/fig2.mcap --live --rate 2               republish at twice the pace
   iotad replay recordings/fig2.mcap --live --loop --connect tcp/127.0.0.1:7447
 
@@ -26,7 +27,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         "replay", help="re-run a node against its recorded inputs and compare; or republish (--live)",
         description="With --node: rebuild PATH from the spec stored in the recording, feed it its recorded "
                     "inputs in virtual time, and compare its outputs with the recorded ones (values equal, "
-                    "times within --tolerance); print the first divergence with the events around it; "
+                    "times within --tolerance; for a real-time recording each of its firings happens at its "
+                    "recorded time unless --free); print the first divergence with the events around it; "
                     "exit 0 only when they agree. With --live: republish every message on its zenoh key at "
                     "the recorded pace.",
         epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -36,8 +38,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     what.add_argument("--live", action="store_true", help="republish the recording on zenoh")
     parser.add_argument("--tolerance", type=nonnegative_float, default=None, metavar="T",
                         help="allowed time difference, spec time units (default: exact for virtual-time "
-                             "recordings, 10 ms for real ones)")
+                             "recordings, 10 ms for real ones); replaying at the recorded times, how far "
+                             "outside its window a firing may be")
     parser.add_argument("--internal", action="store_true", help="compare internal events too, not only outputs")
+    parser.add_argument("--free", action="store_true",
+                        help="let the node fire on its own at the earliest times its spec allows, and compare "
+                             "times too (the default for virtual-time recordings; a real-time recording is "
+                             "replayed with each firing at its recorded time)")
     parser.add_argument("--rate", type=positive_float, default=1.0, metavar="R",
                         help="--live: speed factor, 2 = twice as fast (default 1)")
     parser.add_argument("--start", type=nonnegative_float, default=0.0, metavar="S",
@@ -56,8 +63,8 @@ def run(args: argparse.Namespace) -> int:
     from iotad.recording.mcap_io import RecordingError
     from iotad.recording.replay import default_tolerance, replay_node
 
-    if args.live and (args.internal or args.tolerance is not None):
-        raise CliError("--internal and --tolerance apply to --node, not --live")
+    if args.live and (args.internal or args.free or args.tolerance is not None):
+        raise CliError("--internal, --free and --tolerance apply to --node, not --live")
     recording = load(args.file)
     if args.live:
         return live(args, recording)
@@ -67,7 +74,7 @@ def run(args: argparse.Namespace) -> int:
     tolerance = default_tolerance(recording) if args.tolerance is None else args.tolerance
     kinds = ("output", "internal") if args.internal else ("output",)
     try:
-        result = replay_node(recording, args.node, tolerance, kinds)
+        result = replay_node(recording, args.node, tolerance, kinds, guided=False if args.free else None)
     except RecordingError as exc:
         raise CliError(str(exc)) from None
     print("\n".join(result.lines()))
