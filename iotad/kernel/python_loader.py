@@ -3,13 +3,41 @@ from __future__ import annotations
 
 import importlib
 import importlib.util
+import os
 import sys
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 
 class LoadError(Exception):
     pass
+
+
+class _ExitAtLoad(BaseException):
+    """os._exit() called by a module as it loads (see `_exits_refused`)."""
+
+    def __init__(self, code: int):
+        super().__init__(code)
+        self.code = code
+
+
+@contextmanager
+def _exits_refused():
+    """While a user's module loads, os._exit() raises instead of ending the process: it would end
+    whoever loads it (the CLI checking a system file, a node host) at once, with its status and
+    without a word, where nothing can catch it. Loading is single-threaded; the original is put
+    back whatever happens."""
+    original = os._exit
+
+    def refused(code: int) -> None:
+        raise _ExitAtLoad(code)
+
+    os._exit = refused
+    try:
+        yield
+    finally:
+        os._exit = original
 
 
 def load_object(reference: str, base: Path | None = None) -> Any:
@@ -33,16 +61,18 @@ def load_object(reference: str, base: Path | None = None) -> Any:
             module = importlib.util.module_from_spec(spec)
             sys.modules[module_name] = module
             try:
-                spec.loader.exec_module(module)
-            except (Exception, SystemExit) as exc:
+                with _exits_refused():
+                    spec.loader.exec_module(module)
+            except (Exception, SystemExit, _ExitAtLoad) as exc:
                 del sys.modules[module_name]
                 raise LoadError(f"{path}: {_why(exc)}") from exc
     else:
         try:
-            module = importlib.import_module(where)
+            with _exits_refused():
+                module = importlib.import_module(where)
         except ImportError as exc:
             raise LoadError(f"{reference!r}: cannot import {where}: {exc}") from exc
-        except SystemExit as exc:
+        except (SystemExit, _ExitAtLoad) as exc:
             raise LoadError(f"{reference!r}: {_why(exc)}") from exc
     try:
         return getattr(module, name)
@@ -55,6 +85,8 @@ def _why(exc: BaseException) -> str:
     # host) silently, with its status: it is a load error like any other.
     if isinstance(exc, SystemExit):
         return f"it called sys.exit({exc.code!r}) as it loaded"
+    if isinstance(exc, _ExitAtLoad):
+        return f"it called os._exit({exc.code!r}) as it loaded"
     return f"{type(exc).__name__}: {exc}"
 
 

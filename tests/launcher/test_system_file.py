@@ -255,3 +255,20 @@ def test_a_node_file_that_calls_sys_exit_as_it_loads_is_an_error_not_an_exit(tmp
     with pytest.raises(SystemFileError) as caught:  # not SystemExit: the CLI and the launcher go on
         load_system(write(tmp_path, body))
     assert "exits.py: it called sys.exit(3) as it loaded" in str(caught.value)
+
+
+def test_a_node_file_that_calls_os_exit_as_it_loads_is_an_error_not_an_exit(tmp_path):
+    """os._exit() cannot be caught: while a node file loads it raises instead. Checked in a
+    process of its own, since a loader that let it through would end this one with status 0."""
+    import subprocess
+    import sys
+    (tmp_path / "quits.py").write_text("import os\nos._exit(0)\n")
+    path = write(tmp_path, '[[node]]\nname = "d"\npython = "quits.py:Anything"\n')
+    probe = ("import os, sys\nfrom iotad.launcher.system_file import SystemFileError, load_system\n"
+             "original = os._exit\ntry:\n    load_system(sys.argv[1])\nexcept SystemFileError as exc:\n"
+             "    print(exc)\n    print('put back:', os._exit is original)\n    sys.exit(5)\n")
+    done = subprocess.run([sys.executable, "-c", probe, str(path)], capture_output=True, text=True, timeout=60,
+                          cwd=ROOT)
+    assert done.returncode == 5, (done.returncode, done.stdout, done.stderr)
+    assert "quits.py: it called os._exit(0) as it loaded" in done.stdout
+    assert "put back: True" in done.stdout
