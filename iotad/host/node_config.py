@@ -126,16 +126,13 @@ def from_dict(data: Any, where: str = "config") -> NodeConfig:
             if not isinstance(value, list) or not all(isinstance(e, str) for e in value):
                 raise ConfigError(f"{where}: {key} must be a list of endpoints such as \"tcp/127.0.0.1:0\"")
             setattr(config, key, list(value))
-    inputs = data.get("inputs", {})
-    if not isinstance(inputs, dict) or not all(
-            isinstance(k, str) and isinstance(v, list) and all(isinstance(e, str) for e in v) for k, v in inputs.items()):
-        raise ConfigError(f"{where}: inputs must map \"channel\" or \"channel/index\" to a list of keys")
-    config.inputs = {k: list(v) for k, v in inputs.items()}
-    readers = data.get("readers", {})
-    if not isinstance(readers, dict) or not all(
-            isinstance(k, str) and isinstance(v, list) and all(isinstance(e, str) for e in v) for k, v in readers.items()):
-        raise ConfigError(f"{where}: readers must map \"channel\" or \"channel/index\" to a list of node paths")
-    config.readers = {k: list(v) for k, v in readers.items()}
+    for key, what in (("inputs", "keys"), ("readers", "node paths")):
+        value = data.get(key, {})
+        if not isinstance(value, dict) or not all(
+                isinstance(k, str) and isinstance(v, list) and all(isinstance(e, str) for e in v)
+                for k, v in value.items()):
+            raise ConfigError(f"{where}: {key} must map \"channel\" or \"channel/index\" to a list of {what}")
+        setattr(config, key, {k: list(v) for k, v in value.items()})
     if "policy" in data:
         if data["policy"] not in ("eager", "random"):
             raise ConfigError(f"{where}: policy must be \"eager\" or \"random\"")
