@@ -52,6 +52,7 @@ picture:   {rel(picture)}   (the path coloured by behaviour; hunger and fear ove
 try next:
   .venv/bin/iotad info {rel(recording)}                  # what the recording holds
   .venv/bin/iotad check {rel(recording)}                 # every node against its spec
+  .venv/bin/iotad replay {rel(recording)} --node body    # re-run a node on its recorded inputs and firing times
   .venv/bin/iotad run examples/buggy.toml --virtual --until 120 -o recordings/buggy.mcap   # 2 minutes, one process, seconds
   .venv/bin/iotad plot recordings/buggy.mcap -o recordings/buggy.png
   .venv/bin/iotad run examples/buggy-hungry.toml --virtual --until 120 -o recordings/buggy-hungry.mcap   # bolder when hungry

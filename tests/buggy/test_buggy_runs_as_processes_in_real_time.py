@@ -1,5 +1,5 @@
 """The same Buggy as six processes over zenoh in real time, on a CAN bus of a tier (what `make
-demo` runs, shorter): it records, moves, and draws."""
+demo` runs, shorter): it records, moves, and draws, and its nodes replay from the recording."""
 import re
 import subprocess
 import sys
@@ -26,3 +26,10 @@ def test_a_short_real_time_run_records_buggy_moving(tmp_path):
     assert moods and all(v["active"] in ("CONSCIOUS", "SUBCONSCIOUS") for *_, v in moods)
     assert (tmp_path / "buggy-demo.png").stat().st_size > 10_000
     assert "try next:" in done.stdout
+    # a real-time recording replays at its recorded firing times: body (physics steps, then
+    # sensors) and conscious (timers that count from their own firings) agree, value for value
+    for node in ("body", "conscious"):
+        replayed = subprocess.run([sys.executable, "-m", "iotad", "replay", str(recording), "--node", node],
+                                  capture_output=True, text=True, timeout=120, cwd=ROOT)
+        assert replayed.returncode == 0, replayed.stdout[-3000:] + replayed.stderr[-3000:]
+        assert "replay agrees" in replayed.stdout and "each firing at its recorded time" in replayed.stdout
