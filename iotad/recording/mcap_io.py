@@ -822,6 +822,40 @@ class Recording:
                 out.append(event)
         return out
 
+    def process_trace(self, node: str) -> list[dict]:
+        """`trace(node, starts=True)` with one `start` record per process that ran the node.
+
+        A restarted process publishes its `start` record in its first `@trace` burst, right after
+        it connects; that burst can miss the recorder (sent before the new session knew of its
+        subscription), and the two processes would then read as one run, judged against one
+        initial state. The launcher's events name every process (`live`, with its pid): for a
+        process with no start record, one is made at its `live` time (node clock = wall clock
+        minus the one offset every start record of the run shares), marked `"from": "launcher"`,
+        and put after the events of the processes before it (before the first event recorded
+        after the new process was spawned)."""
+        events = self.trace(node, starts=True)
+        starts = [e for e in events if e.get("kind") == wire.START_KIND]
+        value = starts[0].get("value") if starts else None
+        if not isinstance(value, dict) or not isinstance(value.get("wall"), (int, float)):
+            return events  # an in-process recording, or nothing to anchor the launcher's times on
+        offset = float(value["wall"]) - float(starts[0]["t"])
+        recorded = {(e.get("value") or {}).get("pid") for e in starts if isinstance(e.get("value"), dict)}
+        launcher = [e for e in self.launcher_events() if e.get("node") == node]
+        spawned = {e.get("pid"): e["t_ns"] for e in launcher if e.get("event") in ("start", "restart")}
+        for live in launcher:
+            pid = live.get("pid")
+            if live.get("event") != "live" or pid in recorded or not isinstance(live.get("t_ns"), int):
+                continue
+            recorded.add(pid)
+            t = live["t_ns"] / 1e9 - offset
+            since = spawned.get(pid, live["t_ns"]) / 1e9 - offset
+            made = {"t": t, "iota": starts[0].get("iota", node), "action": starts[0].get("action", "@start"),
+                    "index": None, "kind": wire.START_KIND, "node": node,
+                    "value": {"wall": live["t_ns"] / 1e9, "pid": pid, "from": "launcher"}}
+            at = next((k for k, e in enumerate(events) if float(e["t"]) > since), len(events))
+            events.insert(at, made)
+        return events
+
     def violations(self) -> list[dict]:
         return [e for e in self.trace() if e.get("kind") == "violation"]
 

@@ -103,7 +103,7 @@ def replay_node(recording: Recording, node: str, tolerance: float = 0.01,
         guided = real_time
     if reorder is None:
         reorder = real_time and not guided
-    events = recording.trace(node, starts=True)
+    events = recording.process_trace(node)
     if not any(e.get("kind") != START_KIND for e in events):
         raise RecordingError(f"node {node!r} has no @trace events in {recording.path}")
     runs = split_runs(events, start_time(recording.specs.get(node)))
@@ -135,8 +135,7 @@ def replay_node(recording: Recording, node: str, tolerance: float = 0.01,
             result.divergence, result.reason = k, f"the replay never produced {describe(recorded[k])}"
             break
         a, b = recorded[k], replayed[k]
-        if (a["action"], a.get("index"), a.get("kind")) != (b["action"], b.get("index"), b.get("kind")) \
-                or not _same(a.get("value"), b.get("value")):
+        if not _agree(a, b):
             result.divergence, result.reason = k, f"recorded {describe(a)}, replayed {describe(b)}"
             break
         error = abs(float(a["t"]) - float(b["t"]))

@@ -71,3 +71,50 @@ def test_a_real_time_recording_without_a_node_s_start_is_not_checked(tmp_path, c
     out = capsys.readouterr().out
     assert "scheduler: NOT CHECKED: the recording holds no start of its engine" in out
     assert "PROBLEMS FOUND (3 node(s) not checked)" in out
+
+
+def without_second_start(tmp_path, launcher: bool):
+    """The restarted recording as it reads when the new process's start record never reached
+    the recorder (its first @trace burst lost); with `launcher`, the launcher's events of both
+    processes are there, as in every `iotad run` recording."""
+    path, second = restarted_recording(tmp_path)
+    lost = mutate(path, tmp_path / "lost.mcap", "scheduler",
+                  lambda events: [e for e in events if not (e["kind"] == wire.START_KIND and e["t"] > 0)])
+    recording = read_recording(lost)
+    from iotad.recording.mcap_io import McapSink, packb
+    out = tmp_path / f"lost-{launcher}.mcap"
+    sink = McapSink(out)
+    for item in recording.attachments:
+        sink.attach(item.name, item.media_type, item.data)
+    for name, data in recording.metadata.items():
+        sink.writer.add_metadata(name, data)
+    messages = [(m.topic, m.log_time, m.data) for m in recording.messages]
+    if launcher:
+        key = wire.launcher_key(recording.system)
+        for event, pid, t in (("start", 1, 0.0), ("live", 1, 0.0), ("exit", 1, KILLED_AT),
+                              ("restart", 2, RESTARTED_AT - 0.2), ("live", 2, RESTARTED_AT)):
+            ns = int(t * 1e9)
+            messages.append((key, ns, packb({"event": event, "node": "scheduler", "pid": pid, "code": None,
+                                             "t_ns": ns, "restarts": int(pid == 2)})))
+    for k, (topic, log_time, data) in enumerate(sorted(messages, key=lambda m: m[1])):
+        sink.write(sink.channel(topic, "any", {}), log_time, log_time, k, data)
+    sink.finish()
+    return out, second
+
+
+def test_a_lost_start_record_is_made_from_the_launchers_events(tmp_path, capsys):
+    path, second = without_second_start(tmp_path, launcher=True)
+    starts = [e for e in read_recording(path).process_trace("scheduler") if e["kind"] == wire.START_KIND]
+    assert [(e["t"], e["value"]["pid"], e["value"].get("from")) for e in starts] == [
+        (0.0, 1, None), (RESTARTED_AT, 2, "launcher")]
+    assert main(["check", str(path), "--node", "scheduler", "--no-delivery"]) == 0
+    out = capsys.readouterr().out
+    assert f"restarted at t={RESTARTED_AT:g}: each run of its process is checked from its own start" in out
+    result = replay_node(read_recording(path), "scheduler", tolerance=1e-9)
+    assert result.ok, "\n".join(result.lines())
+
+
+def test_without_the_launchers_events_the_two_processes_read_as_one_run(tmp_path, capsys):
+    path, _ = without_second_start(tmp_path, launcher=False)
+    assert main(["check", str(path), "--node", "scheduler", "--no-delivery"]) == 1  # misjudged as one run
+    assert "restarted at" not in capsys.readouterr().out

@@ -146,7 +146,7 @@ def run(args: argparse.Namespace) -> int:
               f"'iotad recover {args.file}' rewrites it whole")
     real_time = recording.info.get("clock") != "virtual"
     for node in nodes:
-        events = recording.trace(node, starts=True)
+        events = recording.process_trace(node)
         if args.node and not events:
             raise CliError(f"node {node!r} has no @trace events in {args.file}")
         if real_time and events and not any(e.get("kind") == START_KIND for e in events):
