@@ -839,12 +839,12 @@ class Recording:
         if not isinstance(value, dict) or not isinstance(value.get("wall"), (int, float)):
             return events  # an in-process recording, or nothing to anchor the launcher's times on
         offset = float(value["wall"]) - float(starts[0]["t"])
-        recorded = {(e.get("value") or {}).get("pid") for e in starts if isinstance(e.get("value"), dict)}
-        launcher = [e for e in self.launcher_events() if e.get("node") == node]
+        recorded = {e["value"].get("pid") for e in starts if isinstance(e.get("value"), dict)}
+        launcher = [e for e in self.launcher_events() if e.get("node") == node and isinstance(e.get("t_ns"), int)]
         spawned = {e.get("pid"): e["t_ns"] for e in launcher if e.get("event") in ("start", "restart")}
         for live in launcher:
             pid = live.get("pid")
-            if live.get("event") != "live" or pid in recorded or not isinstance(live.get("t_ns"), int):
+            if live.get("event") != "live" or pid in recorded:
                 continue
             recorded.add(pid)
             t = live["t_ns"] / 1e9 - offset

@@ -171,9 +171,6 @@ def _replay_run(root: Any, begun: float, events: list[dict], tolerance: float, k
     """The events of `kinds` that `root` makes when given the inputs of one recorded run."""
     engine = Engine(root, VirtualClock(begun))
     mapping = align_paths((e.get("iota", "") for e in events), list(engine.leaves))
-    reverse = {}
-    for recorded_name, leaf in mapping.items():
-        reverse.setdefault(leaf, recorded_name)
     # Inputs bound to an output inside the node (a composite) are delivered by that output's
     # firing in the replay too: their recorded input events are not posted again.
     bound = {id(target) for slot in engine.slots.values() for target in slot.targets}
@@ -184,7 +181,8 @@ def _replay_run(root: Any, begun: float, events: list[dict], tolerance: float, k
     # real-time run under load a firing can be late, after an input that came in meanwhile (it
     # then sees that input): replayed on time, it would fire before the input and may differ.
     recorded_fired = 0      # the node's firings (output, internal) the recording has so far
-    fired = _FiringCount(engine)
+    firings = []            # the replay's, as its engine makes them
+    engine.sinks.append(lambda e: firings.append(e) if e["kind"] in ("output", "internal") else None)
     engine.start()          # its windows open at the run's start, not at the first input
     for event in events:
         t, kind = float(event["t"]), event.get("kind")
@@ -197,13 +195,13 @@ def _replay_run(root: Any, begun: float, events: list[dict], tolerance: float, k
             continue
         # what is due up to the input's instant, one firing at a time, while the recording has
         # fired more than the replay: a firing it has after the input waits for the input
-        while fired.count() < recorded_fired and not engine.halted:
+        while len(firings) < recorded_fired and not engine.halted:
             due = engine.next_due()
             if due > t:
                 break
             if engine.now() < due:
                 engine.clock.wait(due)
-            if engine.fire_due(recorded_fired - fired.count()) == 0 and engine.next_due() <= engine.now():
+            if engine.fire_due(recorded_fired - len(firings)) == 0 and engine.next_due() <= engine.now():
                 break  # nothing could fire now (every due one waits out a switching time)
         if engine.halted:
             break
@@ -211,7 +209,7 @@ def _replay_run(root: Any, begun: float, events: list[dict], tolerance: float, k
             engine.clock.wait(t)
         engine.deliver(mapping[event.get("iota", "")], event["action"], event.get("value"), event.get("index"))
     engine.run(max((float(e["t"]) for e in events), default=begun) + tolerance)
-    return [dict(e, iota=reverse.get(e["iota"], e["iota"])) for e in engine.trace if e["kind"] in kinds]
+    return _as_recorded(mapping, [e for e in engine.trace if e["kind"] in kinds])
 
 
 def _guided_run(root: Any, begun: float, events: list[dict], tolerance: float, kinds: tuple) -> list[dict]:
@@ -224,26 +222,15 @@ def _guided_run(root: Any, begun: float, events: list[dict], tolerance: float, k
     made: list[dict] = []
     checker.engine.sinks.append(lambda event: made.append(event) if event["kind"] in kinds else None)
     checker.check(events)
-    mapping = align_paths((e.get("iota", "") for e in events), list(checker.engine.leaves))
+    return _as_recorded(align_paths((e.get("iota", "") for e in events), list(checker.engine.leaves)), made)
+
+
+def _as_recorded(mapping: dict[str, str], events: list[dict]) -> list[dict]:
+    """Replayed events with the recording's names of their IOTAs (`mapping`: recorded -> leaf)."""
     reverse = {}
     for recorded_name, leaf in mapping.items():
         reverse.setdefault(leaf, recorded_name)
-    return [dict(e, iota=reverse.get(e["iota"], e["iota"])) for e in made]
-
-
-class _FiringCount:
-    """How many firings (outputs, internal actions) an engine's trace holds, counted as it grows."""
-
-    def __init__(self, engine: Engine):
-        self.trace, self.seen, self.fired = engine.trace, 0, 0
-
-    def count(self) -> int:
-        trace = self.trace
-        for k in range(self.seen, len(trace)):
-            if trace[k]["kind"] in ("output", "internal"):
-                self.fired += 1
-        self.seen = len(trace)
-        return self.fired
+    return [dict(e, iota=reverse.get(e["iota"], e["iota"])) for e in events]
 
 
 # ------------------------------------------------------------------------------------ live
