@@ -318,10 +318,8 @@ class Launcher:
             argv += ["--max-size", str(self.record_max_size)]
         if self.record_max_duration is not None:
             argv += ["--max-duration", repr(float(self.record_max_duration))]
-        for endpoint in self.hub:
+        for endpoint in self.hub:  # a client of the hub, which relays each node's first sample
             argv += ["--connect", endpoint]
-        for endpoint in system.listen_for(self.host):
-            argv += ["--listen", endpoint]
         self.recorder = Child("recorder", argv, log=self.run_dir / "recorder.log",
                               env=self.access.recorder_env() if self.access else None,
                               on_exit=lambda child, code: self.events.put(("recorder", child.pid, code)))

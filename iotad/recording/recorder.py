@@ -128,7 +128,7 @@ class Recorder:
     """Record `keys` to `output` until `stop()`. `stats` counts what came and what was written."""
 
     def __init__(self, keys: Iterable[str], output: str | Path, *, system_file: str | Path | None = None,
-                 connect: Iterable[str] = (), listen: Iterable[str] = DEFAULT_LISTEN,
+                 connect: Iterable[str] = (), listen: Iterable[str] | None = None,
                  flush_period: float = 0.05, spec_timeout: float = 0.5, query_specs: bool = True,
                  fifo_capacity: int = 65536, background: bool = False, from_traces: bool = False,
                  max_size: int | None = None, max_duration: float | None = None):
@@ -169,7 +169,7 @@ class Recorder:
         self.split = max_size is not None or max_duration is not None
         self.files: list[Path] = []  # the files written so far (split: the members; else output)
         self._set_id = uuid.uuid4().hex
-        self.connect, self.listen = list(connect), list(listen)
+        self.connect, self.listen = list(connect), list(listen or ())
         self.flush_period, self.spec_timeout, self.query_specs = flush_period, spec_timeout, query_specs
         self.stats = {"received": 0, "written": 0, "gaps": 0, "missing": 0, "duplicates": 0, "malformed": 0, "flushes": 0}
         self._stopping = threading.Event()
@@ -186,11 +186,20 @@ class Recorder:
         self._schema_cache: dict[str, dict] = {}
 
     # ------------------------------------------------------------------ life cycle
-    def start(self) -> "Recorder":
+    def start(self, keep_waiting: Callable[[], bool] | None = None) -> "Recorder":
+        """Open the file, join zenoh, subscribe. With `connect` and no `listen`, while no hub
+        answers there: `keep_waiting()` is asked about once a second whether to try again
+        (default: fail at once, with zenoh's error)."""
         self.started_ns = time.time_ns()
         self._open_file()
         try:
-            self._session = open_session(self.listen, self.connect)
+            if self.connect and not self.listen:
+                # A client of the hub: the hub relays a node's samples to it from the node's first
+                # put. A peer hears a new node only once gossip has linked the two directly, and
+                # would miss what a (re)started node says first: its start record.
+                self._session = self._open_client(keep_waiting)
+            else:
+                self._session = open_session(self.listen or DEFAULT_LISTEN, self.connect)
             # Samples wait in zenoh's own (Rust) FIFO until the writer thread takes them: no
             # Python callback on zenoh's threads, no GIL hand-off per sample. A full FIFO makes
             # zenoh push back on the senders (BLOCK) rather than lose.
@@ -206,6 +215,14 @@ class Recorder:
             self.sink.finish()  # a whole (empty) recording, and no open file left behind
             raise
         return self
+
+    def _open_client(self, keep_waiting: Callable[[], bool] | None):
+        while True:
+            try:
+                return open_session((), self.connect, mode="client", connect_timeout=1.0)
+            except zenoh.ZError:
+                if keep_waiting is None or not keep_waiting():
+                    raise
 
     def stop(self) -> dict:
         """Stop receiving, write what is queued, ask missing specs, and finish the file."""

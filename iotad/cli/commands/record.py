@@ -84,9 +84,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--connect", action="append", default=[], metavar="EP", type=endpoint,
                         help="zenoh endpoint to connect to, e.g. tcp/127.0.0.1:7447 (repeatable; default: "
                              "the hub of --system-file's [system.endpoints] listen; without --system-file none: "
-                             "peers find the recorder through --listen)")
+                             "peers find the recorder through --listen). Connected and not told --listen, the "
+                             "recorder is a client of that hub, which relays every node's first sample to it")
     parser.add_argument("--listen", action="append", default=None, metavar="EP", type=endpoint,
-                        help="zenoh endpoint to listen on (default tcp/127.0.0.1:0: any free loopback port)")
+                        help="zenoh endpoint to listen on, as a peer (default without --connect: "
+                             "tcp/127.0.0.1:0, any free loopback port)")
     parser.add_argument("--from-traces", action="store_true",
                         help="record a whole system from its nodes' @trace bursts, not every sample "
                              "(see below; needs 'iota/SYS/**' or --system-file)")
@@ -107,7 +109,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from iotad.cli import CliError, new_recording, output_file
     from iotad.recording.recorder import Recorder
-    from iotad.host.transport import DEFAULT_LISTEN
 
     if args.flush_period <= 0 or args.flush_period > 10:
         raise CliError("--flush-period must be in (0, 10] seconds")
@@ -130,7 +131,7 @@ def run(args: argparse.Namespace) -> int:
     connect = args.connect or _hub_of(args.system_file)
     try:
         recorder = Recorder(args.keys, args.output, system_file=args.system_file, connect=connect,
-                            listen=args.listen or DEFAULT_LISTEN, flush_period=args.flush_period,
+                            listen=args.listen, flush_period=args.flush_period,
                             background=True,  # a process of its own: yield the CPU to the nodes
                             from_traces=args.from_traces, max_size=args.max_size,
                             max_duration=args.max_duration)
@@ -143,11 +144,22 @@ def run(args: argparse.Namespace) -> int:
     stop = threading.Event()
     for signum in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signum, lambda *_: stop.set())
+    def keep_waiting() -> bool:
+        # a recorder may be started before the system it records: wait for its hub, say so once
+        if not args.quiet and not waited:
+            print(f"waiting for a hub at {', '.join(connect)} (Ctrl-C to stop)", file=sys.stderr)
+        waited.append(True)
+        return not stop.is_set()
+
+    waited: list[bool] = []
     try:
-        recorder.start()
+        recorder.start(keep_waiting)
     except OSError as exc:
         raise CliError(f"cannot start recording: {exc.filename or args.output}: {exc.strerror or exc}") from None
     except Exception as exc:  # noqa: BLE001 - zenoh said no
+        if waited and stop.is_set():
+            raise CliError(f"stopped while waiting for a hub at {', '.join(connect)}: nothing recorded "
+                           f"({recorder.output} is an empty recording)") from None
         reason = str(exc).split(" at /", 1)[0]  # zenoh appends its Rust source location
         raise CliError(f"cannot start recording: {reason}") from None
     try:
