@@ -40,7 +40,7 @@ sys.path.insert(0, str(ROOT))
 import zenoh  # noqa: E402
 from importlib.metadata import version  # noqa: E402
 
-from iotad import wire  # noqa: E402
+from iotad.host import wire  # noqa: E402
 from iotad.host.transport import free_port, open_session  # noqa: E402
 
 GOAL_RATE = 100_000
