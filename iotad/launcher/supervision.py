@@ -117,7 +117,7 @@ class Launcher:
                  node_argv: Callable[[str], list[str]] | None = None, console: Any = None,
                  live_table: bool | None = None, stop_timeouts: tuple[float, float] = (3.0, 2.0),
                  record_max_size: int | None = None, record_max_duration: float | None = None,
-                 after_live: bool = False):
+                 record_force: bool = False, after_live: bool = False):
         self.system, self.host, self.until = system, host, until
         # count `until` from the moment every node is first live, not from the launch: start-up
         # (imports, PyBullet worlds) can take 10-30 s in user-mode Linux and would eat the run
@@ -127,6 +127,7 @@ class Launcher:
         self.record_max_size, self.record_max_duration = record_max_size, record_max_duration
         self.hub = with_port(system.listen, port) if port is not None else list(system.listen)
         self.record, self.record_path = record, record_path
+        self.record_force = record_force  # the recorder may replace a recording at record_path (--force)
         self.origin = origin
         self.node_argv = node_argv or (lambda config: [sys.executable, "-m", "iotad.host", config])
         self.stop_timeouts = stop_timeouts
@@ -314,6 +315,8 @@ class Launcher:
         argv = [sys.executable, "-m", "iotad", "record", f"{wire.PREFIX}/{system.name}/**",
                 "-o", str(output), "--system-file", str(system.path), "--ready-file", str(ready),
                 "--from-traces"]  # one wake-up per trace burst, not per message: see iotad.recording.recorder
+        if self.record_force:
+            argv.append("--force")
         if self.record_max_size is not None:
             argv += ["--max-size", str(self.record_max_size)]
         if self.record_max_duration is not None:
@@ -347,6 +350,10 @@ class Launcher:
             return
         self._recorder_restarts += 1
         output = _segment(self.recordings[0], self._recorder_restarts)
+        number = self._recorder_restarts
+        while output.exists() and not self.record_force:  # an earlier run's: kept, as `-o` keeps one
+            number += 1
+            output = _segment(self.recordings[0], number)
         problem = _unwritable(output)
         if problem:
             self._lose_recording(f"cannot record to {output}: {problem}")

@@ -231,6 +231,8 @@ def test_recorder_killed_mid_run_is_reported_restarted_and_recoverable(tmp_path)
     port = free_port()
     system_file = pair_system(tmp_path, port)
     first = tmp_path / "rec.mcap"
+    earlier = tmp_path / "rec.1.mcap"  # an earlier run's second file: kept, the new one goes on in rec.2
+    earlier.write_bytes(b"an earlier run")
     observer = Observer("pair", f"tcp/127.0.0.1:{port}")
     try:
         with launcher(system_file, "-o", str(first)) as proc:
@@ -240,7 +242,8 @@ def test_recorder_killed_mid_run_is_reported_restarted_and_recoverable(tmp_path)
             event = observer.wait_event(lambda e: e["event"] == "recorder" and "restarted" in e["message"], 20)
             assert event is not None, proc.output.read_text()
             second = Path(event["file"])
-            assert second == tmp_path / "rec.1.mcap"
+            assert second == tmp_path / "rec.2.mcap"
+            assert earlier.read_bytes() == b"an earlier run"
             # the new recorder hears the nodes: wait for their traffic in the growing file
             assert wait_until(lambda: second.exists() and any(
                 m.topic.startswith("iota/pair/src/") for m in read_recording(second).messages), 20)
@@ -259,6 +262,20 @@ def test_recorder_killed_mid_run_is_reported_restarted_and_recoverable(tmp_path)
     assert whole.complete
     news = [e for e in whole.launcher_events() if e["event"] == "recorder"]
     assert news and "restarted" in news[0]["message"]
+
+
+def test_a_real_time_run_with_force_replaces_the_recording(tmp_path):
+    """`iotad run -o FILE --force` over an earlier recording: the recorder it starts replaces it
+    too (what `make demo` does on its second run)."""
+    port = free_port()
+    system_file = pair_system(tmp_path, port)
+    recording = tmp_path / "rec.mcap"
+    recording.write_bytes(b"an earlier run")
+    with launcher(system_file, "-o", str(recording), "--force", "--until", "2") as proc:
+        assert proc.wait(60) == 0, proc.output.read_text()
+    replaced = read_recording(recording)
+    assert replaced.complete
+    assert any(m.topic.startswith("iota/pair/src/") for m in replaced.messages)
 
 
 @pytest.mark.parametrize("where", ["under-a-file", "a-folder"])

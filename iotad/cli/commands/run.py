@@ -175,6 +175,7 @@ def launch(system, args: argparse.Namespace, summary_hook=None) -> int:
     launcher = Launcher(system, host=args.host, port=port, until=args.until, record=not args.no_record,
                         record_path=record_to, origin=args.origin, log_dir=args.log_dir,
                         live_table=False if args.plain else None,
+                        record_force=bool(getattr(args, "force", False)),
                         record_max_size=getattr(args, "max_size", None),
                         record_max_duration=getattr(args, "max_duration", None),
                         after_live=getattr(args, "after_live", False))
