@@ -27,9 +27,11 @@ import inspect
 import json
 import linecache
 import math
+import os
 import struct
 import sys
 import time
+import zlib
 from collections import Counter
 from dataclasses import dataclass, field
 from itertools import accumulate
@@ -39,7 +41,8 @@ from typing import IO, Any, Callable, Iterable, Iterator
 import msgpack
 from mcap.opcode import Opcode
 from mcap.records import Attachment, Channel as McapChannel, Footer, Message, MessageIndex, Metadata, Schema
-from mcap.stream_reader import StreamReader
+from mcap.writer import MCAP0_MAGIC as MCAP_MAGIC
+from mcap.stream_reader import CRCValidationError, StreamReader
 from mcap.writer import CompressionType, Writer
 
 from iotad.host import wire
@@ -716,6 +719,9 @@ class Recording:
     metadata: dict[str, dict[str, str]] = field(default_factory=dict)
     complete: bool = False
     truncated_reason: str = ""
+    # why the bytes are not what was written (a chunk or attachment failing its CRC, a record
+    # that cannot be decoded in a file that ends like a finished one); reading stopped there
+    damaged: str = ""
     header_library: str = ""
     # a split recording read as one (`read_recording` of its set file): the member files, in order
     files: list[str] = field(default_factory=list)
@@ -883,8 +889,9 @@ class Recording:
         return None
 
 
-def read_recording(path: str | Path, whole_set: bool = True) -> Recording:
-    """Read a recording, complete or cut short by a kill; raise RecordingError if it is not MCAP.
+def read_recording(path: str | Path, whole_set: bool = True, salvage: bool = False) -> Recording:
+    """Read a recording, complete or cut short by a kill; raise RecordingError if it is not MCAP,
+    or if it is damaged (`Recording.damaged`) unless `salvage`: then what comes before the damage.
 
     The set file of a split recording (`iotad record --max-size/--max-duration`) reads as one
     recording made of all its members, in order (`files` lists them); `whole_set=False` reads
@@ -894,7 +901,10 @@ def read_recording(path: str | Path, whole_set: bool = True) -> Recording:
         raise RecordingError(f"{path}: no such file")
     recording = _read_file(path)
     if whole_set and SET_METADATA in recording.metadata:
-        return _read_set(recording, path)
+        recording = _read_set(recording, path)
+    if recording.damaged and not salvage:
+        raise RecordingError(f"{path}: damaged: {recording.damaged}; its data cannot be trusted. "
+                             f"'iotad recover {path}' keeps what comes before the damage")
     return recording
 
 
@@ -948,6 +958,8 @@ def iter_messages(path: str | Path) -> Iterator[RecordedMessage]:
                     yield RecordedMessage(topic, record.log_time, record.publish_time, record.sequence, record.data)
                 elif isinstance(record, McapChannel):
                     channels[record.id] = record.topic
+        if scratch.damaged:
+            raise RecordingError(f"{file}: damaged: {scratch.damaged}; its data cannot be trusted")
 
 
 def _read_head(path: Path) -> Recording:
@@ -996,6 +1008,8 @@ def _read_set(index: Recording, path: Path) -> Recording:
         if not member.complete:
             out.complete = False
             out.truncated_reason = f"{name}: {member.truncated_reason or 'cut short'}"
+        if member.damaged and not out.damaged:
+            out.damaged = f"{name}: {member.damaged}"
         new_schema: dict[int, int] = {0: 0}
         for schema_id, schema in member.schemas.items():
             key = (schema.name, schema.encoding, bytes(schema.data))
@@ -1070,8 +1084,9 @@ def unused_recording_path(path: str | Path) -> Path:
 
 
 def _records(stream: IO[bytes], recording: Recording) -> Iterator[Any]:
-    """Records of the data section; stops quietly where a killed writer stopped writing."""
-    reader = StreamReader(stream, record_size_limit=1 << 31)
+    """Records of the data section; stops quietly where a killed writer stopped writing, and
+    stops where the bytes are damaged (`recording.damaged` says how)."""
+    reader = StreamReader(stream, record_size_limit=1 << 31, validate_crcs=True)  # chunks' CRCs
     records = reader.records
     first = True
     while True:
@@ -1083,6 +1098,13 @@ def _records(stream: IO[bytes], recording: Recording) -> Iterator[Any]:
             if first:
                 raise RecordingError(f"{recording.path}: not an MCAP file ({type(exc).__name__}: {exc})") from None
             recording.truncated_reason = f"{type(exc).__name__}: {exc}"
+            # A killed writer never wrote the closing magic: a file that ends with it was
+            # finished, and what cannot be read in it was changed since.
+            if isinstance(exc, CRCValidationError):
+                recording.damaged = (f"a {type(exc.record).__name__.lower()} fails its CRC (stored {exc.expected}, "
+                                     f"computed {exc.actual})")
+            elif _ends_like_a_finished_file(stream):
+                recording.damaged = f"a record cannot be read ({type(exc).__name__}: {exc})"
             return
         if first:
             recording.header_library = getattr(record, "library", "")
@@ -1090,7 +1112,33 @@ def _records(stream: IO[bytes], recording: Recording) -> Iterator[Any]:
         if isinstance(record, Footer):
             recording.complete = True
             return
+        if isinstance(record, Attachment) and not _attachment_crc_holds(stream, record):
+            recording.damaged = f"attachment {record.name!r} fails its CRC"
+            return
         yield record
+
+
+def _ends_like_a_finished_file(stream: IO[bytes]) -> bool:
+    try:
+        stream.seek(-len(MCAP_MAGIC), os.SEEK_END)
+        return stream.read(len(MCAP_MAGIC)) == MCAP_MAGIC
+    except (OSError, ValueError):
+        return False
+
+
+def _attachment_crc_holds(stream: IO[bytes], record: Attachment) -> bool:
+    """Whether the attachment record just read (it ends where `stream` is) matches its CRC: the
+    CRC-32 of its fields before the CRC, 0 for none (the MCAP specification). The mcap reader
+    skips that field, so its bytes are read again here; attachments are few and small."""
+    end = stream.tell()
+    size = 1 + 8 + 8 + 8 + 4 + len(record.name.encode()) + 4 + len(record.media_type.encode()) + 8 + len(record.data) + 4
+    try:
+        stream.seek(end - size)
+        raw = stream.read(size)
+    finally:
+        stream.seek(end)
+    (stored,) = struct.unpack("<I", raw[-4:])
+    return stored == 0 or stored == zlib.crc32(raw[9:-4])
 
 
 def copy_recording(recording: Recording, output: str | Path, convert: Callable[[Schema | None, McapChannel, bytes],

@@ -4,7 +4,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from iotad.cli import output_file
+from iotad.cli import new_recording, output_file
 
 ORDER = 35
 
@@ -23,6 +23,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                             epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("file", metavar="FILE", help="an MCAP recording (from 'iotad run' or 'iotad record')")
     parser.add_argument("-o", "--output", required=True, metavar="OUT.mcap", help="file to write")
+    parser.add_argument("--force", action="store_true",
+                        help="replace a recording already at OUT (default: refuse, so that none is lost)")
     parser.add_argument("--json", action="store_true", required=True,
                         help="encode messages as JSON (the only export format, required to say so)")
     parser.set_defaults(func=run)
@@ -36,6 +38,7 @@ def run(args: argparse.Namespace) -> int:
     if Path(args.output).resolve() == Path(args.file).resolve():
         raise CliError("-o must name another file than the recording")
     output_file(args.output)
+    new_recording(args.output, args.force)
     recording = load(args.file)
     count = export_json(recording, args.output)
     print(f"wrote {count} JSON messages to {args.output}")

@@ -28,8 +28,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.set_defaults(func=run)
 
 
-def load(path: str):
-    """Read a recording for a command; a bad file is a one-line error."""
+def load(path: str, salvage: bool = False):
+    """Read a recording for a command; a bad file is a one-line error. `salvage`: a damaged
+    recording gives what comes before the damage (`Recording.damaged` says what) instead."""
     import os
 
     from iotad.cli import CliError
@@ -48,7 +49,7 @@ def load(path: str):
     if magic != b"\x89MCAP":
         raise CliError(f"{path}: not an MCAP recording (it does not start with the MCAP magic bytes)")
     try:
-        return read_recording(path)
+        return read_recording(path, salvage=salvage)
     except RecordingError as exc:
         raise CliError(str(exc)) from None
     except OSError as exc:

@@ -4,7 +4,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from iotad.cli import output_file
+from iotad.cli import new_recording, output_file
 
 ORDER = 36
 
@@ -13,7 +13,9 @@ example:
   iotad recover recordings/fig2.mcap                 writes recordings/fig2.recovered.mcap
 
 'iotad info FILE' says INCOMPLETE for a recording whose recorder was killed; 'iotad check'
-and 'iotad replay' read such a file as it is, but other MCAP tools want the summary."""
+and 'iotad replay' read such a file as it is, but other MCAP tools want the summary.
+A damaged recording (a chunk or attachment that fails its CRC: the bytes changed after they were
+written) is refused by every other command; recover keeps the records before the damage."""
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -23,9 +25,11 @@ def register(sub: argparse._SubParsersAction) -> None:
                     "complete MCAP file with summary, statistics and indexes. Everything flushed before "
                     "the kill comes back: at most the recorder's last --flush-period is lost.",
         epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("file", metavar="FILE", help="the cut-short recording")
+    parser.add_argument("file", metavar="FILE", help="the cut-short (or damaged) recording")
     parser.add_argument("-o", "--output", metavar="OUT",
                         help="where to write (default: FILE with .recovered.mcap)")
+    parser.add_argument("--force", action="store_true",
+                        help="replace a recording already at OUT (default: refuse, so that none is lost)")
     parser.set_defaults(func=run)
 
 
@@ -39,10 +43,13 @@ def run(args: argparse.Namespace) -> int:
     if output.resolve() == source.resolve():
         raise CliError("-o must name another file than the recording")
     output_file(str(output))
-    recording = load(args.file)
+    new_recording(str(output), args.force)
+    recording = load(args.file, salvage=True)
     count = copy_recording(recording, output, extra_metadata={"iotad.recovered": {
         "from": str(source), "was_complete": recording.complete, "messages": len(recording.messages),
-        "stopped_at": recording.truncated_reason or "footer"}})
-    state = "was already complete" if recording.complete else "was cut short"
+        "stopped_at": recording.truncated_reason or "footer", "damaged": recording.damaged}})
+    state = ("was already complete" if recording.complete else
+             f"is damaged ({recording.damaged}): what comes before the damage is kept" if recording.damaged else
+             "was cut short")
     print(f"{source} {state}; wrote {count} messages, {len(recording.attachments)} attachments to {output}")
     return 0
