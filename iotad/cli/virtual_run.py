@@ -19,7 +19,8 @@ def run_virtual(system, args: argparse.Namespace) -> int:
     from iotad.kernel.engine import Engine
     from iotad.kernel.policy import Eager, Random
     from iotad.launcher.in_process import compose
-    from iotad.recording.mcap_io import EngineRecorder, McapSink, unused_recording_path
+    from iotad.kernel.compose import flatten
+    from iotad.recording.mcap_io import MAX_RECORDED_SECONDS, RUN_ERROR, EngineRecorder, McapSink, unused_recording_path
 
     if args.until is None:
         raise CliError("--virtual needs --until SECONDS (virtual time; the run is as fast as the machine allows)")
@@ -31,6 +32,10 @@ def run_virtual(system, args: argparse.Namespace) -> int:
         root = compose(system)
     except Exception as exc:  # noqa: BLE001 - a node that fails to build: the user's message
         raise CliError(f"{system.file}: cannot compose the system: {type(exc).__name__}: {exc}") from None
+    # Every input's node is found before a recording is opened (or, with --force, replaced).
+    leaves = {leaf.path: leaf for leaf in flatten(root).leaves}
+    posts = [(_input_path(entry.get("iota"), root.instance_name, leaves, args.inputs), entry)
+             for entry in inputs]
     output = None
     sinks = []
     counts: Counter = Counter()
@@ -45,6 +50,9 @@ def run_virtual(system, args: argparse.Namespace) -> int:
 
     sinks.append(count)
     if not args.no_record:
+        if args.until > MAX_RECORDED_SECONDS:
+            raise CliError(f"--until {args.until:g}: a recording holds at most {MAX_RECORDED_SECONDS:.3g} s "
+                           "(its times are 64-bit nanoseconds: 584 years); --no-record runs without one")
         output = Path(args.record_to) if args.record_to else unused_recording_path(
             f"recordings/{system.name}-virtual-{time.strftime('%Y%m%d-%H%M%S')}.mcap")
         output_file(str(output))  # a folder, or a path under a file: one line
@@ -58,10 +66,9 @@ def run_virtual(system, args: argparse.Namespace) -> int:
     policy = Eager() if args.seed is None else Random(args.seed)
     engine = Engine(root, VirtualClock(), policy, record=False, sinks=sinks)
     until = args.until / system.time_unit  # --until is seconds; the engine counts spec units
-    for entry in inputs:
+    for path, entry in posts:
         if entry["t"] <= until:
-            engine.post(_input_path(entry.get("iota"), root.instance_name, engine.leaves, args.inputs),
-                        entry["action"], entry.get("value"), entry.get("index"), t=entry["t"])
+            engine.post(path, entry["action"], entry.get("value"), entry.get("index"), t=entry["t"])
     # The system's objects (specs, worlds, grammars) live as long as the run: full garbage
     # collections need not walk them (~30 ms each, a few % of a minute of Buggy recorded).
     gc.freeze()
@@ -83,6 +90,13 @@ def run_virtual(system, args: argparse.Namespace) -> int:
     except KeyboardInterrupt:
         print(file=sys.stderr)
         print(f"stopped by Ctrl-C at t = {engine.now() * system.time_unit:.3f} s", file=sys.stderr)
+    except BaseException as exc:
+        # an error of iotad itself: the recording keeps what happened, and says the run broke off
+        # there, so that `iotad check` does not pass it as a whole run
+        if output is not None:
+            sink.add_metadata(RUN_ERROR, {"error": f"{type(exc).__name__}: {exc}",
+                                          "t": engine.now() * system.time_unit})
+        raise
     finally:
         if output is not None:
             sink.finish()

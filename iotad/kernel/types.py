@@ -77,8 +77,7 @@ class _Number(Type):
     def _fast_checker(self):
         """`checked_plain` as a closure: a value of exactly the expected class within the bounds
         is returned at once (a NaN fails every comparison, so it takes the slow path)."""
-        lo = -math.inf if self.low is None else self.low
-        hi = math.inf if self.high is None else self.high
+        lo, hi = _range(self)
         classes = tuple(c for c in self.py_types)  # bool is a subclass, never its exact class
         first, second = (classes + classes)[:2]
         check = self.check
@@ -100,6 +99,9 @@ class _Number(Type):
             raise BadValue(f"expected {self.name}, got {type(value).__name__} {value!r}")
         if self.low is not None and value < self.low or self.high is not None and value > self.high:
             raise BadValue(f"{value!r} outside range [{self.low}, {self.high}]")
+        if isinstance(self, IntType) and not INT_MIN <= value <= INT_MAX:
+            raise BadValue(f"{value!r} does not fit in 64 bits (the wire and recordings carry integers "
+                           f"from {INT_MIN} to {INT_MAX})")
 
     def json_schema(self) -> dict:
         schema: dict = {"type": self.schema_type}
@@ -119,6 +121,20 @@ class _Number(Type):
 
     def __hash__(self) -> int:
         return hash((self.name, self.low, self.high))
+
+
+# The integers msgpack carries (the wire, the recordings): an int beyond them cannot be sent.
+INT_MIN, INT_MAX = -(1 << 63), (1 << 64) - 1
+
+
+def _range(number: "_Number") -> tuple:
+    """The closed range a number type's fast paths accept at once: its bounds, and for an int
+    also the 64 bits it is sent in; what lies outside takes the slow path (`check`)."""
+    lo = -math.inf if number.low is None else number.low
+    hi = math.inf if number.high is None else number.high
+    if isinstance(number, IntType):
+        lo, hi = max(lo, INT_MIN), min(hi, INT_MAX)
+    return lo, hi
 
 
 class IntType(_Number):
@@ -467,8 +483,7 @@ def _compile_struct(struct: StructType) -> None:
         kind = type(ftype)
         check.append(f"        v{k} = value.{name}")
         if kind in (IntType, FloatType):
-            env[f"lo{k}"] = -math.inf if ftype.low is None else ftype.low
-            env[f"hi{k}"] = math.inf if ftype.high is None else ftype.high
+            env[f"lo{k}"], env[f"hi{k}"] = _range(ftype)
             plain_class = "v{k}.__class__ is int" if kind is IntType else \
                 "(v{k}.__class__ is float or v{k}.__class__ is int)"
             check.append(f"        if not ({plain_class.format(k=k)} and lo{k} <= v{k} <= hi{k}) and v{k} is not None:")
@@ -531,9 +546,8 @@ def _compile_array(array: ArrayType) -> None:
     else:
         plain = "{a}.__class__ is int" if type(element) is IntType else "({a}.__class__ is float or {a}.__class__ is int)"
         tests = [f"{plain.format(a=a)} and lo <= {a} <= hi" for a in names]
-    env = {"generic": ArrayType.checked_plain.__get__(array), "n": n,
-           "lo": -math.inf if getattr(element, "low", None) is None else element.low,
-           "hi": math.inf if getattr(element, "high", None) is None else element.high}
+    lo, hi = _range(element) if isinstance(element, _Number) else (-math.inf, math.inf)
+    env = {"generic": ArrayType.checked_plain.__get__(array), "n": n, "lo": lo, "hi": hi}
     unpack = f"        {', '.join(names)}{',' if n == 1 else ''} = value" if n else "        pass"
     source = "\n".join([
         "def checked_plain(value):",

@@ -547,6 +547,12 @@ _VALUE_KEY = b"\xa5value"
 _FLOAT64 = struct.Struct(">Bd").pack  # msgpack's float 64: 0xCB, big-endian double
 
 
+# MCAP log and publish times are unsigned 64-bit nanoseconds from the origin.
+MAX_RECORDED_SECONDS = ((1 << 64) - 1) / 1e9
+# Metadata a virtual run writes when an error of iotad's own broke it off: {"error", "t"}.
+RUN_ERROR = "iotad.run_error"
+
+
 class EngineRecorder:
     """An Engine sink that writes what a system of node hosts would publish: every event of a
     leaf on `iota/<system>/<path>/@trace`, every output on its channel key. Virtual time `t`
@@ -727,6 +733,19 @@ class Recording:
     files: list[str] = field(default_factory=list)
 
     # -- what it holds
+    @property
+    def run_error(self) -> str:
+        """How the run that made it broke off ("" for a run that ended as it should): an error
+        of iotad itself, at the time it happened (`RUN_ERROR`, written by `iotad run --virtual`)."""
+        meta = self.metadata.get(RUN_ERROR)
+        if meta is None:
+            return ""
+        try:
+            t = f" at t={float(json.loads(meta.get('t', 'null'))):.6g} s"
+        except (TypeError, ValueError):
+            t = ""
+        return f"{meta.get('error') or 'an error'}{t}"
+
     @property
     def info(self) -> dict[str, Any]:
         raw = self.metadata.get("iotad.recording", {})

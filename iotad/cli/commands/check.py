@@ -144,6 +144,9 @@ def run(args: argparse.Namespace) -> int:
         print(f"{args.file}: INCOMPLETE recording ({recording.truncated_reason or 'cut short'}): only what it "
               f"holds is checked, and a window still open where it ends is not judged; "
               f"'iotad recover {args.file}' rewrites it whole")
+    if recording.run_error:
+        print(f"{args.file}: the run that made it BROKE OFF with an error of iotad ({recording.run_error}): "
+              f"only what it holds is checked")
     real_time = recording.info.get("clock") != "virtual"
     for node in nodes:
         events = recording.process_trace(node)
@@ -168,15 +171,17 @@ def run(args: argparse.Namespace) -> int:
         if delivery.checked:
             delivered = delivery.ok
             all_ok &= delivery.ok
-    if all_ok and not unchecked and recording.complete:
+    whole = recording.complete and not recording.run_error
+    if all_ok and not unchecked and whole:
         verdict = "every node conforms to its spec" + (", every message was delivered as sent" if delivered else "")
     else:
         what = [w for w, bad in (("conformance", not conforms), ("delivery", delivered is False),
                                  (f"{len(unchecked)} node(s) not checked", unchecked),
-                                 ("the recording is incomplete", not recording.complete)) if bad]
+                                 ("the recording is incomplete", not recording.complete),
+                                 ("the run broke off", recording.run_error)) if bad]
         verdict = f"PROBLEMS FOUND ({' and '.join(what)})"
     print(f"check: {verdict} (tolerance {tolerance:g})")
-    return 0 if all_ok and not unchecked and recording.complete else 1
+    return 0 if all_ok and not unchecked and whole else 1
 
 
 def _unchecked(recording, specs: dict) -> list[str]:

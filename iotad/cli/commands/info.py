@@ -95,6 +95,8 @@ def run(args: argparse.Namespace) -> int:
     state = "complete" if recording.complete else f"INCOMPLETE (no footer: {recording.truncated_reason or 'cut short'}; " \
                                                   f"run 'iotad recover {args.file}')"
     print(f"{args.file}: {state}")
+    if recording.run_error:
+        print(f"  the run BROKE OFF with an error of iotad: {recording.run_error}")
     print(f"  system: {recording.system or '?'}   clock: {info.get('clock', '?')}   writer: {info.get('writer', '?')}")
     print(f"  duration: {recording.duration():.3f} s   messages: {len(recording.messages)}   "
           f"attachments: {', '.join(a.name for a in recording.attachments) or 'none'}")
