@@ -135,8 +135,10 @@ def _read_inputs(path: str) -> list[dict]:
 
     try:
         with open(path) as stream:
-            return parse_script(stream)
+            return parse_script(stream, path)
     except OSError as exc:
         raise CliError(f"--inputs {path}: cannot read: {exc.strerror or exc}") from None
+    except UnicodeDecodeError:
+        raise CliError(f"--inputs {path}: not UTF-8 text") from None
     except ScriptError as exc:
-        raise CliError(f"--inputs {path}: {exc}") from None
+        raise CliError(f"--inputs {exc}") from None

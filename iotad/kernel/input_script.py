@@ -28,6 +28,8 @@ def parse_script(lines: Iterable[str], source: str = "<script>") -> list[dict]:
             entry = json.loads(line)
         except json.JSONDecodeError as exc:
             raise ScriptError(f"{where}: not JSON: {exc.msg}") from None
+        except RecursionError:
+            raise ScriptError(f"{where}: nested too deeply to be an input") from None
         if not isinstance(entry, dict):
             raise ScriptError(f"{where}: expected an object like {{\"t\": 0.0, \"action\": \"req\", ...}}")
         t, action, index = entry.get("t"), entry.get("action"), entry.get("index")

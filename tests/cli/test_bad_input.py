@@ -38,6 +38,7 @@ def files(tmp_path_factory):
     (d / "bad.iota").write_text("iota x(\n")
     (d / "bad.jsonl").write_text('{"t": \n')
     (d / "back.jsonl").write_text('{"t": 2, "action": "req"}\n{"t": 1, "action": "req"}\n')
+    (d / "deep.jsonl").write_text("[" * 100_000 + "]" * 100_000 + "\n")
     (d / "folder").mkdir()
     (d / "nofolder.toml").write_text("[system]\nname = 'x'\n[[node]]\nname = 'a'\nspec = 'nope.iota'\n")
     good = d / "good.mcap"
@@ -82,6 +83,12 @@ CASES = [
     (["spec", "run", SPEC, "--until", "1", "--inputs", "{d}/bad.jsonl"], "bad.jsonl:1: not JSON"),
     (["spec", "run", SPEC, "--until", "1", "--inputs", "{d}/back.jsonl"], "must not go backwards"),
     (["spec", "run", SPEC, "--until", "1", "--inputs", "{d}/garbage.bin"], "not UTF-8 text"),
+    (["spec", "run", SPEC, "--until", "1", "--inputs", "{d}/deep.jsonl"], "deep.jsonl:1: nested too deeply"),
+    (["run", SYSTEM, "--virtual", "--until", "1", "--no-record", "--inputs", "{d}/deep.jsonl"],
+     "--inputs {d}/deep.jsonl:1: nested too deeply"),
+    (["run", SYSTEM, "--virtual", "--until", "1", "--no-record", "--inputs", "{d}/bad.jsonl"],
+     "--inputs {d}/bad.jsonl:1: not JSON"),
+    (["run", SYSTEM, "--virtual", "--until", "1", "--no-record", "--inputs", "{d}/garbage.bin"], "not UTF-8 text"),
     (["spec", "run", "{d}/bad.iota", "--until", "1"], "bad.iota:1:"),
     (["spec", "run", SYSTEM, "--until", "1"], "not an ESPRIT spec"),
     # iotad run (only checks: nothing starts)
