@@ -40,15 +40,22 @@ def requester_names(recording: Recording, scheduler: str) -> dict[int, str]:
     return names
 
 
-def find_scheduler(recording: Recording) -> str:
-    best, most = None, 0
-    for node in recording.nodes():
-        count = sum(1 for e in recording.trace(node) if e.get("action") == "schedule")
-        if count > most:
-            best, most = node, count
-    if best is None:
-        raise RecordingError("no node with 'schedule' firings in this recording: name one with --node")
-    return best
+def schedulers(recording: Recording) -> dict[str, int]:
+    """The nodes that fired `schedule`, with how often, most first."""
+    counts = {node: sum(1 for e in recording.trace(node) if e.get("action") == "schedule") for node in recording.nodes()}
+    return dict(sorted(((n, c) for n, c in counts.items() if c), key=lambda item: -item[1]))
+
+
+def find_scheduler(recording: Recording, named: str | None = None) -> str:
+    """The node to draw: `named` if it schedules, else the one with the most `schedule` firings."""
+    found = schedulers(recording)
+    if named is not None and named not in found:
+        raise RecordingError(f"{named} never fired 'schedule': it is no motion scheduler "
+                             f"(here: {', '.join(found) or 'none'})")
+    if not found:
+        raise RecordingError("no node fired 'schedule' in this recording: there is no motion scheduler's "
+                             f"timeline to draw (nodes: {', '.join(recording.nodes()) or 'none'})")
+    return named or next(iter(found))
 
 
 def timeline(recording: Recording, scheduler: str) -> dict:
@@ -103,7 +110,7 @@ def plot(recording: Recording, output: str | Path, scheduler: str | None = None,
     from matplotlib.lines import Line2D
     from matplotlib.patches import Patch
 
-    scheduler = scheduler or find_scheduler(recording)
+    scheduler = find_scheduler(recording, scheduler)
     data = timeline(recording, scheduler)
     names = requester_names(recording, scheduler)
     indexes = sorted({h[0] for h in data["holds"]} | {a[0] for a in data["acks"]} | {r[0] for r in data["requests"]}

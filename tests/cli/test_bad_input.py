@@ -141,6 +141,8 @@ CASES = [
     (["plot", "{d}/good.mcap", "-o", "{d}/out.txt"], "the image format follows the extension"),
     (["plot", "{d}/good.mcap", "-o", "{d}/empty.toml/out.png"], "is not a directory"),
     (["plot", "{d}/good.mcap", "-o", "{d}/out.png", "--node", "nosuch"], "no node 'nosuch'"),
+    (["plot", "{d}/good.mcap", "-o", "{d}/out.png", "--node", "vision"],
+     "vision never fired 'schedule': it is no motion scheduler (here: scheduler)"),
     (["export", "{d}/good.mcap", "-o", "{d}/folder", "--json"], "is a directory"),
     (["export", "{d}/good.mcap", "-o", "{d}/good.mcap", "--json"], "another file than the recording"),
     (["export", "{d}/good.mcap", "-o", "{d}/x.mcap"], "required: --json"),

@@ -95,3 +95,17 @@ def test_iotad_plot_draws_the_picks_and_who_held_the_arm(run, tmp_path):
                             capture_output=True, text=True, timeout=300)
     assert result.returncode == 0, result.stderr[-2000:]
     assert (tmp_path / "conveyor.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_iotad_plot_node_draws_that_schedulers_timeline_and_refuses_one_that_schedules_nothing(run, tmp_path, capsys,
+                                                                                              monkeypatch):
+    from iotad.cli import main
+    from iotad.recording import timeline_plot
+    drawn = []
+    monkeypatch.setattr(timeline_plot, "plot", lambda recording, output, node, *rest, **kw: drawn.append(node) or output)
+    assert main(["plot", str(run["path"]), "-o", str(tmp_path / "timeline.png"), "--node", "scheduler"]) == 0
+    assert drawn == ["scheduler"]  # the timeline, not the robot's picture
+    monkeypatch.undo()
+    assert main(["plot", str(run["path"]), "-o", str(tmp_path / "motor.png"), "--node", "motor"]) == 2
+    assert "motor never fired 'schedule': it is no motion scheduler (here: scheduler)" in capsys.readouterr().err
+    assert not (tmp_path / "motor.png").exists()

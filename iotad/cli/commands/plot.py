@@ -26,7 +26,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("file", metavar="FILE", help="an MCAP recording (from 'iotad run' or 'iotad record')")
     parser.add_argument("-o", "--output", required=True, metavar="OUT.png",
                         help="image to write (.png, .pdf, .svg, .jpg)")
-    parser.add_argument("--node", metavar="PATH", help="the scheduler node (default: the one that schedules)")
+    parser.add_argument("--node", metavar="PATH",
+                        help="the scheduler whose timeline to draw (default: the one that schedules most; a Buggy "
+                             "or conveyor recording is drawn as its robot's picture unless --node is given)")
     parser.add_argument("--title", help="title of the plot")
     parser.add_argument("--late", type=nonnegative_float, metavar="MS",
                         help="also mark every delivery slower than MS milliseconds (lost, altered, duplicated "
@@ -50,7 +52,7 @@ def run(args: argparse.Namespace) -> int:
 
     for module in ("iotad.recording.buggy_plot", "iotad.recording.conveyor_plot"):
         picture = importlib.import_module(module)
-        if picture.matches(recording):
+        if picture.matches(recording) and not args.node:  # --node: that scheduler's timeline instead
             try:
                 print(f"wrote {picture.plot(recording, args.output, args.title)}")
             except ImportError:
