@@ -184,6 +184,19 @@ def test_cli_check_exit_codes(tmp_path, capsys):
     assert "cannot read" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("n, why", [("-3", "array length must be a whole number >= 0, got -3"),
+                                     ("99999999999999999999999", "is past the limit of 1000000 elements")])
+def test_cli_check_warns_of_default_parameters_that_build_nothing(tmp_path, capsys, n, why):
+    spec = tmp_path / "family.iota"
+    spec.write_text(f"iota a(int N = {n}): -> out[N]()/1 {{\n  states int count[N] = 0;\n"
+                    f"  actions (i=0; i<N; i++) out[i]() after 1 do {{ count[i] = count[i] + 1; }}\n}}\n")
+    assert cli.main(["spec", "check", str(spec)]) == 0
+    captured = capsys.readouterr()
+    assert f"warning: iota a cannot be built with its default parameters" in captured.err and why in captured.err
+    assert "a system file must give it others" in captured.err and "ok (1 warning(s))" in captured.out
+    assert cli.main(["spec", "run", str(spec), "--until", "1", "--param", "N=2"]) == 0  # other values build it
+
+
 def test_cli_run_errors_exit_2(tmp_path, capsys):
     spec = tmp_path / "a.iota"
     spec.write_text("iota a(int N = 1): -> out()/1 { actions out() after 1 }\n")

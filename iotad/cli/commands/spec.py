@@ -163,10 +163,30 @@ def cmd_check(args: argparse.Namespace) -> int:
               + _hint(args.file), file=sys.stderr)
         return 2
     from iotad.esprit import load_text
-    if not load_text(text, args.file).iotas:  # as `spec show` and `spec run` say
+    module = load_text(text, args.file)
+    if not module.iotas:  # as `spec show` and `spec run` say
         return _fail(f"{args.file}: the file declares no iota (only comments, types or constants)")
-    print(f"{args.file}: ok ({len(warnings)} warning(s))")
+    unbuildable = _unbuildable(module)
+    for name, why in unbuildable.items():
+        print(f"{args.file}: warning: iota {name} cannot be built with its default parameters ({why}): "
+              f"a system file must give it others", file=sys.stderr)
+    print(f"{args.file}: ok ({len(warnings) + len(unbuildable)} warning(s))")
     return 0
+
+
+def _unbuildable(module) -> dict[str, str]:
+    """The IOTAs of a checked file that its default parameters do not build (an array of -3
+    members, say), each with why: what `spec run` and a system file without params would hit."""
+    from iotad.kernel.clock import VirtualClock
+    from iotad.kernel.engine import Engine
+
+    found = {}
+    for name, factory in module.iotas.items():
+        try:
+            Engine(factory(None), VirtualClock(), record=False)  # the engine builds the action instances
+        except Exception as exc:  # noqa: BLE001 - whatever building raises is the finding
+            found[name] = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+    return found
 
 
 def _param_value(text: str):
