@@ -57,7 +57,8 @@ def _number(text: str, kind: type, what: str, low: float | None, low_open: bool,
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}") from None
     if kind is float and (math.isnan(value) or (math.isinf(value) and not allow_inf)):
-        raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}")
+        said = "not a number" if math.isnan(value) else "infinite"
+        raise argparse.ArgumentTypeError(f"expected {what}, got {text!r} ({said})")
     if low is not None and (value < low or (low_open and value == low)):
         raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}")
     return value

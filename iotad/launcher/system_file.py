@@ -259,7 +259,9 @@ def load_system(path: str | Path, check: bool = True) -> System:
     except OSError as exc:
         raise SystemFileError([f"{path}: cannot read: {exc.strerror or exc}"]) from None
     except tomllib.TOMLDecodeError as exc:
-        raise SystemFileError([f"{path.name}: not valid TOML: {exc}"]) from None
+        bom = " (the file starts with a byte-order mark, which TOML does not allow: save it as UTF-8 without BOM)" \
+            if path.read_bytes().startswith(b"\xef\xbb\xbf") else ""
+        raise SystemFileError([f"{path.name}: not valid TOML: {exc}{bom}"]) from None
     except UnicodeDecodeError:
         raise SystemFileError([f"{path.name}: not UTF-8 text"]) from None
     return _Parser(path, data).parse(check)

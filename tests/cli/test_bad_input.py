@@ -39,6 +39,7 @@ def files(tmp_path_factory):
     (d / "bad.jsonl").write_text('{"t": \n')
     (d / "back.jsonl").write_text('{"t": 2, "action": "req"}\n{"t": 1, "action": "req"}\n')
     (d / "deep.jsonl").write_text("[" * 100_000 + "]" * 100_000 + "\n")
+    (d / "bom.toml").write_bytes(b"\xef\xbb\xbf[system]\nname = 'x'\n")
     (d / "folder").mkdir()
     (d / "nofolder.toml").write_text("[system]\nname = 'x'\n[[node]]\nname = 'a'\nspec = 'nope.iota'\n")
     good = d / "good.mcap"
@@ -141,6 +142,8 @@ CASES = [
     (["plot", "{d}/good.mcap", "-o", "{d}/out.txt"], "the image format follows the extension"),
     (["plot", "{d}/good.mcap", "-o", "{d}/empty.toml/out.png"], "is not a directory"),
     (["plot", "{d}/good.mcap", "-o", "{d}/out.png", "--node", "nosuch"], "no node 'nosuch'"),
+    (["run", SYSTEM, "--virtual", "--until", "1e400"], "expected a number > 0, got '1e400' (infinite)"),
+    (["run", "--check", "{d}/bom.toml"], "the file starts with a byte-order mark, which TOML does not allow"),
     (["plot", "{d}/good.mcap", "-o", "{d}/out.png", "--node", "vision"],
      "vision never fired 'schedule': it is no motion scheduler (here: scheduler)"),
     (["export", "{d}/good.mcap", "-o", "{d}/folder", "--json"], "is a directory"),
