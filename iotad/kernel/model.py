@@ -162,7 +162,27 @@ def apply_params(obj: Any, spec: IotaSpec, overrides: dict[str, Any]) -> None:
         raise SpecError(f"{spec.name} has no parameter(s) {sorted(unknown)}; "
                         f"it has {sorted(spec.params) or 'none'}")
     for name, default in spec.params.items():
-        object.__setattr__(obj, name, overrides.get(name, default))
+        value = overrides.get(name, default)
+        if name in overrides:
+            problem = param_kind_problem(default, value)
+            if problem:
+                raise SpecError(f"{spec.name}: parameter {name}: {problem}")
+        object.__setattr__(obj, name, value)
+
+
+def param_kind_problem(default: Any, value: Any) -> str:
+    """Why `value` cannot stand for a parameter whose default is `default` ("" when it can): no
+    text, flag or NaN for a number, nothing but true or false for a flag. Other kinds are the
+    IOTA's own business (a number's default may take a list of one per joint, a list's a table).
+    Said before the IOTA runs, not as a fault inside it."""
+    if isinstance(default, bool):
+        return "" if isinstance(value, bool) else f"expected true or false (its default is {default!r}), got {value!r}"
+    if isinstance(default, (int, float)):
+        if isinstance(value, (str, bool)):
+            return f"expected a number (its default is {default!r}), got {value!r}"
+        if isinstance(value, float) and math.isnan(value):
+            return f"expected a number (its default is {default!r}), got NaN"
+    return ""
 
 
 def param_values(obj: Any) -> dict[str, Any]:
