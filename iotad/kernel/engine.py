@@ -388,11 +388,8 @@ class Engine:
         value in `checked_plain`, so `from_checked_plain` builds the value without checking
         again what that proved (see iotad.kernel.types)."""
         leaf, channel, index = slot.leaf, slot.channel, slot.index
-        if now < slot.last + slot.switching - self.input_tolerance and self.reject_early_inputs:
-            self._violation(now, leaf.path, channel.name, index, "switching_time",
-                            f"input {channel.name} at {now:.6g} is sooner than its switching time "
-                            f"{slot.switching:g} after the last one at {slot.last:.6g}; rejected")
-            return
+        # The value first: a malformed payload is a bad_value whenever it comes, so the record
+        # tells it from a well-formed one that merely came too early.
         value = None
         if slot.type is not None:
             try:
@@ -401,6 +398,19 @@ class Engine:
                 self._violation(now, leaf.path, channel.name, index, "bad_value",
                                 f"input {channel.name}: {exc}; rejected")
                 return
+            except Exception as exc:  # noqa: BLE001 - a type's own fault on odd input: still the input's
+                self._violation(now, leaf.path, channel.name, index, "bad_value",
+                                f"input {channel.name}: {type(exc).__name__}: {exc}; rejected")
+                return
+        elif plain is not None:
+            self._violation(now, leaf.path, channel.name, index, "bad_value",
+                            f"input {channel.name} carries no value, got {plain!r}; rejected")
+            return
+        if now < slot.last + slot.switching - self.input_tolerance and self.reject_early_inputs:
+            self._violation(now, leaf.path, channel.name, index, "switching_time",
+                            f"input {channel.name} at {now:.6g} is sooner than its switching time "
+                            f"{slot.switching:g} after the last one at {slot.last:.6g}; rejected")
+            return
         slot.last = now
         self._emit(now, leaf.path, channel.name, index, "input", plain)
         action = slot.input_action

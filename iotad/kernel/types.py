@@ -98,7 +98,9 @@ class _Number(Type):
         if isinstance(value, bool) or not isinstance(value, self.py_types):
             raise BadValue(f"expected {self.name}, got {type(value).__name__} {value!r}")
         if self.low is not None and value < self.low or self.high is not None and value > self.high:
-            raise BadValue(f"{value!r} outside range [{self.low}, {self.high}]")
+            low = "-inf" if self.low is None else self.low
+            high = "inf" if self.high is None else self.high
+            raise BadValue(f"{value!r} outside range [{low}, {high}]")
         if isinstance(self, IntType) and not INT_MIN <= value <= INT_MAX:
             raise BadValue(f"{value!r} does not fit in 64 bits (the wire and recordings carry integers "
                            f"from {INT_MIN} to {INT_MAX})")
@@ -205,7 +207,7 @@ class EnumType(Type):
                 setattr(self, member, member)
 
     def check(self, value: Any) -> None:
-        if value not in self._set or not isinstance(value, str):
+        if not isinstance(value, str) or value not in self._set:  # a list is unhashable: ask str first
             raise BadValue(f"{value!r} is not a member of enum {self.name} {list(self.members)}")
 
     def checked_plain(self, value: Any) -> Any:
