@@ -217,9 +217,12 @@ class Recorder:
         return self
 
     def _open_client(self, keep_waiting: Callable[[], bool] | None):
+        # zenoh retries within each attempt; every 100 ms (not its default 1 s, then slower) so
+        # that a recorder waiting for a system's hub joins it before the nodes start talking
+        retry = {"connect/retry": {"period_init_ms": 100, "period_max_ms": 100, "period_increase_factor": 1.0}}
         while True:
             try:
-                return open_session((), self.connect, mode="client", connect_timeout=1.0)
+                return open_session((), self.connect, mode="client", connect_timeout=1.0, extra=retry)
             except zenoh.ZError:
                 if keep_waiting is None or not keep_waiting():
                     raise

@@ -379,9 +379,22 @@ def test_ctrl_c_while_waiting_for_a_hub_is_a_clear_stop(tmp_path):
         if proc.poll() is None:
             proc.kill()
     assert proc.returncode == 2, err.read_text()
-    assert f"stopped while waiting for a hub at tcp/127.0.0.1:{port}: nothing recorded" in err.read_text()
+    assert f"stopped while waiting for a hub at tcp/127.0.0.1:{port}: nothing recorded, no file written" \
+        in err.read_text()
     assert "Traceback" not in err.read_text()
-    assert read_recording(tmp_path / "r.mcap").messages == []
+    assert not (tmp_path / "r.mcap").exists()  # no empty recording to make the next run ask for --force
+
+
+def test_duration_counts_while_waiting_for_a_hub(tmp_path):
+    proc, port, err = record_without_a_hub(tmp_path, "--duration", "2")
+    try:
+        proc.wait(20)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 2, err.read_text()
+    assert f"--duration 2 s over while waiting for a hub at tcp/127.0.0.1:{port}: nothing recorded" in err.read_text()
+    assert not (tmp_path / "r.mcap").exists()
 
 
 def test_missing_folders_of_the_output_are_created(tmp_path):

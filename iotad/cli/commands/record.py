@@ -21,7 +21,8 @@ examples:
   iotad record --system-file examples/figure2.toml -o fig2.mcap --max-size 100M --max-duration 600
 
 'iotad run' starts a recorder by itself (-o FILE, or --no-record); use this command to record
-a system started elsewhere, or only some keys. Missing folders of -o are created. On a terminal
+a system started elsewhere, or only some keys. Started before the system, it waits for the hub
+(--duration counts the wait; stopped before a hub answered, it writes no file). Missing folders of -o are created. On a terminal
 a status line shows what has been written so far. Ctrl-C (SIGINT) or SIGTERM stops it cleanly
 (exit 0). Then: 'iotad info FILE', 'iotad check FILE', 'iotad replay FILE --node PATH';
 a killed recorder's file: 'iotad recover FILE'.
@@ -144,12 +145,15 @@ def run(args: argparse.Namespace) -> int:
     stop = threading.Event()
     for signum in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signum, lambda *_: stop.set())
+    # --duration counts from the start, waiting for a hub included
+    deadline = None if args.duration is None else time.monotonic() + args.duration
+
     def keep_waiting() -> bool:
         # a recorder may be started before the system it records: wait for its hub, say so once
         if not args.quiet and not waited:
             print(f"waiting for a hub at {', '.join(connect)} (Ctrl-C to stop)", file=sys.stderr)
         waited.append(True)
-        return not stop.is_set()
+        return not stop.is_set() and (deadline is None or time.monotonic() < deadline)
 
     waited: list[bool] = []
     try:
@@ -157,9 +161,11 @@ def run(args: argparse.Namespace) -> int:
     except OSError as exc:
         raise CliError(f"cannot start recording: {exc.filename or args.output}: {exc.strerror or exc}") from None
     except Exception as exc:  # noqa: BLE001 - zenoh said no
-        if waited and stop.is_set():
-            raise CliError(f"stopped while waiting for a hub at {', '.join(connect)}: nothing recorded "
-                           f"({recorder.output} is an empty recording)") from None
+        if waited:  # stopped, or --duration over, before any hub answered: the file holds nothing
+            _remove_empty(recorder)
+            why = "stopped" if stop.is_set() else f"--duration {args.duration:g} s over"
+            raise CliError(f"{why} while waiting for a hub at {', '.join(connect)}: nothing recorded, "
+                           f"no file written") from None
         reason = str(exc).split(" at /", 1)[0]  # zenoh appends its Rust source location
         raise CliError(f"cannot start recording: {reason}") from None
     try:
@@ -167,7 +173,6 @@ def run(args: argparse.Namespace) -> int:
             Path(args.ready_file).write_text(str(recorder.output))
         if not args.quiet:
             print(f"recording {' '.join(recorder.keys)} -> {recorder.output} (Ctrl-C to stop)", file=sys.stderr)
-        deadline = None if args.duration is None else time.monotonic() + args.duration
         while not stop.is_set() and recorder.failed is None:  # a write error ends the recording: exit, say why
             timeout = 0.5 if deadline is None else min(0.5, max(0.0, deadline - time.monotonic()))
             stop.wait(timeout)
@@ -183,6 +188,16 @@ def run(args: argparse.Namespace) -> int:
               f"{stats['gaps']} sequence gaps ({stats['missing']} missing)", file=sys.stderr)
     return 0
 
+
+
+def _remove_empty(recorder) -> None:
+    """Remove the files of a recording that never began (no hub came): an empty recording left
+    at -o would only make the next run with the same -o ask for --force."""
+    for path in {recorder.output, *recorder.files}:
+        try:
+            path.unlink()
+        except OSError:
+            pass
 
 
 def _check_system_file(path: str) -> None:
