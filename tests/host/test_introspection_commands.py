@@ -74,6 +74,14 @@ def test_echo_flags_gaps():
     assert [gaps.see("t", s, n) for s, n in ((0, 3), (3, 2), (5, 1), (9, 4), (2, 1))] == [0, 0, 0, 3, -1]
 
 
+def test_echo_json_says_gap_or_restart_in_words():
+    from iotad.cli.commands.echo import json_record
+
+    assert json_record("k", 4, 10, 1, 2, None) == {"key": "k", "seq": 4, "send_ns": 10, "value": 1, "gap": 2}
+    assert json_record("k", 0, 10, 1, -1, None) == {"key": "k", "seq": 0, "send_ns": 10, "value": 1, "restarted": True}
+    assert "gap" not in json_record("k", 1, 10, 1, 0, None)
+
+
 def test_echo_prints_each_event_of_a_trace_burst(live):
     records = echo_while_publishing(live, "@trace", 4, "6")
     assert len(records) == 4 and all(isinstance(r["value"], dict) and r["value"]["iota"] == "echo" for r in records)

@@ -32,7 +32,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("keyexpr", metavar="KEYEXPR", type=key_expression,
                         help="e.g. 'iota/figure2/scheduler/ack/*' or iota/figure2/scheduler/@trace")
     parser.add_argument("--count", type=positive_int, metavar="N", help="exit after N messages (default: never)")
-    parser.add_argument("--json", action="store_true", help="one JSON object per message")
+    parser.add_argument("--json", action="store_true",
+                        help='one JSON object per message: key, seq, send_ns, value, and "gap" (messages '
+                             'missed before it) or "restarted": true (the sender began again) when so')
     parser.add_argument("--timeout", type=positive_float, metavar="S",
                         help="exit with status 1 when S seconds pass before --count messages (default: wait forever)")
     add_connect(parser)
@@ -54,6 +56,19 @@ class GapTracker:
         if expected is None or sequence == expected:
             return 0
         return sequence - expected if sequence > expected else -1  # -1: the sender restarted
+
+
+def json_record(key: str, seq: int | None, send_ns: int | None, value, gap: int, malformed: str | None) -> dict:
+    """One line of `--json`: "gap" counts the messages missed just before it, "restarted" says
+    the sender's sequence began again (GapTracker's -1)."""
+    record = {"key": key, "seq": seq, "send_ns": send_ns, "value": value}
+    if gap > 0:
+        record["gap"] = gap
+    elif gap < 0:
+        record["restarted"] = True
+    if malformed:
+        record["malformed"] = malformed
+    return record
 
 
 def run(args: argparse.Namespace) -> int:
@@ -96,12 +111,8 @@ def run(args: argparse.Namespace) -> int:
                 seen += 1
                 number = None if sequence is None else sequence + position
                 if args.json:
-                    record = {"key": key, "seq": number, "send_ns": send_ns, "value": value}
-                    if gap and not position:
-                        record["gap"] = gap
-                    if malformed:
-                        record["malformed"] = malformed
-                    print(json.dumps(record, default=repr), flush=True)
+                    print(json.dumps(json_record(key, number, send_ns, value, 0 if position else gap, malformed),
+                                     default=repr), flush=True)
                     continue
                 flag = ""
                 if gap > 0 and not position:

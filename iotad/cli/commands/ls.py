@@ -96,7 +96,8 @@ def run(args: argparse.Namespace) -> int:
             print(f"{node['system']}/{node['path']}  (alive; no @spec answer)")
             continue
         source = spec.get("source", {})
-        what = source.get("ref") or f"{source.get('file')}:{source.get('iota') or ''}"
+        what = source.get("ref") or (f"{source.get('file')}:{source['iota']}" if source.get("iota")
+                                     else str(source.get("file")))  # a file's only (or last) iota
         print(f"{node['system']}/{node['path']}  pid {spec.get('pid')}  {source.get('kind')} {what}")
         for channel in spec.get("channels", []):
             arrow = "<-" if channel["direction"] == "input" else "->"
