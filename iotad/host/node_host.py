@@ -88,6 +88,10 @@ def _python_text(ref: str, factory: Any) -> str:
         return ""
 
 
+# the violations by which the engine refuses an input event
+REFUSALS = ("bad_value", "switching_time")
+
+
 class NodeHost:
     def __init__(self, config: NodeConfig, root: Any, text: str = ""):
         self.config, self.root, self.text = config, root, text
@@ -212,9 +216,13 @@ class NodeHost:
         wire: key, sequence and send time of an output; of an input from outside, the key it
         arrived on and the sender's attachment. A recorder rebuilds every message from these."""
         kind = event["kind"]
-        if kind == "input":
+        if kind == "input" or kind == "violation":
             raw = self.clock.current_input
-            if raw is not None:
+            # an input refused (bad_value, switching_time) names what it refused the same way, so
+            # that a recorder counts that message as seen, not as a gap in its sender's sequence
+            if raw is not None and (kind == "input" or (event["action"] == raw.name and event["index"] == raw.index
+                                                       and isinstance(event.get("value"), dict)
+                                                       and event["value"].get("violation") in REFUSALS)):
                 self.clock.current_input = None  # the one external input event of this step
                 event["key"] = raw.key
                 attachment = wire.decode_attachment(raw.attachment)

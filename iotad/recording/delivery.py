@@ -744,8 +744,12 @@ class DeliveryChecker:
             if value.get("violation") == OVERFLOW:
                 self._overflowed(links, claims, taken, t, value)
                 continue
-            candidates = [c for c in claims if id(c) not in taken and t - self.tolerance - self.grace <= c.t
-                          <= t + self.tolerance]
+            # a node host names the message it refused (key, seq, send_ns): that claim exactly;
+            # else the latest untaken claim sent by then
+            ident, key = _ident(event), event.get("key")
+            exact = by_ident.get((key, ident)) if ident is not None and key else None
+            candidates = [exact] if exact is not None and id(exact) not in taken else \
+                [c for c in claims if id(c) not in taken and t - self.tolerance - self.grace <= c.t <= t + self.tolerance]
             if not candidates:
                 continue
             claim = max(candidates, key=lambda c: c.t)

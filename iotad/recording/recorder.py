@@ -437,6 +437,8 @@ class Recorder:
             if not derive or (kind != "output" and kind != "input"):
                 write(channel_id, receipt_ns, publish_ns, seq, event_data)
                 written += 1
+                if derive and kind == "violation" and "seq" in event:
+                    self._refused(key, event, last, receipt_ns)
                 continue
             # an output event of a node host (the common case) is written with its message in
             # one go; the rest, and anything unexpected, in `_traced`
@@ -502,6 +504,21 @@ class Recorder:
             channel_id = ids[key] = self._new_channel(key)
         write(channel_id, receipt_ns, publish_ns, sequence, self._pack(event.get("value")))
         return 1
+
+    def _refused(self, trace_key: str, event: dict, last: dict[str, tuple[int, int]], receipt_ns: int) -> None:
+        """Trace-sourced: an input from outside the system that its receiver refused (its
+        violation carries the key and the sender's seq): no message to write, since its value
+        was not taken, but a message seen, so the next one from that sender is no gap."""
+        key, sequence, publish_ns = event.get("key"), event.get("seq"), event.get("send_ns")
+        if not (isinstance(key, str) and isinstance(sequence, int) and isinstance(publish_ns, int)):
+            return
+        if not self._unexplained(key, trace_key):
+            return  # a node's output: its own trace counts its sequence
+        previous = last.get(key)
+        if previous is not None and sequence > previous[0] + 1:
+            self._gap(key, previous[0] + 1, sequence, receipt_ns)
+        if previous is None or sequence > previous[0]:
+            last[key] = (sequence, publish_ns)
 
     def _unexplained(self, key: str, trace_key: str) -> bool:
         """Whether an input that arrived on `key` (seen on `trace_key`) is no node's output: a

@@ -168,6 +168,22 @@ def test_a_rejection_the_receiver_recorded_is_no_loss(real, tmp_path, capsys):
     assert code == 1 and "PROBLEMS FOUND (conformance)" in out  # the rejection itself is a finding
 
 
+def test_a_rejection_that_names_its_message_takes_that_message_whenever_it_was_recorded(real, tmp_path):
+    """A node host's refusal carries the refused message's key, seq and send_ns: it is matched to
+    exactly that claim, even when its time does not say which (here 5 s after it was sent)."""
+    def refused_late(messages):
+        k = index_of(messages, "iota/figure2/vision/@trace", receiver_input)
+        event = messages[k].value
+        messages[k] = with_value(messages[k], {
+            "t": event["t"] + 5.0, "iota": event["iota"], "action": "ack", "index": None, "kind": "violation",
+            "value": {"violation": "bad_value", "message": "input ack: not an ack; rejected"},
+            "key": event["key"], "seq": event["seq"], "send_ns": event["send_ns"]})
+        return messages
+    report = check_delivery(read_recording(rewrite(real, tmp_path / "m.mcap", refused_late)), tolerance=0.01)
+    link = next(x for x in report.links if x.label == "scheduler.ack[0] -> vision.ack")
+    assert (link.rejected, link.lost) == (1, 0) and report.ok
+
+
 def test_no_delivery_skips_the_cross_check_and_node_limits_it(virtual, tmp_path, capsys):
     path = rewrite(virtual, tmp_path / "m.mcap", dropped)
     assert check(path, capsys, "--no-delivery")[0] == 0

@@ -227,6 +227,37 @@ def test_trace_sourced_records_a_node_and_iotad_pub_into_its_input(tmp_path, ses
     assert replay_node(recording, "echo").ok
 
 
+def test_trace_sourced_an_input_the_node_refused_is_no_gap(tmp_path, session_for):
+    """A publisher outside the system sends 7, -1 (out of range: refused), 7: the refusal is a
+    recorded violation that names the message's key and sequence number, so the recorder counts
+    #1 as seen; before, the third message made a gap of one that never was."""
+    recorder = RecorderProcess(tmp_path, ["iota/t/**"], "--from-traces")
+    config = {"system": "t", "path": "echo", "source": {"kind": "python", "ref": str(ROOT / "examples/echo.py") + ":Echo"},
+              "listen": ["tcp/127.0.0.1:0"], "connect": [f"tcp/127.0.0.1:{recorder.port}"], "heartbeat_period": 0.2}
+    node = subprocess.Popen([sys.executable, "-m", "iotad.host", "--config-json", json.dumps(config)], cwd=ROOT)
+    try:
+        session = session_for(recorder.port)
+        beats = session.declare_subscriber("iota/t/echo/@heartbeat", zenoh.handlers.FifoChannel(16))
+        beats.handler.recv()  # the node runs
+        publisher = session.declare_publisher("iota/t/echo/inp")
+        matched(publisher)
+        for seq, value in enumerate([7, -1, 7]):
+            publisher.put(wire.encode(value), attachment=wire.encode_attachment(seq, time.time_ns()))
+            time.sleep(0.05)
+        wait_for(lambda: sum(m.topic == "iota/t/echo/out" for m in read_recording(recorder.output).messages) >= 2,
+                 10, what="the echo's answers in the file")
+    finally:
+        node.send_signal(signal.SIGINT)
+        node.wait(20)
+        assert recorder.stop() == 0
+    recording = read_recording(recorder.output)
+    refused = [e for e in recording.trace("echo") if e["kind"] == "violation"]
+    assert len(refused) == 1 and refused[0]["value"]["violation"] == "bad_value"
+    assert (refused[0]["key"], refused[0]["seq"]) == ("iota/t/echo/inp", 1)
+    assert [m.sequence for m in recording.messages if m.topic == "iota/t/echo/inp"] == [0, 2]
+    assert recording.gaps() == []
+
+
 def test_trace_sourced_sigkill_loses_at_most_100ms_of_what_arrived(tmp_path, session_for, capsys):
     """Trace bursts every 20 ms (as a node host sends them), 2000 output events a second: after a
     SIGKILL, every event that reached the recorder more than 100 ms before the kill is on its key."""
