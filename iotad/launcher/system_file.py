@@ -552,8 +552,9 @@ class _Parser:
                 self.error(entry, f"{node_name}.{channel_name} is not a family; drop the [{port_index}]")
                 return None
             if port_index >= channel.size:
-                self.error(entry, f"index {port_index} is out of range: {node_name}.{channel_name} has "
-                                  f"{channel.size} members (0..{channel.size - 1})")
+                members = f"{channel.size} members (0..{channel.size - 1})" if channel.size else \
+                    "no members (its size parameter is 0)"
+                self.error(entry, f"index {port_index} is out of range: {node_name}.{channel_name} has {members}")
                 return None
         return Port(node_name, channel_name, port_index), channel
 
