@@ -85,6 +85,9 @@ class Dashboard:
         row.beat_wall = self.clock()
         if isinstance(value, dict):
             row.firings, row.queue = value.get("firings"), value.get("queue")
+            restarts = value.get("restarts")  # the launcher's count, from before this tool began
+            if isinstance(restarts, int) and not isinstance(restarts, bool) and restarts > row.restarts:
+                row.restarts = restarts
 
     def spec(self, path: str, spec: dict) -> None:
         """A node's `@spec` answer: names the requesters of a scheduler (req[i] <- node)."""

@@ -48,6 +48,9 @@ class NodeConfig:
     # How many inputs may wait for the engine (the system file's `input_queue`); past that an
     # input is dropped and counted (an `input_overflow` violation). None: unbounded.
     input_queue: int | None = 1000
+    # How many times the launcher has restarted this node before this process (0: its first):
+    # its heartbeats say so, so that a tool attached later (`iotad top`) counts them too.
+    restarts: int = 0
 
     @property
     def name(self) -> str:
@@ -57,7 +60,7 @@ class NodeConfig:
 
 _KNOWN = {"system", "path", "source", "params", "time_unit", "origin", "listen", "connect", "inputs", "readers",
           "heartbeat_period", "deadline_tolerance", "arrival_tolerance", "trace_period", "policy", "seed", "zenoh", "can",
-          "input_queue"}
+          "input_queue", "restarts"}
 
 
 def load(path: str | Path) -> NodeConfig:
@@ -105,6 +108,11 @@ def from_dict(data: Any, where: str = "config") -> NodeConfig:
     if not isinstance(params, dict):
         raise ConfigError(f"{where}: params must be an object")
     config.params = params
+    if "restarts" in data:
+        value = data["restarts"]
+        if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+            raise ConfigError(f"{where}: restarts must be a whole number >= 0, got {value!r}")
+        config.restarts = value
     if "trace_period" in data:
         value = data["trace_period"]
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not (0 <= value <= 1):

@@ -271,7 +271,8 @@ class NodeHost:
         buffer.clear()
 
     def _heartbeat(self, t: float, backlog: int) -> None:
-        self._beat_pub.put(wire.encode({"t": t, "firings": self.engine.firings, "queue": backlog}))
+        self._beat_pub.put(wire.encode({"t": t, "firings": self.engine.firings, "queue": backlog,
+                                        "restarts": self.config.restarts}))
 
     def _overflow(self, t: float, channel: str, index: int | None, count: int, first: float, last: float) -> None:
         label = channel if index is None else f"{channel}[{index}]"

@@ -573,6 +573,7 @@ class Launcher:
 
     def _spawn(self, run: NodeRun, event: str) -> None:
         config = self.system.node_config(run.name, self.origin, self.hub)
+        config["restarts"] = run.restarts  # its heartbeats say it: a tool attached later counts them
         path = self.run_dir / f"{run.name.replace('/', '.')}.json"
         path.write_text(json.dumps(config, indent=1))
         run.child.argv = self.node_argv(str(path))

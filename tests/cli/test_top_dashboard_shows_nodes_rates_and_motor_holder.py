@@ -37,6 +37,22 @@ def test_a_token_that_comes_back_is_a_restart_and_a_missing_one_shows_gone():
     assert board.node_rows()[0][:3] == ("scheduler", "alive", "1")
 
 
+def test_restarts_before_the_tool_began_come_from_the_heartbeat():
+    """A node restarted twice before `iotad top` started says so in its heartbeats (the
+    launcher's count); a restart top sees itself adds one; an old heartbeat takes none away."""
+    board = Dashboard("figure2", clock=FakeClock())
+    board.alive("vision", True)
+    board.heartbeat("vision", {"t": 5.0, "firings": 9, "queue": 0, "restarts": 2})
+    assert board.node_rows()[0][:3] == ("vision", "alive", "2")
+    board.alive("vision", False)
+    board.alive("vision", True)
+    assert board.node_rows()[0][2] == "3"
+    board.heartbeat("vision", {"t": 6.0, "firings": 1, "queue": 0, "restarts": 2})  # a late one of the old process
+    board.heartbeat("vision", {"t": 6.1, "firings": 1, "queue": 0, "restarts": 3})
+    board.heartbeat("vision", {"t": 6.2, "firings": 2, "queue": 0, "restarts": True})  # not a count
+    assert board.node_rows()[0][2] == "3"
+
+
 def test_the_holder_follows_schedule_and_commit_and_is_named_from_the_spec():
     board = Dashboard("figure2", clock=FakeClock())
     board.spec("scheduler", {"channels": [

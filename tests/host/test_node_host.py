@@ -87,7 +87,8 @@ def test_heartbeat_counts_firings(hub, start_node):
     node = start_node("echo", f"{ECHO}:Echo")
     publish(hub, f"{node.base}/inp", wire.encode(1))
     beat = hub.wait_value(f"{node.base}/@heartbeat", lambda v: v["firings"] >= 1, what="a heartbeat after a firing")
-    assert set(beat) == {"t", "firings", "queue"} and beat["queue"] >= 0
+    assert set(beat) == {"t", "firings", "queue", "restarts"} and beat["queue"] >= 0
+    assert beat["restarts"] == 0  # a bare config: its first process
 
 
 def test_spec_query_describes_the_node(hub, start_node):

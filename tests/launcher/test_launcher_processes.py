@@ -8,7 +8,9 @@ import time
 from pathlib import Path
 
 import pytest
+import zenoh
 
+from iotad.host import wire
 from iotad.launcher.supervision import Launcher
 from iotad.launcher.system_file import load_system
 from launcher_helpers import IOTAS, Observer, children_of, free_port, gone, launcher, pair_system, wait_until
@@ -68,6 +70,10 @@ def test_kill9_node_is_restarted_and_live_within_a_second(observed_pair):
     assert restart_time < 1.0, split
     new_pid = node_pid(proc.pid, "dst")
     assert new_pid == restart["pid"] and not gone(new_pid)
+    # the new process's heartbeats carry the launcher's count, for tools attached later (iotad top)
+    beats = observer.session.declare_subscriber("iota/pair/dst/@heartbeat", zenoh.handlers.FifoChannel(8))
+    beat = wire.decode(beats.handler.recv().payload.to_bytes())
+    assert beat["restarts"] == 1, beat
 
 
 def test_frozen_node_is_killed_and_restarted(observed_pair):
@@ -228,8 +234,6 @@ def test_summary_reads_trace_bursts_and_single_events(tmp_path):
     """A @trace sample is a burst (list of events) or one event (dict): the launcher counts the
     outputs and violations of both, and skips what is malformed (a bad element, a bad payload)."""
     from types import SimpleNamespace
-
-    from iotad.host import wire
 
     run = Launcher(load_system(pair_system(tmp_path, free_port())), record=False, log_dir=str(tmp_path / "logs"),
                    live_table=False)
