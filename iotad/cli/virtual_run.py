@@ -84,7 +84,7 @@ def run_virtual(system, args: argparse.Namespace) -> int:
             now = time.perf_counter()
             if now >= next_report:
                 next_report = now + PROGRESS_EVERY
-                line = (f"t = {t * system.time_unit:8.2f} s of {args.until:g} s virtual, "
+                line = (f"t = {_seconds(t * system.time_unit, 2):>8} s of {args.until:g} s virtual, "
                         f"{t * system.time_unit / (now - started):6.1f}x real time, {counts['output']} outputs")
                 print("\r" + line if progress else line, end="" if progress else "\n", file=sys.stderr, flush=True)
     except KeyboardInterrupt:
@@ -105,7 +105,8 @@ def run_virtual(system, args: argparse.Namespace) -> int:
         print(file=sys.stderr)
     virtual = engine.now() * system.time_unit
     print(f"summary of {system.name} (virtual time, one process):")
-    print(f"  {virtual:.3f} s virtual in {wall:.2f} s wall ({virtual / wall if wall > 0 else float('inf'):.1f}x real time)")
+    speed = virtual / wall if wall > 0 else float("inf")
+    print(f"  {_seconds(virtual, 3)} s virtual in {wall:.2f} s wall ({_seconds(speed, 1)}x real time)")
     print(f"  {engine.firings} firings: {counts['output']} outputs, {counts['input']} inputs, "
           f"{counts['internal']} internal, {counts['violation']} violations")
     for line in examples:
@@ -115,6 +116,12 @@ def run_virtual(system, args: argparse.Namespace) -> int:
     if output is not None:
         print(f"  recording: {output}  (iotad info|check|plot {output})")
     return 1 if engine.halted else 0
+
+
+def _seconds(value: float, decimals: int) -> str:
+    """A time (or speed) with `decimals` places, or in 6 significant digits once it is too big
+    for that to be readable (`--until 1e300` would print 300 digits)."""
+    return f"{value:.{decimals}f}" if abs(value) < 1e9 else f"{value:.6g}"
 
 
 def _input_path(name: str | None, root: str, leaves, script: str) -> str | None:
