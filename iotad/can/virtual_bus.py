@@ -31,7 +31,7 @@ from iotad.kernel.api import Input, Internal, Iota, Output, Param
 from iotad.kernel.types import Float
 
 from .bit_timing import frame_bits
-from .frame import CAN_FRAME
+from .frame import CAN_FRAME, Frame
 from .frame_log import CAN_BUS_FRAME, bus_frame
 
 
@@ -90,6 +90,10 @@ class CanBus(Iota):
 
     @tx.input
     def posted(self, i, frame):
+        # canFrame's field ranges cannot say that a standard id ends at 0x7FF: a frame no
+        # controller could send is refused here, once (a runtime_error naming it), and never
+        # queued; taken onto the bus it would fail at every delivery and stop the bus
+        Frame.from_value(frame)
         self.waiting[i].append(frame)
         self.max_waiting = max(self.max_waiting, sum(len(q) for q in self.waiting))
 

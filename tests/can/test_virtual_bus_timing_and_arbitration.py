@@ -216,3 +216,20 @@ def test_bad_parameters_are_clear_errors():
         CanBus("bus", stuffing="some")
     with pytest.raises(ValueError, match="station_queue"):
         CanBus("bus", station_queue="lifo")
+
+
+def test_a_frame_no_controller_could_send_is_refused_once_and_the_bus_goes_on():
+    """canFrame's ranges let a standard id of 0x800 through; the bus refuses it as it is posted
+    (one violation naming it), and the frames before and after it are carried as usual."""
+    net, bus, members = system(stations=2, load_period=0)
+    engine = Engine(net)
+    bad = Frame(0x100, b"\x01").to_value()
+    bad.id = 0x800  # as a station's own code could build it: extended False, id past 11 bits
+    for t, value in ((0.001, Frame(0x101, b"\x01").to_value()), (0.002, bad), (0.003, Frame(0x102, b"\x02").to_value())):
+        engine.post("net/s0", "send", value, t=t)
+    engine.run(until=1.0)
+    violations = [e for e in engine.trace if e["kind"] == "violation"]
+    assert len(violations) == 1 and violations[0]["action"] == "tx"
+    assert "CAN id 0x800 does not fit a 11-bit standard id" in violations[0]["value"]["message"]
+    assert [f.id for f in members[1].heard] == [0x101, 0x102]
+    assert bus.frames == 2 and not any(bus.waiting)
