@@ -31,7 +31,7 @@ from iotad.kernel.api import Input, Internal, Iota, Output, Param
 from iotad.kernel.types import Float
 
 from .bit_timing import frame_bits
-from .frame import CAN_FRAME, Frame
+from .frame import CAN_FRAME, STANDARD_ID_MAX, Frame
 from .frame_log import CAN_BUS_FRAME, bus_frame
 
 
@@ -93,7 +93,8 @@ class CanBus(Iota):
         # canFrame's field ranges cannot say that a standard id ends at 0x7FF: a frame no
         # controller could send is refused here, once (a runtime_error naming it), and never
         # queued; taken onto the bus it would fail at every delivery and stop the bus
-        Frame.from_value(frame)
+        if not frame.extended and frame.id > STANDARD_ID_MAX:
+            Frame.from_value(frame)  # raises FrameError, in the frame module's words
         self.waiting[i].append(frame)
         self.max_waiting = max(self.max_waiting, sum(len(q) for q in self.waiting))
 
