@@ -30,7 +30,7 @@ def load_text(text: str, filename: str = "<spec>", externs: dict[str, Callable] 
         return Compiler(checked, source).module()
     except EspritError:
         raise
-    except RecursionError:
+    except (RecursionError, SyntaxError, MemoryError):  # SyntaxError: Python's limits on nesting
         raise source.error(None, "the spec nests too deeply") from None
     except Exception as exc:  # noqa: BLE001 - a spec must never crash the loader
         raise source.error(None, f"internal compiler error (please report it): {type(exc).__name__}: {exc}") from exc
@@ -50,6 +50,8 @@ def check_text(text: str, filename: str = "<spec>", externs: dict[str, Callable]
         Compiler(checked, source).module()
     except EspritError as exc:
         return exc.diagnostics, checked.warnings
+    except (RecursionError, SyntaxError, MemoryError):  # SyntaxError: Python's limits on nesting
+        return source.error(None, "the spec nests too deeply").diagnostics, checked.warnings
     return [], checked.warnings
 
 

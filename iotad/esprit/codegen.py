@@ -124,7 +124,7 @@ def stmt(node: S.Node, indent: int) -> list[str]:
         return lines
     if isinstance(node, S.For):
         # the bounds are evaluated once and the loop variable cannot be assigned: it terminates
-        return [f"{pad}for l_{node.var} in range({expr(node.start)}, {expr(node.stop)}):"] + stmt(node.body, indent + 1)
+        return [f"{pad}for l_{node.var} in loop_range({expr(node.start)}, {expr(node.stop)}):"] + stmt(node.body, indent + 1)
     raise AssertionError(f"unknown statement {node!r}")  # pragma: no cover
 
 

@@ -16,8 +16,8 @@ from . import codegen
 from . import syntax as S
 from .static_checks import Checked, IotaInfo
 from .errors import EspritError, Source
-from .runtime import (all_of, any_of, c_div, c_mod, cp, esprit_inhibit, esprit_now, esprit_reset, inhibit_left,
-                      ix, ix_set, restarted, uninhibit)
+from .runtime import (all_of, any_of, c_div, c_mod, cp, esprit_inhibit, esprit_now, esprit_reset, fresh_budget,
+                      inhibit_left, ix, ix_set, loop_range, restarted, uninhibit)
 from .typesys import VOID, ArrayOf, describe
 
 MAX_ARRAY = 1_000_000  # elements of one state array: more is a slip (a parameter off by powers of ten)
@@ -128,7 +128,8 @@ class Compiler:
     def __init__(self, checked: Checked, source: Source):
         self.checked, self.source = checked, source
         self.globals: dict[str, Any] = {"ix": ix, "ix_set": ix_set, "cp": cp, "c_div": c_div, "c_mod": c_mod,
-                                        "all_of": all_of, "any_of": any_of, "esprit_now": esprit_now,
+                                        "all_of": all_of, "any_of": any_of, "loop_range": loop_range,
+                                        "fresh_budget": fresh_budget, "esprit_now": esprit_now,
                                         "esprit_reset": esprit_reset, "esprit_inhibit": esprit_inhibit,
                                         "INF": float("inf"), "__builtins__": {"range": range}}
         for name, struct in checked.structs.items():
@@ -149,6 +150,7 @@ class Compiler:
 
     # ---------------------------------------------------------------- code
     def _function(self, name: str, args: str, body: list[str]) -> Callable:
+        body = ["fresh_budget()", *body]  # its loops' budget (runtime.LOOP_BUDGET)
         code = f"def {name}({args}):\n" + "\n".join("    " + line for line in body) + "\n"
         namespace: dict[str, Any] = {}
         exec(compile(code, f"<esprit {self.source.filename}>", "exec"), self.globals, namespace)  # noqa: S102

@@ -25,7 +25,7 @@ from . import codegen
 from . import syntax as S
 from .errors import EspritError, Source
 from .parser import parse_with
-from .runtime import all_of, any_of, c_div, c_mod, ix
+from .runtime import all_of, any_of, c_div, c_mod, fresh_budget, ix
 from .static_checks import Checker, _Scope
 from .typesys import describe, is_number
 
@@ -58,7 +58,8 @@ class CompiledExpression:
 
 # What generated expression code may call (codegen.expr); now(), reset() and inhibit() are
 # refused by the checker outside an action, so they need nothing here.
-_GLOBALS = {"ix": ix, "c_div": c_div, "c_mod": c_mod, "all_of": all_of, "any_of": any_of, "INF": float("inf"),
+_GLOBALS = {"ix": ix, "c_div": c_div, "c_mod": c_mod, "all_of": all_of, "any_of": any_of,
+            "fresh_budget": fresh_budget, "INF": float("inf"),
             "__builtins__": {}}
 
 
@@ -85,9 +86,12 @@ def compile_expression(text: str, names: dict[str, Type], expect: Type | None = 
                                         f"expected {describe(expect)}, but the expression is {describe(found)}"))
     if errors:
         raise EspritError(errors[0], errors)
-    code = f"def expression(iota, index=None):\n    return {codegen.expr(node)}\n"
+    code = f"def expression(iota, index=None):\n    fresh_budget()\n    return {codegen.expr(node)}\n"
     namespace: dict[str, Any] = {}
-    exec(compile(code, f"<esprit {filename}>", "exec"), dict(_GLOBALS), namespace)  # noqa: S102
+    try:
+        exec(compile(code, f"<esprit {filename}>", "exec"), dict(_GLOBALS), namespace)  # noqa: S102
+    except (SyntaxError, RecursionError, MemoryError):  # Python's own limits on nesting
+        raise source.error(None, "the expression nests too deeply") from None
     return CompiledExpression(text, found, frozenset(_names_read(node)), namespace["expression"])
 
 

@@ -57,15 +57,43 @@ def field_of(value: Any, name: str) -> Any:  # pragma: no cover - kept for reada
     return getattr(value, name)
 
 
-# ---------------------------------------------------------------- quantifiers
+# ---------------------------------------------------------------- loops and quantifiers
+# A spec's loops end (their bounds are evaluated once), but a bound of two billion, or loops
+# nested deep, would hold the engine for hours: every evaluation of a compiled function (a
+# precondition, a do-block, a value, an MDL interrupt) may enter at most this many iterations,
+# the ranges of its for loops and quantifiers counted as each is entered. Past it: a runtime
+# error (a recorded violation), not a hung node.
+LOOP_BUDGET = 1_000_000
+_left = [LOOP_BUDGET]
+
+
+class LoopBudgetExceeded(RuntimeError):
+    pass
+
+
+def fresh_budget() -> None:
+    """Called first by every compiled function: its evaluation starts with the whole budget."""
+    _left[0] = LOOP_BUDGET
+
+
+def loop_range(start: int, stop: int) -> range:
+    """`range(start, stop)`, its length taken from this evaluation's budget."""
+    if stop > start:
+        _left[0] -= stop - start
+        if _left[0] < 0:
+            raise LoopBudgetExceeded(f"a loop or quantifier from {start} to {stop} passes the budget of "
+                                     f"{LOOP_BUDGET:,} iterations per evaluation")
+    return range(start, stop)
+
+
 def all_of(start: int, stop: int, body: Any) -> bool:
     """`forall (j=start; j<stop; j++) (body)`."""
-    return all(body(j) for j in range(start, stop))
+    return all(body(j) for j in loop_range(start, stop))
 
 
 def any_of(start: int, stop: int, body: Any) -> bool:
     """`exists (j=start; j<stop; j++) (body)`."""
-    return any(body(j) for j in range(start, stop))
+    return any(body(j) for j in loop_range(start, stop))
 
 
 # ---------------------------------------------------------------- time, reset, inhibit

@@ -70,9 +70,14 @@ class Robot:
         """A program's joint key: a joint name, or a decimal index; None if neither."""
         if key in self.joints:
             return self.joints.index(key)
-        if key.isdigit() and int(key) < len(self.joints):
+        if _decimal(key) and int(key) < len(self.joints):
             return int(key)
         return None
+
+
+def _decimal(text: str) -> bool:
+    """ASCII digits only: str.isdigit() also takes '²' (int() then fails) and '٣' (taken as 3)."""
+    return text.isascii() and text.isdigit()
 
 
 def robot_from(joints: Any, lower: Any, upper: Any, max_velocity: Any, rate: Any) -> Robot:
@@ -80,7 +85,7 @@ def robot_from(joints: Any, lower: Any, upper: Any, max_velocity: Any, rate: Any
         raise ValueError(f"joints: expected a list of joint names, got {joints!r}")
     if len(set(joints)) != len(joints):
         raise ValueError(f"joints: a name appears twice in {list(joints)}")
-    if any(j.isdigit() for j in joints):
+    if any(_decimal(j) for j in joints):
         raise ValueError("joints: a joint name cannot be a number (programs use numbers as joint indices)")
     n = len(joints)
     low, high = _floats(lower, n, "lower"), _floats(upper, n, "upper")

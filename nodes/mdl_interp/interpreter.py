@@ -200,6 +200,8 @@ class MdlInterpreter(Iota):
                 return self._hold(run, missing)
             except ProgramFault as fault:
                 return self._fail(run, str(fault))
+            except Exception as exc:  # noqa: BLE001 - what a program's numbers make fail is its fault
+                return self._fail(run, _unforeseen(exc))
             if hit is None:
                 break
             level, condition = hit
@@ -216,6 +218,8 @@ class MdlInterpreter(Iota):
             return self._hold(run, missing)
         except ProgramFault as fault:
             return self._fail(run, str(fault))
+        except Exception as exc:  # noqa: BLE001 - e.g. a sine of frequency 1e308: math domain error
+            return self._fail(run, _unforeseen(exc))
         run.holding = None
         atom = run.current.atom
         if atom.ticks is not None and run.current.ticks >= atom.ticks:
@@ -338,9 +342,10 @@ class MdlInterpreter(Iota):
             return
         try:
             compiled = compile_program(new, self._robot, self._expressions)
-        except ProgramFault as fault:
+        except Exception as fault:  # noqa: BLE001 - ProgramFault, or what its numbers made fail
             self.running = None
-            self._fault(new.id, f"program {new.id!r} cannot run here: {fault}; motors held")
+            why = str(fault) if isinstance(fault, ProgramFault) else _unforeseen(fault)
+            self._fault(new.id, f"program {new.id!r} cannot run here: {why}; motors held")
             self._report_program_end(new.id, "FAULT", "NONE", "", (0, 0))
             return
         self.running = ProgramRun(compiled)
@@ -392,6 +397,12 @@ class MdlInterpreter(Iota):
     def _fault(self, program: str, message: str) -> None:
         self.out_faults.append(MDL_FAULT(program=program, message=message[:2000],
                                          tick=max(0, self.tick_index or 0), t=max(0.0, esprit_now())))
+
+
+def _unforeseen(exc: Exception) -> str:
+    """A program fault that no check named: the error itself (an MDL program is input; whatever
+    it makes fail ends that program with a fault, never the node)."""
+    return f"{type(exc).__name__}: {exc}"
 
 
 @functools.cache

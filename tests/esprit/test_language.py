@@ -92,6 +92,49 @@ def test_struct_values_fields_arrays_and_constants():
     assert iota.route.p[2].x == 4.5
 
 
+def test_loops_past_the_budget_are_runtime_errors_not_hangs():
+    """A for loop or quantifier of two billion, or loops nested to 1e10 iterations, ends the
+    evaluation with a recorded runtime error (runtime.LOOP_BUDGET per evaluation), and the IOTA
+    goes on; a loop within the budget runs, in every evaluation anew."""
+    spec = """
+    iota a: go(int)/0 -> out(int)/0 {
+      states int n = 0, acc = 0;
+      actions
+      go(v) do { n = v; for (j = 0; j < n; j++) acc = acc + 1; }
+      out(acc) when exists (j = 0; j < n; j++) (j == 999999) after 1 do { n = 0; }
+    }"""
+    trace = run(spec, inputs=[{"t": 0.5, "action": "go", "index": None, "value": 2_000_000_000},
+                              {"t": 2.5, "action": "go", "index": None, "value": 1_000_000}])
+    found = violations(trace)
+    assert [(t, code) for t, code, _ in found] == [(0.5, "runtime_error"), (0.5, "runtime_error")]
+    assert "go(v): LoopBudgetExceeded: a loop or quantifier from 0 to 2000000000 passes the budget" in found[0][2]
+    assert "out (when): LoopBudgetExceeded" in found[1][2]
+    assert outputs(trace) == [(3.5, 1_000_000)]  # a million, in a do-block, then in a quantifier
+
+    nested = """
+    iota b: go(int)/0 -> out(int)/0 {
+      states int acc = 0;
+      actions
+      go(v) do { for (j = 0; j < v; j++) for (k = 0; k < v; k++) acc = acc + 1; }
+    }"""
+    found = violations(run(nested, inputs=[{"t": 0.5, "action": "go", "index": None, "value": 100_000}]))
+    assert [(t, code) for t, code, _ in found] == [(0.5, "runtime_error")] and "LoopBudgetExceeded" in found[0][2]
+
+
+@pytest.mark.parametrize("body", ["!" * 250 + "true", "(" * 5 + "true" + ")" * 5])
+def test_nesting_past_what_python_compiles_is_an_error_not_an_internal_one(body, tmp_path, capsys):
+    path = tmp_path / "deep.iota"
+    path.write_text(f"iota d: -> out()/1 {{\n  actions\n  out() when {body}\n}}\n")
+    if body.startswith("!"):
+        with pytest.raises(EspritError, match="nests too deeply"):
+            load_text(path.read_text(), str(path))
+        assert cli.main(["spec", "check", str(path)]) == 2
+        err = capsys.readouterr().err
+        assert "the spec nests too deeply" in err and "internal" not in err and "unexpected" not in err
+    else:
+        assert load_text(path.read_text(), str(path)).iotas  # shallow nesting compiles
+
+
 def test_runtime_faults_become_violations_and_the_iota_goes_on():
     spec = """
     iota a(int N = 2): -> out(int)/0 {

@@ -136,3 +136,31 @@ def test_a_program_value_built_by_hand_is_checked_like_plain_data():
     from channels.mdl import Atom, Behaviour, Motion, Program
     with pytest.raises(BadValue, match="a ramp needs a duration T"):
         MDL_PROGRAM.check(Program("p", (Behaviour((Atom(Motion("ramp", target=(("0", 1.0),))),)),)))
+
+
+@pytest.mark.parametrize("bad, said", [
+    (atom(u={"kind": "ramp", "target": {"joint1": 0.3}}, T=1e307),
+     "program 'p' cannot run here: OverflowError: cannot convert float infinity to integer"),
+    (atom(u={"kind": "sine", "amplitude": {"joint1": 0.1}, "frequency": 1e308}, T=0.5),
+     "program 'p' stopped: ValueError: math domain error"),
+    (atom(u={"kind": "ramp", "target": {"joint1": 0.3}}, T=0.5, xi="exists (j=0; j<2000000000; j++) (position[0] > 1.0)"),
+     "LoopBudgetExceeded: a loop or quantifier from 0 to 2000000000 passes the budget of 1,000,000 iterations"),
+    (atom(u={"kind": "ramp", "target": {"joint1": 0.3}}, T=0.5,
+          xi="exists (j=0; j<100000; j++) (exists (k=0; k<100000; k++) (position[0] > 1.0))"),
+     "LoopBudgetExceeded"),
+    (atom(u={"kind": "ramp", "target": {"²": 0.3}}, T=0.5), "unknown joint '²'"),
+    (atom(u={"kind": "ramp", "target": {"٣": 0.3}}, T=0.5), "unknown joint '٣'"),  # not index 3
+    (atom(u={"kind": "hold"}, xi="!" * 395 + "true"), "the expression nests too deeply"),
+])
+def test_a_program_whose_numbers_break_something_is_a_fault_and_the_next_one_runs(make_run, bad, said):
+    """What no check foresaw (a duration of 1e307, a quantifier over two billion, an interrupt
+    nested past Python's limits) ends that program with a fault and program_end FAULT, quickly:
+    never a bare runtime error that leaves its requester waiting, never a hung interpreter."""
+    run = make_run()
+    run.command(bad, t=0.0)
+    run.command(program("reach", ramp({"joint1": 0.2}, T=0.2)), t=0.5)
+    run.run(until=1.0)
+    [fault] = run.values("fault")
+    assert said in fault["message"] and "motors held" in fault["message"], fault["message"]
+    assert [(v["program"], v["end"]) for v in run.values("program_end")] == [("p", "FAULT"), ("reach", "DONE")]
+    assert not [v for v in run.violations() if v["value"]["violation"] == "runtime_error"]
