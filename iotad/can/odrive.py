@@ -309,6 +309,14 @@ _NAMED = {"Axis_State": AXIS_STATE, "Axis_Requested_State": AXIS_STATE, "Procedu
 _FLAGS = {"Axis_Error", "Active_Errors", "Disarm_Reason"}
 
 
+def undefined_values(signals: dict) -> list[str]:
+    """The signals of a decoded message whose value names no member of their enumeration (an
+    Axis_State of 99): `name=value` each. A controller never sends one; a forged or corrupted
+    frame may."""
+    return [f"{name}={value}" for name, value in signals.items()
+            if name in _NAMED and value not in _NAMED[name].values()]
+
+
 def _show(name: str, value: float | int) -> str:
     if name in _FLAGS:
         return "|".join(error_names(int(value))) if value else "0"

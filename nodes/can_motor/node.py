@@ -30,7 +30,7 @@ from channels.joints import joint_setpoints, joint_states
 from channels.motor import BAD_FRAME, JOINT_STATUS
 from iotad.can.frame import CAN_FRAME, Frame, FrameError
 from iotad.can.odrive import (AXIS_STATE, CONTROL_MODE, INPUT_MODE, MESSAGES, EncodeError, MalformedFrame,
-                              UnknownFrame, decode, encode, node_id_of, request)
+                              UnknownFrame, decode, encode, node_id_of, request, undefined_values)
 from iotad.kernel.api import Input, Internal, Iota, Output, Param
 from iotad.kernel.types import Bool
 
@@ -280,8 +280,8 @@ class CanMotor(Iota):
             self._bad("UNEXPECTED", value)
             return
         signals = message.signals
-        if not all(math.isfinite(v) for v in signals.values()):
-            self._bad("BAD_VALUE", value)
+        if not all(math.isfinite(v) for v in signals.values()) or undefined_values(signals):
+            self._bad("BAD_VALUE", value)  # NaN, or an Axis_State no firmware has: not believed
             return
         handler = _HANDLERS.get(message.name)
         if handler is not None:

@@ -19,6 +19,8 @@ BAD = [
     ("UNEXPECTED", can(5, ESTOP)),                                      # someone estops it
     ("BAD_VALUE", can(1, GET_ENCODER_ESTIMATES, struct.pack("<ff", math.nan, 0.0))),
     ("BAD_VALUE", can(1, GET_ENCODER_ESTIMATES, struct.pack("<ff", 0.0, math.inf))),
+    ("BAD_VALUE", can(1, HEARTBEAT, struct.pack("<IBBBB", 0, 99, 0, 0, 0))),   # Axis_State 99: no such state
+    ("BAD_VALUE", can(2, HEARTBEAT, struct.pack("<IBBBB", 0, 8, 77, 0, 0))),   # Procedure_Result 77: none
     ("UNEXPECTED", can(1, HEARTBEAT, bytes([1] * 8), rtr=True)),        # a remote request (its data ignored)
     ("MALFORMED", can(0, 0, bytes(8), ident=0x7FF + 1)),                # 12-bit id in a standard frame
 ]
