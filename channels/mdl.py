@@ -32,6 +32,9 @@ MAX_NAME = 64            # characters of a behaviour name or a joint key
 MAX_EXPRESSION = 400     # characters of an interrupt or a feedback expression
 MAX_BEHAVIOURS = 64
 MAX_ATOMS = 256          # per behaviour
+# atoms in all: every one may end at the same instant (an interrupt that already holds), one
+# atom_end firing each, and an engine allows 10,000 firings per instant before it halts (zeno)
+MAX_PROGRAM_ATOMS = 4096
 MAX_GAINS = 32           # feedback terms per atom
 MAX_JOINTS = 64          # entries of one joint map (target, velocity, amplitude)
 SENSOR_WIDTH = 8         # floats in one sensor reading
@@ -269,6 +272,9 @@ def program_from_plain(plain: Any, path: str = "mdlProgram") -> Program:
     _object(plain, path, ("id", "xi", "behaviours"), ("id", "behaviours"))
     behaviours = tuple(_behaviour(b, f"{path}.behaviours[{i}]")
                        for i, b in enumerate(_list(plain["behaviours"], f"{path}.behaviours", MAX_BEHAVIOURS)))
+    total = sum(len(b.atoms) for b in behaviours)
+    if total > MAX_PROGRAM_ATOMS:
+        raise _fail(f"{path}.behaviours", f"{total} atoms in all; a program has at most {MAX_PROGRAM_ATOMS}")
     return Program(_text(plain["id"], f"{path}.id", MAX_ID, empty=False), behaviours,
                    _expression(plain.get("xi", ""), f"{path}.xi", empty=True))
 

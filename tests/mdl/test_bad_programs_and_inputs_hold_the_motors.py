@@ -138,6 +138,24 @@ def test_a_program_value_built_by_hand_is_checked_like_plain_data():
         MDL_PROGRAM.check(Program("p", (Behaviour((Atom(Motion("ramp", target=(("0", 1.0),))),)),)))
 
 
+def test_a_program_of_more_atoms_than_one_instant_can_end_is_refused_and_the_largest_runs(make_run):
+    """64 behaviours of 256 atoms whose interrupts all hold at once would end 16,384 atoms in one
+    instant, past the engine's 10,000 firings per instant (it halts, and every node with it):
+    such a program is refused at the channel; 4,096 atoms, all interrupted at once, run."""
+    def many(behaviours, atoms):
+        return {"id": "many", "behaviours": [{"atoms": [{"u": {"kind": "hold"}, "xi": "true"}] * atoms}
+                                             for _ in range(behaviours)]}
+    with pytest.raises(BadValue, match=r"mdlProgram.behaviours: 16384 atoms in all; a program has at most 4096"):
+        program_from_plain(many(64, 256))
+    run = make_run()
+    run.command(many(16, 256), t=0.0)
+    run.command(program("reach", ramp({"joint1": 0.2}, T=0.2)), t=0.5)
+    run.run(until=1.0)
+    assert not run.violations()
+    assert len(run.values("atom_end")) >= 4096
+    assert [(v["program"], v["end"]) for v in run.values("program_end")] == [("many", "DONE"), ("reach", "DONE")]
+
+
 @pytest.mark.parametrize("bad, said", [
     (atom(u={"kind": "ramp", "target": {"joint1": 0.3}}, T=1e307),
      "program 'p' cannot run here: OverflowError: cannot convert float infinity to integer"),
