@@ -53,7 +53,7 @@ SYSTEM = f"""
 name = "twohost"
 hub_host = "a"
 [system.endpoints]
-listen = ["tcp/10.200.0.1:7613"]   # not zenoh's default 7447, which another zenoh on a shared machine may take
+listen = ["tcp/10.200.0.1:7613"]   # not zenoh's default 7447: once, on a dev machine, nothing reached a hub on 7447 while other ports worked
 
 [hosts.a]
 listen = ["tcp/10.200.0.1:0"]
