@@ -17,7 +17,7 @@ from . import syntax as S
 from .static_checks import Checked, IotaInfo
 from .errors import EspritError, Source
 from .runtime import (all_of, any_of, c_div, c_mod, cp, esprit_inhibit, esprit_now, esprit_reset, fresh_budget,
-                      inhibit_left, ix, ix_set, loop_range, restarted, uninhibit)
+                      inhibit_left, ix, ix_set, loop_range, restarted, uninhibit, with_budget)
 from .typesys import VOID, ArrayOf, describe
 
 MAX_ARRAY = 1_000_000  # elements of one state array: more is a slip (a parameter off by powers of ten)
@@ -150,7 +150,8 @@ class Compiler:
 
     # ---------------------------------------------------------------- code
     def _function(self, name: str, args: str, body: list[str]) -> Callable:
-        body = ["fresh_budget()", *body]  # its loops' budget (runtime.LOOP_BUDGET)
+        if with_budget("\n".join(body)):
+            body = ["fresh_budget()", *body]  # its loops' budget (runtime.LOOP_BUDGET)
         code = f"def {name}({args}):\n" + "\n".join("    " + line for line in body) + "\n"
         namespace: dict[str, Any] = {}
         exec(compile(code, f"<esprit {self.source.filename}>", "exec"), self.globals, namespace)  # noqa: S102

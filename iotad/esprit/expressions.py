@@ -25,7 +25,7 @@ from . import codegen
 from . import syntax as S
 from .errors import EspritError, Source
 from .parser import parse_with
-from .runtime import all_of, any_of, c_div, c_mod, fresh_budget, ix
+from .runtime import all_of, any_of, c_div, c_mod, fresh_budget, ix, with_budget
 from .static_checks import Checker, _Scope
 from .typesys import describe, is_number
 
@@ -86,7 +86,9 @@ def compile_expression(text: str, names: dict[str, Type], expect: Type | None = 
                                         f"expected {describe(expect)}, but the expression is {describe(found)}"))
     if errors:
         raise EspritError(errors[0], errors)
-    code = f"def expression(iota, index=None):\n    fresh_budget()\n    return {codegen.expr(node)}\n"
+    returned = codegen.expr(node)
+    budget = "    fresh_budget()\n" if with_budget(returned) else ""  # runtime.LOOP_BUDGET
+    code = f"def expression(iota, index=None):\n{budget}    return {returned}\n"
     namespace: dict[str, Any] = {}
     try:
         exec(compile(code, f"<esprit {filename}>", "exec"), dict(_GLOBALS), namespace)  # noqa: S102

@@ -72,8 +72,14 @@ class LoopBudgetExceeded(RuntimeError):
 
 
 def fresh_budget() -> None:
-    """Called first by every compiled function: its evaluation starts with the whole budget."""
+    """Called first by every compiled function that loops: its evaluation starts with the whole
+    budget (one that does not loop takes none, and is not slowed by this call)."""
     _left[0] = LOOP_BUDGET
+
+
+def with_budget(body: str) -> bool:
+    """Whether generated code enters loops (for, forall, exists), so needs `fresh_budget()` first."""
+    return "loop_range(" in body or "all_of(" in body or "any_of(" in body
 
 
 def loop_range(start: int, stop: int) -> range:

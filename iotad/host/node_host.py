@@ -19,7 +19,7 @@ import zenoh
 
 from iotad.host import wire
 from iotad.kernel.compose import Composite, flatten
-from iotad.kernel.engine import Engine
+from iotad.kernel.engine import INPUT_REFUSALS, Engine
 from iotad.host.can_port import CAN_TX, CanPort
 from iotad.host.channel_table import ChannelTable, build, plain_params
 from iotad.host.host_clock import HostClock, RawInput
@@ -86,10 +86,6 @@ def _python_text(ref: str, factory: Any) -> str:
         return inspect.getsource(inspect.getmodule(factory))
     except (OSError, TypeError):
         return ""
-
-
-# the violations by which the engine refuses an input event
-REFUSALS = ("bad_value", "switching_time")
 
 
 class NodeHost:
@@ -222,7 +218,7 @@ class NodeHost:
             # that a recorder counts that message as seen, not as a gap in its sender's sequence
             if raw is not None and (kind == "input" or (event["action"] == raw.name and event["index"] == raw.index
                                                        and isinstance(event.get("value"), dict)
-                                                       and event["value"].get("violation") in REFUSALS)):
+                                                       and event["value"].get("violation") in INPUT_REFUSALS)):
                 self.clock.current_input = None  # the one external input event of this step
                 event["key"] = raw.key
                 attachment = wire.decode_attachment(raw.attachment)

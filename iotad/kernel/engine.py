@@ -25,6 +25,8 @@ from iotad.kernel.types import BadValue, same_checks
 
 INF = math.inf
 STOP = object()  # post this to a real clock's inbox to make `run` return
+# the violations by which an engine refuses an input event (`_deliver`); it is then not taken
+INPUT_REFUSALS = ("bad_value", "switching_time")
 
 
 class Slot:
@@ -394,13 +396,10 @@ class Engine:
         if slot.type is not None:
             try:
                 value = slot.type.from_checked_plain(plain) if checked else slot.type.from_plain(plain)
-            except BadValue as exc:
+            except Exception as exc:  # noqa: BLE001 - BadValue, or a type's own fault on odd input
+                why = exc if isinstance(exc, BadValue) else f"{type(exc).__name__}: {exc}"
                 self._violation(now, leaf.path, channel.name, index, "bad_value",
-                                f"input {channel.name}: {exc}; rejected")
-                return
-            except Exception as exc:  # noqa: BLE001 - a type's own fault on odd input: still the input's
-                self._violation(now, leaf.path, channel.name, index, "bad_value",
-                                f"input {channel.name}: {type(exc).__name__}: {exc}; rejected")
+                                f"input {channel.name}: {why}; rejected")
                 return
         elif plain is not None:
             self._violation(now, leaf.path, channel.name, index, "bad_value",

@@ -101,9 +101,6 @@ class _Number(Type):
             low = "-inf" if self.low is None else self.low
             high = "inf" if self.high is None else self.high
             raise BadValue(f"{value!r} outside range [{low}, {high}]")
-        if isinstance(self, IntType) and not INT_MIN <= value <= INT_MAX:
-            raise BadValue(f"{value!r} does not fit in 64 bits (the wire and recordings carry integers "
-                           f"from {INT_MIN} to {INT_MAX})")
 
     def json_schema(self) -> dict:
         schema: dict = {"type": self.schema_type}
@@ -143,6 +140,12 @@ class IntType(_Number):
     name = "int"
     py_types = (int,)
     schema_type = "integer"
+
+    def check(self, value: Any) -> None:
+        super().check(value)
+        if not INT_MIN <= value <= INT_MAX:
+            raise BadValue(f"{value!r} does not fit in 64 bits (the wire and recordings carry integers "
+                           f"from {INT_MIN} to {INT_MAX})")
 
     def default(self) -> int:
         return 0 if self.low is None else int(self.low)

@@ -34,12 +34,13 @@ from dataclasses import dataclass, field
 from typing import Any, Iterable
 
 from iotad.host import wire
+from iotad.kernel.engine import INPUT_REFUSALS
 from iotad.launcher.system_file import Port  # one concrete channel, as the system file names it
 from iotad.recording.mcap_io import Recording
 
 GRACE = 0.1  # seconds: longer than any delivery seen here (~1 ms, tens under load) by far
 MASK = 0xFFFFFFFF  # MCAP keeps 32 bits of a sequence number
-REJECTIONS = ("switching_time", "bad_value", "malformed_payload")  # a receiver saw it and refused it
+REJECTIONS = (*INPUT_REFUSALS, "malformed_payload")  # a receiver saw it and refused it (the engine, or its host)
 OVERFLOW = "input_overflow"  # a receiver's full input queue dropped `dropped` inputs between two times
 _BETWEEN = re.compile(r"between t=(?P<first>[-+\d.eE]+) and t=(?P<last>[-+\d.eE]+)")
 PROBLEMS = ("lost", "altered", "duplicated", "unexplained", "reordered", "causality")

@@ -1,5 +1,6 @@
 """`iotad record` as a process on zenoh: publish times, sequence gaps, stored specs, a clean stop on
 SIGINT, and a SIGKILLed recorder made whole by `iotad recover` with at most the last 100 ms lost."""
+import contextlib
 import json
 import os
 import signal
@@ -196,9 +197,10 @@ def test_trace_sourced_messages_gaps_and_injected_inputs(tmp_path, session_for):
     assert len(recording.trace("pub")) == 7
 
 
-def test_trace_sourced_records_a_node_and_iotad_pub_into_its_input(tmp_path, session_for):
-    from iotad.recording.replay import replay_node
-
+@contextlib.contextmanager
+def echo_recorded(tmp_path, session_for):
+    """An Echo node on a trace-sourced recorder's port, running (its first heartbeat seen):
+    yields (recorder, session); stops both on the way out."""
     recorder = RecorderProcess(tmp_path, ["iota/t/**"], "--from-traces")
     config = {"system": "t", "path": "echo", "source": {"kind": "python", "ref": str(ROOT / "examples/echo.py") + ":Echo"},
               "listen": ["tcp/127.0.0.1:0"], "connect": [f"tcp/127.0.0.1:{recorder.port}"], "heartbeat_period": 0.2}
@@ -207,14 +209,21 @@ def test_trace_sourced_records_a_node_and_iotad_pub_into_its_input(tmp_path, ses
         session = session_for(recorder.port)
         beats = session.declare_subscriber("iota/t/echo/@heartbeat", zenoh.handlers.FifoChannel(16))
         beats.handler.recv()  # the node runs
-        assert main(["pub", "iota/t/echo/inp", "7", "--count", "3", "--rate", "50", "--wait", "10",
-                     "--connect", f"tcp/127.0.0.1:{recorder.port}"]) == 0
-        wait_for(lambda: sum(m.topic == "iota/t/echo/out" for m in read_recording(recorder.output).messages) >= 3,
-                 10, what="the echo's answers in the file")
+        yield recorder, session
     finally:
         node.send_signal(signal.SIGINT)
         node.wait(20)
         assert recorder.stop() == 0
+
+
+def test_trace_sourced_records_a_node_and_iotad_pub_into_its_input(tmp_path, session_for):
+    from iotad.recording.replay import replay_node
+
+    with echo_recorded(tmp_path, session_for) as (recorder, _):
+        assert main(["pub", "iota/t/echo/inp", "7", "--count", "3", "--rate", "50", "--wait", "10",
+                     "--connect", f"tcp/127.0.0.1:{recorder.port}"]) == 0
+        wait_for(lambda: sum(m.topic == "iota/t/echo/out" for m in read_recording(recorder.output).messages) >= 3,
+                 10, what="the echo's answers in the file")
     recording = read_recording(recorder.output)
     inputs = [e for e in recording.trace("echo") if e["kind"] == "input"]
     injected = [m for m in recording.messages if m.topic == "iota/t/echo/inp"]
@@ -231,14 +240,7 @@ def test_trace_sourced_an_input_the_node_refused_is_no_gap(tmp_path, session_for
     """A publisher outside the system sends 7, -1 (out of range: refused), 7: the refusal is a
     recorded violation that names the message's key and sequence number, so the recorder counts
     #1 as seen; before, the third message made a gap of one that never was."""
-    recorder = RecorderProcess(tmp_path, ["iota/t/**"], "--from-traces")
-    config = {"system": "t", "path": "echo", "source": {"kind": "python", "ref": str(ROOT / "examples/echo.py") + ":Echo"},
-              "listen": ["tcp/127.0.0.1:0"], "connect": [f"tcp/127.0.0.1:{recorder.port}"], "heartbeat_period": 0.2}
-    node = subprocess.Popen([sys.executable, "-m", "iotad.host", "--config-json", json.dumps(config)], cwd=ROOT)
-    try:
-        session = session_for(recorder.port)
-        beats = session.declare_subscriber("iota/t/echo/@heartbeat", zenoh.handlers.FifoChannel(16))
-        beats.handler.recv()  # the node runs
+    with echo_recorded(tmp_path, session_for) as (recorder, session):
         publisher = session.declare_publisher("iota/t/echo/inp")
         matched(publisher)
         for seq, value in enumerate([7, -1, 7]):
@@ -246,10 +248,6 @@ def test_trace_sourced_an_input_the_node_refused_is_no_gap(tmp_path, session_for
             time.sleep(0.05)
         wait_for(lambda: sum(m.topic == "iota/t/echo/out" for m in read_recording(recorder.output).messages) >= 2,
                  10, what="the echo's answers in the file")
-    finally:
-        node.send_signal(signal.SIGINT)
-        node.wait(20)
-        assert recorder.stop() == 0
     recording = read_recording(recorder.output)
     refused = [e for e in recording.trace("echo") if e["kind"] == "violation"]
     assert len(refused) == 1 and refused[0]["value"]["violation"] == "bad_value"
