@@ -31,6 +31,7 @@ from .program_run import (AtomRun, CompiledExpression, ExpressionCache, MissingI
                           compile_program)
 
 GRID_SLACK = 1e-6  # of a period: a tick computed as now + delay lands on the grid up to rounding
+GOAL_SLACK = 1e-9  # rad (or m): a command this close to its reference is on it
 
 
 class _Inputs:
@@ -221,8 +222,17 @@ class MdlInterpreter(Iota):
         except Exception as exc:  # noqa: BLE001 - e.g. a sine of frequency 1e308: math domain error
             return self._fail(run, _unforeseen(exc))
         run.holding = None
-        atom = run.current.atom
-        if atom.ticks is not None and run.current.ticks >= atom.ticks:
+        current = run.current
+        atom = current.atom
+        if atom.ticks is not None and current.ticks >= atom.ticks:
+            if current.short is not None:
+                # the atom ends at T, as the paper's atoms do, but the requester should know the
+                # arm is not where the profile said: the velocity limit kept it behind
+                gap, j = current.short
+                robot = self._robot
+                self._fault(run.program.id, f"behaviours[{atom.behaviour}].atoms[{atom.index}] ended at T = "
+                                            f"{atom.T:g} s with joint {robot.joints[j]} {gap:.3g} short of its "
+                                            f"reference: its max_velocity ({robot.max_velocity[j]:g}/s) kept it behind")
             self._atom_ended(run, "DONE", "NONE", "")
             position = (run.behaviour, run.atom)
             if not run.next_atom():
@@ -299,6 +309,7 @@ class MdlInterpreter(Iota):
             current.feedback = [e + r * dt for e, r in zip(current.feedback, rates)]
         reference = [u + e for u, e in zip(current.open_loop(current.ticks * robot.period), current.feedback)]
         command = []
+        short = 0.0  # the largest gap the velocity limit left between a joint and its reference
         for j, (r, c) in enumerate(zip(reference, self.command)):
             if not math.isfinite(r):
                 raise ProgramFault(f"{where}: the reference of joint {robot.joints[j]} is not finite ({r})")
@@ -310,8 +321,13 @@ class MdlInterpreter(Iota):
                 r = limited
             most = robot.max_velocity[j] * dt
             step = r - c
-            command.append(c + (most if step > most else -most if step < -most else step))
+            if step > most or step < -most:
+                if abs(step) - most > short:
+                    short, slowest = abs(step) - most, j
+                step = most if step > most else -most
+            command.append(c + step)
         self.command = command
+        current.short = (short, slowest) if short > GOAL_SLACK else None
 
     # ------------------------------------------------------------------ commands
     def _command_arrived(self, program: Program) -> None:

@@ -146,6 +146,7 @@ class AtomRun:
         self.feedback = [0.0] * n           # the integral of k(y), per joint
         self.velocity = [atom.velocity.get(j, 0.0) for j in range(n)]
         self.amplitude = [atom.amplitude.get(j, 0.0) for j in range(n)]
+        self.short: tuple[float, int] | None = None  # (gap, joint): the velocity limit's lag at the last step
 
     def open_loop(self, tau: float) -> list[float]:
         atom, base = self.atom, self.base

@@ -78,6 +78,20 @@ def test_setpoints_never_exceed_the_velocity_limit(make_run):
     # follows holds where the command was
     assert positions[tick_of(0.1) - 1] == pytest.approx(0.1)
     assert positions[-1] == pytest.approx(0.1)
+    assert [(e["atom"], e["end"]) for e in run.values("atom_end")] == [(0, "DONE"), (1, "DONE")]
+    # ... and the requester is told, once, that the arm is not where the profile said
+    [fault] = run.values("fault")
+    assert fault["program"] == "fast" and fault["tick"] == tick_of(0.1)
+    assert fault["message"] == ("behaviours[0].atoms[0] ended at T = 0.1 s with joint joint1 1.9 short of its "
+                                "reference: its max_velocity (1/s) kept it behind")
+
+
+def test_a_profile_within_the_velocity_limit_says_nothing(make_run):
+    run = make_run(max_velocity=1.0)
+    run.command(program("slow", ramp({"joint1": 0.5}, T=1.0), hold(T=0.1)), t=0.0)  # 0.5 rad/s
+    run.run(until=1.5)
+    assert run.setpoints(0)[-1][1] == pytest.approx(0.5)
+    assert not run.values("fault")
 
 
 def test_setpoints_stay_within_the_joint_limits(make_run):
