@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import keyword
 import math
+import sys
 from typing import Any
 
 
@@ -124,6 +125,7 @@ class _Number(Type):
 
 # The integers msgpack carries (the wire, the recordings): an int beyond them cannot be sent.
 INT_MIN, INT_MAX = -(1 << 63), (1 << 64) - 1
+_FLOAT_MAX = sys.float_info.max
 
 
 def _range(number: "_Number") -> tuple:
@@ -162,10 +164,31 @@ class FloatType(_Number):
         super().check(value)
         if isinstance(value, float) and math.isnan(value):
             raise BadValue("NaN is not a valid float value")
+        if isinstance(value, int) and not -_FLOAT_MAX <= value <= _FLOAT_MAX:
+            raise BadValue(f"an int of {value.bit_length()} bits is too large for a float")
+
+    def to_plain(self, value: Any) -> Any:
+        # an int is sent as it is while msgpack carries it (64 bits), beyond as the float it stands for
+        return float(value) if value.__class__ is not float and not INT_MIN <= value <= INT_MAX else value
 
     def from_plain(self, plain: Any) -> float:
         self.check(plain)
         return float(plain)
+
+    def _fast_checker(self):
+        """As for every number, but an int in a float channel is sent as it is only while
+        msgpack carries it (64 bits); a larger one goes out as the float it stands for."""
+        lo, hi = _range(self)
+        int_lo, int_hi = max(lo, INT_MIN), min(hi, INT_MAX)
+        check, to_plain = self.check, self.to_plain
+
+        def checked_plain(value: Any) -> Any:
+            cls = value.__class__
+            if cls is float and lo <= value <= hi or cls is int and int_lo <= value <= int_hi:
+                return value
+            check(value)
+            return to_plain(value)
+        return checked_plain
 
     def from_checked_plain(self, plain: Any) -> float:
         return float(plain)
@@ -469,6 +492,11 @@ def same_checks(a: Type | None, b: Type | None) -> bool:
         return a.field_names == b.field_names and all(same_checks(a.fields[n], b.fields[n]) for n in a.field_names)
     return False
 
+# A float field's value sent as it is: a float, or an int that msgpack carries (64 bits); any
+# other value takes the field type's `checked_plain`, which checks it (and sends a larger int as
+# a float).
+_FLOAT_PLAIN = f"({{a}}.__class__ is float or {{a}}.__class__ is int and {INT_MIN} <= {{a}} <= {INT_MAX})"
+
 # `from_checked_plain` of these returns its argument: an array of them is copied as a list
 _IDENTITY_BUILDS = (IntType.from_checked_plain, BoolType.from_checked_plain, EnumType.from_checked_plain)
 
@@ -489,8 +517,7 @@ def _compile_struct(struct: StructType) -> None:
         check.append(f"        v{k} = value.{name}")
         if kind in (IntType, FloatType):
             env[f"lo{k}"], env[f"hi{k}"] = _range(ftype)
-            plain_class = "v{k}.__class__ is int" if kind is IntType else \
-                "(v{k}.__class__ is float or v{k}.__class__ is int)"
+            plain_class = "v{k}.__class__ is int" if kind is IntType else _FLOAT_PLAIN.replace("{a}", "v{k}")
             check.append(f"        if not ({plain_class.format(k=k)} and lo{k} <= v{k} <= hi{k}) and v{k} is not None:")
         elif kind is BoolType:
             check.append(f"        if v{k} is not True and v{k} is not False and v{k} is not None:")
@@ -549,7 +576,7 @@ def _compile_array(array: ArrayType) -> None:
     if type(element) is BoolType:
         tests = [f"({a} is True or {a} is False)" for a in names]
     else:
-        plain = "{a}.__class__ is int" if type(element) is IntType else "({a}.__class__ is float or {a}.__class__ is int)"
+        plain = "{a}.__class__ is int" if type(element) is IntType else _FLOAT_PLAIN
         tests = [f"{plain.format(a=a)} and lo <= {a} <= hi" for a in names]
     lo, hi = _range(element) if isinstance(element, _Number) else (-math.inf, math.inf)
     env = {"generic": ArrayType.checked_plain.__get__(array), "n": n, "lo": lo, "hi": hi}

@@ -24,7 +24,7 @@ class MyFloat(float):
 
 
 ODDITIES = [None, "x", True, 1.5, -3, 10 ** 6, math.nan, math.inf, -math.inf, MyInt(3), MyFloat(0.5),
-            [], (1, 2), 0, 0.25, "RED"]
+            [], (1, 2), 0, 0.25, "RED", 1 << 64, 1 << 70, -(1 << 70), 1 << 2000]
 
 
 def value_of(t, rng, odd):
