@@ -114,6 +114,8 @@ def stmt(node: S.Node, indent: int) -> list[str]:
         target, value = node.target, _fresh(node.value)
         if isinstance(target, S.IndexOf) and not _is_family_index(target.index):
             return [f"{pad}ix_set({expr(target.obj)}, {expr(target.index)}, {value})"]
+        if getattr(node, "keeps_length", False):  # a whole array: as long as the one it replaces
+            return [f"{pad}{expr(target)} = same_length({expr(target)}, {value})"]
         return [f"{pad}{expr(target)} = {value}"]
     if isinstance(node, S.CallStmt):
         return [pad + expr(node.call)]

@@ -17,7 +17,7 @@ from . import syntax as S
 from .static_checks import Checked, IotaInfo
 from .errors import EspritError, Source
 from .runtime import (all_of, any_of, c_div, c_mod, cp, esprit_inhibit, esprit_now, esprit_reset, fresh_budget,
-                      inhibit_left, ix, ix_set, loop_range, restarted, uninhibit, with_budget)
+                      inhibit_left, ix, ix_set, loop_range, restarted, same_length, uninhibit, with_budget)
 from .typesys import VOID, ArrayOf, describe
 
 MAX_ARRAY = 1_000_000  # elements of one state array: more is a slip (a parameter off by powers of ten)
@@ -92,6 +92,7 @@ class IotaFactory:
             return own
         scope = pytypes.SimpleNamespace(**values)
         components = []
+        component_values = {}
         for inst_name, args in self._arg_fns.items():
             inst = self.info.components[inst_name]
             given = {}
@@ -100,12 +101,40 @@ class IotaFactory:
                     given[arg_name] = fn(scope, None)
                 except Exception as exc:  # noqa: BLE001 - a bad argument is the spec's error
                     raise self.source.error(pos, f"{arg_name}: {type(exc).__name__}: {exc}") from None
-            components.append(self.module.iotas[inst.iota](inst_name, **given))
+            factory = self.module.iotas[inst.iota]
+            components.append(factory(inst_name, **given))
+            component_values[inst_name] = (factory, factory.check_params(given))
+        self._check_mapped_switching(values, component_values)
         try:
             return Composite(instance_name, *components, bind=self._bindings["bind"],
                              inputs=self._bindings["inputs"], outputs=self._bindings["outputs"], own=own)
         except SpecError as exc:
             raise self.source.error(self.info.decl.pos, str(exc)) from None
+
+
+    def switching_of(self, channel: str, values: dict[str, Any]) -> float:
+        """The switching time of one of its channels, with parameters `values`."""
+        switching = self.info.channels[channel].switching
+        return float(values[switching] if isinstance(switching, str) else switching)
+
+    def _check_mapped_switching(self, values: dict[str, Any], components: dict[str, tuple]) -> None:
+        """A channel of the composite bound to a component's channel IS that channel (the
+        engine runs the component's): it must declare the same switching time, or the
+        interface would promise what nothing enforces (an input accepted sooner than it says)."""
+        for bind in self.info.decl.bindings:
+            for own, inner, want in ((bind.source, bind.target, "input"), (bind.target, bind.source, "output")):
+                if own.child is not None or inner.child is None or \
+                        self.info.channels[own.channel].direction != want:
+                    continue
+                factory, inner_values = components[inner.child]
+                mine = self.switching_of(own.channel, values)
+                theirs = factory.switching_of(inner.channel, inner_values)
+                if mine != theirs:
+                    raise self.source.error(
+                        self.info.channels[own.channel].decl.pos,
+                        f"{want} {own.channel} of {self.name} has switching time {mine:g} but it is "
+                        f"{inner.child}.{inner.channel} ({factory.name}), whose switching time is {theirs:g}: "
+                        "a channel bound to a component's is that channel; give both the same")
 
 
 def coerce(ptype, value: Any) -> Any:
@@ -127,7 +156,7 @@ def coerce(ptype, value: Any) -> Any:
 class Compiler:
     def __init__(self, checked: Checked, source: Source):
         self.checked, self.source = checked, source
-        self.globals: dict[str, Any] = {"ix": ix, "ix_set": ix_set, "cp": cp, "c_div": c_div, "c_mod": c_mod,
+        self.globals: dict[str, Any] = {"ix": ix, "ix_set": ix_set, "same_length": same_length, "cp": cp, "c_div": c_div, "c_mod": c_mod,
                                         "all_of": all_of, "any_of": any_of, "loop_range": loop_range,
                                         "fresh_budget": fresh_budget, "esprit_now": esprit_now,
                                         "esprit_reset": esprit_reset, "esprit_inhibit": esprit_inhibit,

@@ -18,6 +18,13 @@ def ix_set(sequence: Any, index: Any, value: Any) -> None:
     sequence[_checked(sequence, index)] = value
 
 
+def same_length(old: Any, new: Any) -> Any:
+    """`new`, to replace the array `old`: an array's length is its declaration's, for good."""
+    if old is not None and new is not None and len(new) != len(old):
+        raise ValueError(f"an array of {len(old)} elements cannot be given {len(new)}")
+    return new
+
+
 def _checked(sequence: Any, index: Any) -> int:
     if index is None:
         raise IndexError("index is NULL")

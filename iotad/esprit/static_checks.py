@@ -428,10 +428,11 @@ class Checker:
                         try:  # a constant length is judged here; one from a parameter when it is given
                             length = self.fold(d.size, {})
                         except NotConstant:
-                            length = 0
+                            length = None
                         if isinstance(length, int) and length < 0:
                             self.error(d.size.pos, f"array length must be a whole number >= 0, got {length}")
-                    vtype = None if element is None else ArrayOf(element)
+                            length = None
+                    vtype = None if element is None else ArrayOf(element, length if isinstance(length, int) else None)
                 if d.init is not None and element is not None:
                     # `x[N] = v` sets every element to v; `x[N] = {a, b}` gives them one by one
                     target = vtype if isinstance(d.init, S.Aggregate) and d.size is not None else element
@@ -592,6 +593,13 @@ class Checker:
                     src_chan.type is not None and src_chan.type.json_schema() != dst_chan.type.json_schema()):
                 self.error(bind.pos, f"{bind.source} carries {describe(src_chan.type) if src_chan.type else 'nothing'}, "
                                      f"{bind.target} {describe(dst_chan.type) if dst_chan.type else 'nothing'}")
+            outer, inner = (src, dst) if src_key[0] is None else (dst, src) if dst_key[0] is None else (None, None)
+            if outer is not None and inner[0][0] is not None and isinstance(outer[1].switching, float) \
+                    and isinstance(inner[1].switching, float) and outer[1].switching != inner[1].switching:
+                # parameters are compared when it is built (compiler.IotaFactory); numbers here
+                self.error(bind.pos, f"{outer[0][1]} has switching time {outer[1].switching:g} but it is "
+                                     f"{inner[0][0]}.{inner[0][1]}, whose switching time is {inner[1].switching:g}: "
+                                     "a channel bound to a component's is that channel; give both the same")
             used.add(src_key)
             used.add(dst_key)
             whole, index = dst_key[:2], dst_key[2]
@@ -798,6 +806,9 @@ class Checker:
         vtype = self.expr(node.value, scope, ttype)
         if vtype is not None and not assignable(ttype, vtype):
             self.error(node.value.pos, f"cannot assign {describe(vtype)} to {describe(ttype)}")
+        elif isinstance(ttype, (ArrayOf, ArrayType)):
+            # an array keeps its length: a length known only when it runs is checked then (codegen)
+            node.keeps_length = True
 
     # ---------------------------------------------------------------- expressions
     def expr(self, node: S.Expr, scope: _Scope, expected=None, statement: bool = False):
@@ -930,7 +941,7 @@ class Checker:
             if any(name is not None for name, _ in node.items):
                 self.error(node.pos, "an array value lists its elements, without names")
                 return None
-            if isinstance(expected, ArrayType) and len(node.items) != expected.length:
+            if getattr(expected, "length", None) is not None and len(node.items) != expected.length:
                 self.error(node.pos, f"{describe(expected)} has {expected.length} elements, not {len(node.items)}")
                 return None
             for _, item in node.items:

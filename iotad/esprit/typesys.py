@@ -31,7 +31,7 @@ def describe(t) -> str:
     if isinstance(t, EnumType):
         return f"enum {t.name}"
     if isinstance(t, (ArrayType, ArrayOf)):
-        return f"{describe(t.element)}[]"
+        return f"{describe(t.element)}[{'' if t.length is None else t.length}]"
     return getattr(t, "name", str(t))
 
 
@@ -69,8 +69,7 @@ def assignable(target, value) -> bool:
         return True
     if isinstance(target, (ArrayType, ArrayOf)) and isinstance(value, (ArrayType, ArrayOf)):
         lengths = (getattr(target, "length", None), getattr(value, "length", None))
-        if None not in lengths and isinstance(target, ArrayType) and isinstance(value, ArrayType) \
-                and lengths[0] != lengths[1]:
+        if None not in lengths and lengths[0] != lengths[1]:
             return False
         return assignable(target.element, value.element) and same(target.element, value.element) or \
             (isinstance(target.element, FloatType) and isinstance(value.element, IntType))

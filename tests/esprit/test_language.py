@@ -155,6 +155,21 @@ def test_runtime_faults_become_violations_and_the_iota_goes_on():
     assert "index is NULL" in violations(run(null_index, 1.5))[0][2]
 
 
+def test_an_array_keeps_its_declared_length():
+    # lengths from parameters are known only when it runs: a whole array of another length is
+    # refused there (a runtime_error; the array stays as it was), never stored
+    spec = """
+    iota a(int N = 3, int M = 2): -> out(float)/0 {
+      states int k = 0; float arr[N] = 1.0, other[M] = 9.0, same[N] = 2.0;
+      actions
+      out(arr[N - 1]) when k < 3 after 1 do { k = k + 1; if (k == 1) arr = other; else arr = same; }
+    }"""
+    trace = run(spec)
+    assert outputs(trace) == [(1.0, 1.0), (2.0, 1.0), (3.0, 2.0)]
+    assert violations(trace) == [(1.0, "runtime_error", "out (do): ValueError: an array of 3 elements cannot be given 2")]
+    assert violations(run(spec, M=3)) == []
+
+
 def test_family_with_index_and_parameters():
     spec = """
     iota fan(int N = 3, float T = 0.5): -> tick[N](int)/T {

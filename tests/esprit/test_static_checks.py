@@ -12,6 +12,12 @@ iota pong: inp()/0 -> out()/0 { states bool got = false;
   actions inp() do { got = true; }  out() when got after 0.5 do { got = false; } }
 """
 
+# a component whose channels a composite's interface maps (`go -> a.go`)
+LEAF = """
+iota leaf: go(int)/0 -> out(int)/0 { states int n = 0;
+  actions go(x) do n = x;  out(n) when n > 0 do n = 0; }
+"""
+
 # name -> (spec that trips the check, the same spec fixed, text the message must contain)
 CHECKS = {
     "undeclared_name": ("iota a: -> out(int)/1 { actions out(y) }",
@@ -72,6 +78,18 @@ CHECKS = {
     "binding_direction": (PINGPONG + "iota pair: -> { include ping a; pong b; b.inp -> a.out; a.out -> b.inp; b.out -> a.inp; }",
                           PINGPONG + "iota pair: -> { include ping a; pong b; a.out -> b.inp; b.out -> a.inp; }",
                           "b.inp is an input"),
+    "interface_switching_in": (LEAF + "iota top: go(int)/5 -> out(int)/0 { include leaf a; go -> a.go; a.out -> out; }",
+                               LEAF + "iota top: go(int)/0 -> out(int)/0 { include leaf a; go -> a.go; a.out -> out; }",
+                               "go has switching time 5 but it is a.go, whose switching time is 0"),
+    "interface_switching_out": (LEAF + "iota top: go(int)/0 -> out(int)/2 { include leaf a; go -> a.go; a.out -> out; }",
+                                LEAF + "iota top: go(int)/0 -> out(int)/0 { include leaf a; go -> a.go; a.out -> out; }",
+                                "out has switching time 2 but it is a.out, whose switching time is 0"),
+    "array_length_literal": ("iota a: -> out()/1 { states float v[3] = 0.0; actions out() do v = {1.0, 2.0}; }",
+                             "iota a: -> out()/1 { states float v[3] = 0.0; actions out() do v = {1.0, 2.0, 3.0}; }",
+                             "float[3] has 3 elements, not 2"),
+    "array_length_assign": ("iota a: -> out()/1 { states float v[3] = 0.0, w[2] = 0.0; actions out() do v = w; }",
+                            "iota a: -> out()/1 { states float v[3] = 0.0, w[3] = 0.0; actions out() do v = w; }",
+                            "cannot assign float[2] to float[3]"),
     "include_cycle": ("iota a: -> { include a inner; }", "iota b: -> { } iota a: -> { include b inner; }",
                       "includes itself"),
     "assign_to_parameter": ("iota a(int N = 1): -> out()/1 { actions out() do N = 2; }",
@@ -212,3 +230,17 @@ def test_cli_run_errors_exit_2(tmp_path, capsys):
     out = capsys.readouterr().out
     assert out.splitlines() == ['{"t": 1.0, "iota": "a", "action": "out", "index": null, "kind": "output", "value": null}',
                                 '{"t": 2.0, "iota": "a", "action": "out", "index": null, "kind": "output", "value": null}']
+
+
+def test_an_interface_switching_time_from_a_parameter_is_compared_when_built():
+    """The composite's interface channel is its component's channel, so the engine enforces the
+    component's switching time: an interface that says otherwise would promise what nothing does
+    (an input at 1 s accepted by a top declared /5). Parameters are compared when it is built."""
+    spec = LEAF.replace("go(int)/0", "go(int)/S").replace("iota leaf:", "iota leaf(float S = 0):") + \
+        "iota top(float S = 5): go(int)/S -> out(int)/0 { include leaf a(S = S); go -> a.go; a.out -> out; }"
+    module = load_text(spec)
+    module.iotas["top"]()  # both 5
+    wrong = spec.replace("include leaf a(S = S)", "include leaf a(S = 1)")
+    with pytest.raises(EspritError, match=r"input go of top has switching time 5 but it is a\.go \(leaf\), "
+                                          r"whose switching time is 1"):
+        load_text(wrong).iotas["top"]()
