@@ -25,6 +25,17 @@ from iotad.kernel.types import BadValue, same_checks
 
 INF = math.inf
 STOP = object()  # post this to a real clock's inbox to make `run` return
+
+# Times the engine computes (window bounds, the end of a switching time) are rounded to 1e-9 of
+# a time unit, a nanosecond where it is the second, as recordings hold them. Float sums drift
+# (0.1 + 0.2 > 0.3): unrounded, an input sent at exactly its switching time (0.3 after 0.1 on
+# /0.2) would be refused as early, and an output due at 0.8 after eight steps of 0.1 would fire
+# at 0.7999999999999999, before an input at 0.8: an order no recording could explain.
+TIME_DECIMALS = 9
+
+
+def on_grid(t: float) -> float:
+    return round(t, TIME_DECIMALS)
 # the violations by which an engine refuses an input event (`_deliver`); it is then not taken
 INPUT_REFUSALS = ("bad_value", "switching_time")
 
@@ -254,6 +265,8 @@ class Engine:
             now = clock.now()
             if item is not None:
                 self._external_input(item, now)
+                if not clock.virtual:
+                    self._instant_count = 0  # an input from outside: what it enables is a new chain
                 continue
             if next_fire <= until and next_fire != INF:
                 try:
@@ -288,21 +301,35 @@ class Engine:
         self._external_input((path, channel, index, value, None), self.clock.now())
 
     def _fire_due(self, now: float, limit: float = INF) -> int:
+        """Fire what is due at `now` (at most `limit`), then return to `run` (inputs, stop).
+
+        In virtual time they all fire at `now`. In real time a firing happens when it happens:
+        one due with others but after a slow do-block is stamped, and judged against its
+        deadline, at its own time; and the zeno guard, which in virtual time counts the firings
+        of one instant, counts a chain of firings each enabled by the one before with no delay
+        (an external input or a firing that waited ends the chain)."""
         heap = self._heap
         fired = 0
-        while fired < limit and heap and heap[0][0] <= now:
+        instant = now
+        real = not self.clock.virtual
+        while fired < limit and heap and heap[0][0] <= instant:
             fire_at, _, gen, instance = heapq.heappop(heap)
             if instance.gen != gen or not instance.enabled:
                 continue
             slot = instance.slot
-            earliest = slot.last + slot.switching
+            earliest = on_grid(slot.last + slot.switching)
             if earliest > fire_at and earliest > now:
                 # another action on this channel fired meanwhile: wait out its switching time
                 self._schedule(instance, earliest, now)
                 continue
-            if self._instant != now:
-                self._instant, self._instant_count = now, 0
-            self._instant_count += 1
+            if real:
+                # with no delay: due as soon as it was enabled, by the firing before it
+                immediate = fire_at == instance.te and instance.te >= self._instant
+                self._instant_count = self._instant_count + 1 if immediate else 1
+            else:
+                if self._instant != instant:
+                    self._instant, self._instant_count = instant, 0
+                self._instant_count += 1
             if self._instant_count > self.max_firings_per_instant:
                 self._violation(now, instance.leaf.path, instance.action.channel, instance.index, "zeno",
                                 f"more than {self.max_firings_per_instant} firings at t={now}: "
@@ -311,6 +338,9 @@ class Engine:
                 raise Halted()
             self._fire(instance, now)
             fired += 1
+            if real:
+                self._instant = now  # the chain's last firing
+                now = self.clock.now()
         return fired
 
     def _fire(self, instance: ActionInstance, now: float) -> None:
@@ -405,7 +435,7 @@ class Engine:
             self._violation(now, leaf.path, channel.name, index, "bad_value",
                             f"input {channel.name} carries no value, got {plain!r}; rejected")
             return
-        if now < slot.last + slot.switching - self.input_tolerance and self.reject_early_inputs:
+        if now < on_grid(slot.last + slot.switching) - self.input_tolerance and self.reject_early_inputs:
             self._violation(now, leaf.path, channel.name, index, "switching_time",
                             f"input {channel.name} at {now:.6g} is sooner than its switching time "
                             f"{slot.switching:g} after the last one at {slot.last:.6g}; rejected")
@@ -483,11 +513,11 @@ class Engine:
             # earlier window stay behind (a checker would see that window expire)
             instance.te, instance.lower, instance.upper = now, INF, INF
             return
-        instance.te, instance.lower, instance.upper = now, now + lower, now + upper
+        earliest = on_grid(now + lower)
+        instance.te, instance.lower, instance.upper = now, earliest, on_grid(now + upper)
         slot = instance.slot
-        earliest = now + lower
         if slot.last + slot.switching > earliest:
-            earliest = slot.last + slot.switching
+            earliest = max(earliest, on_grid(slot.last + slot.switching))
         self._schedule(instance, earliest, now)
 
     def _schedule(self, instance: ActionInstance, earliest: float, now: float) -> None:

@@ -90,3 +90,25 @@ def test_system_file_reference_names_every_key():
     keys = system._SYSTEM_KEYS | system._NODE_KEYS | system._TOP_KEYS | system._CAN_KEYS | {"listen", "connect", "from", "to"}
     missing = sorted(k for k in keys if f"`{k}`" not in text)
     assert not missing, missing
+
+
+def test_esprit_inclusion_example_checks_and_runs():
+    """docs/esprit.md's composite example, with the counter and doubler it says it includes."""
+    from iotad.esprit import check_text, load_text
+    from iotad.kernel.input_script import run_script
+
+    text = (ROOT / "docs" / "esprit.md").read_text()
+    example = re.search(r"```\n(iota clocked.*?)```", text, flags=re.S).group(1)
+    components = """
+    iota counter: tick()/0 -> count(int)/0 {
+      states int n = 0, c = 0;
+      actions tick() do n = n + 1;  count(n) when n > c do c = n; }
+    iota doubler(float GAIN = 2.0): inp(int)/0 -> out(float)/0 {
+      states float v = 0.0; bool has = false;
+      actions inp(x) do { v = x * GAIN; has = true; }  out(v) when has do has = false; }
+    """
+    spec = components + example
+    assert check_text(spec) == ([], [])
+    trace = run_script(load_text(spec).iotas["clocked"](), [], 5.0).trace
+    assert [(e["t"], e["value"]) for e in trace if e["kind"] == "output" and e["action"] == "out"] == \
+        [(1.0, 2.0), (2.0, 4.0), (3.0, 6.0)]

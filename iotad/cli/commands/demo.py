@@ -16,7 +16,7 @@ ANSWERS = ("COMMIT", "ABORT", "REJECT")
 
 EPILOG = """\
 examples:
-  iotad demo                  20 s over zenoh, recorded to recordings/ (what 'make demo' runs)
+  iotad demo                  20 s over zenoh, recorded to recordings/
   iotad demo --virtual        the same IOTAs in virtual time: instant, deterministic
 
 Exit 0 when COMMIT, ABORT and REJECT all happened. Same as 'iotad run examples/figure2.toml

@@ -15,8 +15,9 @@ examples:
   iotad plot recordings/fig2.mcap -o fig2.svg --title "Figure 2, run 3"
   iotad plot recordings/fig2.mcap -o fig2.png --late 2       mark deliveries slower than 2 ms
 
-The image format follows the extension of -o: .png, .pdf, .svg or .jpg. The time axis is
-seconds from the start of the recording. See also: 'iotad info FILE', 'iotad export FILE
+The image format follows the extension of -o: .png, .pdf, .svg or .jpg. The time axis is the
+nodes' clock, the t of their events: spec time units (seconds unless the system file's time_unit
+says otherwise) from the system's start. See also: 'iotad info FILE', 'iotad export FILE
 -o OUT.mcap --json' (every channel in Foxglove)."""
 
 
