@@ -119,6 +119,18 @@ def test_a_request_preempted_before_it_signalled_waits_again_and_is_rejected_as_
 
 
 
+def test_a_request_that_replaces_a_waiting_one_is_rejected_after_its_own_timeout():
+    # 0 waits behind 1 with a timeout of 2; at 1.5 a new request on index 0, timeout 8, replaces
+    # it: its rejection counts from 1.5 (docs/schedulers.md rule 5), not from the old request
+    inputs = [req(0.0, 1, 5, epoch=10.0, timeout=20.0), req(0.0, 0, 1, timeout=2.0), req(1.5, 0, 1, timeout=8.0)]
+    engine = run(scheduler(), inputs)
+    assert (1.5, "renew", 0, None) in story(engine)
+    assert acks(engine) == [(9.5, 0, "REJECT"), (10.0, 1, "COMMIT")]
+    assert not violations(engine)
+    # Figure 2 keeps the old request's window open: the new one is rejected 0.5 after it
+    assert acks(run(load_iota(str(FIGURE2)), inputs))[0] == (2.0, 0, "REJECT")
+
+
 def test_the_motors_go_to_the_highest_waiting_request_the_instant_they_are_free():
     # 0 resumes at 1.2 but is suspended again at 1.5, before its mode went out (mdl_command waits
     # out its switching time); when 2 commits at 2.1, 0 is scheduled at that instant although it
