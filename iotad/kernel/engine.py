@@ -26,16 +26,22 @@ from iotad.kernel.types import BadValue, same_checks
 INF = math.inf
 STOP = object()  # post this to a real clock's inbox to make `run` return
 
-# Times the engine computes (window bounds, the end of a switching time) are rounded to 1e-9 of
-# a time unit, a nanosecond where it is the second, as recordings hold them. Float sums drift
-# (0.1 + 0.2 > 0.3): unrounded, an input sent at exactly its switching time (0.3 after 0.1 on
-# /0.2) would be refused as early, and an output due at 0.8 after eight steps of 0.1 would fire
-# at 0.7999999999999999, before an input at 0.8: an order no recording could explain.
+# A time the engine computes as a time plus a duration (window bounds, the end of a switching
+# time) is rounded to 1e-9 of a time unit, a nanosecond where it is the second, as recordings
+# hold times. Float sums drift (0.1 + 0.2 > 0.3): unrounded, an input sent exactly its
+# switching time after the last (0.3 after 0.1 on /0.2) would be refused as early, and an output
+# due at 0.8 after eight steps of 0.1 would fire at 0.7999999999999999, before an input at 0.8:
+# an order no recording could explain. A duration of 0 is `t` itself, and rounding never goes
+# before `t` (a real clock's times are not on the grid).
 TIME_DECIMALS = 9
 
 
-def on_grid(t: float) -> float:
-    return round(t, TIME_DECIMALS)
+def plus(t: float, duration: float) -> float:
+    """`t + duration` on the engine's time grid."""
+    if duration == 0:
+        return t
+    later = round(t + duration, TIME_DECIMALS)
+    return later if later >= t else t
 # the violations by which an engine refuses an input event (`_deliver`); it is then not taken
 INPUT_REFUSALS = ("bad_value", "switching_time")
 
@@ -317,7 +323,7 @@ class Engine:
             if instance.gen != gen or not instance.enabled:
                 continue
             slot = instance.slot
-            earliest = on_grid(slot.last + slot.switching)
+            earliest = plus(slot.last, slot.switching)
             if earliest > fire_at and earliest > now:
                 # another action on this channel fired meanwhile: wait out its switching time
                 self._schedule(instance, earliest, now)
@@ -435,7 +441,7 @@ class Engine:
             self._violation(now, leaf.path, channel.name, index, "bad_value",
                             f"input {channel.name} carries no value, got {plain!r}; rejected")
             return
-        if now < on_grid(slot.last + slot.switching) - self.input_tolerance and self.reject_early_inputs:
+        if now < plus(slot.last, slot.switching) - self.input_tolerance and self.reject_early_inputs:
             self._violation(now, leaf.path, channel.name, index, "switching_time",
                             f"input {channel.name} at {now:.6g} is sooner than its switching time "
                             f"{slot.switching:g} after the last one at {slot.last:.6g}; rejected")
@@ -513,11 +519,11 @@ class Engine:
             # earlier window stay behind (a checker would see that window expire)
             instance.te, instance.lower, instance.upper = now, INF, INF
             return
-        earliest = on_grid(now + lower)
-        instance.te, instance.lower, instance.upper = now, earliest, on_grid(now + upper)
+        earliest = plus(now, lower)
+        instance.te, instance.lower, instance.upper = now, earliest, plus(now, upper)
         slot = instance.slot
         if slot.last + slot.switching > earliest:
-            earliest = max(earliest, on_grid(slot.last + slot.switching))
+            earliest = max(earliest, plus(slot.last, slot.switching))
         self._schedule(instance, earliest, now)
 
     def _schedule(self, instance: ActionInstance, earliest: float, now: float) -> None:

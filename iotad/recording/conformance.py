@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, Iterable
 
 from iotad.kernel.clock import VirtualClock
-from iotad.kernel.engine import ActionInstance, Engine
+from iotad.kernel.engine import ActionInstance, Engine, plus
 from iotad.kernel.types import to_plain
 from iotad.host.wire import START_KIND
 
@@ -202,7 +202,7 @@ def _same(a: Any, b: Any) -> bool:
 
 def _earliest(instance: ActionInstance) -> float:
     slot = instance.slot
-    return max(instance.lower, slot.last + slot.switching)
+    return max(instance.lower, plus(slot.last, slot.switching))
 
 
 # ------------------------------------------------------------------------------------ own spec
@@ -294,7 +294,7 @@ class TraceChecker:
                 self._find(t, "not_enabled", f"{describe(event)}: a bound input, but no output bound to it "
                            f"fired at t={t:.6g}", position)
             return
-        if t < slot.last + slot.switching - self.tolerance:
+        if t < plus(slot.last, slot.switching) - self.tolerance:
             self._find(t, "switching_time",
                        f"{describe(event)} came {t - slot.last:.6g} after the previous one at "
                        f"t={slot.last:.6g}, sooner than its switching time {slot.switching:g}", position)
@@ -341,7 +341,7 @@ class TraceChecker:
             self._find(t, "late", f"{describe(event)} fired {t - instance.upper:.6g} after its window "
                        f"[{instance.lower:.6g}, {instance.upper:.6g}] closed ({name} enabled at "
                        f"t={instance.te:.6g})", position)
-        if t < slot.last + slot.switching - self.tolerance:
+        if t < plus(slot.last, slot.switching) - self.tolerance:
             self._find(t, "switching_time", f"{describe(event)} came {t - slot.last:.6g} after the previous "
                        f"event on {channel} at t={slot.last:.6g}, sooner than its switching time "
                        f"{slot.switching:g}", position)
@@ -571,7 +571,7 @@ class ImplementsChecker:
                 return []
             endpoint = self.inputs[name]
             slot = child.slots.get((endpoint.path, endpoint.channel, index if endpoint.index is None else endpoint.index))
-            if slot is not None and t < slot.last + slot.switching - self.tolerance:
+            if slot is not None and t < plus(slot.last, slot.switching) - self.tolerance:
                 why.append(f"{describe(event)} is sooner than the spec's switching time {slot.switching:g} "
                            f"after t={slot.last:.6g}")
                 return []
