@@ -66,6 +66,8 @@ class BuggyBody(SimulatedOdrives):
         self.eaten = 0
 
     # ------------------------------------------------------------------ actions
+    # Each reading goes out within timing_slack of the one before: a spec that allowed any delay
+    # would let a legal schedule (the random policy's, `--seed`) steer on readings seconds old.
     @sense.action(after="sense_period")
     def sensed(self):
         if self.now == 0.0:
@@ -74,26 +76,31 @@ class BuggyBody(SimulatedOdrives):
         self._read()
 
     @proximity.action(value=lambda self: self.readings[0][1],
-                      when=lambda self: len(self.readings) > 0 and self.readings[0][0] == "proximity")
+                      when=lambda self: len(self.readings) > 0 and self.readings[0][0] == "proximity",
+                      within=(0, "timing_slack"))
     def sent_proximity(self):
         self.readings.popleft()
 
     @crack.action(value=lambda self: self.readings[0][1],
-                  when=lambda self: len(self.readings) > 0 and self.readings[0][0] == "crack")
+                  when=lambda self: len(self.readings) > 0 and self.readings[0][0] == "crack",
+                  within=(0, "timing_slack"))
     def sent_crack(self):
         self.readings.popleft()
 
     @food.action(value=lambda self: self.readings[0][1],
-                 when=lambda self: len(self.readings) > 0 and self.readings[0][0] == "food")
+                 when=lambda self: len(self.readings) > 0 and self.readings[0][0] == "food",
+                 within=(0, "timing_slack"))
     def sent_food(self):
         self.readings.popleft()
 
     @pose.action(value=lambda self: self.readings[0][1],
-                 when=lambda self: len(self.readings) > 0 and self.readings[0][0] == "pose")
+                 when=lambda self: len(self.readings) > 0 and self.readings[0][0] == "pose",
+                 within=(0, "timing_slack"))
     def sent_pose(self):
         self.readings.popleft()
 
-    @landmark.action(value=lambda self: self.landmarks[0], when=lambda self: len(self.landmarks) > 0)
+    @landmark.action(value=lambda self: self.landmarks[0], when=lambda self: len(self.landmarks) > 0,
+                     within=(0, "timing_slack"))
     def sent_landmark(self):
         self.landmarks.popleft()
 

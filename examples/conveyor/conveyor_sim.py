@@ -43,7 +43,9 @@ class ConveyorSim(SimulatedOdrives):
         self.counted = self._count()
         self.reported = None
 
-    @camera.action(value=lambda self: self.frame, when=lambda self: self.frame is not None)
+    # deadlines, so that no legal schedule (the random policy's) lets frames fall behind
+    @camera.action(value=lambda self: self.frame, when=lambda self: self.frame is not None,
+                   within=(0, "camera_period"))
     def sent_frame(self):
         self.frame = None
 
@@ -51,7 +53,8 @@ class ConveyorSim(SimulatedOdrives):
     def shot(self):
         self.frame = self._shot()
 
-    @tally.action(value=lambda self: self.counted, when=lambda self: self.counted_key() != self.reported)
+    @tally.action(value=lambda self: self.counted, when=lambda self: self.counted_key() != self.reported,
+                  within=(0, "timing_slack"))
     def sent_tally(self):
         self.reported = self.counted_key()
 

@@ -28,7 +28,11 @@ DROP_SPACING = 0.08  # m between drop spots over the bin (examples/conveyor.toml
 MARGIN = 0.01  # m the object is still upstream of where the wait must end, at the latest hand-down
 
 
+REQ_SWITCHING = 1.0  # s between requests: the scheduler's req switching time (Figure 2's)
+
 class ManipulationControl(Iota):
+    react = Param(0.01)          # s: every output goes out this soon after it is due (a deadline, so
+                                 # that no legal schedule, the random policy's, lets it fall behind)
     priority = Param(5)
     timeout = Param(2.0)          # s it may wait for the arm
     approach_time = Param(0.8)    # s to above the meeting point
@@ -48,7 +52,7 @@ class ManipulationControl(Iota):
 
     goal = Input(PICK_GOAL)
     ack = Input(ACK, switching=1)
-    req = Output(MDL_PROGRAM_REQ, switching=1)
+    req = Output(MDL_PROGRAM_REQ, switching=REQ_SWITCHING)
     done = Output(PICK_DONE)
 
     def init(self):
@@ -69,11 +73,13 @@ class ManipulationControl(Iota):
             self.out_done.append(PICK_DONE(target=self.current, committed=value == ACK.COMMIT))
             self.current = None
 
-    @req.action(value=lambda self: self.out_req, when=lambda self: self.out_req is not None)
+    @req.action(value=lambda self: self.out_req, when=lambda self: self.out_req is not None,
+                within=(0, lambda self: REQ_SWITCHING + self.react))  # it may wait out req's switching time
     def sent_req(self):
         self.out_req = None
 
-    @done.action(value=lambda self: self.out_done[0], when=lambda self: len(self.out_done) > 0)
+    @done.action(value=lambda self: self.out_done[0], when=lambda self: len(self.out_done) > 0,
+                 within=(0, "react"))
     def sent_done(self):
         del self.out_done[0]
 

@@ -41,6 +41,8 @@ class Track:
 
 
 class Planning(Iota):
+    react = Param(0.01)          # s: every output goes out this soon after it is due (a deadline, so
+                                 # that no legal schedule, the random policy's, lets it fall behind)
     belt_speed = Param(0.05)     # m/s, the prior for a new track (toward -y)
     fit_after = Param(1.0)       # s of sightings before a track's own velocity is used
     match_x = Param(0.04)        # m
@@ -85,11 +87,13 @@ class Planning(Iota):
                 track.state = "done" if report.committed else "seen"
         self._plan(esprit_now())
 
-    @look.action(value=lambda self: self.out_look, when=lambda self: self.out_look is not None)
+    @look.action(value=lambda self: self.out_look, when=lambda self: self.out_look is not None,
+                 within=(0, "react"))
     def sent_look(self):
         self.out_look = None
 
-    @pick.action(value=lambda self: self.out_pick, when=lambda self: self.out_pick is not None)
+    @pick.action(value=lambda self: self.out_pick, when=lambda self: self.out_pick is not None,
+                 within=(0, "react"))
     def sent_pick(self):
         self.out_pick = None
 

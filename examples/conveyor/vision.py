@@ -35,7 +35,11 @@ from conveyor_types import CAMERA_FRAME, LOOK_GOAL, MAX_BLOBS, SIGHTING
 UPSTREAM_Y = 0.35   # m: where vision looks with no target
 
 
+REQ_SWITCHING = 1.0  # s between requests: the scheduler's req switching time (Figure 2's)
+
 class VisionControl(Iota):
+    react = Param(0.01)          # s: every output goes out this soon after it is due (a deadline, so
+                                 # that no legal schedule, the random policy's, lets it fall behind)
     priority = Param(1)
     epoch = Param(1000.0)        # s: tracking has no end of its own
     timeout = Param(1.0)         # s it may wait (pending or suspended) before the scheduler drops it
@@ -50,7 +54,7 @@ class VisionControl(Iota):
     seen = Output(SIGHTING)
     visual_error = Output(SENSOR_READING)
     near = Output(SENSOR_READING)
-    req = Output(MDL_PROGRAM_REQ, switching=1)
+    req = Output(MDL_PROGRAM_REQ, switching=REQ_SWITCHING)
 
     def init(self):
         self.target_goal = None     # the latest LOOK_GOAL
@@ -81,19 +85,23 @@ class VisionControl(Iota):
         self.live = False
 
     # ------------------------------------------------------------------ outputs
-    @seen.action(value=lambda self: self.out_seen, when=lambda self: self.out_seen is not None)
+    @seen.action(value=lambda self: self.out_seen, when=lambda self: self.out_seen is not None,
+                 within=(0, "react"))
     def sent_seen(self):
         self.out_seen = None
 
-    @visual_error.action(value=lambda self: self.out_error, when=lambda self: self.out_error is not None)
+    @visual_error.action(value=lambda self: self.out_error, when=lambda self: self.out_error is not None,
+                         within=(0, "react"))
     def sent_error(self):
         self.out_error = None
 
-    @near.action(value=lambda self: self.out_near, when=lambda self: self.out_near is not None)
+    @near.action(value=lambda self: self.out_near, when=lambda self: self.out_near is not None,
+                 within=(0, "react"))
     def sent_near(self):
         self.out_near = None
 
-    @req.action(value=lambda self: self.out_req, when=lambda self: self.out_req is not None)
+    @req.action(value=lambda self: self.out_req, when=lambda self: self.out_req is not None,
+                within=(0, lambda self: REQ_SWITCHING + self.react))  # it may wait out req's switching time
     def sent_req(self):
         self.out_req = None
 

@@ -142,19 +142,25 @@ class MdlInterpreter(Iota):
     def on_tick(self):
         self._tick(esprit_now())
 
-    @setpoints.action(value=lambda self: self.out_setpoint, when=lambda self: self.out_setpoint is not None)
+    # Every output goes out before the next tick: a spec that allowed any delay would let a legal
+    # schedule (the random policy's, `iotad run --seed`) fall behind without limit.
+    @setpoints.action(value=lambda self: self.out_setpoint, when=lambda self: self.out_setpoint is not None,
+                      within=(0, lambda self: self._robot.period))
     def sent_setpoints(self):
         self.out_setpoint = None
 
-    @atom_end.action(value=lambda self: self.out_atom_ends[0], when=lambda self: len(self.out_atom_ends) > 0)
+    @atom_end.action(value=lambda self: self.out_atom_ends[0], when=lambda self: len(self.out_atom_ends) > 0,
+                     within=(0, lambda self: self._robot.period))
     def sent_atom_end(self):
         del self.out_atom_ends[0]
 
-    @program_end.action(value=lambda self: self.out_program_ends[0], when=lambda self: len(self.out_program_ends) > 0)
+    @program_end.action(value=lambda self: self.out_program_ends[0], when=lambda self: len(self.out_program_ends) > 0,
+                        within=(0, lambda self: self._robot.period))
     def sent_program_end(self):
         del self.out_program_ends[0]
 
-    @fault.action(value=lambda self: self.out_faults[0], when=lambda self: len(self.out_faults) > 0)
+    @fault.action(value=lambda self: self.out_faults[0], when=lambda self: len(self.out_faults) > 0,
+                  within=(0, lambda self: self._robot.period))
     def sent_fault(self):
         del self.out_faults[0]
 

@@ -12,9 +12,9 @@ ROOT = Path(__file__).resolve().parents[2]
 IOTAD = str(Path(sys.executable).parent / "iotad")
 
 
-def run_virtual(system: str, seconds: float, output: Path) -> Path:
+def run_virtual(system: str, seconds: float, output: Path, *more: str) -> Path:
     done = subprocess.run([IOTAD, "run", str(ROOT / "examples" / system), "--virtual", "--until", str(seconds),
-                           "-o", str(output)], capture_output=True, text=True, timeout=120)
+                           "-o", str(output), *more], capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stdout + done.stderr
     assert ", 0 violations" in done.stdout, done.stdout
     return output
