@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import gc
+import json
 import sys
 import time
 from collections import Counter
@@ -34,6 +35,7 @@ def run_virtual(system, args: argparse.Namespace) -> int:
         raise CliError(f"{system.file}: cannot compose the system: {type(exc).__name__}: {exc}") from None
     # Every input's node is found before a recording is opened (or, with --force, replaced).
     leaves = {leaf.path: leaf for leaf in flatten(root).leaves}
+    inputs = [_external_entry(entry, system, args.inputs) for entry in inputs]
     posts = [(_input_path(entry.get("iota"), root.instance_name, leaves, args.inputs), entry)
              for entry in inputs]
     output = None
@@ -134,7 +136,22 @@ def _input_path(name: str | None, root: str, leaves, script: str) -> str | None:
         return full
     nodes = sorted({path[len(root) + 1:].split("/")[0] for path in leaves if path.startswith(root + "/")})
     raise CliError(f"--inputs {script}: no node {name!r} in this system (nodes: {', '.join(nodes)}; "
-                   f"leave \"iota\" out for the system's external inputs)")
+                   f"an external input is {{\"action\": \"NODE.CHANNEL\"}}, as `external` names it)")
+
+
+def _external_entry(entry: dict, system, script: str) -> dict:
+    """An input-script line without "iota" names one of the system file's external inputs as
+    its action, as `external` writes it ("motor.estop", "scheduler.req[1]"): it becomes that
+    node's input. Lines that name their node are left as they are."""
+    if entry.get("iota") is not None:
+        return entry
+    action, index = entry["action"], entry.get("index")
+    for port in system.external:
+        if action == str(port) or (action == f"{port.node}.{port.channel}" and index in (None, port.index)):
+            return dict(entry, iota=port.node, action=port.channel, index=port.index)
+    known = ", ".join(sorted(str(port) for port in system.external)) or "none"
+    raise CliError(f"--inputs {script}: {{\"action\": {json.dumps(action)}}} without \"iota\" must be one of the system's "
+                   f"external inputs ({known}); or name the node: {{\"iota\": \"NODE\", \"action\": \"CHANNEL\"}}")
 
 
 def _read_inputs(path: str) -> list[dict]:

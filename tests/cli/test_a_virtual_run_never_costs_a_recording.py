@@ -47,6 +47,22 @@ def test_an_input_for_no_node_is_refused_before_the_old_recording_is_replaced(so
     assert not fresh.exists()  # no stray empty recording either
 
 
+def test_an_external_input_is_named_as_the_system_file_names_it(solo, tmp_path, capsys):
+    out = tmp_path / "external.mcap"
+    inputs = script(tmp_path, {"t": 0.5, "action": "scheduler.req[1]", "value": REQUEST},
+                    {"t": 2.0, "action": "scheduler.req", "index": 0, "value": REQUEST})
+    assert main(virtual(solo, out, "--inputs", str(inputs))) == 0
+    recorded = [(e["t"], e["index"]) for e in read_recording(out).trace("scheduler")
+                if e["kind"] == "input" and e["action"] == "req"]
+    assert recorded == [(0.5, 1), (2.0, 0)]
+    # one that is not external, without its node, is refused before anything runs
+    wrong = script(tmp_path, {"t": 0.5, "action": "req", "index": 0, "value": REQUEST})
+    assert main(virtual(solo, tmp_path / "never.mcap", "--inputs", str(wrong))) == 2
+    assert ('{"action": "req"} without "iota" must be one of the system\'s external inputs '
+            '(scheduler.req[0], scheduler.req[1])') in capsys.readouterr().err
+    assert not (tmp_path / "never.mcap").exists()
+
+
 @pytest.mark.parametrize("priority", [10**26, -(1 << 63) - 1, 1 << 64])
 def test_an_int_beyond_64_bits_is_a_recorded_violation(solo, tmp_path, capsys, priority):
     out = tmp_path / "big.mcap"

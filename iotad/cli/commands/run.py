@@ -88,7 +88,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                         help="run every node in this process in virtual time (needs --until, in virtual seconds)")
     parser.add_argument("--inputs", metavar="SCRIPT.jsonl",
                         help="with --virtual: input script for external inputs ({\"t\", \"iota\", \"action\", "
-                             "\"index\", \"value\"} a line; \"iota\" names the node)")
+                             "\"index\", \"value\"} a line; \"iota\" names the node, or leave it out and "
+                             "name an external input as `external` does: {\"action\": \"motor.estop\"})")
     parser.add_argument("--seed", type=int, default=None, metavar="N",
                         help="with --virtual: fire at random times within each window (policy random(N))")
     parser.set_defaults(func=run)
