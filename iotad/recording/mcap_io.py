@@ -941,6 +941,10 @@ def _read_file(path: Path) -> Recording:
                 elif isinstance(record, Schema):
                     recording.schemas[record.id] = record
                 elif isinstance(record, McapChannel):
+                    if record.message_encoding == "json":
+                        # `iotad export --json` writes one for Foxglove; its payloads are not ours
+                        raise RecordingError(f"{path}: a JSON copy for Foxglove ('iotad export --json'); iotad's "
+                                             "tools read the msgpack recording it was exported from")
                     recording.channels[record.id] = record
                 elif isinstance(record, Attachment):
                     recording.attachments.append(record)

@@ -85,6 +85,18 @@ def test_export_json_for_foxglove(tmp_path):
     assert summary.statistics.message_count == len(read_recording(out).messages)
 
 
+def test_the_tools_say_a_json_export_is_not_a_recording_they_read(tmp_path, capsys):
+    out, exported = tmp_path / "fig2.mcap", tmp_path / "fig2.json.mcap"
+    record_run(figure2(), out, until=10)
+    assert main(["export", str(out), "-o", str(exported), "--json"]) == 0
+    capsys.readouterr()
+    for command in (["info"], ["check"], ["plot", "-o", str(tmp_path / "p.png")]):
+        assert main([command[0], str(exported), *command[1:]]) == 2
+        err = capsys.readouterr().err
+        assert "a JSON copy for Foxglove ('iotad export --json'); iotad's tools read the msgpack recording" in err
+        assert "damaged" not in err and "Traceback" not in err
+
+
 def test_plot_draws_a_png(tmp_path):
     out, png = tmp_path / "fig2.mcap", tmp_path / "fig2.png"
     record_run(figure2(), out, until=30)
