@@ -120,7 +120,7 @@ def plot(recording: Recording, output: str | Path, title: str | None = None) -> 
     bx.legend(loc="upper right", fontsize=8)
     bx.grid(alpha=0.3)
     fig.suptitle(title or f"{recording.system or 'buggy'}: Buggy in an arena with {len(arena['cracks'])} cracks",
-                 fontsize=12)
+                 fontsize=12, parse_math=False)  # a title is text: "$5" is not mathtext
     fig.tight_layout()
     output = Path(output)
     fig.savefig(output, dpi=90)

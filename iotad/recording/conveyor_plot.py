@@ -71,7 +71,8 @@ def plot(recording: Recording, output: str | Path, title: str | None = None) -> 
     final = data["tally"][-1][1]
     top.set_ylabel("objects")
     top.set_title(title or f"conveyor arm: {final['placed']} of {final['spawned']} objects placed in the bin "
-                           f"({final['missed']} missed, {final['dropped']} dropped)")
+                           f"({final['missed']} missed, {final['dropped']} dropped)",
+                  parse_math=False)  # a title is text: "$5" is not mathtext
     top.legend(loc="upper left", fontsize=8)
     top.grid(alpha=0.3)
 

@@ -166,7 +166,8 @@ def plot(recording: Recording, output: str | Path, scheduler: str | None = None,
     ax.set_xlabel("time (node clock, spec units)")
     ax.grid(axis="x", alpha=0.3)
     system = recording.system or ""
-    ax.set_title(title or f"{system}: who held the motors ({scheduler})", fontsize=11)
+    ax.set_title(title or f"{system}: who held the motors ({scheduler})", fontsize=11,
+                 parse_math=False)  # a title is text: "$5" is not mathtext
     legend = [Patch(facecolor="0.7", edgecolor="black", label="holds the motors"),
               Patch(facecolor="0.7", edgecolor="black", hatch="//", label="held, then pre-empted"),
               Line2D([], [], color="0.3", label="request"),

@@ -108,3 +108,11 @@ def test_plot_draws_a_png(tmp_path):
     holds = timeline(recording, "scheduler")["holds"]
     assert holds[0][:2] == (0, 0.0) and holds[0][3] == "pre-empted"
     assert Path(png).exists()
+
+
+def test_a_title_is_text_even_with_dollar_signs(tmp_path, capsys):
+    out = tmp_path / "fig2.mcap"
+    record_run(figure2(), out, until=10)
+    picture = tmp_path / "cost.png"
+    assert main(["plot", str(out), "-o", str(picture), "--title", "cost: $5 per 2^$"]) == 0  # was mathtext: a crash
+    assert picture.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
