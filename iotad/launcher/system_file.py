@@ -270,6 +270,7 @@ def load_system(path: str | Path, check: bool = True) -> System:
 class _Parser:
     def __init__(self, path: Path, data: dict):
         self.path, self.data, self.errors = path.resolve(), data, []
+        self.unbuilt: set[str] = set()  # nodes whose IOTA could not be made: their channels are unknown
         self.base = self.path.parent
         self.file = path.name
 
@@ -523,6 +524,7 @@ class _Parser:
                     first, rest = message.split("\n", 1)
                     message = first + "\n" + "\n".join("    " + line for line in rest.splitlines())
                 self.error(node.entry, f"cannot instantiate its IOTA: {message}")
+                self.unbuilt.add(node.name)  # one error, not one more per binding or bus it is in
 
     # ------------------------------------------------------------ [[bind]] and external
     def resolve(self, system: System, text: Any, entry: str, want: str) -> tuple[Port, ChannelInfo] | None:
@@ -537,6 +539,8 @@ class _Parser:
         node = system.nodes.get(node_name)
         if node is None:
             self.error(entry, f"no node named {node_name!r} (nodes: {', '.join(system.nodes) or 'none'})")
+            return None
+        if node_name in self.unbuilt:
             return None
         channel = node.channels.get(channel_name)
         if channel is None:
@@ -724,6 +728,8 @@ class _Parser:
     def check_stations(self, system: System) -> None:
         for bus in system.buses.values():
             for station in bus.stations:
+                if station in self.unbuilt:
+                    continue
                 channels = system.nodes[station].channels
                 for name, direction in ((CAN_TX, "output"), (CAN_RX, "input")):
                     channel = channels.get(name)

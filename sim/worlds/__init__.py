@@ -10,47 +10,98 @@ arguments (`time_step` included).
 """
 from __future__ import annotations
 
+import inspect
+import math
 from typing import Any, Callable
 
 from .plant import Plant
 
 
-def _arm(**options: Any) -> Plant:
+def _arm_class():
     from .arm import ArmWorld
-    return ArmWorld("xarm6", **options)
+    return ArmWorld
 
 
-def _kuka(**options: Any) -> Plant:
-    from .arm import ArmWorld
-    return ArmWorld("kuka_iiwa", **options)
-
-
-def _conveyor(**options: Any) -> Plant:
+def _conveyor_class():
     from .conveyor import ConveyorWorld
-    return ConveyorWorld(**options)
+    return ConveyorWorld
 
 
-def _buggy(**options: Any) -> Plant:
+def _buggy_class():
     from .buggy import BuggyWorld
-    return BuggyWorld(**options)
+    return BuggyWorld
 
 
-# imported on use: `iotad run --check` instantiates IOTAs without opening any world
-WORLDS: dict[str, Callable[..., Plant]] = {"arm": _arm, "kuka": _kuka, "conveyor": _conveyor, "buggy": _buggy}
+# name -> (the world's class, imported on use: `iotad run --check` opens no world; fixed arguments)
+_CLASSES: dict[str, tuple[Callable[[], type], dict[str, Any]]] = {
+    "arm": (_arm_class, {"robot": "xarm6"}), "kuka": (_arm_class, {"robot": "kuka_iiwa"}),
+    "conveyor": (_conveyor_class, {}), "buggy": (_buggy_class, {})}
+WORLDS = tuple(_CLASSES)
+
+
+def world_options(name: str) -> dict[str, inspect.Parameter]:
+    """The options world `name` takes: its class's keyword arguments (a subclass's `**rest`
+    passes on to its base class's)."""
+    cls = _CLASSES[name][0]()
+    options: dict[str, inspect.Parameter] = {}
+    for klass in cls.__mro__:
+        init = klass.__dict__.get("__init__")
+        if init is None:
+            continue
+        more = False
+        for parameter in list(inspect.signature(init).parameters.values())[1:]:
+            if parameter.kind is parameter.VAR_KEYWORD:
+                more = True
+            elif parameter.name not in options:
+                options[parameter.name] = parameter
+        if not more:
+            break
+    for fixed in _CLASSES[name][1]:
+        options.pop(fixed, None)
+    return options
+
+
+def check_options(name: str, options: dict[str, Any]) -> None:
+    """ValueError naming the option for one the world does not take, or of the wrong kind (by
+    its default: a number, a whole number, a flag, a list), or one it needs positive."""
+    known = world_options(name)
+    positive = getattr(_CLASSES[name][0](), "POSITIVE_OPTIONS", ())
+    for key, value in options.items():
+        parameter = known.get(key)
+        if parameter is None:
+            raise ValueError(f"world {name!r} has no option {key!r}; its options: {', '.join(sorted(known))}")
+        default = parameter.default
+        if isinstance(default, bool):
+            ok, kind = isinstance(value, bool), "true or false"
+        elif isinstance(default, int):
+            ok, kind = isinstance(value, int) and not isinstance(value, bool), "a whole number"
+        elif isinstance(default, float):
+            ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+            kind = "a finite number"
+        elif isinstance(default, (tuple, list)) or key in ("start", "cracks", "home"):
+            ok, kind = value is None or isinstance(value, (tuple, list)), "a list"
+        else:
+            ok, kind = True, ""
+        if not ok:
+            raise ValueError(f"world {name!r}: option {key} must be {kind}, got {value!r}")
+        if key in positive and not value > 0:
+            raise ValueError(f"world {name!r}: option {key} must be > 0, got {value!r}")
 
 _open: dict[str, Plant] = {}
 
 
 def make_world(name: str, **options: Any) -> Plant:
     """A new world of kind `name`; ValueError names the kinds there are or the bad option."""
+    if name not in _CLASSES:
+        raise ValueError(f"unknown world {name!r}; known: {', '.join(WORLDS)}")
+    check_options(name, options)
+    cls, fixed = _CLASSES[name]
     try:
-        factory = WORLDS[name]
-    except KeyError:
-        raise ValueError(f"unknown world {name!r}; known: {', '.join(WORLDS)}") from None
-    try:
-        return factory(**options)
-    except TypeError as exc:  # an option the world does not take
-        raise ValueError(f"world {name!r}: {exc}") from None
+        return cls()(**fixed, **options)
+    except ValueError:
+        raise
+    except (ArithmeticError, TypeError, IndexError, KeyError) as exc:  # what the checks above did not foresee
+        raise ValueError(f"world {name!r} cannot be built with options {options}: {type(exc).__name__}: {exc}") from None
 
 
 def open_world(key: str, name: str, **options: Any) -> Plant:

@@ -59,6 +59,11 @@ class BuggyWorld:
 
     joint_names = ("drive", "turn")
 
+    # options that must be > 0 (sim.worlds.check_options)
+    POSITIVE_OPTIONS = ("time_step", "arena_size", "wall_height", "wall_thickness", "body_radius", "wheel_radius",
+                        "food_range", "proximity_range", "proximity_fov", "crack_range", "max_speed",
+                        "max_turn_rate", "drive_inertia", "turn_inertia", "drive_effort", "turn_effort")
+
     def __init__(self, time_step: float = 1.0 / 240.0, seed: int = 0, arena_size: float = 4.0,
                  wall_height: float = 0.3, wall_thickness: float = 0.05, body_radius: float = 0.1,
                  wheel_radius: float = 0.05, cracks: Sequence[tuple[Point, Point]] | None = None,
@@ -71,6 +76,8 @@ class BuggyWorld:
             raise ValueError(f"arena_size {arena_size} m leaves no room for a body of radius {body_radius} m")
         if proximity_rays < 1:
             raise ValueError(f"proximity_rays must be >= 1, got {proximity_rays}")
+        if food_per_crack < 0 or friction < 0:
+            raise ValueError(f"food_per_crack and friction must be >= 0, got {food_per_crack} and {friction}")
         self.time_step = float(time_step)
         self.seed = seed
         self.arena_size, self.body_radius, self.wheel_radius = arena_size, body_radius, wheel_radius

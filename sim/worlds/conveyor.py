@@ -55,6 +55,10 @@ class Cube:
 class ConveyorWorld(ArmWorld):
     """The xArm6 with gripper, a belt of cubes, a bin and an end-effector camera."""
 
+    # options that must be > 0 (sim.worlds.check_options)
+    POSITIVE_OPTIONS = ("time_step", "cube_interval", "cube_size", "belt_length", "belt_width", "belt_height",
+                        "bin_size", "bin_height", "grasp_radius")
+
     def __init__(self, time_step: float = 1.0 / 240.0, seed: int = 0, belt_speed: float = 0.05,
                  cube_count: int = 20, cube_interval: float = 5.0, first_cube: float = 1.0,
                  cube_size: float = 0.04, colours: tuple[str, ...] = tuple(COLOURS), belt_x: float = 0.45,

@@ -182,6 +182,18 @@ def test_every_problem_is_listed(tmp_path):
     assert len(caught.value.errors) == 2, caught.value.errors
 
 
+def test_a_node_that_cannot_be_built_is_one_problem_not_one_per_binding_or_bus(tmp_path):
+    body = ss(sink="Sink", to="dst.inp").replace('python = "IOTAS:Source"', 'python = "IOTAS:Source"\nparams = { period = "x" }')
+    body += ('[[node]]\nname = "ping"\npython = "IOTAS:CanPinger"\nparams = { period = "x" }\n'
+             '[[node]]\nname = "echo"\npython = "IOTAS:CanEcho"\n'
+             '[[can]]\nname = "can0"\ninterface = "virtual"\nchannel = "t"\nstations = ["ping", "echo"]\n')
+    with pytest.raises(SystemFileError) as caught:
+        load_system(write(tmp_path, body))
+    # not also "node 'src' has no external channel 'out'", nor "station 'ping' needs ... can_tx"
+    assert len(caught.value.errors) == 2, caught.value.errors
+    assert all("cannot instantiate its IOTA" in error and "period" in error for error in caught.value.errors)
+
+
 def test_figure2_configs_follow_the_node_host_contract():
     system = load_system(ROOT / "examples" / "figure2.toml")
     assert list(system.nodes) == ["scheduler", "vision", "manipulation"]
