@@ -18,11 +18,12 @@ LABELS = {"WANDER": "wander", "FOLLOW": "follow crack", "EAT": "eat", "AVOID": "
 
 
 def _outputs(recording: Recording, channel: str) -> dict[str, list[tuple[float, object]]]:
-    """node -> [(t, value)] of its `channel` outputs."""
+    """node -> [(t, value)] of its `channel` outputs, t in seconds (events count spec units)."""
     out: dict[str, list] = {}
+    unit = recording.time_unit
     for event in recording.trace():
         if event.get("kind") == "output" and event.get("action") == channel:
-            out.setdefault(event["node"], []).append((float(event["t"]), event.get("value")))
+            out.setdefault(event["node"], []).append((float(event["t"]) * unit, event.get("value")))
     return out
 
 
@@ -113,7 +114,7 @@ def plot(recording: Recording, output: str | Path, title: str | None = None) -> 
     for t, _ in arena["eaten"]:
         bx.axvline(t, color="#2a9d3f", linewidth=0.8, alpha=0.6)
     bx.set_ylim(band * 1.6, top * 1.05)
-    bx.set_xlim(ts[0] if ts else 0, ts[-1] if ts else 1)
+    bx.set_xlim(ts[0] if ts else 0, max(ts[-1], ts[0] + 0.1) if ts else 1)  # one sample: no empty span
     bx.set_xlabel("time (s)")
     bx.set_ylabel("level")
     bx.set_title("hunger and fear; band: the behaviour driving (green lines: food eaten)", fontsize=10)

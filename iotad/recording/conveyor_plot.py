@@ -29,8 +29,9 @@ def conveyor_data(recording: Recording) -> dict:
     the scheduler's node and the end time; RecordingError if it is no conveyor recording."""
     tally, picks, commands, acks, owners = [], [], [], [], {}
     scheduler, end = None, 0.0
+    unit = recording.time_unit  # events count spec units; the picture shows seconds
     for event in recording.trace():
-        t, kind, action = float(event.get("t", 0.0)), event.get("kind"), event.get("action")
+        t, kind, action = float(event.get("t", 0.0)) * unit, event.get("kind"), event.get("action")
         end = max(end, t)
         value = event.get("value")
         if kind == "output" and action == "tally":

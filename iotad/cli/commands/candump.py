@@ -115,6 +115,7 @@ def frame_events(recording, direction: str = "tx", nodes=None, start=None, end=N
 
     actions = ACTIONS[direction]
     found = []
+    unit = recording.time_unit  # events count spec units; frames are shown, and picked, in seconds
     for order, event in enumerate(recording.trace()):
         if event.get("action") not in actions or event.get("kind") not in ("input", "output"):
             continue
@@ -122,7 +123,10 @@ def frame_events(recording, direction: str = "tx", nodes=None, start=None, end=N
         if nodes and node not in nodes:
             continue
         t = event.get("t")
-        if not isinstance(t, (int, float)) or (start is not None and t < start) or (end is not None and t > end):
+        if not isinstance(t, (int, float)):
+            continue
+        t = t * unit
+        if (start is not None and t < start) or (end is not None and t > end):
             continue
         try:
             frame = Frame.from_value(event.get("value"))

@@ -71,6 +71,10 @@ def run(args: argparse.Namespace) -> int:
         path = plot(recording, args.output, args.node, args.title,
                     late=None if args.late is None else args.late / 1e3)
     except RecordingError as exc:
-        raise CliError(str(exc)) from None
+        why = str(exc)
+        if args.node is None:
+            why += ("; nor is it a Buggy recording (outputs pose, mood and landmark) or a conveyor one (tally and "
+                    "mdl_command), or not yet: a run this short may have sent none")
+        raise CliError(why) from None
     print(f"wrote {path}")
     return 0
