@@ -519,8 +519,9 @@ class Engine:
             # earlier window stay behind (a checker would see that window expire)
             instance.te, instance.lower, instance.upper = now, INF, INF
             return
-        earliest = plus(now, lower)
-        instance.te, instance.lower, instance.upper = now, earliest, plus(now, upper)
+        # `plus` inlined for its usual cases (no delay; no deadline): this is a hot path
+        earliest = now if lower == 0 else plus(now, lower)
+        instance.te, instance.lower, instance.upper = now, earliest, INF if upper == INF else plus(now, upper)
         slot = instance.slot
         if slot.last + slot.switching > earliest:
             earliest = max(earliest, plus(slot.last, slot.switching))
