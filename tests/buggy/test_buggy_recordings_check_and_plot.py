@@ -29,3 +29,15 @@ def test_a_bad_body_parameter_is_named(tmp_path):
     assert done.returncode == 2
     assert "sense_period must be a number > 0" in done.stdout + done.stderr
     assert "Traceback" not in done.stdout + done.stderr
+
+
+def test_replaying_a_composite_node_names_its_parts(buggy_run):
+    # `conscious` is one process in real time; a virtual run records its three parts one by one
+    done = subprocess.run([IOTAD, "replay", str(buggy_run), "--node", "conscious"], capture_output=True, text=True,
+                          timeout=120)
+    assert done.returncode == 2
+    assert ("'conscious' is a composite whose parts this recording holds one by one: replay each "
+            "(--node conscious/c, --node conscious/f, --node conscious/w)") in done.stderr
+    part = subprocess.run([IOTAD, "replay", str(buggy_run), "--node", "conscious/c"], capture_output=True, text=True,
+                          timeout=120)
+    assert part.returncode == 0 and "conscious/c: replay agrees" in part.stdout

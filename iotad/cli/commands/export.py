@@ -17,6 +17,7 @@ See also: 'iotad plot FILE -o OUT.png' (the motor arbitration timeline), 'iotad 
 
 def register(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser("export", help="write a JSON-encoded MCAP copy of a recording (for Foxglove)",
+                            usage="iotad export FILE -o OUT.mcap --json [--force]",
                             description="Re-encode every message of a recording as JSON (message encoding "
                                         "'json', JSON Schema kept), so that Foxglove Studio shows and plots "
                                         "it; attachments (specs, system file) and metadata are copied.",

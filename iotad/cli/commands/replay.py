@@ -70,6 +70,10 @@ def run(args: argparse.Namespace) -> int:
         return live(args, recording)
     nodes = recording.nodes()
     if args.node not in nodes and args.node not in recording.specs:
+        parts = [node for node in nodes if node.startswith(args.node + "/")]
+        if parts:  # a composite node: one process in real time, its parts' traces in virtual time
+            raise CliError(f"{args.node!r} is a composite whose parts this recording holds one by one: replay "
+                           f"each ({', '.join('--node ' + part for part in parts)})")
         raise CliError(f"node {args.node!r} is not in {args.file} (nodes: {', '.join(nodes) or 'none'})")
     tolerance = default_tolerance(recording) if args.tolerance is None else args.tolerance
     kinds = ("output", "internal") if args.internal else ("output",)
