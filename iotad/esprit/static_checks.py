@@ -593,6 +593,11 @@ class Checker:
                     src_chan.type is not None and src_chan.type.json_schema() != dst_chan.type.json_schema()):
                 self.error(bind.pos, f"{bind.source} carries {describe(src_chan.type) if src_chan.type else 'nothing'}, "
                                      f"{bind.target} {describe(dst_chan.type) if dst_chan.type else 'nothing'}")
+            if src_key[0] is not None and dst_key[0] is not None and isinstance(src_chan.switching, float) \
+                    and isinstance(dst_chan.switching, float) and src_chan.switching < dst_chan.switching:
+                self.warn(bind.pos, f"{bind.source} may send every {src_chan.switching:g} but {bind.target} takes an "
+                                    f"input at most every {dst_chan.switching:g}: what comes sooner is refused "
+                                    "(a switching_time violation)")
             outer, inner = (src, dst) if src_key[0] is None else (dst, src) if dst_key[0] is None else (None, None)
             if outer is not None and inner[0][0] is not None and isinstance(outer[1].switching, float) \
                     and isinstance(inner[1].switching, float) and outer[1].switching != inner[1].switching:

@@ -114,6 +114,10 @@ WARNINGS = {
                              "enum e { A, B }; iota a: -> out()/1 { states enum e s = A; actions out() when s == B "
                              "do s = A; in2() do s = B; } ",
                              "can never be enabled: nothing ever sets a value to B"),
+    "faster_than_its_reader": (PINGPONG.replace("inp()/0 -> out()/0 { states bool", "inp()/2 -> out()/0 { states bool")
+                               + "iota pair: -> { include ping a; pong b; a.out -> b.inp; b.out -> a.inp; }",
+                               PINGPONG + "iota pair: -> { include ping a; pong b; a.out -> b.inp; b.out -> a.inp; }",
+                               "a.out may send every 0 but b.inp takes an input at most every 2"),
     "never_enabled_false": ("iota a: -> out()/1 { actions out() when 1 > 2 }",
                             "iota a: -> out()/1 { actions out() when 2 > 1 }", "precondition is always false"),
 }
