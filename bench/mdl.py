@@ -236,8 +236,11 @@ def main() -> int:
     print(f"  (d) interpreter, program, 3 sensors      {loaded:>9,.0f} ticks/s  ({1e6 / loaded:6.1f} us; "
           f"{1e6 / loaded - 1e6 / traffic:+.1f} us over (b); {loaded / RATE:.1f}x real time at {RATE:g} Hz)")
     load = os.getloadavg()[0]
+    cores = os.cpu_count() or 1
+    busy = ("above the core count: ticks wait for a CPU and the misses say so" if load >= cores
+            else "below the core count")
     print(f"real time, {args.realtime:g} s each, engine in this process (load average {load:.1f} on "
-          f"{os.cpu_count()} cores: above the core count, ticks wait for a CPU and the misses say so):")
+          f"{cores} cores: {busy}):")
     rt_base = realtime("baseline", args.realtime)
     rt_loaded = realtime("program", args.realtime)
     print("  " + line("(a) baseline, bare ticking IOTA", rt_base))
