@@ -112,6 +112,9 @@ def stmt(node: S.Node, indent: int) -> list[str]:
         return lines or [pad + "pass"]
     if isinstance(node, S.Assign):
         target, value = node.target, _fresh(node.value)
+        bounds = getattr(node, "within_range", None)
+        if bounds is not None:  # refused before it is stored: the state keeps its value
+            value = f"in_range({value}, {bounds[0]!r}, {bounds[1]!r}, {_label(target)!r})"
         if isinstance(target, S.IndexOf) and not _is_family_index(target.index):
             return [f"{pad}ix_set({expr(target.obj)}, {expr(target.index)}, {value})"]
         if getattr(node, "keeps_length", False):  # a whole array: as long as the one it replaces
@@ -128,6 +131,17 @@ def stmt(node: S.Node, indent: int) -> list[str]:
         # the bounds are evaluated once and the loop variable cannot be assigned: it terminates
         return [f"{pad}for l_{node.var} in loop_range({expr(node.start)}, {expr(node.stop)}):"] + stmt(node.body, indent + 1)
     raise AssertionError(f"unknown statement {node!r}")  # pragma: no cover
+
+
+def _label(target: S.Expr) -> str:
+    """How a message names an assigned state: `x`, `a[]`, `s.f`."""
+    if isinstance(target, S.Name):
+        return target.id
+    if isinstance(target, S.IndexOf):
+        return _label(target.obj) + "[]"
+    if isinstance(target, S.FieldOf):
+        return f"{_label(target.obj)}.{target.name}"
+    return "the value"
 
 
 # ---------------------------------------------------------------- cells

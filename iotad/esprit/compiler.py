@@ -17,7 +17,7 @@ from . import syntax as S
 from .static_checks import Checked, IotaInfo
 from .errors import EspritError, Source
 from .runtime import (all_of, any_of, c_div, c_mod, cp, esprit_inhibit, esprit_now, esprit_reset, fresh_budget,
-                      inhibit_left, ix, ix_set, loop_range, restarted, same_length, uninhibit, with_budget)
+                      in_range, inhibit_left, ix, ix_set, loop_range, restarted, same_length, uninhibit, with_budget)
 from .typesys import VOID, ArrayOf, describe
 
 MAX_ARRAY = 1_000_000  # elements of one state array: more is a slip (a parameter off by powers of ten)
@@ -156,7 +156,7 @@ def coerce(ptype, value: Any) -> Any:
 class Compiler:
     def __init__(self, checked: Checked, source: Source):
         self.checked, self.source = checked, source
-        self.globals: dict[str, Any] = {"ix": ix, "ix_set": ix_set, "same_length": same_length, "cp": cp, "c_div": c_div, "c_mod": c_mod,
+        self.globals: dict[str, Any] = {"ix": ix, "ix_set": ix_set, "same_length": same_length, "in_range": in_range, "cp": cp, "c_div": c_div, "c_mod": c_mod,
                                         "all_of": all_of, "any_of": any_of, "loop_range": loop_range,
                                         "fresh_budget": fresh_budget, "esprit_now": esprit_now,
                                         "esprit_reset": esprit_reset, "esprit_inhibit": esprit_inhibit,

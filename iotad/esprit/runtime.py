@@ -18,6 +18,14 @@ def ix_set(sequence: Any, index: Any, value: Any) -> None:
     sequence[_checked(sequence, index)] = value
 
 
+def in_range(value: Any, low: Any, high: Any, name: str) -> Any:
+    """`value`, to store in state `name` declared `in [low, high]` (None: unbounded that side)."""
+    if value is not None and not ((low is None or low <= value) and (high is None or value <= high)):
+        raise ValueError(f"{name} = {value!r} is outside its declared range [{'-inf' if low is None else low}, "
+                         f"{'inf' if high is None else high}]; it keeps its value")
+    return value
+
+
 def same_length(old: Any, new: Any) -> Any:
     """`new`, to replace the array `old`: an array's length is its declaration's, for good."""
     if old is not None and new is not None and len(new) != len(old):

@@ -814,6 +814,9 @@ class Checker:
         elif isinstance(ttype, (ArrayOf, ArrayType)):
             # an array keeps its length: a length known only when it runs is checked then (codegen)
             node.keeps_length = True
+        elif is_number(ttype) and (ttype.low is not None or ttype.high is not None):
+            # a declared range holds for state too (the paper's declarations give states ranges)
+            node.within_range = (ttype.low, ttype.high)
 
     # ---------------------------------------------------------------- expressions
     def expr(self, node: S.Expr, scope: _Scope, expected=None, statement: bool = False):

@@ -170,6 +170,28 @@ def test_an_array_keeps_its_declared_length():
     assert violations(run(spec, M=3)) == []
 
 
+def test_a_state_keeps_to_its_declared_range():
+    spec = """
+    struct pt { float x in [0.0, 1.0]; };
+    iota r: -> out(int)/0 {
+      states int x in [0, 10] = 0; int a[2] in [0, 3] = 0; struct pt p = {0.5};
+      actions
+      out(x) after 1 do { x = x + 5; a[1] = x; }
+    }"""
+    trace = run(spec, until=4.0)
+    # x: 0, 5, 10, then 15 is refused and x stays 10; a[1] never takes 5 or 10
+    assert outputs(trace) == [(1.0, 0), (2.0, 5), (3.0, 10), (4.0, 10)]
+    assert [(t, message.split(": ", 1)[1]) for t, _, message in violations(trace)] == [
+        (1.0, "ValueError: a[] = 5 is outside its declared range [0, 3]; it keeps its value"),
+        (2.0, "ValueError: a[] = 10 is outside its declared range [0, 3]; it keeps its value"),
+        (3.0, "ValueError: x = 15 is outside its declared range [0, 10]; it keeps its value"),
+        (4.0, "ValueError: x = 15 is outside its declared range [0, 10]; it keeps its value")]
+    field = spec.replace("do { x = x + 5; a[1] = x; }", "do p.x = 2.0;").replace("out(x) after 1", "out(0) after 1")
+    assert violations(run(field, until=1.0)) == [
+        (1.0, "runtime_error", "out(0) (do): ValueError: p.x = 2.0 is outside its declared range [0.0, 1.0]; "
+                               "it keeps its value")]
+
+
 def test_family_with_index_and_parameters():
     spec = """
     iota fan(int N = 3, float T = 0.5): -> tick[N](int)/T {
