@@ -309,6 +309,10 @@ class Compiler:
                                 raise ValueError(f"{len(value)} initial values for {length} elements")
                         else:
                             value = [cp(value) for _ in range(length)]
+                    low, high = getattr(element, "low", None), getattr(element, "high", None)
+                    if low is not None or high is not None:  # a declared range holds from the start
+                        for item in (value if size_fn is not None else [value]):
+                            in_range(item, low, high, name, then="")
                 except Exception as exc:  # noqa: BLE001 - reported at the declaration
                     raise source.error(d.pos, f"initial value of {name}: {type(exc).__name__}: {exc}") from None
                 object.__setattr__(iota, name, value)

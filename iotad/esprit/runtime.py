@@ -18,11 +18,11 @@ def ix_set(sequence: Any, index: Any, value: Any) -> None:
     sequence[_checked(sequence, index)] = value
 
 
-def in_range(value: Any, low: Any, high: Any, name: str) -> Any:
+def in_range(value: Any, low: Any, high: Any, name: str, then: str = "; it keeps its value") -> Any:
     """`value`, to store in state `name` declared `in [low, high]` (None: unbounded that side)."""
     if value is not None and not ((low is None or low <= value) and (high is None or value <= high)):
         raise ValueError(f"{name} = {value!r} is outside its declared range [{'-inf' if low is None else low}, "
-                         f"{'inf' if high is None else high}]; it keeps its value")
+                         f"{'inf' if high is None else high}]{then}")
     return value
 
 

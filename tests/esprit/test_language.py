@@ -186,6 +186,9 @@ def test_a_state_keeps_to_its_declared_range():
         (2.0, "ValueError: a[] = 10 is outside its declared range [0, 3]; it keeps its value"),
         (3.0, "ValueError: x = 15 is outside its declared range [0, 10]; it keeps its value"),
         (4.0, "ValueError: x = 15 is outside its declared range [0, 10]; it keeps its value")]
+    with pytest.raises(EspritError, match=r"initial value of x: ValueError: x = 55 is outside its declared range "
+                                          r"\[0, 10\]\n"):
+        run(spec.replace("int x in [0, 10] = 0", "int x in [0, 10] = 55"))
     field = spec.replace("do { x = x + 5; a[1] = x; }", "do p.x = 2.0;").replace("out(x) after 1", "out(0) after 1")
     assert violations(run(field, until=1.0)) == [
         (1.0, "runtime_error", "out(0) (do): ValueError: p.x = 2.0 is outside its declared range [0.0, 1.0]; "
