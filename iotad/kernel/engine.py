@@ -42,6 +42,8 @@ def plus(t: float, duration: float) -> float:
         return t
     later = round(t + duration, TIME_DECIMALS)
     return later if later >= t else t
+
+
 # the violations by which an engine refuses an input event (`_deliver`); it is then not taken
 INPUT_REFUSALS = ("bad_value", "switching_time")
 
