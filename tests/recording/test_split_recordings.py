@@ -10,6 +10,7 @@ from pathlib import Path
 
 import pytest
 import zenoh
+from mcap.reader import make_reader
 
 from iotad.cli import main
 from iotad.host import wire
@@ -134,7 +135,9 @@ def test_split_set_of_three_or_more_files_reads_back_as_the_unsplit_recording(tm
     assert main(["info", str(split.output)]) == 0
     assert f"{KEY}" in capsys.readouterr().out
     assert main(["export", str(split.output), "--json", "-o", str(tmp_path / "json.mcap")]) == 0
-    assert received(tmp_path / "json.mcap") == source.sent
+    with open(tmp_path / "json.mcap", "rb") as stream:  # a JSON copy, for Foxglove: iotad's reader refuses it
+        exported = sum(1 for _, channel, _ in make_reader(stream).iter_messages() if channel.topic == KEY)
+    assert exported == source.sent
 
 
 def test_recorder_killed_mid_set_leaves_earlier_files_whole_and_the_last_recoverable(tmp_path, recorders, capsys):
