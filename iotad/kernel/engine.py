@@ -71,7 +71,7 @@ class ActionInstance:
 
     __slots__ = ("leaf", "action", "index", "slot", "rank", "enabled", "gen", "te", "lower", "upper",
                  "fire_at", "affects", "iota", "when", "value", "do", "after", "before", "reads", "dynamic",
-                 "failing")
+                 "failing", "chain")
 
     def __init__(self, leaf: Leaf, action: Action, index: int | None, slot: Slot, rank: int):
         self.leaf, self.action, self.index, self.slot, self.rank = leaf, action, index, slot, rank
@@ -85,6 +85,7 @@ class ActionInstance:
         self.affects: list[ActionInstance] | None = None  # computed on first firing
         self.dynamic = _dynamic_writes(action)
         self.failing = False  # its precondition raised at its last evaluation
+        self.chain = 0  # real time: firings with no delay that led to its enabling (the zeno guard)
         self.reads = _concrete(action.reads, index)
 
 
@@ -151,6 +152,7 @@ class Engine:
         self._heap: list = []
         self._instant = -INF
         self._instant_count = 0
+        self._chain = 0  # real time: the chain of the firing in progress (0: none, or an input)
         self._build()
         self._started = False
 
@@ -273,8 +275,6 @@ class Engine:
             now = clock.now()
             if item is not None:
                 self._external_input(item, now)
-                if not clock.virtual:
-                    self._instant_count = 0  # an input from outside: what it enables is a new chain
                 continue
             if next_fire <= until and next_fire != INF:
                 try:
@@ -314,8 +314,9 @@ class Engine:
         In virtual time they all fire at `now`. In real time a firing happens when it happens:
         one due with others but after a slow do-block is stamped, and judged against its
         deadline, at its own time; and the zeno guard, which in virtual time counts the firings
-        of one instant, counts a chain of firings each enabled by the one before with no delay
-        (an external input or a firing that waited ends the chain)."""
+        of one instant, counts the length of a chain of firings each enabled by the one before
+        and due at once (`ActionInstance.chain`): other firings in between do not break it, and
+        an external input or a firing that waited starts a new one."""
         heap = self._heap
         fired = 0
         instant = now
@@ -331,9 +332,8 @@ class Engine:
                 self._schedule(instance, earliest, now)
                 continue
             if real:
-                # with no delay: due as soon as it was enabled, by the firing before it
-                immediate = fire_at == instance.te and instance.te >= self._instant
-                self._instant_count = self._instant_count + 1 if immediate else 1
+                # due as soon as it was enabled: one more link of the chain that enabled it
+                self._instant_count = self._chain = instance.chain if fire_at == instance.te else 0
             else:
                 if self._instant != instant:
                     self._instant, self._instant_count = instant, 0
@@ -347,7 +347,7 @@ class Engine:
             self._fire(instance, now)
             fired += 1
             if real:
-                self._instant = now  # the chain's last firing
+                self._chain = 0  # what an input from outside enables starts a chain of its own
                 now = self.clock.now()
         return fired
 
@@ -504,6 +504,7 @@ class Engine:
     def _enable(self, instance: ActionInstance, now: float) -> None:
         instance.enabled = True
         instance.gen += 1
+        instance.chain = self._chain + 1
         try:
             lower = 0.0 if instance.after is None else float(instance.after())
             upper = INF if instance.before is None else float(instance.before())

@@ -79,6 +79,38 @@ def test_a_loop_with_no_delay_is_zeno_in_real_time_too():
     assert zeno["value"]["violation"] == "zeno" and len(events(engine, "internal")) == 100
 
 
+class TwoLoopsAndATimer(Iota):
+    """Two loops with no delay, side by side, and a 5 ms timer: none of them ends the others'
+    chains (a guard that counted one chain for the whole engine never halted this one)."""
+    a = Internal()
+    b = Internal()
+    tick = Internal()
+
+    @a.action()
+    def spun_a(self):
+        self.clock.spend(1e-6)
+
+    @b.action()
+    def spun_b(self):
+        self.clock.spend(1e-6)
+
+    @tick.action(after=0.005)
+    def ticked(self):
+        pass
+
+
+def test_loops_with_no_delay_are_zeno_whatever_fires_in_between():
+    clock = ProcessClock()
+    iota = TwoLoopsAndATimer("z")
+    iota.clock = clock
+    engine = Engine(iota, clock, max_firings_per_instant=100)
+    engine.run(10.0)
+    assert engine.halted
+    [zeno] = [e for e in engine.trace if e["kind"] == "violation"]
+    assert zeno["value"]["violation"] == "zeno"
+    assert len([e for e in engine.trace if e["action"] in ("a", "b")]) <= 2 * 100
+
+
 class LateTicker(Iota):
     """A 1 kHz tick whose every firing takes 2 ms: always late, never a loop without delay."""
     tick = Internal()
