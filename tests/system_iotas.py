@@ -125,6 +125,22 @@ class CanPinger(Iota):
         self.received.append(Frame.from_value(frame))
 
 
+class CanTwinPinger(Iota):
+    """A CAN station that sends the same frame (0x10, one zero byte) every `period`, as an
+    ODrive's unchanging heartbeat does: frames told apart only by their order."""
+    period = Param(0.01)
+    can_tx = Output(CAN_FRAME, switching=0)
+    can_rx = Input(CAN_FRAME, switching=0)
+
+    @can_tx.action(value=lambda self: Frame(0x10, bytes(1)).to_value(), after="period")
+    def ping(self):
+        pass
+
+    @can_rx.input
+    def heard(self, frame):
+        pass
+
+
 class CanEcho(Iota):
     """A CAN station: answers every frame id with id + 1 and the same data."""
     can_tx = Output(CAN_FRAME, switching=0)

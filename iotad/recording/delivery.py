@@ -901,6 +901,9 @@ class DeliveryChecker:
                      for s in senders}
             self.report.links += list(links.values())
             waiting = _frame_queues(sent, senders)
+            life = self.life.get(receiver)
+            if life is not None:
+                _unheard_before_start(waiting, sent, got, life)
             taken: dict[str, set[int]] = {s: set() for s in senders}
             last_taken: dict[str, int] = {}
             foreign: list[tuple[float, tuple]] = []
@@ -1131,6 +1134,28 @@ def _frame_queues(sent: dict[str, list], stations) -> dict[str, dict[tuple, dequ
         for k, (_, frame) in enumerate(sent[s]):
             waiting[s].setdefault(frame, deque()).append(k)
     return waiting
+
+
+def _unheard_before_start(waiting: dict[str, dict[tuple, deque]], sent: dict[str, list], got: list[dict],
+                          life: Any) -> None:
+    """Take out of the candidates the frames a receiver cannot have heard: sent before its
+    engine started, before its socket was open. A socket opened a little before the engine
+    starts hears the last of them, so of the twins (the same frame, sent again and again, as an
+    ODrive's heartbeat is) sent before the start it keeps as many as it received beyond those
+    sent after; the earlier ones, if left, would be paired with its first receptions, and every
+    reception after with a frame sent periods before it (false 'reordered', then 'lost')."""
+    received: dict[tuple, int] = {}
+    for event in got:
+        frame = _frame(event.get("value"))
+        received[frame] = received.get(frame, 0) + 1
+    for sender, queues in waiting.items():
+        for frame, queue in queues.items():
+            before = sum(1 for k in queue if life.before_start(sent[sender][k][0]))  # a prefix: in sent order
+            if not before:
+                continue
+            keep = max(0, received.get(frame, 0) - (len(queue) - before))
+            for _ in range(before - keep):
+                queue.popleft()
 
 
 def _frame(value: Any) -> tuple:

@@ -1,5 +1,5 @@
 """A ping-pong over a CAN bus in real time: tests/system_iotas.py's CanPinger (a frame every
-50 ms) and CanEcho (answers each), `iotad run` for 6 s after both are live, recorded."""
+50 ms, or `period`) and CanEcho (answers each), `iotad run` for 6 s after both are live, recorded."""
 import sys
 from pathlib import Path
 
@@ -10,13 +10,14 @@ from system_iotas import pingpong_system
 SYSTEM = "start_timeout = 60.0\nheartbeat_timeout = 15.0"
 
 
-def run_pingpong(can_tier, folder: Path, *, echo: str = "", bus: str = "") -> Path:
+def run_pingpong(can_tier, folder: Path, *, echo: str = "", bus: str = "", pinger: str = "CanPinger",
+                 period: float = 0.05) -> Path:
     """Runs it in `can_tier` and returns the recording. `echo` adds lines to the echo's
     [[node]], `bus` to the [[can]] table (which says `interface = "env"`: the tier's bus).
     A node the launcher restarted fails the run here: these tests judge one life of each node."""
     system = folder / "pingpong.toml"
     system.write_text(pingpong_system(
-        0.05, system=SYSTEM, echo=echo,
+        period, system=SYSTEM, echo=echo, pinger=pinger,
         bus='name = "can0"\ninterface = "env"\nstations = ["pinger", "echo"]\n' + bus))
     recording = folder / "pingpong.mcap"
     run = can_tier.run([sys.executable, "-m", "iotad", "run", str(system), "--until", "6", "--after-live", "--plain",
