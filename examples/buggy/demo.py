@@ -2,10 +2,12 @@
 
     python examples/buggy/demo.py [--seconds 30] [--system examples/buggy.toml]
 
-The system file's CAN bus is SocketCAN vcan0. Where this host has no vcan0 the demo runs itself
-inside a CAN tier (`python -m iotad.can.tiers`, docs/can.md): preferably udp_multicast on the
-loopback of a private network namespace (native speed), else whatever tier there is; inside the
-tier it runs a copy of the system file whose [[can]] names the tier's bus.
+The system file's CAN bus is `interface = "env"`: the bus IOTAD_CAN_INTERFACE and
+IOTAD_CAN_CHANNEL name. Where they are not set, the demo takes SocketCAN vcan0 if this host has
+it, and else runs itself inside a CAN tier (`python -m iotad.can.tiers`, docs/can.md), which
+sets them: preferably udp_multicast on the loopback of a private network namespace (native
+speed), else whatever tier there is. (A system file that names its own bus is run inside the
+tier as a copy whose [[can]] names the tier's.)
 """
 from __future__ import annotations
 
@@ -28,8 +30,10 @@ def main() -> int:
     parser.add_argument("--out", default=str(ROOT / "recordings"), help="folder for the recording and picture")
     args = parser.parse_args()
     seconds = min(max(args.seconds, 5.0), 60.0)
-    if "IOTAD_CAN_TIER" not in os.environ and not Path("/sys/class/net/vcan0").exists():
-        return _in_tier(seconds, args)
+    if "IOTAD_CAN_INTERFACE" not in os.environ:
+        if not Path("/sys/class/net/vcan0").exists():
+            return _in_tier(seconds, args)
+        os.environ.update(IOTAD_CAN_INTERFACE="socketcan", IOTAD_CAN_CHANNEL="vcan0")  # for "env" buses
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     recording, picture = out / "buggy-demo.mcap", out / "buggy-demo.png"
@@ -94,9 +98,10 @@ class _on_tier_bus:
 
     def __enter__(self) -> Path:
         interface, channel = os.environ.get("IOTAD_CAN_INTERFACE"), os.environ.get("IOTAD_CAN_CHANNEL")
-        if not interface or (interface, channel) == ("socketcan", "vcan0"):
-            return self.system
         text = self.system.read_text()
+        if not interface or (interface, channel) == ("socketcan", "vcan0") or \
+                re.search(r'^interface = "env"', text, flags=re.M):
+            return self.system  # its bus already is, or is taken from the environment
         text = re.sub(r'^interface = "[^"]*"', f'interface = "{interface}"', text, flags=re.M)
         text = re.sub(r'^channel = "[^"]*"', f'channel = "{channel}"', text, flags=re.M)
         # beside the original: its relative paths (spec, python) stay right
