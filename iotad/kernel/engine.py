@@ -71,7 +71,7 @@ class ActionInstance:
 
     __slots__ = ("leaf", "action", "index", "slot", "rank", "enabled", "gen", "te", "lower", "upper",
                  "fire_at", "affects", "iota", "when", "value", "do", "after", "before", "reads", "dynamic",
-                 "failing", "chain")
+                 "failing")
 
     def __init__(self, leaf: Leaf, action: Action, index: int | None, slot: Slot, rank: int):
         self.leaf, self.action, self.index, self.slot, self.rank = leaf, action, index, slot, rank
@@ -85,7 +85,6 @@ class ActionInstance:
         self.affects: list[ActionInstance] | None = None  # computed on first firing
         self.dynamic = _dynamic_writes(action)
         self.failing = False  # its precondition raised at its last evaluation
-        self.chain = 0  # real time: firings with no delay that led to its enabling (the zeno guard)
         self.reads = _concrete(action.reads, index)
 
 
@@ -152,7 +151,6 @@ class Engine:
         self._heap: list = []
         self._instant = -INF
         self._instant_count = 0
-        self._chain = 0  # real time: the chain of the firing in progress (0: none, or an input)
         self._build()
         self._started = False
 
@@ -309,19 +307,9 @@ class Engine:
         self._external_input((path, channel, index, value, None), self.clock.now())
 
     def _fire_due(self, now: float, limit: float = INF) -> int:
-        """Fire what is due at `now` (at most `limit`), then return to `run` (inputs, stop).
-
-        In virtual time they all fire at `now`. In real time a firing happens when it happens:
-        one due with others but after a slow do-block is stamped, and judged against its
-        deadline, at its own time; and the zeno guard, which in virtual time counts the firings
-        of one instant, counts the length of a chain of firings each enabled by the one before
-        and due at once (`ActionInstance.chain`): other firings in between do not break it, and
-        an external input or a firing that waited starts a new one."""
         heap = self._heap
         fired = 0
-        instant = now
-        real = not self.clock.virtual
-        while fired < limit and heap and heap[0][0] <= instant:
+        while fired < limit and heap and heap[0][0] <= now:
             fire_at, _, gen, instance = heapq.heappop(heap)
             if instance.gen != gen or not instance.enabled:
                 continue
@@ -331,13 +319,9 @@ class Engine:
                 # another action on this channel fired meanwhile: wait out its switching time
                 self._schedule(instance, earliest, now)
                 continue
-            if real:
-                # due as soon as it was enabled: one more link of the chain that enabled it
-                self._instant_count = self._chain = instance.chain if fire_at == instance.te else 0
-            else:
-                if self._instant != instant:
-                    self._instant, self._instant_count = instant, 0
-                self._instant_count += 1
+            if self._instant != now:
+                self._instant, self._instant_count = now, 0
+            self._instant_count += 1
             if self._instant_count > self.max_firings_per_instant:
                 self._violation(now, instance.leaf.path, instance.action.channel, instance.index, "zeno",
                                 f"more than {self.max_firings_per_instant} firings at t={now}: "
@@ -346,9 +330,6 @@ class Engine:
                 raise Halted()
             self._fire(instance, now)
             fired += 1
-            if real:
-                self._chain = 0  # what an input from outside enables starts a chain of its own
-                now = self.clock.now()
         return fired
 
     def _fire(self, instance: ActionInstance, now: float) -> None:
@@ -504,7 +485,6 @@ class Engine:
     def _enable(self, instance: ActionInstance, now: float) -> None:
         instance.enabled = True
         instance.gen += 1
-        instance.chain = self._chain + 1
         try:
             lower = 0.0 if instance.after is None else float(instance.after())
             upper = INF if instance.before is None else float(instance.before())
