@@ -1,6 +1,6 @@
 """On a real CAN bus a frame reaches only the stations whose sockets are open: frames a station
 sent before another had started are 'not judged' by the delivery check, never 'lost', and every
-frame after the start is delivered (ping-pong over the best tier, the echo started last). The
+frame after the start is delivered (ping-pong over `system_can_tier`, the echo started last). The
 pinger sends the same frame every time, as an ODrive's heartbeat is: the frames before the
 start must not be taken for the first ones received (each reception then paired with a frame
 sent periods before it: false 'reordered', then 'lost', findings)."""
@@ -9,11 +9,11 @@ from iotad.recording.delivery import check_delivery
 from iotad.recording.mcap_io import read_recording
 
 
-def test_frames_sent_before_the_echo_started_are_not_judged_and_the_rest_delivered(can_tier, tmp_path):
-    # no bus logger: one process less to start on the one vCPU of user-mode Linux
+def test_frames_sent_before_the_echo_started_are_not_judged_and_the_rest_delivered(system_can_tier, tmp_path):
+    # no bus logger: one process less to start (on the one vCPU of user-mode Linux, where it runs there)
     # a frame every 10 ms: the twins sent in the last 0.1 s before the echo started (the check's
     # window for a frame waiting on a busy bus) are candidates for its first receptions
-    recording = run_pingpong(can_tier, tmp_path, echo='after = ["pinger"]', bus="log = false",
+    recording = run_pingpong(system_can_tier, tmp_path, echo='after = ["pinger"]', bus="log = false",
                              pinger="CanTwinPinger", period=0.01)
     report = check_delivery(read_recording(recording))
     link = next(link for link in report.links if link.label == "can can0: pinger -> echo")

@@ -1,5 +1,5 @@
 """In real time each [[can]] bus has a bus logger, a listen-only node named after the bus: a
-ping-pong over the best CAN tier records `iota/pingpong/can0/frames` with every frame both
+ping-pong over a CAN tier (`system_can_tier`) records `iota/pingpong/can0/frames` with every frame both
 stations sent (ids, data, each station's order), `iotad check` matches each station's can_tx
 against it (`can can0: STATION -> (bus)`, clean), `iotad candump --log` prints it, and a frame a
 station sent that the logger never heard is reported lost. The file says `interface = "env"`:
@@ -23,9 +23,9 @@ LOG = "iota/pingpong/can0/frames"
 
 
 @pytest.fixture(scope="module")
-def pingpong(can_tier, tmp_path_factory):
+def pingpong(system_can_tier, tmp_path_factory):
     tmp_path = tmp_path_factory.mktemp("bus_log")
-    return run_pingpong(can_tier, tmp_path)
+    return run_pingpong(system_can_tier, tmp_path)
 
 
 def new_problems(original, report):

@@ -1,7 +1,7 @@
 """The arm of examples/arm_can.toml in one process in virtual time, the motor node cut off the bus
 mid-motion (what its kill -9 is, seen from the bus): every simulated axis says IDLE with a
 watchdog error within 100 ms of the last command it received, measured on the recorded frames,
-and no joint moves after. Exact, where the real-time run (test_motor_node_killed_mid_motion_over_vcan)
+and no joint moves after. Exact, where the real-time run (test_motor_node_killed_mid_motion_over_can_in_real_time)
 can only bound it by its late heartbeats."""
 import pytest
 

@@ -1,14 +1,14 @@
-"""examples/arm_can.toml as processes in real time on the best CAN tier (vcan, vcan0 in user-mode
-Linux, or udp_multicast where user-mode Linux does not boot), its motor node killed with SIGKILL
-while the arm moves:
+"""examples/arm_can.toml as processes in real time on a CAN bus (conftest's `system_can_tier`:
+udp_multicast in a private network namespace where the host has it, else the best tier), its
+motor node killed with SIGKILL while the arm moves:
 
 - every simulated axis is IDLE with a watchdog error within 100 ms of the last command it got
   (in the axis's own time: its recorded steps), and stays put, braked, until the restart;
 - the launcher restarts the node (restart = "on-failure"), which clears the errors, re-arms every
   axis, and the arm moves again and ends within 0.01 rad of the trajectory's last waypoint.
 
-One run (about a minute in user-mode Linux: the nodes take 10-30 s to start there; it stops 14 s
-after the restarted node is live, time for the rest of the trajectory and to settle) serves every
+One run (about 25 s on udp_multicast, a minute and more in user-mode Linux, where the nodes take
+10-30 s to start; it stops 14 s after the restarted node is live, time for the rest of the trajectory and to settle) serves every
 test; every assertion reads the recording's timestamps, none the wall clock. The legs are longer
 than the example's, so that the kill lands mid-motion, and the axes beat every 10 ms, so that a
 heartbeat says IDLE soon after the watchdog trips.
@@ -35,19 +35,19 @@ RESTART_AFTER = 1.5
 
 
 @pytest.fixture(scope="module")
-def run(can_tier, tmp_path_factory):
+def run(system_can_tier, tmp_path_factory):
     folder = tmp_path_factory.mktemp("arm_rt")
-    system = system_variant(folder, segment=4.0, bus=(can_tier.interface, can_tier.channel),
+    system = system_variant(folder, segment=4.0, bus=(system_can_tier.interface, system_can_tier.channel),
                             odrives={"heartbeat_period": "0.01", "encoder_period": "0.05"},
                             motor={"heartbeat_period": "0.01", "lost_after": "20", "encoder_period": "0.05"},
                             backoff=RESTART_AFTER)
     recording = folder / "arm.mcap"
-    result = can_tier.run([str(ROOT / ".venv" / "bin" / "python"), str(ROOT / "tests" / "can_hil" / "arm_driver.py"),
+    result = system_can_tier.run([str(ROOT / ".venv" / "bin" / "python"), str(ROOT / "tests" / "can_hil" / "arm_driver.py"),
                            str(system), str(recording), "--kill-after", str(KILL_AFTER), "--run-for", "14"],
                           timeout=400, cwd=str(ROOT)).check()
     driver = json.loads(next(line for line in result.output.splitlines() if line.startswith("DRIVER {"))[7:])
     assert driver["killed_pid"] and driver["lives"] == 2, result.output[-3000:]
-    print(f"\nCAN tier {can_tier.describe()}: run took {result.seconds:.1f} s")
+    print(f"\nCAN tier {system_can_tier.describe()}: run took {result.seconds:.1f} s")
     loaded = read_recording(recording)
     return {"recording": loaded, "after": after_the_kill(loaded, STEP), "output": result.output}
 
