@@ -247,6 +247,7 @@ def test_ctrl_c_exits_130_without_traceback():
                             f"s = open_session(['tcp/127.0.0.1:{_port()}'])\nprint('up', flush=True)\n"
                             "sys.stdin.read()\ns.close()"],
                            cwd=ROOT, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    tools = []
     try:
         assert hub.stdout.readline().strip() == "up"
         endpoint = f"tcp/127.0.0.1:{_PORT[0]}"
@@ -260,6 +261,10 @@ def test_ctrl_c_exits_130_without_traceback():
             assert tool.returncode == 130, err
             assert "Traceback" not in err
     finally:
+        for tool in tools:  # one that did not stop (a shell that ignores SIGINT passes that on) is killed
+            if tool.poll() is None:
+                tool.kill()
+                tool.wait(10)
         hub.stdin.close()
         hub.wait(10)
 
