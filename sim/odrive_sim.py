@@ -39,7 +39,7 @@ from iotad.can.frame import CAN_FRAME, Frame, FrameError
 from iotad.can.odrive import CONTROL_MODE, INPUT_MODE, decode
 
 from .odrive_axis import AxisConfig, OdriveAxis
-from .worlds import WORLDS, check_options, close_world, open_world
+from .worlds import WORLDS, close_world, open_world
 
 TWO_PI = 2.0 * math.pi
 GAIN_NAMES = ("pos_gain", "vel_gain", "vel_integrator_gain")
@@ -226,7 +226,6 @@ def _check_params(iota: SimulatedOdrives) -> None:
     if "time_step" in iota.world_options:
         raise ValueError("world_options: time_step is this node's step_period (the world steps when the node "
                          "does); set step_period instead")
-    check_options(iota.world, iota.world_options)
     for name, allowed in (("gains", GAIN_NAMES), ("limits", LIMIT_NAMES)):
         for joint, values in getattr(iota, name).items():
             if not isinstance(values, dict) or set(values) - set(allowed) or not all(

@@ -11,6 +11,7 @@ from typing import Any
 from iotad.kernel.types import Array, BadValue, Bool, Float, Int, Struct, Type
 
 MAX_BLOBS = 4  # objects one camera frame reports to planning
+REQ_SWITCHING = 1.0  # s between requests: the scheduler's req switching time (Figure 2's)
 
 
 class RgbImageType(Type):

@@ -20,15 +20,13 @@ from iotad import Input, Iota, Output, Param
 from iotad.esprit.runtime import esprit_now
 
 from conveyor_geometry import BIN, OBJECT_Z, hand_pose
-from conveyor_types import PICK_DONE, PICK_GOAL
+from conveyor_types import PICK_DONE, PICK_GOAL, REQ_SWITCHING
 
 GRIPPER = "drive_joint"
 CLOSED, OPEN = 0.85, 0.0
 DROP_SPACING = 0.08  # m between drop spots over the bin (examples/conveyor.toml makes it 0.3 m wide)
 MARGIN = 0.01  # m the object is still upstream of where the wait must end, at the latest hand-down
 
-
-REQ_SWITCHING = 1.0  # s between requests: the scheduler's req switching time (Figure 2's)
 
 class ManipulationControl(Iota):
     react = Param(0.01)          # s: every output goes out this soon after it is due (a deadline, so

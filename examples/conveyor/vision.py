@@ -30,12 +30,10 @@ from iotad import Input, Iota, Output, Param
 from iotad.esprit.runtime import esprit_now
 
 from conveyor_geometry import BELT_X, MIN_PIXELS, hand_pose, on_plane, pixel_ray, segment
-from conveyor_types import CAMERA_FRAME, LOOK_GOAL, MAX_BLOBS, SIGHTING
+from conveyor_types import CAMERA_FRAME, LOOK_GOAL, MAX_BLOBS, REQ_SWITCHING, SIGHTING
 
 UPSTREAM_Y = 0.35   # m: where vision looks with no target
 
-
-REQ_SWITCHING = 1.0  # s between requests: the scheduler's req switching time (Figure 2's)
 
 class VisionControl(Iota):
     react = Param(0.01)          # s: every output goes out this soon after it is due (a deadline, so

@@ -150,8 +150,9 @@ def _external_entry(entry: dict, system, script: str) -> dict:
         if action == str(port) or (action == f"{port.node}.{port.channel}" and index in (None, port.index)):
             return dict(entry, iota=port.node, action=port.channel, index=port.index)
     known = ", ".join(sorted(str(port) for port in system.external)) or "none"
-    raise CliError(f"--inputs {script}: {{\"action\": {json.dumps(action)}}} without \"iota\" must be one of the system's "
-                   f"external inputs ({known}); or name the node: {{\"iota\": \"NODE\", \"action\": \"CHANNEL\"}}")
+    raise CliError(f"--inputs {script}: {{\"action\": {json.dumps(action)}}} without \"iota\" must be one of "
+                   f"the system's external inputs ({known}); or name the node: "
+                   f"{{\"iota\": \"NODE\", \"action\": \"CHANNEL\"}}")
 
 
 def _read_inputs(path: str) -> list[dict]:

@@ -111,7 +111,6 @@ class IotaFactory:
         except SpecError as exc:
             raise self.source.error(self.info.decl.pos, str(exc)) from None
 
-
     def switching_of(self, channel: str, values: dict[str, Any]) -> float:
         """The switching time of one of its channels, with parameters `values`."""
         switching = self.info.channels[channel].switching
@@ -156,7 +155,8 @@ def coerce(ptype, value: Any) -> Any:
 class Compiler:
     def __init__(self, checked: Checked, source: Source):
         self.checked, self.source = checked, source
-        self.globals: dict[str, Any] = {"ix": ix, "ix_set": ix_set, "same_length": same_length, "in_range": in_range, "cp": cp, "c_div": c_div, "c_mod": c_mod,
+        self.globals: dict[str, Any] = {"ix": ix, "ix_set": ix_set, "same_length": same_length, "in_range": in_range,
+                                        "cp": cp, "c_div": c_div, "c_mod": c_mod,
                                         "all_of": all_of, "any_of": any_of, "loop_range": loop_range,
                                         "fresh_budget": fresh_budget, "esprit_now": esprit_now,
                                         "esprit_reset": esprit_reset, "esprit_inhibit": esprit_inhibit,

@@ -804,11 +804,14 @@ class Recording:
     def time_unit(self) -> float:
         """Seconds per spec time unit: what a trace event's `t` counts (1.0 unless the system file
         says otherwise)."""
+        def usable(unit: Any) -> bool:
+            return isinstance(unit, (int, float)) and not isinstance(unit, bool) and unit > 0
+
         unit = self.info.get("time_unit")
-        if not isinstance(unit, (int, float)) or isinstance(unit, bool) or not unit > 0:
+        if not usable(unit):  # a recording without the metadata: its specs say it, if they agree
             units = {spec.get("time_unit") for spec in self.specs().values()}
-            unit = units.pop() if len(units) == 1 else 1.0
-        return float(unit) if isinstance(unit, (int, float)) and not isinstance(unit, bool) and unit > 0 else 1.0
+            unit = units.pop() if len(units) == 1 else None
+        return float(unit) if usable(unit) else 1.0
 
     @property
     def system(self) -> str | None:

@@ -32,6 +32,7 @@ from .program_run import (AtomRun, CompiledExpression, ExpressionCache, MissingI
 
 GRID_SLACK = 1e-6  # of a period: a tick computed as now + delay lands on the grid up to rounding
 GOAL_SLACK = 1e-9  # rad (or m): a command this close to its reference is on it
+BEFORE_NEXT_TICK = (0, lambda self: self._robot.period)  # every output's window
 
 
 class _Inputs:
@@ -145,22 +146,22 @@ class MdlInterpreter(Iota):
     # Every output goes out before the next tick: a spec that allowed any delay would let a legal
     # schedule (the random policy's, `iotad run --seed`) fall behind without limit.
     @setpoints.action(value=lambda self: self.out_setpoint, when=lambda self: self.out_setpoint is not None,
-                      within=(0, lambda self: self._robot.period))
+                      within=BEFORE_NEXT_TICK)
     def sent_setpoints(self):
         self.out_setpoint = None
 
     @atom_end.action(value=lambda self: self.out_atom_ends[0], when=lambda self: len(self.out_atom_ends) > 0,
-                     within=(0, lambda self: self._robot.period))
+                     within=BEFORE_NEXT_TICK)
     def sent_atom_end(self):
         del self.out_atom_ends[0]
 
     @program_end.action(value=lambda self: self.out_program_ends[0], when=lambda self: len(self.out_program_ends) > 0,
-                        within=(0, lambda self: self._robot.period))
+                        within=BEFORE_NEXT_TICK)
     def sent_program_end(self):
         del self.out_program_ends[0]
 
     @fault.action(value=lambda self: self.out_faults[0], when=lambda self: len(self.out_faults) > 0,
-                  within=(0, lambda self: self._robot.period))
+                  within=BEFORE_NEXT_TICK)
     def sent_fault(self):
         del self.out_faults[0]
 

@@ -10,39 +10,30 @@ arguments (`time_step` included).
 """
 from __future__ import annotations
 
+import importlib
 import inspect
 import math
-from typing import Any, Callable
+from typing import Any
 
 from .plant import Plant
 
 
-def _arm_class():
-    from .arm import ArmWorld
-    return ArmWorld
-
-
-def _conveyor_class():
-    from .conveyor import ConveyorWorld
-    return ConveyorWorld
-
-
-def _buggy_class():
-    from .buggy import BuggyWorld
-    return BuggyWorld
-
-
-# name -> (the world's class, imported on use: `iotad run --check` opens no world; fixed arguments)
-_CLASSES: dict[str, tuple[Callable[[], type], dict[str, Any]]] = {
-    "arm": (_arm_class, {"robot": "xarm6"}), "kuka": (_arm_class, {"robot": "kuka_iiwa"}),
-    "conveyor": (_conveyor_class, {}), "buggy": (_buggy_class, {})}
+# name -> (module, class, fixed arguments); a class is imported on use: `iotad run --check` opens no world
+_CLASSES: dict[str, tuple[str, str, dict[str, Any]]] = {
+    "arm": (".arm", "ArmWorld", {"robot": "xarm6"}), "kuka": (".arm", "ArmWorld", {"robot": "kuka_iiwa"}),
+    "conveyor": (".conveyor", "ConveyorWorld", {}), "buggy": (".buggy", "BuggyWorld", {})}
 WORLDS = tuple(_CLASSES)
+
+
+def _world_class(name: str) -> type:
+    module, cls, _ = _CLASSES[name]
+    return getattr(importlib.import_module(module, __package__), cls)
 
 
 def world_options(name: str) -> dict[str, inspect.Parameter]:
     """The options world `name` takes: its class's keyword arguments (a subclass's `**rest`
     passes on to its base class's)."""
-    cls = _CLASSES[name][0]()
+    cls = _world_class(name)
     options: dict[str, inspect.Parameter] = {}
     for klass in cls.__mro__:
         init = klass.__dict__.get("__init__")
@@ -56,7 +47,7 @@ def world_options(name: str) -> dict[str, inspect.Parameter]:
                 options[parameter.name] = parameter
         if not more:
             break
-    for fixed in _CLASSES[name][1]:
+    for fixed in _CLASSES[name][2]:
         options.pop(fixed, None)
     return options
 
@@ -65,7 +56,7 @@ def check_options(name: str, options: dict[str, Any]) -> None:
     """ValueError naming the option for one the world does not take, or of the wrong kind (by
     its default: a number, a whole number, a flag, a list), or one it needs positive."""
     known = world_options(name)
-    positive = getattr(_CLASSES[name][0](), "POSITIVE_OPTIONS", ())
+    positive = getattr(_world_class(name), "POSITIVE_OPTIONS", ())
     for key, value in options.items():
         parameter = known.get(key)
         if parameter is None:
@@ -95,13 +86,13 @@ def make_world(name: str, **options: Any) -> Plant:
     if name not in _CLASSES:
         raise ValueError(f"unknown world {name!r}; known: {', '.join(WORLDS)}")
     check_options(name, options)
-    cls, fixed = _CLASSES[name]
     try:
-        return cls()(**fixed, **options)
+        return _world_class(name)(**_CLASSES[name][2], **options)
     except ValueError:
         raise
     except (ArithmeticError, TypeError, IndexError, KeyError) as exc:  # what the checks above did not foresee
-        raise ValueError(f"world {name!r} cannot be built with options {options}: {type(exc).__name__}: {exc}") from None
+        raise ValueError(f"world {name!r} cannot be built with options {options}: "
+                         f"{type(exc).__name__}: {exc}") from None
 
 
 def open_world(key: str, name: str, **options: Any) -> Plant:
