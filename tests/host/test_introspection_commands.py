@@ -8,9 +8,9 @@ import pytest
 from node_harness import ECHO, ROOT, Hub, Node, node_config, wait_ready
 
 
-def iotad(*args, timeout=30):
+def iotad(*args, timeout=30, stdin=None):
     return subprocess.run([sys.executable, "-m", "iotad", *args], cwd=ROOT, capture_output=True, text=True,
-                          timeout=timeout)
+                          timeout=timeout, input=stdin)
 
 
 @pytest.fixture(scope="module")
@@ -39,7 +39,7 @@ def test_ls_lists_the_node_and_its_channels(live):
     assert "intro/echo" in text.stdout and "iota/intro/echo/out" in text.stdout
 
 
-def echo_while_publishing(live, key: str, count: int, value: str) -> list[dict]:
+def echo_while_publishing(live, key: str, count: int, value: str, stdin: str | None = None) -> list[dict]:
     """`iotad echo KEY --count N --json` while `iotad pub` sends `value` into the node's input:
     echo is ready once it receives, so publish until it has seen N (bounded by pub --count)."""
     hub, node = live
@@ -47,7 +47,8 @@ def echo_while_publishing(live, key: str, count: int, value: str) -> list[dict]:
                              "--json", "--timeout", "20", "--connect", hub.endpoint],
                             cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
-        pub = iotad("pub", f"{node.base}/inp", value, "--count", "40", "--rate", "20", "--connect", hub.endpoint)
+        pub = iotad("pub", f"{node.base}/inp", value, "--count", "40", "--rate", "20", "--connect", hub.endpoint,
+                    stdin=stdin)
         assert pub.returncode == 0, pub.stderr
         out, err = echo.communicate(timeout=25)
     finally:
@@ -63,6 +64,13 @@ def test_pub_into_the_node_and_echo_its_output(live):
     records = echo_while_publishing(live, "out", 3, "5")
     assert len(records) == 3 and all(r["value"] == 5 and r["key"] == f"{node.base}/out" for r in records)
     assert [r["seq"] for r in records] == list(range(records[0]["seq"], records[0]["seq"] + 3))
+
+
+def test_pub_takes_the_value_from_a_file_or_standard_input(live, tmp_path):
+    (tmp_path / "value.json").write_text("  7\n")
+    from_file = echo_while_publishing(live, "out", 2, f"@{tmp_path / 'value.json'}")
+    from_stdin = echo_while_publishing(live, "out", 2, "-", stdin="8\n")
+    assert [r["value"] for r in from_file] == [7, 7] and [r["value"] for r in from_stdin] == [8, 8]
 
 
 def test_echo_flags_gaps():

@@ -1,5 +1,6 @@
 """`iotad pub KEY JSON`: publish a value (msgpack, with the `[seq, send_time_ns]` attachment) as a
-node would, e.g. to inject an input: `iotad pub iota/figure2/scheduler/req/0 '{"control": ...}'`."""
+node would, e.g. to inject an input: `iotad pub iota/figure2/scheduler/req/0 '{"control": ...}'`.
+The value may come from a file (`@FILE`) or standard input (`-`): an MDL program is long."""
 from __future__ import annotations
 
 import argparse
@@ -17,6 +18,8 @@ examples (with 'iotad run examples/figure2.toml --insecure' running in another t
   iotad pub iota/figure2/scheduler/req/1 \\
       '{"control": {"w": 0.7, "k": 1.0}, "epoch": 1.0, "timeout": 1.0, "priority": 9}'
   iotad pub iota/some/node/tick null --count 0 --rate 10       10 Hz until Ctrl-C
+  iotad pub iota/figure2/scheduler/req/1 @request.json        the value from a file
+  jq .request run.json | iotad pub iota/figure2/scheduler/req/1 -    ... or from standard input
 
 An input channel's key is iota/<system>/<node>/<channel>[/<index>] ('iotad ls' lists them);
 the node applies the value as an input event at the time it arrives, checking its type and
@@ -34,7 +37,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                             description=__doc__, epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("key", metavar="KEY", type=key_expression,
                         help="where to publish, e.g. iota/figure2/scheduler/req/1 (no wildcards)")
-    parser.add_argument("value", metavar="VALUE", help="the value as JSON ('null' for a channel without a value)")
+    parser.add_argument("value", metavar="VALUE", help="the value as JSON ('null' for a channel without a value), @FILE for a file's JSON, "
+                             "or - for standard input's")
     parser.add_argument("--count", type=nonnegative_int, default=1, metavar="N",
                         help="publish N times (default 1; 0: until Ctrl-C)")
     parser.add_argument("--rate", type=positive_float, default=1.0, metavar="HZ",
@@ -54,10 +58,15 @@ def run(args: argparse.Namespace) -> int:
     from iotad.host.transport import DEFAULT_HUB_ENDPOINT
     from iotad.cli import CliError
 
+    text, origin = _value_text(args.value)
     try:
-        value = json.loads(args.value)
+        value = json.loads(text)
     except json.JSONDecodeError as exc:
+        if origin:
+            raise CliError(f"{origin} is not JSON: {exc.msg} (line {exc.lineno}, column {exc.colno})") from None
         raise CliError(f"value is not JSON: {exc.msg} (quote it for the shell: '{{\"w\": 1.0}}')") from None
+    except RecursionError:
+        raise CliError(f"{origin or 'value'} is nested too deeply to be a channel's value") from None
     if args.rate <= 0:
         raise CliError("--rate must be positive")
     if "*" in args.key:
@@ -89,6 +98,34 @@ def run(args: argparse.Namespace) -> int:
         return 0
     finally:
         session.close()
+
+
+def _value_text(value: str) -> tuple[str, str]:
+    """(the JSON text, where it came from: "" for the argument itself) of VALUE: `@FILE` reads a
+    file, `-` standard input; anything else is the JSON."""
+    import sys
+
+    from iotad.cli import CliError
+
+    if value == "-":
+        if sys.stdin is None or sys.stdin.isatty():
+            raise CliError("VALUE is '-' but standard input is a terminal: pipe the JSON in, or give it as "
+                           "the argument or as @FILE")
+        return sys.stdin.read(), "standard input"
+    if value.startswith("@"):
+        path = value[1:]
+        try:
+            with open(path, encoding="utf-8") as file:
+                return file.read(), path
+        except FileNotFoundError:
+            raise CliError(f"{value}: no such file (VALUE @FILE reads the JSON from FILE)") from None
+        except IsADirectoryError:
+            raise CliError(f"{value}: is a directory, not a JSON file") from None
+        except UnicodeDecodeError:
+            raise CliError(f"{value}: not UTF-8 text") from None
+        except OSError as exc:
+            raise CliError(f"{value}: cannot read it: {exc.strerror}") from None
+    return value, ""
 
 
 def _check_allowed(key: str, hub: list[str]) -> None:
