@@ -3,8 +3,9 @@ behaviour, and hunger and fear over time.
 
 A recording is Buggy's when a node outputs `landmark` and `pose` (the sensors: walls, cracks and
 food, then x, y, yaw) and a node outputs `mood` (buggy: hunger, fear, the active behaviour and
-the basic behaviour driving: WANDER, FOLLOW, EAT, AVOID). Everything comes from the nodes' trace
-events, so a virtual-time run and a real-time run draw the same way.
+the basic behaviour driving: WANDER, FOLLOW, EAT, AVOID). An `estop` input (the motor node's) is
+marked on the path and over time: Buggy stops there, whatever its behaviour says. Everything
+comes from the nodes' trace events, so a virtual-time run and a real-time run draw the same way.
 """
 from __future__ import annotations
 
@@ -50,7 +51,17 @@ def buggy_data(recording: Recording) -> dict:
             arena["food"][mark["id"]] = (mark["x1"], mark["y1"])
         elif kind == "EATEN":
             arena["eaten"].append((t, mark["id"]))
-    return {"path": path, "mood": mood, "arena": arena}
+    estops = sorted((float(e["t"]) * recording.time_unit, bool(e.get("value"))) for e in recording.trace()
+                    if e.get("kind") == "input" and e.get("action") == "estop")
+    return {"path": path, "mood": mood, "arena": arena, "estops": estops}
+
+
+def _pose_at(path: list, t: float) -> dict | None:
+    """The last pose at or before `t` (the first, before the path starts)."""
+    if not path:
+        return None
+    k = bisect_right([p[0] for p in path], t) - 1
+    return path[max(k, 0)][1]
 
 
 def plot(recording: Recording, output: str | Path, title: str | None = None) -> Path:
@@ -90,6 +101,11 @@ def plot(recording: Recording, output: str | Path, title: str | None = None) -> 
         start, end = path[0][1], path[-1][1]
         ax.plot(start["x"], start["y"], marker="o", color="white", markeredgecolor="black", markersize=9, zorder=4)
         ax.plot(end["x"], end["y"], marker="o", color="black", markersize=7, zorder=4)
+    for t, on in data["estops"]:
+        pose = _pose_at(path, t)
+        if on and pose is not None:
+            ax.plot(pose["x"], pose["y"], marker="X", color="#d00000", markeredgecolor="black", markersize=12,
+                    zorder=5, linestyle="none")
     ax.set_aspect("equal")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
@@ -101,6 +117,9 @@ def plot(recording: Recording, output: str | Path, title: str | None = None) -> 
     legend += [Line2D([], [], color="#5b3a1e", linewidth=3, label="crack"),
                Line2D([], [], marker="s", color="#2a9d3f", markeredgecolor="black", linestyle="none", label="food"),
                Line2D([], [], marker="o", color="white", markeredgecolor="black", linestyle="none", label="start")]
+    if any(on for _, on in data["estops"]):
+        legend.append(Line2D([], [], marker="X", color="#d00000", markeredgecolor="black", linestyle="none",
+                             label="estop"))
     ax.legend(handles=legend, loc="upper center", bbox_to_anchor=(0.5, -0.11), ncol=3, fontsize=8, frameon=False)
 
     # hunger and fear over time, the active behaviour as a band underneath
@@ -113,6 +132,10 @@ def plot(recording: Recording, output: str | Path, title: str | None = None) -> 
         bx.axvspan(t0, t1, ymin=0, ymax=0.05, color=COLOURS.get(m.get("doing"), "0.5"), linewidth=0)
     for t, _ in arena["eaten"]:
         bx.axvline(t, color="#2a9d3f", linewidth=0.8, alpha=0.6)
+    for t, on in data["estops"]:  # estop on: red; released: grey
+        bx.axvline(t, color="#d00000" if on else "0.4", linewidth=1.6, linestyle="--")
+        bx.annotate("estop" if on else "estop off", (t, top), xytext=(3, -12), textcoords="offset points",
+                    color="#d00000" if on else "0.4", fontsize=8)
     bx.set_ylim(band * 1.6, top * 1.05)
     bx.set_xlim(ts[0] if ts else 0, max(ts[-1], ts[0] + 0.1) if ts else 1)  # one sample: no empty span
     bx.set_xlabel("time (s)")

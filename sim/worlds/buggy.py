@@ -71,13 +71,15 @@ class BuggyWorld:
                  proximity_rays: int = 16, proximity_fov: float = 2 * math.pi, crack_range: float = 0.5,
                  start: tuple[float, float, float] | None = None, max_speed: float = 0.3,
                  max_turn_rate: float = 2.0, drive_inertia: float = 5e-3, turn_inertia: float = 2e-2,
-                 drive_effort: float = 0.5, turn_effort: float = 0.5, friction: float = 1e-3):
+                 drive_effort: float = 0.5, turn_effort: float = 0.5, friction: float = 1e-3,
+                 brake_torque: float = 0.1):
         if not arena_size > 4 * body_radius:
             raise ValueError(f"arena_size {arena_size} m leaves no room for a body of radius {body_radius} m")
         if proximity_rays < 1:
             raise ValueError(f"proximity_rays must be >= 1, got {proximity_rays}")
-        if food_per_crack < 0 or friction < 0:
-            raise ValueError(f"food_per_crack and friction must be >= 0, got {food_per_crack} and {friction}")
+        if food_per_crack < 0 or friction < 0 or brake_torque < 0:
+            raise ValueError(f"food_per_crack, friction and brake_torque must be >= 0, got {food_per_crack}, "
+                             f"{friction} and {brake_torque}")
         self.time_step = float(time_step)
         self.seed = seed
         self.arena_size, self.body_radius, self.wheel_radius = arena_size, body_radius, wheel_radius
@@ -109,8 +111,11 @@ class BuggyWorld:
         if abs(x) > self.limit or abs(y) > self.limit:
             raise ValueError(f"start ({x}, {y}) is not inside the arena (|x|, |y| <= {self.limit:.3f} m)")
         self.x, self.y = float(x), float(y)
-        self.drive = ModelJoint(drive_inertia, friction)
-        self.turn = ModelJoint(turn_inertia, friction, position=float(yaw))
+        # A motor that goes idle (estop, watchdog) leaves its joint to the brake: the gearbox's and
+        # the wheels' resistance, which stop Buggy from full speed in about 0.3 s. Viscous friction
+        # alone (time constant inertia / friction: 5 s) would let it coast across the arena.
+        self.drive = ModelJoint(drive_inertia, friction, brake_torque=brake_torque)
+        self.turn = ModelJoint(turn_inertia, friction, position=float(yaw), brake_torque=brake_torque)
         self._efforts = [drive_effort, turn_effort]
         self._speeds = [max_speed / wheel_radius, max_turn_rate]
         self._torques: list[float | None] = [None, None]
