@@ -20,6 +20,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import shutil
 import statistics
 import subprocess
 import sys
@@ -189,9 +190,14 @@ def motor_loop(seconds: float, rate: float = RATE, port: int = 7447) -> dict:
                                           channel=channel))
     # --insecure: this process publishes the setpoints from outside the system, which access
     # control (on by default) would refuse; bench/access_control.py measures what it costs
+    # the launcher's own words go to a log, shown if the node does not come up (the bench's
+    # output stays the figures), and removed with the folder after a run that worked
+    log_path = folder / "launcher.log"
+    log = log_path.open("w")
     launcher = subprocess.Popen([str(Path(sys.executable).with_name("iotad")), "run", str(system), "--no-record",
-                                 "--plain", "--insecure"], cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                                 "--plain", "--insecure"], cwd=ROOT, stdout=log, stderr=subprocess.STDOUT,
                                 start_new_session=True)
+    log.close()
     bus = raw_bus()
     stop = threading.Event()
     frames_seen: list[tuple[float, int, bytes, bool]] = []   # (time, id, data, rtr) of every frame on the bus
@@ -241,6 +247,7 @@ def motor_loop(seconds: float, rate: float = RATE, port: int = 7447) -> dict:
         thread.start()
     session = publisher = None
     published: dict[int, float] = {}
+    worked = False
     try:
         session = open_tool_session([f"tcp/127.0.0.1:{port}"], timeout=60.0)
         publisher = session.declare_publisher("iota/canbench/motor/setpoints")
@@ -285,6 +292,7 @@ def motor_loop(seconds: float, rate: float = RATE, port: int = 7447) -> dict:
         end = time.time()
         node_cpu = cpu_seconds(motor_pid()) - node_cpu
         time.sleep(0.5)   # the last frames
+        worked = True
     finally:
         stop.set()
         for thread in threads:
@@ -295,6 +303,11 @@ def motor_loop(seconds: float, rate: float = RATE, port: int = 7447) -> dict:
             session.close()
         interrupt_then_kill(launcher, 20)
         bus.shutdown()
+        if worked:
+            shutil.rmtree(folder, ignore_errors=True)
+        else:
+            tail = log_path.read_text(errors="replace").splitlines()[-25:]
+            print(f"the motor node's launcher said (last lines of {log_path}):", *tail, sep="\n  ", file=sys.stderr)
     latencies, last_frames, spreads, missed = [], [], [], 0
     period = 1.0 / rate
     for k, sent in published.items():
