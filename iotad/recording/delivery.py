@@ -520,7 +520,7 @@ class DeliveryChecker:
                     continue
                 key = event.get("key")
                 if not isinstance(key, str):
-                    if not self.virtual and event.get("iota") not in (node, node.rsplit("/", 1)[-1]):
+                    if self._inside_composite(node, event):
                         continue  # an output inside a composite node that its root does not expose
                     key = wire.channel_key(system.name, node, str(event.get("action")), event.get("index"))
                 claims = self.claims.setdefault(key, [])
@@ -529,6 +529,11 @@ class DeliveryChecker:
         for gap in self.recording.gaps():
             if isinstance(gap, dict) and isinstance(gap.get("key"), str):
                 self.gaps.setdefault(gap["key"], []).append((int(gap.get("expected", 0)), int(gap.get("got", 0))))
+
+    def _inside_composite(self, node: str, event: dict) -> bool:
+        """Whether a keyless event of a real-time node is one of its parts' (a composite node's
+        internal outputs and deliveries: one engine in one process, nothing on the wire)."""
+        return not self.virtual and event.get("iota") not in (node, node.rsplit("/", 1)[-1])
 
     def _covered(self, key: str) -> bool:
         """Whether the recording was made to hold the messages on `key`."""
@@ -837,6 +842,8 @@ class DeliveryChecker:
                 if not isinstance(key, str):
                     if port in sources_of:
                         continue  # a bound input without a key (virtual time): the binding's
+                    if self._inside_composite(node, event):
+                        continue  # one part of a composite node to another, in its own process
                     key = "(input script)"  # virtual time: posted into an external input
                 elif key.startswith("can/") or node in system.bus_nodes:
                     continue  # a CAN frame: the bus check's

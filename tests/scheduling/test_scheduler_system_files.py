@@ -2,6 +2,7 @@
 `iotad run --check`, run in one process in virtual time (`iotad run --virtual`) with the outcome
 their comments promise and recordings that `iotad check` accepts; and one short real run of
 resume.toml over zenoh, each IOTA its own process."""
+import re
 import subprocess
 import sys
 
@@ -70,6 +71,24 @@ def test_resume_system_over_zenoh_smoke(tmp_path):
     assert ("scheduler.ack[0]", "COMMIT") in {(line.split()[0], "COMMIT") for line in result.stdout.splitlines()
                                               if "COMMIT" in line}
     assert main(["check", str(out)]) == 0
+
+
+def test_a_composite_node_over_zenoh_keeps_its_parts_deliveries_to_itself(tmp_path, capsys):
+    """The subsumption arbiter is one process holding a tree of IOTAs: what its parts pass each
+    other never crosses the wire, so the delivery check neither counts it nor calls it outside."""
+    out = tmp_path / "subsumption.mcap"
+    result = subprocess.run([sys.executable, "-m", "iotad", "run", str(EXAMPLES / "subsumption.toml"), "--until", "4",
+                             "--port", str(free_port()), "--plain", "-o", str(out)],
+                            capture_output=True, text=True, timeout=90, cwd=tmp_path, start_new_session=True)
+    assert result.returncode == 0, result.stdout + result.stderr
+    internal = [e for e in read_recording(str(out)).trace("arbiter") if e["kind"] == "input" and "key" not in e]
+    assert internal  # s2_3's output into s0_3, inside the arbiter
+    main(["check", str(out)])
+    report = capsys.readouterr().out
+    assert "(outside)" not in report, report
+    assert "wander.out -> arbiter.level3" in report and "explore.out -> arbiter.level2" in report, report
+    # the four behaviours' links, every message delivered (how many: as the processes' clocks fell)
+    assert re.search(r"delivery: (\d+) of \1 messages delivered as sent over 4 links", report), report
 
 
 @pytest.mark.parametrize("name, node", [("resume", "scheduler"), ("fusion", "scheduler"), ("subsumption", "arbiter/s0_3")])
