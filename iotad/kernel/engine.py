@@ -46,7 +46,10 @@ def plus(t: float, duration: float) -> float:
         return later
     # round(x * 1e9) / 1e9 is the nearest grid point, a third of the cost of round(x, 9) on this
     # hot path; past 2**53 ns (104 days) the grid coarsens, which still keeps sums from drifting
-    on_grid = round(later * TIME_GRID) / TIME_GRID
+    try:
+        on_grid = round(later * TIME_GRID) / TIME_GRID
+    except OverflowError:  # past 1.8e299 the product is inf: a time no run reaches, as it is
+        return later
     return on_grid if on_grid >= t else t
 
 
