@@ -183,7 +183,7 @@ class MdlInterpreter(Iota):
                     self._fault(self.running.program.id, "no joint_states yet: the program waits and the "
                                                          "motors get no setpoints until the joints are known")
                 return
-            self.command = list(self.position)
+            self.command = self._held_within_limits(self.position)
         previous = self.command
         if self.running is not None:
             self._run(self.running, steps)
@@ -191,6 +191,20 @@ class MdlInterpreter(Iota):
         self.out_setpoint = self._setpoints_type(
             position=list(self.command), velocity_ff=[(c - p) / dt for c, p in zip(self.command, previous)],
             torque_ff=[0.0] * len(self.command))
+
+    def _held_within_limits(self, position: list[float]) -> list[float]:
+        """The first command: hold where the joints are, but never outside their limits (a joint
+        measured beyond one is held at it, said once on `fault`: its setpoint jumps there)."""
+        robot, command, outside = self._robot, [], []
+        for name, p, lo, hi in zip(robot.joints, position, robot.lower, robot.upper):
+            held = lo if p < lo else hi if p > hi else p
+            if held != p:
+                outside.append(f"{name} at {p:g} (limits [{lo:g}, {hi:g}])")
+            command.append(held)
+        if outside:
+            self._fault(self.running.program.id if self.running is not None else "",
+                        f"joints measured outside their limits: {', '.join(outside)}; held at the limit")
+        return command
 
     @property
     def _setpoints_type(self):

@@ -5,6 +5,7 @@ import pytest
 
 from channels.mdl import MDL_PROGRAM, gain, hold, program, program_from_plain, ramp
 from iotad.kernel.types import BadValue
+from mdl_harness import arm
 
 
 def atom(**fields):
@@ -182,3 +183,17 @@ def test_a_program_whose_numbers_break_something_is_a_fault_and_the_next_one_run
     assert said in fault["message"] and "motors held" in fault["message"], fault["message"]
     assert [(v["program"], v["end"]) for v in run.values("program_end")] == [("p", "FAULT"), ("reach", "DONE")]
     assert not [v for v in run.violations() if v["value"]["violation"] == "runtime_error"]
+
+
+def test_joints_measured_outside_their_limits_are_held_at_the_limit_and_said_once(make_run):
+    """The first setpoints hold the joints where they are measured, but never outside the
+    limits: a joint reported beyond one (a bad offset, a sensor glitch of 1e308) is held at it."""
+    run = make_run(arm(start=[0.0, 5.0, -1e308, 0.0, 0.0, 0.0]))
+    run.run(until=0.1)
+    lower, upper = run.interpreter.lower, run.interpreter.upper
+    positions = [e["value"]["position"] for e in run.of("setpoints", "output")]
+    assert len(positions) >= 5
+    assert all(p[1] == upper[1] and p[2] == lower[2] and p[0] == 0.0 for p in positions)
+    [fault] = run.values("fault")
+    assert f"joint2 at 5 (limits [{lower[1]:g}, {upper[1]:g}])" in fault["message"]
+    assert "joint3 at -1e+308" in fault["message"] and "held at the limit" in fault["message"]
