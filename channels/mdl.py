@@ -138,9 +138,23 @@ def _text(plain: Any, path: str, limit: int, empty: bool = True) -> str:
         raise _fail(path, f"expected a string, got {type(plain).__name__}")
     if len(plain) > limit:
         raise _fail(path, f"longer than {limit} characters")
+    if not _unicode(plain):
+        raise _fail(path, f"not Unicode text (a lone surrogate: {plain!r})")
     if not empty and not plain.strip():
         raise _fail(path, "must not be empty")
     return plain
+
+
+def _unicode(text: str) -> bool:
+    """Whether `text` is Unicode that UTF-8 (the wire's and the recordings' strings) can carry:
+    JSON's escapes can make a lone surrogate ("\\ud800"), which no encoder takes."""
+    if text.isascii():
+        return True
+    try:
+        text.encode("utf-8")
+    except UnicodeEncodeError:
+        return False
+    return True
 
 
 def _list(plain: Any, path: str, limit: int, empty: bool = False) -> list:
@@ -333,6 +347,8 @@ class TextType(Type):
             raise BadValue(f"expected a string, got {type(value).__name__} {value!r}")
         if len(value) > self.limit:
             raise BadValue(f"a string longer than {self.limit} characters")
+        if not _unicode(value):
+            raise BadValue(f"not Unicode text (a lone surrogate: {value!r})")
 
     def default(self) -> str:
         return ""

@@ -30,6 +30,10 @@ def atom(**fields):
      "atoms[0].k[0].gain: expected a number, got str"),
     (atom(u={"kind": "hold"}, speed=3), "unknown field(s) ['speed']"),
     ([1, 2], "mdlProgram: expected an object, got list"),
+    # JSON's "\ud800" is a lone surrogate: valid JSON, but no UTF-8 (the wire, a recording) carries it
+    ({"id": "\u00e9\ud800", "behaviours": [{"atoms": [{"u": {"kind": "hold"}}]}]},
+     "mdlProgram.id: not Unicode text (a lone surrogate"),
+    (atom(u={"kind": "ramp", "target": {"joint\udc80": 0.5}}, T=1), "u.target key: not Unicode text"),
 ])
 def test_a_malformed_program_is_rejected_naming_the_field(plain, message):
     with pytest.raises(BadValue) as caught:
@@ -197,3 +201,11 @@ def test_joints_measured_outside_their_limits_are_held_at_the_limit_and_said_onc
     [fault] = run.values("fault")
     assert f"joint2 at 5 (limits [{lower[1]:g}, {upper[1]:g}])" in fault["message"]
     assert "joint3 at -1e+308" in fault["message"] and "held at the limit" in fault["message"]
+
+
+def test_a_text_field_refuses_a_lone_surrogate_and_takes_any_other_unicode():
+    from channels.mdl import Text
+
+    Text(10).check("été ✓ 機械")
+    with pytest.raises(BadValue, match="not Unicode text"):
+        Text(10).check("a\ud800")
