@@ -18,9 +18,9 @@ from .static_checks import Checked, IotaInfo
 from .errors import EspritError, Source
 from .runtime import (all_of, any_of, c_div, c_mod, cp, esprit_inhibit, esprit_now, esprit_reset, fresh_budget,
                       in_range, inhibit_left, ix, ix_set, loop_range, restarted, same_length, uninhibit, with_budget)
-from .typesys import VOID, ArrayOf, describe
+from .typesys import MAX_ELEMENTS, VOID, ArrayOf, describe, element_count
 
-MAX_ARRAY = 1_000_000  # elements of one state array: more is a slip (a parameter off by powers of ten)
+MAX_ARRAY = MAX_ELEMENTS  # elements of one state array: more is a slip (a parameter off by powers of ten)
 
 
 @dataclass
@@ -304,6 +304,9 @@ class Compiler:
                             raise ValueError(f"array length must be a whole number >= 0, got {length!r}")
                         if length > MAX_ARRAY:
                             raise ValueError(f"array length {length} is past the limit of {MAX_ARRAY} elements")
+                        if length * element_count(element) > MAX_ELEMENTS:
+                            raise ValueError(f"{length} elements of {element_count(element)} values each are past "
+                                             f"the limit of {MAX_ELEMENTS} values")
                         if isinstance(d.init, S.Aggregate):
                             if len(value) != length:
                                 raise ValueError(f"{len(value)} initial values for {length} elements")

@@ -17,8 +17,8 @@ from iotad.kernel.types import ArrayType, Bool, EnumType, Float, Int, StructType
 
 from . import syntax as S
 from .errors import Diagnostic, Source
-from .typesys import (NULL_T, VOID, ArrayOf, assignable, comparable, describe, element_of,
-                      has_null_member, is_bool, is_int, is_number, same)
+from .typesys import (MAX_ELEMENTS, NULL_T, VOID, ArrayOf, assignable, comparable, describe, element_count,
+                      element_of, has_null_member, is_bool, is_int, is_number, same)
 
 # Instance attributes the kernel uses: a state variable or parameter may not take these names.
 _RESERVED = {"iota_spec", "instance_name"}
@@ -213,7 +213,13 @@ class Checker:
                     ftype = None if ftype is None else ArrayType(ftype, length)
                 if ftype is not None:
                     fields[d.name] = ftype
-        self.out.structs[decl.name] = StructType(decl.name, **fields)
+        struct = StructType(decl.name, **fields)
+        count = element_count(struct)
+        if count > MAX_ELEMENTS:
+            self.error(decl.pos, f"struct {decl.name} holds {count} values in all, past the limit of "
+                                 f"{MAX_ELEMENTS} (its arrays' lengths multiply)")
+            return
+        self.out.structs[decl.name] = struct
 
     def _enum(self, decl: S.EnumDecl, taken) -> None:
         if not self._fresh(decl.name, decl.pos, "enum", {**self.out.structs, **self.out.enums}):
@@ -422,6 +428,7 @@ class Checker:
                 vtype = element
                 if d.size is not None:
                     stype = self.expr(d.size, _Scope(names), Int)
+                    length = None
                     if stype is not None and not is_int(stype):
                         self.error(d.size.pos, f"an array length is an int, not {describe(stype)}")
                     else:

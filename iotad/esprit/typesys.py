@@ -35,6 +35,22 @@ def describe(t) -> str:
     return getattr(t, "name", str(t))
 
 
+# Values a state or a struct may hold in all, its nested arrays and fields counted: more is a slip
+# (a parameter off by powers of ten) that would fill the memory before any error.
+MAX_ELEMENTS = 1_000_000
+
+
+def element_count(t) -> int:
+    """How many scalar values a value of type `t` holds (an array of unknown length counts 1)."""
+    if isinstance(t, ArrayType):
+        return t.length * element_count(t.element)
+    if isinstance(t, ArrayOf):
+        return (t.length if isinstance(t.length, int) else 1) * element_count(t.element)
+    if isinstance(t, StructType):
+        return sum(element_count(f) for f in t.fields.values())
+    return 1
+
+
 def is_number(t) -> bool:
     return isinstance(t, (IntType, FloatType))
 

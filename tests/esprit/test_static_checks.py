@@ -20,6 +20,15 @@ iota leaf: go(int)/0 -> out(int)/0 { states int n = 0;
 
 # name -> (spec that trips the check, the same spec fixed, text the message must contain)
 CHECKS = {
+    "array_length_float": ("iota t(float T = 1.0): go()/0 -> { states int a[T] = 0; actions go() }",
+                           "iota t(int T = 1): go()/0 -> { states int a[T] = 0; actions go() }",
+                           "an array length is an int, not float"),
+    # nested arrays multiply: 1e6 structs of 1e6 floats would fill the memory before any error
+    "struct_too_large": ("struct a { float q[1000000]; }; struct b { struct a x[1000000]; }; "
+                         "iota t: go()/0 -> { states struct b s = {}; actions go() }",
+                         "struct a { float q[1000]; }; struct b { struct a x[1000]; }; "
+                         "iota t: go()/0 -> { states struct b s = {}; actions go() }",
+                         "struct b holds 1000000000000 values in all, past the limit of 1000000"),
     "undeclared_name": ("iota a: -> out(int)/1 { actions out(y) }",
                         "iota a: -> out(int)/1 { actions out(1) }", "undeclared name y"),
     "undeclared_type": ("iota a: -> out(struct nope)/1 { }",
@@ -248,3 +257,11 @@ def test_an_interface_switching_time_from_a_parameter_is_compared_when_built():
     with pytest.raises(EspritError, match=r"input go of top has switching time 5 but it is a\.go \(leaf\), "
                                           r"whose switching time is 1"):
         load_text(wrong).iotas["top"]()
+
+
+def test_a_state_array_of_structs_counts_every_value_against_the_limit():
+    spec = "struct a { float q[1000]; }; iota t(int N = 10): go()/0 -> { states struct a s[N]; actions go() }"
+    make = load_text(spec).iotas["t"]
+    assert len(make(N=1000).s) == 1000  # 1e6 values: at the limit
+    with pytest.raises(EspritError, match="2000 elements of 1000 values each are past the limit of 1000000"):
+        make(N=2000)
