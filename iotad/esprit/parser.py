@@ -10,6 +10,8 @@ from lark import Lark, Token, Transformer, v_args
 from lark.lexer import PatternStr
 from lark.exceptions import LarkError, UnexpectedCharacters, UnexpectedEOF, UnexpectedInput, UnexpectedToken, VisitError
 
+from iotad.kernel.types import HUGE_INT
+
 from . import syntax as S
 from .errors import EspritError, Source
 
@@ -64,7 +66,10 @@ class _Build(Transformer):
     @v_args(meta=True)
     def number(self, meta, children):
         token = children[0]
-        value = int(token) if token.type == "INT" else float(token)
+        try:
+            value = int(token) if token.type == "INT" else float(token)
+        except ValueError:  # Python reads no int of more than 4300 digits
+            raise _Early(_pos(token), f"an integer literal of {len(token)} digits: {HUGE_INT}") from None
         return S.Number(_pos(token), value)
 
     def true(self, c):

@@ -11,6 +11,7 @@ from typing import Any, Iterable
 
 from iotad.kernel.clock import VirtualClock
 from iotad.kernel.engine import Engine
+from iotad.kernel.types import HUGE_INT
 
 
 class ScriptError(Exception):
@@ -30,6 +31,8 @@ def parse_script(lines: Iterable[str], source: str = "<script>") -> list[dict]:
             raise ScriptError(f"{where}: not JSON: {exc.msg}") from None
         except RecursionError:
             raise ScriptError(f"{where}: nested too deeply to be an input") from None
+        except ValueError:  # json reads no int of more than 4300 digits
+            raise ScriptError(f"{where}: an integer of thousands of digits, {HUGE_INT}") from None
         if not isinstance(entry, dict):
             raise ScriptError(f"{where}: expected an object like {{\"t\": 0.0, \"action\": \"req\", ...}}")
         t, action, index = entry.get("t"), entry.get("action"), entry.get("index")

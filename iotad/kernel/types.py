@@ -125,6 +125,16 @@ class _Number(Type):
 
 # The integers msgpack carries (the wire, the recordings): an int beyond them cannot be sent.
 INT_MIN, INT_MAX = -(1 << 63), (1 << 64) - 1
+# what to say of an integer of more digits than Python turns into text (4300): no text shows it
+HUGE_INT = f"past 64 bits (the wire and recordings carry integers from {INT_MIN} to {INT_MAX})"
+
+
+def int_text(value: int) -> str:
+    """`repr(value)`, or a description where Python would refuse (over 4300 digits)."""
+    try:
+        return repr(value)
+    except ValueError:
+        return f"an integer of about {int(value.bit_length() * 0.30103) + 1} digits"
 _FLOAT_MAX = sys.float_info.max
 
 
@@ -146,7 +156,7 @@ class IntType(_Number):
     def check(self, value: Any) -> None:
         super().check(value)
         if not INT_MIN <= value <= INT_MAX:
-            raise BadValue(f"{value!r} does not fit in 64 bits (the wire and recordings carry integers "
+            raise BadValue(f"{int_text(value)} does not fit in 64 bits (the wire and recordings carry integers "
                            f"from {INT_MIN} to {INT_MAX})")
 
     def default(self) -> int:

@@ -48,6 +48,7 @@ from typing import Any
 
 from iotad.host import wire
 from iotad.host.transport import DEFAULT_HUB_ENDPOINT, endpoint_problem
+from iotad.kernel.types import HUGE_INT
 
 RESTART_MODES = ("never", "on-failure", "always")
 LOOPBACK_LISTEN = ["tcp/127.0.0.1:0"]
@@ -264,6 +265,10 @@ def load_system(path: str | Path, check: bool = True) -> System:
         raise SystemFileError([f"{path.name}: not valid TOML: {exc}{bom}"]) from None
     except UnicodeDecodeError:
         raise SystemFileError([f"{path.name}: not UTF-8 text"]) from None
+    except RecursionError:
+        raise SystemFileError([f"{path.name}: a value is nested too deeply to read"]) from None
+    except ValueError:  # tomllib reads no int of more than 4300 digits
+        raise SystemFileError([f"{path.name}: an integer of thousands of digits, {HUGE_INT}"]) from None
     return _Parser(path, data).parse(check)
 
 

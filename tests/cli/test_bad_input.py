@@ -41,6 +41,13 @@ def files(tmp_path_factory):
     (d / "deep.jsonl").write_text("[" * 100_000 + "]" * 100_000 + "\n")
     (d / "bom.toml").write_bytes(b"\xef\xbb\xbf[system]\nname = 'x'\n")
     (d / "folder").mkdir()
+    # Python turns no more than 4300 digits into an int: each reader says what that means here
+    huge = "9" * 5000
+    (d / "huge.iota").write_text(f"iota a: go()/0 -> {{ states int x = 0; actions go() do x = {huge}; }}\n")
+    (d / "huge.jsonl").write_text(f'{{"t": 0, "action": "req", "value": {huge}}}\n')
+    (d / "huge.toml").write_text(f"[system]\nname = 'x'\nstart_timeout = {huge}\n")
+    (d / "deep.toml").write_text("[system]\nname = 'x'\n[[node]]\nname = 'a'\nparams = { n = "
+                                 + "[" * 600 + "]" * 600 + " }\n")
     (d / "nofolder.toml").write_text("[system]\nname = 'x'\n[[node]]\nname = 'a'\nspec = 'nope.iota'\n")
     good = d / "good.mcap"
     record_run(Composite(
@@ -180,6 +187,13 @@ CASES = [
     (["pub", "iota/x/y", "1", "--count", "-1"], "--count: expected a whole number >= 0"),
     (["pub", "iota/x/y", "{\"n\": 99999999999999999999999}"], "value cannot be sent: Integer value out of range"),
     (["pub", "iota/x/*", "1"], "no wildcards"),
+    (["pub", "iota/x/y", "9" * 5000], "value holds an integer of thousands of digits, past 64 bits"),
+    (["spec", "check", "{d}/huge.iota"], "huge.iota:1:59: an integer literal of 5000 digits: past 64 bits"),
+    (["spec", "run", SPEC, "--inputs", "{d}/huge.jsonl", "--until", "1"],
+     "huge.jsonl:1: an integer of thousands of digits, past 64 bits"),
+    (["spec", "run", SPEC, "--until", "1", "--param", "N=" + "9" * 5000], "an integer past 64 bits"),
+    (["run", "--check", "{d}/huge.toml"], "huge.toml: an integer of thousands of digits, past 64 bits"),
+    (["run", "--check", "{d}/deep.toml"], "deep.toml: a value is nested too deeply to read"),
     (["pub", "iota/x/y", "@{d}/missing.json"], "@{d}/missing.json: no such file"),
     (["pub", "iota/x/y", "@{d}"], "is a directory, not a JSON file"),
     (["pub", "iota/x/y", "@{d}/garbage.bin"], "garbage.bin: not UTF-8 text"),

@@ -132,3 +132,11 @@ def test_readme_example_runs_as_written():
     lines = out.stdout.strip().splitlines()
     assert "'t': 1.0" in lines[0] and "'kind': 'input'" in lines[0]
     assert "'t': 1.2" in lines[1] and "'value': 42" in lines[1]
+
+
+def test_an_int_of_thousands_of_digits_is_a_bad_value_that_says_its_size():
+    """Python writes no int of more than 4300 digits as text, so the message cannot show it."""
+    with pytest.raises(BadValue, match=r"an integer of about 5001 digits does not fit in 64 bits"):
+        Int.check(10 ** 5000)
+    with pytest.raises(BadValue, match=r"^-9223372036854775809 does not fit in 64 bits"):
+        Int.check(-(2 ** 63) - 1)

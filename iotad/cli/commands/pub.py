@@ -57,6 +57,7 @@ def run(args: argparse.Namespace) -> int:
     from iotad.host import wire
     from iotad.host.transport import DEFAULT_HUB_ENDPOINT
     from iotad.cli import CliError
+    from iotad.kernel.types import HUGE_INT
 
     text, origin = _value_text(args.value)
     try:
@@ -67,6 +68,8 @@ def run(args: argparse.Namespace) -> int:
         raise CliError(f"value is not JSON: {exc.msg} (quote it for the shell: '{{\"w\": 1.0}}')") from None
     except RecursionError:
         raise CliError(f"{origin or 'value'} is nested too deeply to be a channel's value") from None
+    except ValueError:  # json reads no int of more than 4300 digits
+        raise CliError(f"{origin or 'value'} holds an integer of thousands of digits, {HUGE_INT}") from None
     if args.rate <= 0:
         raise CliError("--rate must be positive")
     if "*" in args.key:

@@ -195,6 +195,11 @@ def _param_value(text: str):
         return json.loads(text)
     except json.JSONDecodeError:
         return text
+    except ValueError:  # json reads no int of more than 4300 digits
+        from iotad.cli import CliError
+        from iotad.kernel.types import HUGE_INT
+
+        raise CliError(f"--param value of {len(text)} characters: an integer {HUGE_INT}") from None
 
 
 def cmd_run(args: argparse.Namespace) -> int:
