@@ -103,6 +103,31 @@ def iota_factory(reference: str, base: Path | None = None) -> Any:
         raise LoadError(f"{reference!r}: {found.__name__} is a module, not an IOTA class")
     if inspect.isclass(found) and not issubclass(found, (Iota, Composite)):
         raise LoadError(f"{reference!r}: {found.__name__} is a class but not an IOTA (a subclass of iotad.Iota)")
-    if not callable(found):
-        raise LoadError(f"{reference!r}: {type(found).__name__} {found!r} is not an IOTA class")
+    if inspect.isclass(found):
+        return found
+    # A function is called to build the IOTA, even by `iotad run --check`: only one that says it
+    # builds one (`-> SomeIota`), never whatever a reference happens to name (os:system, shutil:rmtree)
+    if not inspect.isfunction(found):
+        raise LoadError(f"{reference!r}: {type(found).__name__} {_shown(found)} is not an IOTA class")
+    if not _builds_an_iota(found):
+        raise LoadError(f"{reference!r}: {found.__name__} is a function that does not say it returns an IOTA; "
+                        "name an IOTA class, or annotate the factory's return type (-> MyIota)")
     return found
+
+
+def _builds_an_iota(function: Any) -> bool:
+    import typing
+
+    from iotad.kernel.api import Iota
+    from iotad.kernel.compose import Composite
+
+    try:
+        returned = typing.get_type_hints(function).get("return")
+    except Exception:  # noqa: BLE001 - an annotation that does not resolve says nothing
+        return False
+    return isinstance(returned, type) and issubclass(returned, (Iota, Composite))
+
+
+def _shown(found: Any) -> str:
+    text = repr(found)
+    return text if len(text) <= 80 else text[:77] + "..."

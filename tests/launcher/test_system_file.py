@@ -89,6 +89,13 @@ CASES = [
      '[[node]]\nname = "dst"\npython = "IOTAS:Stub"\n', "Input is a class but not an IOTA"),
     ("python names a module", '[[node]]\nname = "dst"\npython = "os:path"\n',
      '[[node]]\nname = "dst"\npython = "IOTAS:Stub"\n', "'os:path': posixpath is a module, not an IOTA class"),
+    # a function is called to build the IOTA, even by --check: only one annotated to return one
+    ("python names a builtin", '[[node]]\nname = "dst"\npython = "os:system"\n',
+     '[[node]]\nname = "dst"\npython = "IOTAS:Stub"\n',
+     "'os:system': builtin_function_or_method <built-in function system> is not an IOTA class"),
+    ("python names a function that builds no IOTA", '[[node]]\nname = "dst"\npython = "shutil:rmtree"\n',
+     '[[node]]\nname = "dst"\npython = "IOTAS:Stub"\n',
+     "rmtree is a function that does not say it returns an IOTA"),
     ("spec names a folder", '[[node]]\nname = "dst"\nspec = "."\n',
      '[[node]]\nname = "dst"\npython = "IOTAS:Stub"\n', "spec file '.' is a folder; name the .iota file in it"),
     ("missing spec file", '[[node]]\nname = "dst"\nspec = "nope.iota"\n',
