@@ -455,7 +455,10 @@ class DeliveryChecker:
             self.unit = float(info.get("time_unit") or 1.0)
         except (TypeError, ValueError):
             self.unit = 1.0
-        self.tolerance = tolerance
+        # a time read off the file (a message's log or publish time) is whole nanoseconds, while
+        # a trace event's `t` is exact: with time_unit 0.001, t = 0.3333333 ms is 333333 ns on the
+        # wire. Times are compared to a nanosecond more than the tolerance, in spec units.
+        self.tolerance = tolerance + 1e-9 / self.unit
         # spec units; in virtual time a binding delivers at the instant of the firing
         self.grace = 0.0 if self.virtual else (GRACE if grace is None else grace) / self.unit
         self.report = DeliveryReport(self.mode, _WITNESS.get(self.mode, _WITNESS["unknown"]))
