@@ -559,7 +559,7 @@ class EngineRecorder:
     becomes log and publish time `t * time_unit` seconds after `origin_ns`."""
 
     def __init__(self, sink: McapSink, root: Any, system: str | None = None, *, time_unit: float = 1.0,
-                 origin_ns: int = 0):
+                 origin_ns: int = 0, policy: Any = None):
         from iotad.kernel.compose import Composite, flatten
         self.sink, self.root = sink, root
         self.system = system or root.instance_name
@@ -582,7 +582,7 @@ class EngineRecorder:
             "format": FORMAT, "system": self.system, "time_unit": time_unit, "origin_ns": origin_ns,
             "clock": "virtual", "writer": "EngineRecorder", "root": root.instance_name,
             "nodes": list(self._specs), "bindings": bindings,
-            "composite": isinstance(root, Composite)})
+            "composite": isinstance(root, Composite), **_policy_info(policy)})
         sink.attach("system.json", "application/json", json.dumps(
             {"name": self.system, "nodes": {p: {k: s[k] for k in ("source", "params")} for p, s in self._specs.items()},
              "bindings": bindings}, default=_plain).encode(), origin_ns)
@@ -675,6 +675,14 @@ class EngineRecorder:
             self._write_pair(trace[0], ns, ns, seq, data, output[0], ns, sequence, value)
 
 
+def _policy_info(policy: Any) -> dict[str, Any]:
+    """How the run chose firing times within windows (replay repeats an eager run by itself, and
+    follows the recorded times of any other): {"policy": "eager"} or {"policy": "random", "seed": 7}."""
+    name = getattr(policy, "name", "eager")
+    seed = getattr(policy, "seed", None)
+    return {"policy": name} if seed is None else {"policy": name, "seed": seed}
+
+
 def record_run(root: Any, output: str | Path, until: float, inputs: Iterable[dict] = (), policy: Any = None,
                system: str | None = None, **engine_options: Any):
     """Run `root` in virtual time up to `until` and write every event to `output` (an MCAP file).
@@ -683,7 +691,7 @@ def record_run(root: Any, output: str | Path, until: float, inputs: Iterable[dic
     from iotad.kernel.engine import Engine
     sink = McapSink(output)
     try:
-        recorder = EngineRecorder(sink, root, system)
+        recorder = EngineRecorder(sink, root, system, policy=policy)
         engine = Engine(root, VirtualClock(), policy, sinks=[recorder], **engine_options)
         for entry in inputs:
             if entry["t"] <= until:

@@ -91,16 +91,20 @@ def replay_node(recording: Recording, node: str, tolerance: float = 0.01,
     recording has them (which enabled action, at what time: what the process's clock decided),
     and every value is computed again from the spec and compared. This is replay as a debugger
     means it: the nondeterminism (inputs, timing) from the log, the computation done again.
-    Otherwise (`--free`; always for virtual-time recordings, whose timing is the engine's own)
-    the node fires on its own at the eager policy's times, and times are compared too.
+    Otherwise (`--free`; by default for virtual-time recordings of the eager policy, whose timing
+    is the engine's own) the node fires on its own at the eager policy's times, and times are
+    compared too. A virtual run with `--seed` (the random policy) is replayed guided.
 
     `reorder` (free replay of a real-time recording, by default): events within `tolerance` of
     each other may agree in either order. A real process fires what is due within a few ms in
     the order its clock saw it, jitter included; the replay fires them at their exact times, in
     the engine's order. A virtual-time recording has that order exactly, and is compared in it."""
-    real_time = recording.info.get("clock") == "real"
+    info = recording.info
+    real_time = info.get("clock") == "real"
     if guided is None:
-        guided = real_time
+        # a virtual run's times are the eager policy's, which a free replay repeats; any other
+        # policy's (`iotad run --virtual --seed`) are in the recording alone
+        guided = real_time or info.get("policy", "eager") != "eager"
     if reorder is None:
         reorder = real_time and not guided
     events = recording.process_trace(node)

@@ -97,7 +97,11 @@ def run(args: argparse.Namespace) -> int:
     print(f"{args.file}: {state}")
     if recording.run_error:
         print(f"  the run BROKE OFF with an error of iotad: {recording.run_error}")
-    print(f"  system: {recording.system or '?'}   clock: {info.get('clock', '?')}   writer: {info.get('writer', '?')}")
+    policy = info.get("policy")
+    chosen = "" if policy in (None, "eager") else \
+        f"   policy: {policy}" + (f" (seed {info['seed']})" if "seed" in info else "")
+    print(f"  system: {recording.system or '?'}   clock: {info.get('clock', '?')}   writer: {info.get('writer', '?')}"
+          f"{chosen}")
     print(f"  duration: {recording.duration():.3f} s   messages: {len(recording.messages)}   "
           f"attachments: {', '.join(a.name for a in recording.attachments) or 'none'}")
     specs = recording.specs
