@@ -80,6 +80,9 @@ def _decimal(text: str) -> bool:
     return text.isascii() and text.isdigit()
 
 
+MAX_RATE = 100_000.0  # Hz
+
+
 def robot_from(joints: Any, lower: Any, upper: Any, max_velocity: Any, rate: Any) -> Robot:
     if not isinstance(joints, (list, tuple)) or not joints or not all(isinstance(j, str) and j for j in joints):
         raise ValueError(f"joints: expected a list of joint names, got {joints!r}")
@@ -97,6 +100,9 @@ def robot_from(joints: Any, lower: Any, upper: Any, max_velocity: Any, rate: Any
         raise ValueError(f"max_velocity: every joint's limit must be > 0, got {speed}")
     if isinstance(rate, bool) or not isinstance(rate, (int, float)) or not 0 < rate < math.inf:
         raise ValueError(f"rate: expected a control rate in Hz > 0, got {rate!r}")
+    if rate > MAX_RATE:  # its ticks would crowd the engine's time grid (1 ns): a slip of units
+        raise ValueError(f"rate: {rate:g} Hz is past {MAX_RATE:g} Hz (a tick every {1e6 / MAX_RATE:g} us); "
+                         "no motor controller takes setpoints faster")
     return Robot(tuple(joints), tuple(low), tuple(high), tuple(speed), 1.0 / float(rate))
 
 

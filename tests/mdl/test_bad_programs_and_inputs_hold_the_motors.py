@@ -209,3 +209,12 @@ def test_a_text_field_refuses_a_lone_surrogate_and_takes_any_other_unicode():
     Text(10).check("été ✓ 機械")
     with pytest.raises(BadValue, match="not Unicode text"):
         Text(10).check("a\ud800")
+
+
+@pytest.mark.parametrize("rate, message", [(0, "expected a control rate in Hz > 0"),
+                                           (1e12, "rate: 1e+12 Hz is past 100000 Hz")])
+def test_a_rate_no_controller_could_follow_is_refused_when_the_interpreter_is_built(rate, message):
+    from nodes.mdl_interp import MdlInterpreter
+
+    with pytest.raises(ValueError, match=message):
+        MdlInterpreter("mdl", rate=rate)
