@@ -212,7 +212,7 @@ def test_a_text_field_refuses_a_lone_surrogate_and_takes_any_other_unicode():
 
 
 @pytest.mark.parametrize("rate, message", [(0, "expected a control rate in Hz > 0"),
-                                           (1e12, "rate: 1e+12 Hz is past 100000 Hz")])
+                                           (1e12, r"rate: 1e\+12 Hz is past 100000 Hz")])
 def test_a_rate_no_controller_could_follow_is_refused_when_the_interpreter_is_built(rate, message):
     from nodes.mdl_interp import MdlInterpreter
 
