@@ -132,6 +132,36 @@ def new_recording(path: str, force: bool, option: str = "-o") -> None:
                        f"written {written}); name another file, or add --force to replace it")
 
 
+def claim_recording(path: str, force: bool, option: str = "-o") -> bool:
+    """`new_recording`'s check, then the name claimed (`claim_file`): of two runs started together
+    with the same `-o`, one writes it and the other is refused here. True if this call created
+    the (empty) file, which its caller removes should nothing be written to it."""
+    from iotad.recording.mcap_io import claim_file
+
+    new_recording(path, force, option)
+    if force:
+        return False
+    try:
+        if claim_file(path):
+            return True
+    except OSError:
+        return False  # a path that cannot be written: the writer says so in its own words
+    raise CliError(f"{option} {path}: an empty file is there: another run has just claimed it for its "
+                   "recording (or one stopped before writing any); name another file, or add --force to "
+                   "replace it")
+
+
+def drop_empty_claim(path: str | os.PathLike | None) -> None:
+    """Remove a claimed recording file that nothing was written to (the run stopped first)."""
+    if path is None:
+        return
+    try:
+        if os.path.getsize(path) == 0:
+            os.unlink(path)
+    except OSError:
+        pass
+
+
 def key_expression(text: str) -> str:
     """A zenoh key expression: chunks separated by '/', none empty, no spaces or '#', '?', '$' misuse."""
     if not text or text.startswith("/") or text.endswith("/") or "//" in text or any(c in text for c in " #?"):

@@ -10,7 +10,7 @@ import time
 from collections import Counter
 from pathlib import Path
 
-from iotad.cli import CliError, new_recording, output_file
+from iotad.cli import CliError, claim_recording, drop_empty_claim, output_file
 
 PROGRESS_EVERY = 1.0  # wall-clock seconds between progress lines
 
@@ -55,14 +55,22 @@ def run_virtual(system, args: argparse.Namespace) -> int:
         if args.until > MAX_RECORDED_SECONDS:
             raise CliError(f"--until {args.until:g}: a recording holds at most {MAX_RECORDED_SECONDS:.3g} s "
                            "(its times are 64-bit nanoseconds: 584 years); --no-record runs without one")
-        output = Path(args.record_to) if args.record_to else unused_recording_path(
-            f"recordings/{system.name}-virtual-{time.strftime('%Y%m%d-%H%M%S')}.mcap")
-        output_file(str(output))  # a folder, or a path under a file: one line
-        new_recording(str(output), getattr(args, "force", False))
+        if args.record_to:
+            output = Path(args.record_to)
+            output_file(str(output))  # a folder, or a path under a file: one line
+            claim_recording(str(output), getattr(args, "force", False))  # no other run writes it too
+        else:
+            output = Path(f"recordings/{system.name}-virtual-{time.strftime('%Y%m%d-%H%M%S')}.mcap")
+            output_file(str(output))
+            try:
+                output = unused_recording_path(output, claim=True)
+            except OSError as exc:
+                raise CliError(f"cannot create {output.parent}: {exc.strerror or exc}") from None
         try:
             output.parent.mkdir(parents=True, exist_ok=True)
             sink = McapSink(output)
         except OSError as exc:
+            drop_empty_claim(output)
             raise CliError(f"-o {output}: cannot write: {exc.strerror or exc}") from None
     policy = Eager() if args.seed is None else Random(args.seed)
     if output is not None:

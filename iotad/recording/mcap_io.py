@@ -1111,20 +1111,38 @@ def existing_recording(path: str | Path) -> Path | None:
     evidence of a run: `run -o` and `record -o` replace one only when told to (--force)."""
     path = Path(path)
     for candidate in (path, member_path(path, 0)):
-        if candidate.is_file():
+        if candidate.is_file() and (candidate != path or candidate.stat().st_size > 0):
             return candidate
     return None
 
 
-def unused_recording_path(path: str | Path) -> Path:
+def claim_file(path: str | Path) -> bool:
+    """Create `path` empty, atomically: False if it is there already. A run claims its recording's
+    name this way before anything writes it, so that two runs started together never share one
+    file (each checked that no recording was there, then both wrote it). An empty file at the
+    name is no recording (`existing_recording`): the writer replaces it."""
+    try:
+        os.close(os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644))
+    except FileExistsError:
+        return False
+    return True
+
+
+def unused_recording_path(path: str | Path, claim: bool = False) -> Path:
     """`path`, or `path` with -2, -3... before its suffix: the first name no recording holds (two
-    runs started within the same second would otherwise share a time-stamped default name)."""
+    runs started within the same second would otherwise share a time-stamped default name);
+    with `claim`, the first one this process could create (`claim_file`)."""
     path = Path(path)
     candidate, number = path, 2
-    while existing_recording(candidate) is not None:
+    while existing_recording(candidate) is not None or (claim and not _claimed(candidate)):
         candidate = path.with_name(f"{path.stem}-{number}{path.suffix}")
         number += 1
     return candidate
+
+
+def _claimed(path: Path) -> bool:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    return claim_file(path)
 
 
 def _records(stream: IO[bytes], recording: Recording) -> Iterator[Any]:

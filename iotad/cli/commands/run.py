@@ -139,9 +139,7 @@ def launch(system, args: argparse.Namespace, summary_hook=None) -> int:
     import os
     from pathlib import Path
 
-    from iotad.cli import CliError, new_recording
-    from iotad.launcher.supervision import Launcher, LauncherError
-    from iotad.host.transport import free_port, reachable
+    from iotad.cli import CliError, claim_recording, drop_empty_claim
 
     if args.host is not None and args.host not in {n.host for n in system.nodes.values()}:
         hosts = sorted({n.host for n in system.nodes.values() if n.host}) or ["none declared"]
@@ -161,15 +159,32 @@ def launch(system, args: argparse.Namespace, summary_hook=None) -> int:
     if getattr(args, "record_to", None) and Path(args.record_to).is_dir():
         raise CliError(f"-o {args.record_to}: is a directory; name the .mcap file to write")
     record_to = getattr(args, "record_to", None)
+    claimed = None  # the recording's name, created empty here so that no other run takes it
     if record_to and not args.no_record:
-        new_recording(record_to, getattr(args, "force", False))
+        if claim_recording(record_to, getattr(args, "force", False)):
+            claimed = record_to
     elif not args.no_record:  # a new name: recordings/<system>-<date>-<time>.mcap, -2 in the same second
         import time
 
         from iotad.recording.mcap_io import unused_recording_path
 
         stamp = time.strftime("%Y%m%d-%H%M%S", time.localtime(args.origin or time.time()))
-        record_to = str(unused_recording_path(Path("recordings") / f"{system.name}-{stamp}.mcap"))
+        try:
+            record_to = claimed = str(unused_recording_path(Path("recordings") / f"{system.name}-{stamp}.mcap",
+                                                            claim=True))
+        except OSError as exc:
+            raise CliError(f"cannot create recordings/ here: {exc.strerror or exc}") from None
+    try:
+        return _launch(system, args, record_to, summary_hook)
+    finally:
+        drop_empty_claim(claimed)  # the run stopped before its recorder wrote anything
+
+
+def _launch(system, args: argparse.Namespace, record_to: str | None, summary_hook=None) -> int:
+    from iotad.cli import CliError
+    from iotad.launcher.supervision import Launcher, LauncherError
+    from iotad.host.transport import free_port, reachable
+
     port = args.port
     if port == 0:
         port = free_port()
@@ -204,7 +219,8 @@ def launch(system, args: argparse.Namespace, summary_hook=None) -> int:
         print(line)
     if summary_hook is not None:
         code = summary_hook(launcher, code)
-    sys.stdout.flush()
+    if sys.stdout is not None:  # None when the shell closed it (>&-)
+        sys.stdout.flush()
     return code
 
 
