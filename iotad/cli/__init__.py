@@ -216,6 +216,34 @@ def _first_line(exc: BaseException) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
+    code = _main(argv)
+    if argv is None:  # the program itself (`iotad`, `python -m iotad`), not a call from Python
+        _leave_stray_threads(code)
+    return code
+
+
+def _leave_stray_threads(code: int) -> None:
+    """Exit now if code we imported left threads that Python would wait for at exit. A command
+    that builds nodes to check them (`run`, `check`, `replay`) runs their `init`, and one that
+    starts a thread (not a daemon) would keep `iotad` from ever exiting."""
+    import threading
+
+    stray = [t.name for t in threading.enumerate()
+             if t is not threading.main_thread() and not t.daemon and t.is_alive()]
+    if not stray:
+        return
+    print(f"iotad: note: not waiting for {len(stray)} thread(s) that a node's code started "
+          f"({', '.join(stray[:3])}{', ...' if len(stray) > 3 else ''})", file=sys.stderr)
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            if stream is not None:
+                stream.flush()
+        except (OSError, ValueError):
+            pass
+    os._exit(code)
+
+
+def _main(argv: list[str] | None) -> int:
     try:
         parser = build_parser()  # imports every command: a Ctrl-C may come in the middle
     except KeyboardInterrupt:

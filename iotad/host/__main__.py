@@ -28,9 +28,14 @@ def main(argv: list[str] | None = None) -> int:
         return _fail("give a CONFIG.json file or --config-json, not both and not neither")
 
     # Signals first: a launcher may stop us while we are still importing zenoh or the spec.
+    # SIGINT is how a launcher stops its nodes (and Ctrl-C): a clean stop, exit 0. SIGTERM from
+    # anyone else (kill, a service manager) ends the node as a kill does, 128 + 15 as a shell
+    # reports it: under restart = "on-failure" its launcher starts it again.
     stop = threading.Event()
+    received: list[int] = []
 
     def on_signal(signum, frame):
+        received.append(signum)
         stop.set()
 
     signal.signal(signal.SIGTERM, on_signal)
@@ -54,7 +59,7 @@ def main(argv: list[str] | None = None) -> int:
     except Exception as exc:  # noqa: BLE001 - e.g. a composite whose bindings do not fit
         return _fail(f"{config.path}: {type(exc).__name__}: {exc}")
     if stop.is_set():
-        return 0
+        return _signalled(received)
     try:
         from iotad.host.can_port import CanPortError
 
@@ -77,6 +82,13 @@ def main(argv: list[str] | None = None) -> int:
         return _fail(f"{config.path}: engine failed: {type(host.error).__name__}: {host.error}", 1)
     if host.engine.halted:
         return _fail(f"{config.path}: engine halted (see the zeno violation on @trace)", 1)
+    return _signalled(received)
+
+
+def _signalled(received: list[int]) -> int:
+    """The exit status of a node stopped by `received` signals (none: it ended by itself)."""
+    if received and received[0] == signal.SIGTERM:
+        return 128 + signal.SIGTERM
     return 0
 
 

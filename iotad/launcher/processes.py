@@ -60,8 +60,10 @@ class Child:
     `on_exit(child, code)`, so supervision does not depend on polling."""
 
     def __init__(self, name: str, argv: Sequence[str], *, log: Path | None = None, cwd: str | None = None,
-                 env: dict[str, str] | None = None, on_exit: Callable[["Child", int], None] | None = None):
+                 env: dict[str, str] | None = None, on_exit: Callable[["Child", int], None] | None = None,
+                 death_signal: int = signal.SIGKILL):
         self.name, self.argv, self.log, self.cwd = name, list(argv), log, cwd
+        self.death_signal = death_signal  # what the child gets if this process dies (kill -9)
         self.env = env
         self.on_exit = on_exit
         self.proc: subprocess.Popen | None = None
@@ -86,8 +88,8 @@ class Child:
         out = open(self.log, "ab") if self.log is not None else subprocess.DEVNULL
         self.log_start = out.tell() if out is not subprocess.DEVNULL else 0
         try:
-            self.proc = subprocess.Popen(wrapped_argv(self.argv), stdin=subprocess.DEVNULL, stdout=out,
-                                         stderr=subprocess.STDOUT, cwd=self.cwd, env=env,
+            self.proc = subprocess.Popen(wrapped_argv(self.argv, self.death_signal), stdin=subprocess.DEVNULL,
+                                         stdout=out, stderr=subprocess.STDOUT, cwd=self.cwd, env=env,
                                          start_new_session=True, close_fds=True)
         finally:
             if out is not subprocess.DEVNULL:
@@ -102,6 +104,12 @@ class Child:
 
     def _wait(self, proc: subprocess.Popen) -> None:
         code = proc.wait()
+        # what it started and left behind (its own session: the group still bears its pid, which
+        # Linux does not reuse while the group has members) ends with it
+        try:
+            os.killpg(proc.pid, signal.SIGKILL)
+        except (ProcessLookupError, PermissionError):
+            pass
         if proc is self.proc:
             self.code = code
         if self.on_exit is not None:
@@ -202,4 +210,6 @@ def describe_exit(code: int | None) -> str:
             return f"killed by {signal.Signals(-code).name}"
         except ValueError:
             return f"killed by signal {-code}"
+    if code in (128 + signal.SIGTERM, 128 + signal.SIGINT):  # a node host stopped by that signal
+        return f"exit {code} ({signal.Signals(code - 128).name})"
     return f"exit {code}"

@@ -323,9 +323,12 @@ class Launcher:
             argv += ["--max-duration", repr(float(self.record_max_duration))]
         for endpoint in self.hub:  # a client of the hub, which relays each node's first sample
             argv += ["--connect", endpoint]
+        # If the launcher is killed (-9), the recorder is interrupted, not killed: it writes the
+        # file's summary and footer, and the recording stays complete up to that moment
         self.recorder = Child("recorder", argv, log=self.run_dir / "recorder.log",
                               env=self.access.recorder_env() if self.access else None,
-                              on_exit=lambda child, code: self.events.put(("recorder", child.pid, code)))
+                              on_exit=lambda child, code: self.events.put(("recorder", child.pid, code)),
+                              death_signal=signal.SIGINT)
         self.recorder.start()
         self._recorder_ready = ready
         return ready

@@ -13,6 +13,7 @@ import zenoh
 from iotad.host import wire
 from iotad.launcher.supervision import Launcher
 from iotad.launcher.system_file import load_system
+from iotad.recording.mcap_io import read_recording
 from launcher_helpers import IOTAS, Observer, children_of, free_port, gone, launcher, pair_system, wait_until
 
 STUB = Path(__file__).resolve().parents[1] / "launcher_stub_node.py"
@@ -46,6 +47,19 @@ def observed_pair(tmp_path):
             thing.close()
         else:
             thing.__exit__(None, None, None)
+
+
+def test_a_node_terminated_from_outside_is_restarted_as_a_killed_one(observed_pair):
+    """SIGTERM from anyone but the launcher (kill, a service manager) ends the node with status
+    143, a kill's: restart = "on-failure" restarts it, where a clean exit 0 left it dead."""
+    proc, observer = observed_pair()
+    pid = node_pid(proc.pid, "dst")
+    assert pid is not None
+    os.kill(pid, signal.SIGTERM)
+    restart = observer.wait_event(lambda e: e["event"] == "restart" and e["node"] == "dst", 10)
+    assert restart is not None and restart["pid"] != pid, proc.output.read_text()
+    assert observer.wait_alive("dst", True, 10) is not None
+    assert "dst: exit 143 (SIGTERM) after" in proc.output.read_text()
 
 
 def test_kill9_node_is_restarted_and_live_within_a_second(observed_pair):
@@ -142,7 +156,8 @@ backoff = 0.01
 
 
 def test_sigkilled_launcher_leaves_no_orphans(tmp_path):
-    """The recorder too: it is a child like the nodes."""
+    """The recorder too: it is a child like the nodes. It is interrupted rather than killed, so
+    the recording it leaves is complete (summary and footer), up to the launcher's death."""
     port = free_port()
     system_file = pair_system(tmp_path, port)
     observer = Observer("pair", f"tcp/127.0.0.1:{port}")
@@ -154,8 +169,10 @@ def test_sigkilled_launcher_leaves_no_orphans(tmp_path):
             assert any(" record " in cmd for cmd in kids.values())
             proc.kill()
             proc.wait(5)
-            assert wait_until(lambda: all(gone(pid) for pid in kids), 5), \
+            assert wait_until(lambda: all(gone(pid) for pid in kids), 10), \
                 {pid: cmd for pid, cmd in kids.items() if not gone(pid)}
+        recording = read_recording(str(tmp_path / "rec.mcap"))
+        assert recording.complete, recording.path
     finally:
         observer.close()
 

@@ -109,6 +109,56 @@ def test_children_die_with_a_killed_parent(tmp_path):
             os.kill(child_pid, signal.SIGKILL)
 
 
+PARENT_SIGINT = """
+import sys, time
+sys.path.insert(0, {root!r})
+from iotad.launcher.processes import Child
+code = ("import signal, sys, time; signal.signal(signal.SIGINT, lambda *a: (print('interrupted', flush=True), "
+        "sys.exit(0))); print('ready', flush=True); time.sleep(60)")
+child = Child("recorder", [sys.executable, "-c", code], log={log!r}, death_signal=2)
+print(child.start(), flush=True)
+time.sleep(60)
+"""
+
+
+def test_a_child_may_be_interrupted_rather_than_killed_when_its_parent_dies(tmp_path):
+    """The recorder's way: it gets SIGINT when the launcher is killed -9, and finishes its file."""
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    log = tmp_path / "recorder.log"
+    parent = subprocess.Popen([sys.executable, "-c", PARENT_SIGINT.format(root=root, log=str(log))],
+                              stdout=subprocess.PIPE, text=True, start_new_session=True)
+    child_pid = None
+    try:
+        child_pid = int(parent.stdout.readline())
+        assert wait_until(lambda: log.exists() and "ready" in log.read_text(), 10)  # its handler in place
+        parent.kill()
+        parent.wait(5)
+        assert wait_until(lambda: gone(child_pid), 10), f"child {child_pid} survived its parent"
+        assert "interrupted" in log.read_text()
+    finally:
+        parent.kill()
+        parent.wait(5)
+        if child_pid and not gone(child_pid):
+            os.kill(child_pid, signal.SIGKILL)
+
+
+def test_what_a_child_started_ends_when_it_ends(tmp_path):
+    """A node that dies by itself leaves nothing behind: its process group is killed."""
+    child = python_child(tmp_path, "parent", """
+        import subprocess, sys, time
+        grandchild = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+        print(grandchild.pid, flush=True)
+        time.sleep(0.2)
+        sys.exit(4)
+        """)
+    exits = []
+    child.on_exit = lambda c, code: exits.append(code)
+    child.start()
+    assert wait_until(lambda: exits, 10) and exits == [4]
+    grandchild = int(child.log.read_text().split()[0])
+    assert wait_until(lambda: gone(grandchild), 5), f"grandchild {grandchild} outlived its parent"
+
+
 def test_restart_policy():
     on_failure = RestartPolicy("on-failure", max_restarts=3, backoff=0.1)
     assert on_failure.wants_restart(1, 0) and on_failure.wants_restart(-9, 2)
