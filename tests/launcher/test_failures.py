@@ -373,3 +373,44 @@ params = {{ ignore_signals = true, exit_after = 60 }}
     assert "ignored SIGINT (0.3 s) and SIGTERM (0.3 s), so it was killed with SIGKILL" in killed[0][1]
     assert killed[0][0] - stopping >= 0.6
     assert gone(run.runs["n"].child.pid)
+
+
+LOADS_ONLY_IN_THE_LAUNCHER = '''
+import sys
+if sys.argv[0].endswith("/iotad/host/__main__.py"):  # the node host (python -m iotad.host): fails at import
+    raise ImportError("no CAN driver in this process")
+from iotad import Int, Iota, Output
+
+class Ticker(Iota):
+    out = Output(Int, switching=0.2)
+
+    @out.action(value=lambda self: 1, after=0.2)
+    def sent(self):
+        pass
+'''
+
+
+def test_check_of_a_run_where_a_node_never_ran_is_no_pass(tmp_path, capsys):
+    """The node loads where the launcher checks the file, and fails in its own process at every
+    start: the recording holds nothing of it. `iotad check` must not pass such a run."""
+    (tmp_path / "ticker.py").write_text(LOADS_ONLY_IN_THE_LAUNCHER)
+    path = write_system(tmp_path, "never", f"""
+[[node]]
+name = "tick"
+python = "ticker.py:Ticker"
+max_restarts = 1
+backoff = 0.1
+[[node]]
+name = "good"
+python = "{IOTAS}:FreeSink"
+[[bind]]
+from = "tick.out"
+to = "good.inp"
+""")
+    out = tmp_path / "never.mcap"
+    assert main(["run", str(path), "--until", "3", "--plain", "-o", str(out)]) == 1
+    capsys.readouterr()
+    assert main(["check", str(out)]) == 1
+    report = capsys.readouterr().out
+    assert "tick: NOT CHECKED: a node of the recorded system file that never ran" in report, report
+    assert "PROBLEMS FOUND (1 node(s) not checked)" in report

@@ -140,6 +140,11 @@ def run(args: argparse.Namespace) -> int:
     for node in unchecked:
         print(f"{node}: NOT CHECKED: the recording holds no readable spec of it "
               f"(its spec/{node}.json attachment is missing or not a JSON object)")
+    never = [] if args.node else _never_ran(recording, specs, unchecked)
+    for node in never:
+        print(f"{node}: NOT CHECKED: a node of the recorded system file that never ran (the recording holds "
+              f"neither its spec nor any event of it: it never went live)")
+    unchecked += never
     if not recording.complete:
         print(f"{args.file}: INCOMPLETE recording ({recording.truncated_reason or 'cut short'}): only what it "
               f"holds is checked, and a window still open where it ends is not judged; "
@@ -182,6 +187,33 @@ def run(args: argparse.Namespace) -> int:
         verdict = f"PROBLEMS FOUND ({' and '.join(what)})"
     print(f"check: {verdict} (tolerance {tolerance:g})")
     return 0 if all_ok and not unchecked and whole else 1
+
+
+def _never_ran(recording, specs: dict, unchecked: list[str]) -> list[str]:
+    """Nodes of the recorded system file (a real-time run's system.toml) that the recording holds
+    nothing of, where it was made to hold them (its key expressions cover their @trace)."""
+    import tomllib
+
+    from iotad.host import wire
+    from iotad.recording.delivery import _keyexpr_matches
+
+    text = next((a.data for a in recording.attachments if a.name == "system.toml"), None)
+    if text is None:
+        return []
+    try:
+        table = tomllib.loads(text.decode(errors="replace"))
+    except (tomllib.TOMLDecodeError, ValueError, RecursionError):
+        return []  # the delivery check says what is wrong with it
+    names = [n.get("name") for n in table.get("node", []) if isinstance(n, dict)]
+    keys = recording.info.get("keys")
+    system = recording.system or ""
+
+    def covered(node: str) -> bool:
+        trace = wire.trace_key(system, node)
+        return not isinstance(keys, list) or any(isinstance(k, str) and _keyexpr_matches(k, trace) for k in keys)
+
+    seen = set(specs) | set(unchecked) | set(recording.nodes())
+    return sorted(n for n in names if isinstance(n, str) and n not in seen and covered(n))
 
 
 def _unchecked(recording, specs: dict) -> list[str]:
