@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import math
 import re
+import sys
 import tomllib
 from dataclasses import dataclass, field
 from graphlib import CycleError, TopologicalSorter
@@ -521,7 +522,9 @@ class _Parser:
     def load_channels(self, system: System) -> None:
         for node in system.nodes.values():
             try:
-                instance = instantiate(node)
+                with _said_if_slow(f"still building node {node.name}'s IOTA to check it, after {SLOW_BUILD:g} s: "
+                                   "its module or init may block (Ctrl-C stops)"):
+                    instance = instantiate(node)
                 node.channels = channel_table(instance)
             except Exception as exc:  # noqa: BLE001 - whatever the spec raises is the user's message
                 message = str(exc).strip() or type(exc).__name__
@@ -802,6 +805,25 @@ def channel_table(instance: Any) -> dict[str, ChannelInfo]:
 
 
 # ---------------------------------------------------------------------------- helpers
+
+SLOW_BUILD = 10.0  # seconds a node's IOTA may take to build before the user is told
+
+
+class _said_if_slow:
+    """Say `message` on stderr if the block is still running after SLOW_BUILD seconds: building
+    a node runs its code (module, init), which may block, and nothing else would be printed."""
+
+    def __init__(self, message: str):
+        import threading
+
+        self.timer = threading.Timer(SLOW_BUILD, lambda: print(f"iotad: {message}", file=sys.stderr, flush=True))
+        self.timer.daemon = True
+
+    def __enter__(self):
+        self.timer.start()
+
+    def __exit__(self, *exc):
+        self.timer.cancel()
 
 def _positive(value: Any) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool) and value > 0 and not math.isinf(value)
