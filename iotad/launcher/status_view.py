@@ -16,6 +16,9 @@ class StatusView:
         from rich.console import Console
 
         self.console = console or Console(file=sys.stdout, highlight=False)
+        # rich ends the program when its reader leaves (`iotad run ... | head`): here the system
+        # runs on and is recorded; only its lines stop
+        self.console.on_broken_pipe = self._mute
         self.live_enabled = self.console.is_terminal if live is None else live
         self.title = title
         self._live = None
@@ -32,10 +35,27 @@ class StatusView:
 
     def line(self, text: str) -> None:
         stamp = f"[{time.monotonic() - self._t0:7.2f}]"
-        if self._live is not None:
-            self._live.console.print(f"{stamp} {text}", markup=False, highlight=False)
-        else:
-            self.console.print(f"{stamp} {text}", markup=False, highlight=False, soft_wrap=True)
+        try:
+            if self._live is not None:
+                self._live.console.print(f"{stamp} {text}", markup=False, highlight=False)
+            else:
+                self.console.print(f"{stamp} {text}", markup=False, highlight=False, soft_wrap=True)
+        except (BrokenPipeError, ValueError):  # the reader left (`| head`), or stdout was closed
+            self._mute()
+
+    def _mute(self) -> None:
+        """Nobody reads our output any more: the run goes on, its record is the recording."""
+        import os
+
+        self._live = None
+        self.live_enabled = False
+        self.console.quiet = True
+        try:  # what else prints (the summary) writes to nothing too, rather than failing
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())
+            os.close(devnull)
+        except (AttributeError, OSError, ValueError):
+            pass
 
     def update(self, rows: list[tuple]) -> None:
         self._rows = rows
@@ -43,6 +63,12 @@ class StatusView:
             self._live.update(self._table())
 
     def stop(self) -> None:
+        try:
+            self._stop()
+        except (BrokenPipeError, ValueError):
+            self._mute()
+
+    def _stop(self) -> None:
         if self._live is not None:
             self._live.update(self._table())
             self._live.stop()

@@ -414,3 +414,25 @@ to = "good.inp"
     report = capsys.readouterr().out
     assert "tick: NOT CHECKED: a node of the recorded system file that never ran" in report, report
     assert "PROBLEMS FOUND (1 node(s) not checked)" in report
+
+
+def test_a_reader_that_leaves_does_not_stop_the_run(tmp_path):
+    """`iotad run ... | head -2`: the pipe breaks after two lines. The system runs on for its
+    --until and is recorded; only the lines stop (rich would have ended the program)."""
+    out = tmp_path / "piped.mcap"
+    run = subprocess.Popen([sys.executable, "-m", "iotad", "run", str(ROOT / "examples" / "figure2.toml"),
+                            "--until", "3", "--port", str(free_port()), "--plain", "-o", str(out)],
+                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=tmp_path)
+    try:
+        first = run.stdout.readline()
+        run.stdout.close()  # the reader leaves
+        code = run.wait(timeout=60)
+        err = run.stderr.read().decode()
+    finally:
+        if run.poll() is None:
+            run.kill()
+            run.wait()
+        run.stderr.close()
+    assert first and code == 0, err
+    recording = read_recording(str(out))
+    assert recording.complete and [e for e in recording.trace("scheduler") if e["kind"] == "output"]
