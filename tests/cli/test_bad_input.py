@@ -307,3 +307,18 @@ def test_record_status_and_clean_stop(tmp_path):
     assert f"-> {out}" in stderr and f"recorded 0 messages to {out}" in stderr
     assert out.exists() and stdout == ""
     assert os.path.getsize(out) > 0
+
+
+def test_run_view_on_a_taken_port_is_refused_before_anything_starts(tmp_path, capsys, monkeypatch):
+    import socket
+
+    monkeypatch.chdir(tmp_path)
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        assert main(["run", str(ROOT / "examples" / "figure2.toml"), "--until", "1", "--view", str(port),
+                     "--plain"]) == 2
+    captured = capsys.readouterr()
+    assert f"iotad: error: --view {port}: cannot serve there: Address already in use" in captured.err
+    assert "started" not in captured.out and not (tmp_path / "recordings").exists()

@@ -158,6 +158,8 @@ def launch(system, args: argparse.Namespace, summary_hook=None) -> int:
         raise CliError("--max-size and --max-duration split the recording: not with --no-record")
     if getattr(args, "record_to", None) and Path(args.record_to).is_dir():
         raise CliError(f"-o {args.record_to}: is a directory; name the .mcap file to write")
+    if getattr(args, "view", None) is not None:
+        _view_port_free(args.view)
     record_to = getattr(args, "record_to", None)
     claimed = None  # the recording's name, created empty here so that no other run takes it
     if record_to and not args.no_record:
@@ -222,6 +224,22 @@ def _launch(system, args: argparse.Namespace, record_to: str | None, summary_hoo
     if sys.stdout is not None:  # None when the shell closed it (>&-)
         sys.stdout.flush()
     return code
+
+
+def _view_port_free(port: int) -> None:
+    """--view's port, refused before anything starts when another program holds it (the viewer
+    would fail alone, after the run had started, and the run would go on without it)."""
+    import socket
+
+    from iotad.cli import CliError
+
+    with socket.socket() as probe:
+        probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)  # as the server binds: not refused for TIME_WAIT
+        try:
+            probe.bind(("127.0.0.1", port))
+        except OSError as exc:
+            raise CliError(f"--view {port}: cannot serve there: {exc.strerror or exc} (another 'iotad view'?); "
+                           "choose another port") from None
 
 
 def access_for(system, args: argparse.Namespace):
