@@ -2,6 +2,7 @@
 EspritErrors that point at the offending token."""
 from __future__ import annotations
 
+import math
 from functools import lru_cache
 from pathlib import Path
 from typing import Any
@@ -59,6 +60,15 @@ def start_of(expr: S.Node) -> S.Pos:
             return expr.pos
 
 
+def _finite_literal(token: Token, value: float) -> float:
+    """`value`, unless the literal is beyond the largest float (1e999 reads as inf): `inf` says so
+    where it is meant, and a slip of the exponent should not silently mean 'never'."""
+    if value in (math.inf, -math.inf):
+        raise _Early(_pos(token), f"{token} is beyond the largest float (about 1.8e308); write inf if that is "
+                                  "what you mean")
+    return value
+
+
 class _Build(Transformer):
     """lark tree -> syntax tree. Every method gets the children (tokens, built nodes) and meta."""
 
@@ -70,6 +80,8 @@ class _Build(Transformer):
             value = int(token) if token.type == "INT" else float(token)
         except ValueError:  # Python reads no int of more than 4300 digits
             raise _Early(_pos(token), f"an integer literal of {len(token)} digits: {HUGE_INT}") from None
+        if value.__class__ is float:
+            _finite_literal(token, value)
         return S.Number(_pos(token), value)
 
     def true(self, c):
@@ -221,7 +233,7 @@ class _Build(Transformer):
 
     def switching(self, c):
         token = c[0]
-        return float(token) if token.type in ("INT", "NUMBER") else str(token)
+        return _finite_literal(token, float(token)) if token.type in ("INT", "NUMBER") else str(token)
 
     def chan(self, c):
         name, size, ctype, crange, switching = [x for x in c if not (isinstance(x, Token) and x.type == "SLASH")]

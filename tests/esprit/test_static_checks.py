@@ -20,6 +20,8 @@ iota leaf: go(int)/0 -> out(int)/0 { states int n = 0;
 
 # name -> (spec that trips the check, the same spec fixed, text the message must contain)
 CHECKS = {
+    "float_literal_overflows": ("iota a: go()/1e999 -> { actions go() }", "iota a: go()/1e300 -> { actions go() }",
+                                "1e999 is beyond the largest float"),
     "array_length_float": ("iota t(float T = 1.0): go()/0 -> { states int a[T] = 0; actions go() }",
                            "iota t(int T = 1): go()/0 -> { states int a[T] = 0; actions go() }",
                            "an array length is an int, not float"),
