@@ -12,7 +12,7 @@ import pytest
 
 from iotad.cli import main
 from iotad.kernel.compose import Composite
-from iotad.recording.mcap_io import record_run
+from iotad.recording.mcap_io import EngineRecorder, McapSink, record_run
 from requesters import Requester
 from scheduler import Scheduler
 
@@ -56,6 +56,11 @@ def files(tmp_path_factory):
         Requester("manipulation", priority=5, epoch=2.0, timeout=3.0, start=1.0, pause=4.0, setpoint=1.5),
         bind=[("vision.req", "scheduler.req[0]"), ("manipulation.req", "scheduler.req[1]"),
               ("scheduler.ack[0]", "vision.ack"), ("scheduler.ack[1]", "manipulation.ack")]), good, until=10)
+    # specs and not one message: what `iotad recover` makes of a virtual run killed before it
+    # wrote its first chunk
+    sink = McapSink(d / "nomessages.mcap")
+    EngineRecorder(sink, Scheduler("scheduler", N=2, T=0.5))
+    sink.finish()
     return d
 
 
@@ -187,6 +192,7 @@ CASES = [
     (["pub", "iota/x/y", "1", "--count", "-1"], "--count: expected a whole number >= 0"),
     (["pub", "iota/x/y", "{\"n\": 99999999999999999999999}"], "value cannot be sent: Integer value out of range"),
     (["pub", "iota/x/*", "1"], "no wildcards"),
+    (["check", "{d}/nomessages.mcap"], "holds no events at all, only 1 spec(s): nothing to check"),
     (["pub", "iota/x/y", "9" * 5000], "value holds an integer of thousands of digits, past 64 bits"),
     (["spec", "check", "{d}/huge.iota"], "huge.iota:1:59: an integer literal of 5000 digits: past 64 bits"),
     (["spec", "run", SPEC, "--inputs", "{d}/huge.jsonl", "--until", "1"],

@@ -132,6 +132,12 @@ def run(args: argparse.Namespace) -> int:
     nodes = [args.node] if args.node else sorted(specs)
     if not nodes:
         raise CliError(f"{args.file} holds no node specs: nothing to check against")
+    if not recording.messages and recording.complete:
+        # specs and nothing else, in a whole file: what `iotad recover` keeps of a file cut short
+        # before its first chunk (a virtual run writes its messages at the end), which every node
+        # would "conform" to (a file still cut short is INCOMPLETE below: no pass either)
+        raise CliError(f"{args.file} holds no events at all, only {len(specs)} spec(s): nothing to check "
+                       f"(a recording cut short before any message was written?)")
     all_ok = True
     limit = 10**9 if args.all else 20
     # What cannot be checked is said, and is no pass: a node without a (readable) spec, a
