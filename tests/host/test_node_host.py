@@ -113,12 +113,14 @@ def test_liveliness_token(hub, start_node):
     assert tokens == [f"{node.base}/@alive"]
 
 
-@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
-def test_signal_exits_cleanly(hub, start_node, signum):
+@pytest.mark.parametrize("signum, status", [(signal.SIGTERM, 128 + signal.SIGTERM), (signal.SIGINT, 0)])
+def test_signal_exits_cleanly(hub, start_node, signum, status):
+    """SIGINT is its launcher's stop: exit 0. SIGTERM comes from anyone else (kill, a service
+    manager): a clean exit too, with a kill's status, so that restart = "on-failure" restarts it."""
     node = start_node("echo", f"{ECHO}:Echo")
     started = time.monotonic()
     node.process.send_signal(signum)
-    assert node.process.wait(timeout=5) == 0
+    assert node.process.wait(timeout=5) == status
     assert time.monotonic() - started < 5
     out, err = node.process.communicate()
     assert out == b"" and err == b""
