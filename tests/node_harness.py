@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import queue
+import signal
 import subprocess
 import sys
 import time
@@ -84,8 +85,9 @@ class Node:
         return f"iota/{self.config['system']}/{self.config['path']}"
 
     def stop(self, timeout: float = 5.0) -> int:
+        """Stopped as its launcher stops it (SIGINT: exit 0); killed if it does not stop."""
         if self.process.poll() is None:
-            self.process.terminate()
+            self.process.send_signal(signal.SIGINT)
             try:
                 self.process.wait(timeout)
             except subprocess.TimeoutExpired:

@@ -15,7 +15,7 @@ from sim.worlds import make_world, world_options
     ("buggy", {"wheel_radius": 0.0}, "world 'buggy': option wheel_radius must be > 0, got 0.0"),
     ("buggy", {"start": "x"}, "world 'buggy': option start must be a list, got 'x'"),
     ("buggy", {"proximity_rays": 2.5}, "world 'buggy': option proximity_rays must be a whole number, got 2.5"),
-    ("buggy", {"food_per_crack": -2}, "food_per_crack and friction must be >= 0, got -2 and 0.001"),
+    ("buggy", {"food_per_crack": -2}, "food_per_crack, friction and brake_torque must be >= 0, got -2, 0.001 and 0.1"),
     ("conveyor", {"belt_speed": "fast"}, "world 'conveyor': option belt_speed must be a finite number, got 'fast'"),
     ("conveyor", {"cube_count": 2.5}, "world 'conveyor': option cube_count must be a whole number, got 2.5"),
     ("conveyor", {"bin_size": 0}, "world 'conveyor': option bin_size must be > 0, got 0"),
