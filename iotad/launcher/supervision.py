@@ -41,6 +41,7 @@ HEARTBEAT = "@heartbeat"
 ORIGIN = "@origin"
 MIN_FREE_BYTES = 16 * 2**20   # refuse to start a recording on a file system with less free space
 RECORDER_RESTARTS = 3         # new recorders after the first one died, before recording stops
+RECORDER_STALL = 5.0          # s without a sign of life (its ready file touched) before a recorder is killed
 VALUE_LABELS = 32             # distinct values counted per channel for the summary; then "*"
 # Exit status of `run()` by stop reason: 128 + the signal, like a shell.
 _SIGNAL_STATUS = {"interrupted": 130, "SIGTERM": 143, "SIGHUP": 129}
@@ -149,6 +150,8 @@ class Launcher:
         self.recording_lost: str | None = None    # why recording stopped before the run did
         self._recorder_restarts = 0
         self._recorder_ready: Path | None = None  # a restarted recorder's ready file, until it exists
+        self._recorder_beat: Path | None = None   # the running recorder's ready file, touched as it lives
+        self._recorder_frozen = 0.0               # s of silence of a recorder killed as frozen
         self._shutting_down = False
         self.session = None
         self._publisher = None
@@ -330,7 +333,7 @@ class Launcher:
                               on_exit=lambda child, code: self.events.put(("recorder", child.pid, code)),
                               death_signal=signal.SIGINT)
         self.recorder.start()
-        self._recorder_ready = ready
+        self._recorder_ready = self._recorder_beat = ready
         return ready
 
     def _recorder_exited(self, pid: int, code: int) -> None:
@@ -343,7 +346,9 @@ class Launcher:
         self.recording = None
         uptime = time.monotonic() - recorder.started_at
         state = "is complete" if code == 0 else f"was cut short: 'iotad recover {cut}' makes it whole"
-        self._launcher_event("recorder", f"recorder: {describe_exit(code)} after {uptime:.1f} s; {cut} {state}"
+        frozen, self._recorder_frozen = self._recorder_frozen, 0.0
+        why = f" (frozen: no sign of life for {frozen:.1f} s)" if frozen else ""
+        self._launcher_event("recorder", f"recorder: {describe_exit(code)}{why} after {uptime:.1f} s; {cut} {state}"
                              f"{_log_tail(recorder)}", code=code, file=str(cut))
         if self._shutting_down:
             self.recording_lost = f"the recorder ended with {describe_exit(code)} before the stop"
@@ -541,8 +546,24 @@ class Launcher:
             self.view.line(f"every node is live: --until {self.until:g} s counts from now")
         return self._live_at
 
+    def _recorder_alive(self) -> None:
+        """Kill a recorder that gave no sign of life for RECORDER_STALL s (SIGSTOP, a hung write):
+        its exit is then handled as any other, and a new recorder takes over."""
+        beat, recorder = self._recorder_beat, self.recorder
+        if (beat is None or recorder is None or not recorder.running() or self._recorder_ready is not None
+                or self._shutting_down):  # a stopping recorder writes its file's end: no sign of life then
+            return
+        try:
+            silent = time.time() - beat.stat().st_mtime
+        except OSError:
+            return
+        if silent > RECORDER_STALL:
+            self._recorder_frozen = silent
+            recorder.signal(signal.SIGKILL)
+
     def _supervise(self, now: float) -> None:
         system = self.system
+        self._recorder_alive()
         if self._recorder_ready is not None and self._recorder_ready.exists() and self.recorder is not None:
             # said once it listens, so that the new file holds the news of the old one's end
             self._recorder_ready = None

@@ -264,6 +264,33 @@ def test_recorder_killed_mid_run_is_reported_restarted_and_recoverable(tmp_path)
     assert news and "restarted" in news[0]["message"]
 
 
+def test_a_frozen_recorder_is_killed_and_replaced(tmp_path):
+    """A recorder that stops (SIGSTOP, a write hung on a dead disk) gives no sign of life: after
+    RECORDER_STALL s the launcher kills it, says why, and a new recorder takes over."""
+    from iotad.launcher.supervision import RECORDER_STALL
+
+    port = free_port()
+    system_file = pair_system(tmp_path, port)
+    first = tmp_path / "rec.mcap"
+    observer = Observer("pair", f"tcp/127.0.0.1:{port}")
+    try:
+        with launcher(system_file, "-o", str(first)) as proc:
+            assert observer.wait_all_alive(("src", "dst"), 20), proc.output.read_text()
+            recorder = next(pid for pid, cmd in children_of(proc.pid).items() if " record " in cmd)
+            os.kill(recorder, signal.SIGSTOP)
+            event = observer.wait_event(lambda e: e["event"] == "recorder" and "restarted" in e["message"],
+                                        RECORDER_STALL + 20)
+            assert event is not None, proc.output.read_text()
+            assert Path(event["file"]) == tmp_path / "rec.1.mcap"
+            proc.send_signal(signal.SIGINT)
+            assert proc.wait(20) == 130
+        output = proc.output.read_text()
+    finally:
+        observer.close()
+    assert "recorder: killed by SIGKILL (frozen: no sign of life for" in output, output
+    assert read_recording(tmp_path / "rec.1.mcap").complete
+
+
 def test_a_real_time_run_with_force_replaces_the_recording(tmp_path):
     """`iotad run -o FILE --force` over an earlier recording: the recorder it starts replaces it
     too (what `make demo` does on its second run)."""

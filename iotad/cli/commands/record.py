@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import signal
 import sys
 import threading
@@ -176,6 +177,11 @@ def run(args: argparse.Namespace) -> int:
         while not stop.is_set() and recorder.failed is None:  # a write error ends the recording: exit, say why
             timeout = 0.5 if deadline is None else min(0.5, max(0.0, deadline - time.monotonic()))
             stop.wait(timeout)
+            if args.ready_file:  # a sign of life for the launcher, which restarts a frozen recorder
+                try:
+                    os.utime(args.ready_file)
+                except OSError:
+                    pass
             if deadline is not None and time.monotonic() >= deadline:
                 break
     finally:
