@@ -114,6 +114,7 @@ class CanMotor(Iota):
 
     def init(self):
         self.joint_map = _joint_map(self.joints)
+        _encodable(self.joint_map)
         self.by_node = {joint.node_id: k for k, joint in enumerate(self.joint_map)}
         self.period = _check_period("state_period", self.state_period or self.encoder_period)
         self.lost_timeout = _check_period("heartbeat_period", self.heartbeat_period) * _count(self.lost_after)
@@ -198,26 +199,7 @@ class CanMotor(Iota):
     # ------------------------------------------------------------------ behaviour
     def _send_arming(self, i: int) -> None:
         joint, axis = self.joint_map[i], self.axes[i]
-        node = joint.node_id
-        frames = [encode(node, "Clear_Errors", Identify=0),
-                  encode(node, "Set_Controller_Mode", Control_Mode=CONTROL_MODE[joint.control_mode],
-                         Input_Mode=INPUT_MODE[joint.input_mode]),
-                  encode(node, "Set_Limits", Velocity_Limit=joint.motor_velocity_limit,
-                         Current_Limit=joint.current_limit)]
-        if joint.pos_gain is not None:
-            frames.append(encode(node, "Set_Pos_Gain", Pos_Gain=joint.pos_gain))
-        if joint.vel_gain is not None:
-            frames.append(encode(node, "Set_Vel_Gains", Vel_Gain=joint.vel_gain,
-                                 Vel_Integrator_Gain=joint.vel_integrator_gain))
-        if joint.traj_vel_limit is not None:
-            frames.append(encode(node, "Set_Traj_Vel_Limit", Traj_Vel_Limit=joint.traj_vel_limit))
-        if joint.traj_accel_limit is not None:
-            frames.append(encode(node, "Set_Traj_Accel_Limits", Traj_Accel_Limit=joint.traj_accel_limit,
-                                 Traj_Decel_Limit=joint.traj_decel_limit))
-        if joint.traj_inertia is not None:
-            frames.append(encode(node, "Set_Traj_Inertia", Traj_Inertia=joint.traj_inertia))
-        frames.append(encode(node, "Set_Axis_State", Axis_Requested_State=CLOSED_LOOP))
-        self.tx.extend(frames)
+        self.tx.extend(_arming_frames(joint))
         axis.phase = ARMING
         axis.retry = True  # until a reset: an axis that fails or drops out is not hammered
         axis.last_sent = self.ticks
@@ -236,7 +218,10 @@ class CanMotor(Iota):
             else:
                 wanted, low, high = value.torque_ff[i], -joint.torque_limit, joint.torque_limit
             applied = wanted
-            if not math.isfinite(wanted):
+            # the command and its feed-forwards: an infinite one would go out as the frame's
+            # largest torque, or as a signal the controller drops with the whole command
+            if not (math.isfinite(wanted) and math.isfinite(value.velocity_ff[i])
+                    and math.isfinite(value.torque_ff[i])):
                 self._report(i, "SETPOINT_REJECTED", wanted, axis.command)
                 continue
             if not low <= wanted <= high:
@@ -419,6 +404,39 @@ def _setpoint_frame(joint: JointConfig, command: float, velocity_ff: float, torq
     return encode(node, "Set_Input_Torque", Input_Torque=joint.motor_torque(command))
 
 
+def _arming_frames(joint: JointConfig) -> list[Frame]:
+    """Clear_Errors, the controller mode, the limits, the optional gains, then closed loop."""
+    node = joint.node_id
+    frames = [encode(node, "Clear_Errors", Identify=0),
+              encode(node, "Set_Controller_Mode", Control_Mode=CONTROL_MODE[joint.control_mode],
+                     Input_Mode=INPUT_MODE[joint.input_mode]),
+              encode(node, "Set_Limits", Velocity_Limit=joint.motor_velocity_limit, Current_Limit=joint.current_limit)]
+    if joint.pos_gain is not None:
+        frames.append(encode(node, "Set_Pos_Gain", Pos_Gain=joint.pos_gain))
+    if joint.vel_gain is not None:
+        frames.append(encode(node, "Set_Vel_Gains", Vel_Gain=joint.vel_gain,
+                             Vel_Integrator_Gain=joint.vel_integrator_gain))
+    if joint.traj_vel_limit is not None:
+        frames.append(encode(node, "Set_Traj_Vel_Limit", Traj_Vel_Limit=joint.traj_vel_limit))
+    if joint.traj_accel_limit is not None:
+        frames.append(encode(node, "Set_Traj_Accel_Limits", Traj_Accel_Limit=joint.traj_accel_limit,
+                             Traj_Decel_Limit=joint.traj_decel_limit))
+    if joint.traj_inertia is not None:
+        frames.append(encode(node, "Set_Traj_Inertia", Traj_Inertia=joint.traj_inertia))
+    frames.append(encode(node, "Set_Axis_State", Axis_Requested_State=CLOSED_LOOP))
+    return frames
+
+
+def _encodable(joints: tuple[JointConfig, ...]) -> None:
+    """Every joint's arming frames can be built: a limit or gain no float32 holds (1e39) is a
+    JointMapError when the node is built, not a runtime error at every arming attempt."""
+    for joint in joints:
+        try:
+            _arming_frames(joint)
+        except EncodeError as exc:
+            raise JointMapError(f"joint {joint.name}: {exc} (in the frames that arm its axis)") from None
+
+
 def _status(i: int, axis: Axis, report: tuple):
     event, requested, applied = report
     return JOINT_STATUS(joint=i, node_id=axis.node_id, event=event, phase=axis.phase, lost=axis.lost,
@@ -447,9 +465,14 @@ def _joint_map(value: Any) -> tuple[JointConfig, ...]:
     return parse_joints(value)
 
 
+MIN_PERIOD = 1e-5  # s: 100 kHz, past any CAN bus's frame rate (about 8,000 frames/s at 1 Mbit/s)
+
+
 def _check_period(name: str, value: Any) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value < math.inf:
         raise ValueError(f"CanMotor: {name} must be a positive number of seconds, got {value!r}")
+    if value < MIN_PERIOD:  # ticks that crowd the engine's 1 ns grid: a slip of units
+        raise ValueError(f"CanMotor: {name} {value!r} s is below {MIN_PERIOD:g} s; no CAN bus carries that")
     return float(value)
 
 

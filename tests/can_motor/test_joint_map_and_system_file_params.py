@@ -63,6 +63,21 @@ def test_the_node_without_a_map_or_with_bad_params_says_why():
         CanMotor("m", joints=LIST, polls={"Get_Nothing": 1.0})
     with pytest.raises(ValueError, match="lost_after must be a whole number"):
         CanMotor("m", joints=LIST, lost_after=0)
+    with pytest.raises(ValueError, match=r"state_period 1e-300 s is below 1e-05 s"):
+        CanMotor("m", joints=LIST, state_period=1e-300)
+
+
+@pytest.mark.parametrize("key, value, signal", [("current_limit", 1e39, "Current_Limit"),
+                                                ("pos_gain", 1e39, "Pos_Gain"),
+                                                ("traj_inertia", 1e39, "Traj_Inertia"),
+                                                ("velocity_limit", 1e40, "Velocity_Limit")])
+def test_a_setting_no_frame_can_carry_is_refused_when_the_node_is_built(key, value, signal):
+    """It passed the joint map's checks, then failed at every arming attempt, a runtime error
+    each, until the engine halted (zeno) at t=0: a float32 holds at most 3.4e38."""
+    joints = [{"name": "a", "node_id": 1}, {"name": "b", "node_id": 2, key: value}]
+    with pytest.raises(JointMapError, match=rf"joint b: signal {signal}=.* does not fit a float32 \(in the frames "
+                                            r"that arm its axis\)"):
+        CanMotor("m", joints=joints)
 
 
 @given(q=st.floats(-10, 10), direction=st.sampled_from([1, -1]), gear=st.floats(0.1, 200),

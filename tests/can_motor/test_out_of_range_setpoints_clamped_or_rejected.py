@@ -60,3 +60,18 @@ def test_a_huge_position_with_no_limits_is_rejected_not_a_crash():
     assert commands(bench, 0.06) == {}
     assert [s["event"] for s in bench.status()][-1] == "SETPOINT_REJECTED"
     assert not bench.violations()
+
+
+def test_an_infinite_feed_forward_is_rejected_not_sent_as_full_torque():
+    """+-inf passes the channel's type (a Float may be infinite); saturated it would go out as the
+    frame's largest torque feed-forward, or as a signal the controller drops with the command."""
+    bench = Bench([{"name": "p", "node_id": 1}, {"name": "v", "node_id": 2, "mode": "velocity"},
+                   {"name": "q", "node_id": 3}])
+    bench.arm_all(0.05)
+    bench.post("setpoints", setpoints(3, [0.1, 0.0, 0.2], velocity_ff=[0.0, 0.5, math.inf],
+                                      torque_ff=[math.inf, -math.inf, 0.0]), t=0.06)
+    bench.run(0.06)
+    assert commands(bench, 0.06) == {}
+    assert [(s["joint"], s["event"]) for s in bench.status() if s["event"].startswith("SETPOINT")] == [
+        (0, "SETPOINT_REJECTED"), (1, "SETPOINT_REJECTED"), (2, "SETPOINT_REJECTED")]
+    assert not bench.violations()
