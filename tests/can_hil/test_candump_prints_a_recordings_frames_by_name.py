@@ -78,3 +78,24 @@ def test_live_reads_a_bus_until_quiet(capsys):
     code, lines, err = dump(capsys, "--live", "--interface", "virtual", "--channel", "iotad-candump-test",
                             "--timeout", "0.2")
     assert code == 0 and lines == [] and "virtual bus on iotad-candump-test" in err
+
+
+def test_a_recorded_value_that_is_no_frame_is_shown_as_such(tmp_path, capsys):
+    """An external can_rx input with id 5000 and extended false: the channel's type takes it (the
+    motor node reports it MALFORMED); candump shows the line, it used to drop it in silence."""
+    text = EXAMPLE.read_text().replace('arm_trajectory.py', str(EXAMPLE.parent / "arm_trajectory.py"))
+    assert 'external = ["motor.estop"]' in text
+    text = text.replace('external = ["motor.estop"]', 'external = ["motor.estop", "motor.can_rx"]', 1)
+    system = tmp_path / "ext.toml"
+    system.write_text(text)
+    inputs = tmp_path / "odd.jsonl"
+    inputs.write_text('{"t": 0.2, "action": "motor.can_rx", "value": {"id": 5000, "extended": false, '
+                      '"rtr": false, "dlc": 8, "data": [0, 0, 0, 0, 0, 0, 0, 0]}}\n')
+    out = tmp_path / "odd.mcap"
+    assert main(["run", str(system), "--virtual", "--until", "0.3", "--inputs", str(inputs), "-o", str(out)]) == 0
+    code, lines, _ = dump(capsys, out, "--rx", "--node", "motor", "--start", "0.2", "--end", "0.2")
+    assert code == 0
+    assert lines == ["motor  0.200000  can_rx  not a CAN frame: CAN id 0x1388 does not fit a 11-bit standard id "
+                     "(0..0x7FF)"]
+    code, lines, _ = dump(capsys, out, "--rx", "--node", "motor", "--start", "0.2", "--end", "0.2", "--axis", "1")
+    assert lines == []  # a filter by axis or message leaves it out: it has neither

@@ -79,7 +79,10 @@ class _Filter:
 
     def __call__(self, frame) -> bool:
         from iotad.can import odrive
+        from iotad.can.frame import Frame
 
+        if not isinstance(frame, Frame):  # a recorded value that is no frame: shown unless filtered
+            return not (self.axes or self.messages)
         if self.axes and (frame.extended or frame.id >> 5 not in self.axes):
             return False
         if self.messages:
@@ -110,7 +113,9 @@ def run(args: argparse.Namespace) -> int:
 
 
 def frame_events(recording, direction: str = "tx", nodes=None, start=None, end=None):
-    """(t, node, action, index, Frame) of the recording's frame events, in time order."""
+    """(t, node, action, index, Frame) of the recording's frame events, in time order; an event
+    whose value is no CAN frame (a can_rx input id 5000 with extended false: the type takes it,
+    the node reports it malformed) keeps its value, which `format_frame` shows as such."""
     from iotad.can.frame import Frame, FrameError
 
     actions = ACTIONS[direction]
@@ -131,7 +136,7 @@ def frame_events(recording, direction: str = "tx", nodes=None, start=None, end=N
         try:
             frame = Frame.from_value(event.get("value"))
         except FrameError:
-            continue  # not a frame: a malformed event is iotad check's business
+            frame = event.get("value")  # shown as "not a CAN frame: why", never dropped in silence
         found.append((float(t), order, node, event["action"], event.get("index"), frame))
     found.sort(key=lambda item: (item[0], item[1]))
     return [(t, node, action, index, frame) for t, _, node, action, index, frame in found]
