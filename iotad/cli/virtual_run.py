@@ -74,7 +74,8 @@ def run_virtual(system, args: argparse.Namespace) -> int:
             raise CliError(f"-o {output}: cannot write: {exc.strerror or exc}") from None
     policy = Eager() if args.seed is None else Random(args.seed)
     if output is not None:
-        sinks.insert(0, EngineRecorder(sink, root, system.name, time_unit=system.time_unit, policy=policy))
+        sinks.insert(0, EngineRecorder(sink, root, system.name, time_unit=system.time_unit, policy=policy,
+                                       external=sorted(str(port) for port in system.external)))
     engine = Engine(root, VirtualClock(), policy, record=False, sinks=sinks)
     until = args.until / system.time_unit  # --until is seconds; the engine counts spec units
     for path, entry in posts:

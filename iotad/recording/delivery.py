@@ -255,6 +255,8 @@ def recorded_system(recording: Recording) -> RecordedSystem | str:
         if not isinstance(data, dict):
             return f"the recorded system.json is a {type(data).__name__}, not a JSON object"
         pairs = [tuple(p) for p in data.get("bindings", []) if isinstance(p, (list, tuple)) and len(p) == 2]
+        if isinstance(data.get("external"), list):
+            external += [e for e in data["external"] if isinstance(e, str)]
         root = recording.info.get("root") or data.get("name") or name
         prefix = f"{root}/"
     else:
@@ -743,6 +745,12 @@ class DeliveryChecker:
                 if twin is not None:
                     link.duplicated += 1
                     self._finding(link, "duplicated", twin.t, f"{_short(item.value)} received again at t={item.t:.6g}")
+                elif self.virtual and target in self.system.external:
+                    # bound and declared external: an input script's, posted into it from outside
+                    self.report.notes.append(DeliveryFinding(
+                        "external", f"(outside) -> {target}", item.t, f"{target.node} took "
+                        f"{_short(item.value)} at t={item.t:.6g} from outside ({target} is external)", False,
+                        (target.node,)))
                 else:
                     link.unexplained += 1
                     self._finding(link, "unexplained", item.t, f"{target.node} took {_short(item.value)} at "
@@ -960,7 +968,12 @@ class DeliveryChecker:
                             (pick is None or sent[s][queue[0]][0] < sent[pick][by_head[pick][frame[:3]][0]][0]):
                         pick = s
                 if pick is None:
-                    if self.virtual:  # every station of the modelled bus is a node: the frame is no one's
+                    if self.virtual and Port(receiver, CAN_RX, None) in self.system.external:
+                        # an input script's frame into a can_rx the system file declares external
+                        self.report.notes.append(DeliveryFinding(
+                            "external", f"can {bus}: (outside) -> {receiver}", t, f"{receiver} received frame "
+                            f"{_frame_text(frame)} from outside (its {CAN_RX} is external)", False, (receiver,)))
+                    elif self.virtual:  # every station of the modelled bus is a node: the frame is no one's
                         link = Link(f"can {bus}: (no station) -> {receiver}", "can", (receiver,))
                         self.report.links.append(link)
                         link.unexplained += 1

@@ -559,7 +559,7 @@ class EngineRecorder:
     becomes log and publish time `t * time_unit` seconds after `origin_ns`."""
 
     def __init__(self, sink: McapSink, root: Any, system: str | None = None, *, time_unit: float = 1.0,
-                 origin_ns: int = 0, policy: Any = None):
+                 origin_ns: int = 0, policy: Any = None, external: Iterable[str] = ()):
         from iotad.kernel.compose import Composite, flatten
         self.sink, self.root = sink, root
         self.system = system or root.instance_name
@@ -583,9 +583,11 @@ class EngineRecorder:
             "clock": "virtual", "writer": "EngineRecorder", "root": root.instance_name,
             "nodes": list(self._specs), "bindings": bindings,
             "composite": isinstance(root, Composite), **_policy_info(policy)})
+        # `external`: the system file's external inputs ("motor.can_rx"), which the delivery check
+        # judges as fed from outside (an input script's) rather than as a binding's
         sink.attach("system.json", "application/json", json.dumps(
             {"name": self.system, "nodes": {p: {k: s[k] for k in ("source", "params")} for p, s in self._specs.items()},
-             "bindings": bindings}, default=_plain).encode(), origin_ns)
+             "bindings": bindings, "external": list(external)}, default=_plain).encode(), origin_ns)
         self._writers()
 
     # The hot path (bench/worlds.py): per event, one dict look-up for its node's @trace topic (and
