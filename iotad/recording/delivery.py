@@ -402,6 +402,17 @@ class _Life:
     def trace_end(self) -> float | None:
         return self.runs[-1][1] if self.seen and self.virtual_end is None else None
 
+    def untraced_at(self, t: float) -> float | None:
+        """Where the trace of the real-time run that was going at `t` ends, if `t` is past it: a
+        process killed there lost its last trace period (what it sent then is on the wire only)."""
+        if not self.seen or self.virtual_end is not None:
+            return None
+        k = _last_at_or_before([run[0] for run in self.runs], t)
+        if k < 0:
+            return None
+        end = self.runs[k][1]
+        return end if t > end else None
+
 
 def _last_at_or_before(ordered: list[float], t: float) -> int:
     k = -1
@@ -1096,6 +1107,13 @@ class DeliveryChecker:
                 links[s].altered += 1
                 self._finding(links[s], "altered", sent[s][twin][0], f"{s} sent frame {_frame_text(sent[s][twin][1])},"
                               f" the bus carried {_frame_text(frame)}" + ("" if t is None else f" at t={t:.6g}"))
+                continue
+            life = self.life.get(s)
+            lost_trace = life.untraced_at(t) if life is not None and t is not None else None
+            if lost_trace is not None:
+                self._finding(links[s], "untraced", t, f"the bus carried frame {_frame_text(frame)} from {s} after "
+                              f"{s}'s recorded trace of that run ends (t={lost_trace:.6g}; a killed node loses its "
+                              "last trace period)", False)
                 continue
             links[s].unexplained += 1
             self._finding(links[s], "unexplained", t, f"the bus carried frame {_frame_text(frame)} from {s}, "

@@ -38,3 +38,17 @@ def test_virtual_time_has_one_run_and_no_downtime():
     assert life.down(5.0, 0.1, "echo") is None
     assert life.judge(5.0, 0.1, "echo")[0] == "lost"
     assert life.judge(9.95, 0.1, "echo")[0] == "unjudged"
+
+
+def test_what_a_killed_node_sent_after_its_last_trace_is_untraced_not_unexplained():
+    """kill -9 loses a node's last trace period: a frame the bus (or the wire) carries from then
+    is the node's, though its trace does not hold it. The run that was going at that time says
+    where its trace ends; the next run, after the restart, has its own."""
+    from iotad.recording.delivery import _Life
+
+    life = _Life(starts=[0.0, 6.0], signs=[1.0, 5.39123, 6.5, 9.0], virtual_end=None)
+    assert life.untraced_at(5.4088) == 5.39123   # after run 1's trace, before run 2 started
+    assert life.untraced_at(5.0) is None          # inside run 1's trace
+    assert life.untraced_at(8.0) is None          # inside run 2's
+    assert life.untraced_at(9.5) == 9.0           # after the last run's trace
+    assert _Life(starts=[0.0], signs=[], virtual_end=3.0).untraced_at(2.0) is None  # virtual: one engine
