@@ -1037,19 +1037,32 @@ def _read_set(index: Recording, path: Path) -> Recording:
     merged by topic and content, each attachment once (the first member's), metadata of the
     last member that has it (`iotad.recording`: the first's; `iotad.split_set`: the set file's)."""
     names = _member_names(path, index.metadata[SET_METADATA])
+    set_id = index.metadata[SET_METADATA].get("set")
     out = Recording(str(path), complete=index.complete, truncated_reason=index.truncated_reason,
                     header_library=index.header_library)
     out.metadata[SET_METADATA] = index.metadata[SET_METADATA]
     schema_ids: dict[tuple, int] = {}
     channel_ids: dict[str, int] = {}
     attached: set[str] = set()
+    last_time: int | None = None
     for position, name in enumerate(names):
         file = path.parent / name
         if not file.is_file():
-            if position == len(names) - 1:  # the recorder stopped between naming it and creating it
+            if position == len(names) - 1:
+                # the recorder stopped between naming it and creating it, or it was deleted: the
+                # set is not whole either way
+                out.complete = False
+                out.truncated_reason = f"{name}, the last file the set lists, is missing"
                 continue
             raise RecordingError(f"{path}: {name}, file {position} of the split recording, is missing")
         member = _read_file(file)
+        _same_set(path, name, position, member, set_id)
+        if member.messages:  # members follow each other in time: one put in another's place does not
+            first = min(m.log_time for m in member.messages)
+            if last_time is not None and first < last_time:
+                raise RecordingError(f"{path}: {name} (file {position}) begins before the file before it ends: "
+                                     "the set's files are out of order, or one is another run's")
+            last_time = max(m.log_time for m in member.messages)
         out.files.append(str(file))
         if not member.complete:
             out.complete = False
@@ -1083,6 +1096,23 @@ def _read_set(index: Recording, path: Path) -> Recording:
     if not out.files:
         raise RecordingError(f"{path}: a split recording none of whose files exist")
     return out
+
+
+def _same_set(path: Path, name: str, position: int, member: Recording, set_id: Any) -> None:
+    """A member names its set and its place in it (metadata `iotad.recording`, `split`): another
+    run's file copied in, or members renamed, are refused, never read as this run's."""
+    try:
+        split = json.loads(member.metadata.get("iotad.recording", {}).get("split", "null"))
+    except (TypeError, ValueError):
+        split = None
+    if not isinstance(split, dict):
+        return  # cut before its metadata: nothing to compare (the member says it is incomplete)
+    if split.get("set") != set_id:
+        raise RecordingError(f"{path}: {name} belongs to another split recording (set {split.get('set')!r}, "
+                             f"not {set_id!r}): a file of another run")
+    if split.get("index") != position:
+        raise RecordingError(f"{path}: {name} is file {split.get('index')} of its set, not file {position}: "
+                             "the set's files were renamed or copied over each other")
 
 
 def write_set_file(path: str | Path, set_id: str, files: list[str], info: dict[str, Any]) -> None:

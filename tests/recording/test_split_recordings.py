@@ -171,3 +171,54 @@ def test_recorder_killed_mid_set_leaves_earlier_files_whole_and_the_last_recover
     assert out.complete and not out.files and SET_METADATA not in out.metadata
     assert [m.sequence for m in out.messages if m.topic == KEY] == list(range(source.sent))
     assert "was cut short" in capsys.readouterr().out
+
+
+def test_a_set_with_another_runs_file_or_a_missing_last_file_is_never_read_as_whole(tmp_path, recorders, capsys):
+    """Every member names its set and its place: a file of another run copied in, or members
+    renamed over each other, are refused by name; a deleted last file makes the set INCOMPLETE
+    (all three used to read as a complete recording that `iotad check` passed)."""
+    import shutil
+
+    sets = []
+    for name in ("a", "b"):
+        (tmp_path / name).mkdir()
+        sets.append(recorders(tmp_path / name / "run.mcap", "--max-size", "1"))
+    source = Source(*sets)
+    try:
+        for _ in range(3):
+            before = [len(members(r.output)) for r in sets]
+            source.batch()
+            for r, n in zip(sets, before):
+                wait_for(lambda r=r, n=n: len(members(r.output)) > n, 20, what="the next file of a set")
+        wait_for(lambda: all(received(r.output) == source.sent for r in sets), 20, what="every message")
+    finally:
+        source.close()
+    assert all(r.stop() == 0 for r in sets)
+    names = [f.name for f in set_files(sets[0].output)]
+    assert len(names) >= 3 and read_recording(sets[0].output).complete
+
+    def variant(label: str) -> Path:
+        folder = tmp_path / label
+        shutil.copytree(tmp_path / "a", folder)
+        return folder / "run.mcap"
+
+    foreign = variant("foreign")
+    shutil.copy(tmp_path / "b" / names[1], foreign.parent / names[1])
+    with pytest.raises(Exception, match=rf"{names[1]} belongs to another split recording"):
+        read_recording(foreign)
+    swapped = variant("swapped")
+    (swapped.parent / names[0]).rename(swapped.parent / "x")
+    (swapped.parent / names[1]).rename(swapped.parent / names[0])
+    (swapped.parent / "x").rename(swapped.parent / names[1])
+    with pytest.raises(Exception, match=rf"{names[0]} is file 1 of its set, not file 0"):
+        read_recording(swapped)
+    cut = variant("cut")
+    (cut.parent / names[-1]).unlink()
+    recording = read_recording(cut)
+    assert not recording.complete and f"{names[-1]}, the last file the set lists, is missing" in \
+        recording.truncated_reason
+    capsys.readouterr()
+    main(["info", str(cut)])
+    assert "the last file the set lists, is missing" in capsys.readouterr().out
+    assert main(["info", str(foreign)]) == 2
+    assert "belongs to another split recording" in capsys.readouterr().err
