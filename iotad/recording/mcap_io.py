@@ -744,6 +744,18 @@ class Recording:
 
     # -- what it holds
     @property
+    def recovered_from(self) -> str:
+        """What `iotad recover` made this file of, when that recording was not whole ("" for any
+        other): its end is missing, so it holds part of a run, whatever its own footer says."""
+        meta = self.metadata.get("iotad.recovered")
+        if meta is None or meta.get("was_complete") == "true":
+            return ""
+        damaged = meta.get("damaged") or ""
+        how = f"damaged: {damaged}" if damaged and damaged != '""' else \
+            f"cut short: {meta.get('stopped_at') or '?'}"
+        return f"{meta.get('from') or 'a recording'} ({how})"
+
+    @property
     def run_error(self) -> str:
         """How the run that made it broke off ("" for a run that ended as it should): an error
         of iotad itself, at the time it happened (`RUN_ERROR`, written by `iotad run --virtual`)."""

@@ -196,3 +196,35 @@ def test_export_and_recover_keep_a_recording_already_at_their_output(recorded, t
         assert main([*args, "--force"]) == 0
         capsys.readouterr()
         out.write_bytes(recorded.read_bytes())
+
+
+def test_a_recovered_copy_of_a_cut_recording_says_so_and_is_no_pass(recorded, tmp_path, capsys):
+    """`iotad recover` makes a whole file of what a cut recording holds; the run's end is still
+    missing, so info says RECOVERED and check's verdict is PROBLEMS, naming why."""
+    from iotad.kernel.clock import VirtualClock
+    from iotad.kernel.engine import Engine
+    from iotad.recording.mcap_io import EngineRecorder
+
+    chunked = tmp_path / "chunked.mcap"  # a chunk a second, as a recorder flushes: a cut keeps some
+    sink = McapSink(chunked)
+    root = figure2()
+    engine = Engine(root, VirtualClock(), sinks=[EngineRecorder(sink, root)])
+    for t in range(1, 31):
+        engine.run(t)
+        sink.flush()
+    sink.finish()
+    data = chunked.read_bytes()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(data[:len(data) * 17 // 20])  # the specs are the file's first half: past them
+    recovered = tmp_path / "recovered.mcap"
+    assert main(["recover", str(cut), "-o", str(recovered)]) == 0
+    assert read_recording(recovered).messages
+    capsys.readouterr()
+    assert main(["info", str(recovered)]) == 0
+    assert f"RECOVERED by 'iotad recover' from {cut} (cut short" in capsys.readouterr().out
+    assert main(["check", str(recovered)]) == 1
+    assert "PROBLEMS FOUND (it was recovered from a cut recording)" in capsys.readouterr().out
+    whole = tmp_path / "whole.mcap"
+    assert main(["recover", str(recorded), "-o", str(whole)]) == 0  # already whole: a plain copy
+    capsys.readouterr()
+    assert main(["check", str(whole)]) == 0

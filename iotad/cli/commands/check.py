@@ -158,12 +158,17 @@ def run(args: argparse.Namespace) -> int:
     if recording.run_error:
         print(f"{args.file}: the run that made it BROKE OFF with an error of iotad ({recording.run_error}): "
               f"only what it holds is checked")
+    if recording.recovered_from:
+        print(f"{args.file}: RECOVERED from {recording.recovered_from}: the run's end is not in it, so only what "
+              f"it holds is checked")
     real_time = recording.info.get("clock") != "virtual"
     for node in nodes:
         events = recording.process_trace(node)
         if args.node and not events:
             raise CliError(f"node {node!r} has no @trace events in {args.file}")
-        if real_time and events and not any(e.get("kind") == START_KIND for e in events):
+        # a real-time node whose start is not recorded: from mid-run, or nothing but heartbeats
+        if real_time and (events or recording.info.get("clock") == "real") \
+                and not any(e.get("kind") == START_KIND for e in events):
             # recorded from mid-run (`iotad record` attached late): the state it was in is unknown
             print(f"{node}: NOT CHECKED: the recording holds no start of its engine (it began after the node "
                   f"started), so the state the node was in is unknown")
@@ -182,13 +187,14 @@ def run(args: argparse.Namespace) -> int:
         if delivery.checked:
             delivered = delivery.ok
             all_ok &= delivery.ok
-    whole = recording.complete and not recording.run_error
+    whole = recording.complete and not recording.run_error and not recording.recovered_from
     if all_ok and not unchecked and whole:
         verdict = "every node conforms to its spec" + (", every message was delivered as sent" if delivered else "")
     else:
         what = [w for w, bad in (("conformance", not conforms), ("delivery", delivered is False),
                                  (f"{len(unchecked)} node(s) not checked", unchecked),
                                  ("the recording is incomplete", not recording.complete),
+                                 ("it was recovered from a cut recording", recording.recovered_from),
                                  ("the run broke off", recording.run_error)) if bad]
         verdict = f"PROBLEMS FOUND ({' and '.join(what)})"
     print(f"check: {verdict} (tolerance {tolerance:g})")

@@ -97,6 +97,8 @@ def run(args: argparse.Namespace) -> int:
     print(f"{args.file}: {state}")
     if recording.run_error:
         print(f"  the run BROKE OFF with an error of iotad: {recording.run_error}")
+    if recording.recovered_from:
+        print(f"  RECOVERED by 'iotad recover' from {recording.recovered_from}: what came after is not in it")
     policy = info.get("policy")
     chosen = "" if policy in (None, "eager") else \
         f"   policy: {policy}" + (f" (seed {info['seed']})" if "seed" in info else "")
