@@ -943,7 +943,8 @@ class Recording:
         return None
 
 
-def read_recording(path: str | Path, whole_set: bool = True, salvage: bool = False) -> Recording:
+def read_recording(path: str | Path, whole_set: bool = True, salvage: bool = False,
+                   progress: Callable[[str, int, int], None] | None = None) -> Recording:
     """Read a recording, complete or cut short by a kill; raise RecordingError if it is not MCAP,
     or if it is damaged (`Recording.damaged`) unless `salvage`: then what comes before the damage.
 
@@ -953,20 +954,29 @@ def read_recording(path: str | Path, whole_set: bool = True, salvage: bool = Fal
     path = Path(path)
     if not path.is_file():
         raise RecordingError(f"{path}: no such file")
-    recording = _read_file(path)
+    recording = _read_file(path, progress)
     if whole_set and SET_METADATA in recording.metadata:
-        recording = _read_set(recording, path)
+        recording = _read_set(recording, path, progress)
     if recording.damaged and not salvage:
         raise RecordingError(f"{path}: damaged: {recording.damaged}; its data cannot be trusted. "
                              f"'iotad recover {path}' keeps what comes before the damage")
     return recording
 
 
-def _read_file(path: Path) -> Recording:
+PROGRESS_EVERY = 2.0  # s between `progress` calls while a file is read
+
+
+def _read_file(path: Path, progress: Callable[[str, int, int], None] | None = None) -> Recording:
+    """`progress(file, bytes read, bytes in all)`, if given, every PROGRESS_EVERY s of reading."""
     recording = Recording(str(path))
+    size = path.stat().st_size
+    next_report = time.monotonic() + PROGRESS_EVERY
     with open(path, "rb") as stream:
         try:
-            for record in _records(stream, recording):
+            for count, record in enumerate(_records(stream, recording)):
+                if progress is not None and count % 4096 == 0 and time.monotonic() >= next_report:
+                    next_report = time.monotonic() + PROGRESS_EVERY
+                    progress(str(path), stream.tell(), size)
                 if isinstance(record, Message):
                     channel = recording.channels.get(record.channel_id)
                     if channel is None:
@@ -1044,7 +1054,7 @@ def _member_names(path: Path, meta: dict[str, str]) -> list[str]:
     return names
 
 
-def _read_set(index: Recording, path: Path) -> Recording:
+def _read_set(index: Recording, path: Path, progress: Callable[[str, int, int], None] | None = None) -> Recording:
     """A split recording's members read as one: messages in member order, channels and schemas
     merged by topic and content, each attachment once (the first member's), metadata of the
     last member that has it (`iotad.recording`: the first's; `iotad.split_set`: the set file's)."""
@@ -1067,7 +1077,7 @@ def _read_set(index: Recording, path: Path) -> Recording:
                 out.truncated_reason = f"{name}, the last file the set lists, is missing"
                 continue
             raise RecordingError(f"{path}: {name}, file {position} of the split recording, is missing")
-        member = _read_file(file)
+        member = _read_file(file, progress)
         _same_set(path, name, position, member, set_id)
         if member.messages:  # members follow each other in time: one put in another's place does not
             first = min(m.log_time for m in member.messages)

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 
 from iotad.cli import nonnegative_float, positive_int
 
@@ -98,6 +99,9 @@ def load_spec(reference: str, name: str, iota: str | None, params: dict):
         raise CliError(f"--spec {reference}: {first}") from None
 
 
+LONG = 100_000  # messages in a recording past which check says what it is doing, on stderr
+
+
 def run(args: argparse.Namespace) -> int:
     from iotad.host.wire import START_KIND
     from iotad.recording.conformance import check_implements, check_runs
@@ -162,8 +166,12 @@ def run(args: argparse.Namespace) -> int:
         print(f"{args.file}: RECOVERED from {recording.recovered_from}: the run's end is not in it, so only what "
               f"it holds is checked")
     real_time = recording.info.get("clock") != "virtual"
+    # a long recording takes a while per node (about 2 s per 100,000 events): say what is going on
+    long = len(recording.messages) > LONG
     for node in nodes:
         events = recording.process_trace(node)
+        if long:
+            print(f"checking {node} ({len(events):,} events)...", file=sys.stderr, flush=True)
         if args.node and not events:
             raise CliError(f"node {node!r} has no @trace events in {args.file}")
         # a real-time node whose start is not recorded: from mid-run, or nothing but heartbeats
@@ -182,6 +190,8 @@ def run(args: argparse.Namespace) -> int:
     delivered = None
     if not args.no_delivery:
         from iotad.recording.delivery import check_delivery
+        if long:
+            print(f"checking the delivery of {len(recording.messages):,} messages...", file=sys.stderr, flush=True)
         delivery = check_delivery(recording, tolerance=tolerance, node=args.node)
         print("\n".join(delivery.lines(limit=limit)))
         if delivery.checked:

@@ -3,6 +3,7 @@ and per binding how many messages were delivered, lost, altered, duplicated or u
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 from iotad.cli import nonnegative_int
@@ -28,6 +29,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.set_defaults(func=run)
 
 
+def _reading(file: str, done: int, size: int) -> None:
+    """Progress of a long read (every reading command loads the recording first), on stderr."""
+    print(f"reading {file}: {100 * done / max(size, 1):3.0f}% ({done / 1e6:.1f} of {size / 1e6:.1f} MB)",
+          file=sys.stderr, flush=True)
+
+
 def load(path: str, salvage: bool = False):
     """Read a recording for a command; a bad file is a one-line error. `salvage`: a damaged
     recording gives what comes before the damage (`Recording.damaged` says what) instead."""
@@ -49,7 +56,7 @@ def load(path: str, salvage: bool = False):
     if magic != b"\x89MCAP":
         raise CliError(f"{path}: not an MCAP recording (it does not start with the MCAP magic bytes)")
     try:
-        return read_recording(path, salvage=salvage)
+        return read_recording(path, salvage=salvage, progress=_reading)
     except RecordingError as exc:
         raise CliError(str(exc)) from None
     except OSError as exc:
