@@ -21,7 +21,8 @@ def run_virtual(system, args: argparse.Namespace) -> int:
     from iotad.kernel.policy import Eager, Random
     from iotad.launcher.in_process import compose
     from iotad.kernel.compose import flatten
-    from iotad.recording.mcap_io import MAX_RECORDED_SECONDS, RUN_ERROR, EngineRecorder, McapSink, unused_recording_path
+    from iotad.recording.mcap_io import (MAX_RECORDED_SECONDS, RUN_END, RUN_ERROR, EngineRecorder, McapSink,
+                                         unused_recording_path)
 
     if args.until is None:
         raise CliError("--virtual needs --until SECONDS (virtual time; the run is as fast as the machine allows)")
@@ -109,6 +110,9 @@ def run_virtual(system, args: argparse.Namespace) -> int:
             sink.add_metadata(RUN_ERROR, {"error": f"{type(exc).__name__}: {exc}",
                                           "t": engine.now() * system.time_unit})
         raise
+    else:
+        if output is not None:  # how far every node ran: windows that closed before it are judged
+            sink.add_metadata(RUN_END, {"t": engine.now()})
     finally:
         if output is not None:
             sink.finish()

@@ -382,14 +382,17 @@ def split_runs(events: list[dict], start: float = 0.0) -> list[tuple[float, list
 
 
 def check_runs(build: Callable[[], Any], events: list[dict], *, node: str = "", tolerance: float = 0.0,
-               start: float = 0.0) -> CheckReport:
+               start: float = 0.0, until: float | None = None) -> CheckReport:
     """`check_trace` of every run of a node's process, each from its own start and a fresh
     instance (`build()`): a restarted process starts from the spec's initial state, and a window
-    open when the process died is not judged. One report; `restarts` lists the later starts."""
+    open when the process died is not judged. One report; `restarts` lists the later starts.
+    `until`: when the last run is known to have run to (a virtual run's end), past its last
+    event: a window that closed before then and never fired is reported expired."""
     runs = split_runs(events, start)
     merged = CheckReport(node, tolerance=tolerance)
     for number, (begun, run) in enumerate(runs):
-        report = TraceChecker(build(), node, tolerance, begun).check(run)
+        last = number == len(runs) - 1
+        report = TraceChecker(build(), node, tolerance, begun).check(run, until=until if last else None)
         merged.events += report.events
         merged.firings += report.firings
         merged.findings += report.findings

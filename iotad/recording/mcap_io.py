@@ -551,6 +551,9 @@ _FLOAT64 = struct.Struct(">Bd").pack  # msgpack's float 64: 0xCB, big-endian dou
 MAX_RECORDED_SECONDS = ((1 << 64) - 1) / 1e9
 # Metadata a virtual run writes when an error of iotad's own broke it off: {"error", "t"}.
 RUN_ERROR = "iotad.run_error"
+# metadata of a virtual run that ended as it should: the time its engine ran to (spec units). Every
+# node ran until then, so a window that closed before it and never fired is a deadline missed.
+RUN_END = "iotad.run_end"
 
 
 class EngineRecorder:
@@ -754,6 +757,16 @@ class Recording:
         how = f"damaged: {damaged}" if damaged and damaged != '""' else \
             f"cut short: {meta.get('stopped_at') or '?'}"
         return f"{meta.get('from') or 'a recording'} ({how})"
+
+    @property
+    def run_end(self) -> float | None:
+        """The time a virtual run's engine ran to (spec units; None: not recorded)."""
+        meta = self.metadata.get(RUN_END)
+        try:
+            t = float(json.loads(meta.get("t", "null"))) if meta is not None else None
+        except (TypeError, ValueError):
+            return None
+        return t if t is not None and math.isfinite(t) else None
 
     @property
     def run_error(self) -> str:

@@ -183,6 +183,7 @@ def run(args: argparse.Namespace) -> int:
             unchecked.append(node)
             continue
         report = check_runs(lambda node=node: node_root(recording, node), events, node=node, tolerance=tolerance,
+                            until=None if real_time else recording.run_end,
                             start=start_time(recording.specs.get(node)))
         all_ok &= report.ok
         print("\n".join(report.lines(limit=limit)))
