@@ -227,6 +227,13 @@ def test_hub_port_in_use_is_one_clear_line_and_exit_2(tmp_path):
 
 # ---------------------------------------------------------------------------- recordings
 
+def signal_the_recorder(proc, observer, signum: int, timeout: float):
+    """Send `signum` to the run's recorder; the launcher event saying a new one took over, or None."""
+    recorder = next(pid for pid, cmd in children_of(proc.pid).items() if " record " in cmd)
+    os.kill(recorder, signum)
+    return observer.wait_event(lambda e: e["event"] == "recorder" and "restarted" in e["message"], timeout)
+
+
 def test_recorder_killed_mid_run_is_reported_restarted_and_recoverable(tmp_path):
     port = free_port()
     system_file = pair_system(tmp_path, port)
@@ -237,9 +244,7 @@ def test_recorder_killed_mid_run_is_reported_restarted_and_recoverable(tmp_path)
     try:
         with launcher(system_file, "-o", str(first)) as proc:
             assert observer.wait_all_alive(("src", "dst"), 20), proc.output.read_text()
-            recorder = next(pid for pid, cmd in children_of(proc.pid).items() if " record " in cmd)
-            os.kill(recorder, signal.SIGKILL)
-            event = observer.wait_event(lambda e: e["event"] == "recorder" and "restarted" in e["message"], 20)
+            event = signal_the_recorder(proc, observer, signal.SIGKILL, 20)
             assert event is not None, proc.output.read_text()
             second = Path(event["file"])
             assert second == tmp_path / "rec.2.mcap"
@@ -276,10 +281,7 @@ def test_a_frozen_recorder_is_killed_and_replaced(tmp_path):
     try:
         with launcher(system_file, "-o", str(first)) as proc:
             assert observer.wait_all_alive(("src", "dst"), 20), proc.output.read_text()
-            recorder = next(pid for pid, cmd in children_of(proc.pid).items() if " record " in cmd)
-            os.kill(recorder, signal.SIGSTOP)
-            event = observer.wait_event(lambda e: e["event"] == "recorder" and "restarted" in e["message"],
-                                        RECORDER_STALL + 20)
+            event = signal_the_recorder(proc, observer, signal.SIGSTOP, RECORDER_STALL + 20)
             assert event is not None, proc.output.read_text()
             assert Path(event["file"]) == tmp_path / "rec.1.mcap"
             proc.send_signal(signal.SIGINT)
