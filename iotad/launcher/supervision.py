@@ -41,7 +41,8 @@ HEARTBEAT = "@heartbeat"
 ORIGIN = "@origin"
 MIN_FREE_BYTES = 16 * 2**20   # refuse to start a recording on a file system with less free space
 RECORDER_RESTARTS = 3         # new recorders after the first one died, before recording stops
-RECORDER_STALL = 5.0          # s without a sign of life (its ready file touched) before a recorder is killed
+RECORDER_STALL = 5.0          # s without a sign of life (its ready file touched) before a recorder is killed,
+                              # at least; twice the system's heartbeat_timeout where that is longer (a slow host)
 VALUE_LABELS = 32             # distinct values counted per channel for the summary; then "*"
 # Exit status of `run()` by stop reason: 128 + the signal, like a shell.
 _SIGNAL_STATUS = {"interrupted": 130, "SIGTERM": 143, "SIGHUP": 129}
@@ -557,7 +558,7 @@ class Launcher:
             silent = time.time() - beat.stat().st_mtime
         except OSError:
             return
-        if silent > RECORDER_STALL:
+        if silent > max(RECORDER_STALL, 2 * self.system.heartbeat_timeout):
             self._recorder_frozen = silent
             recorder.signal(signal.SIGKILL)
 

@@ -281,7 +281,7 @@ def test_a_frozen_recorder_is_killed_and_replaced(tmp_path):
     try:
         with launcher(system_file, "-o", str(first)) as proc:
             assert observer.wait_all_alive(("src", "dst"), 20), proc.output.read_text()
-            event = signal_the_recorder(proc, observer, signal.SIGSTOP, RECORDER_STALL + 20)
+            event = signal_the_recorder(proc, observer, signal.SIGSTOP, RECORDER_STALL + 2 * 3.0 + 20)  # heartbeat 3 s
             assert event is not None, proc.output.read_text()
             assert Path(event["file"]) == tmp_path / "rec.1.mcap"
             proc.send_signal(signal.SIGINT)
