@@ -125,8 +125,10 @@ class _Number(Type):
 
 # The integers msgpack carries (the wire, the recordings): an int beyond them cannot be sent.
 INT_MIN, INT_MAX = -(1 << 63), (1 << 64) - 1
+_INT_RANGE = f"the wire and recordings carry integers from {INT_MIN} to {INT_MAX}"
 # what to say of an integer of more digits than Python turns into text (4300): no text shows it
-HUGE_INT = f"past 64 bits (the wire and recordings carry integers from {INT_MIN} to {INT_MAX})"
+HUGE_INT = f"past 64 bits ({_INT_RANGE})"
+_FLOAT_MAX = sys.float_info.max
 
 
 def int_text(value: int) -> str:
@@ -135,7 +137,6 @@ def int_text(value: int) -> str:
         return repr(value)
     except ValueError:
         return f"an integer of about {int(value.bit_length() * 0.30103) + 1} digits"
-_FLOAT_MAX = sys.float_info.max
 
 
 def _range(number: "_Number") -> tuple:
@@ -156,8 +157,7 @@ class IntType(_Number):
     def check(self, value: Any) -> None:
         super().check(value)
         if not INT_MIN <= value <= INT_MAX:
-            raise BadValue(f"{int_text(value)} does not fit in 64 bits (the wire and recordings carry integers "
-                           f"from {INT_MIN} to {INT_MAX})")
+            raise BadValue(f"{int_text(value)} does not fit in 64 bits ({_INT_RANGE})")
 
     def default(self) -> int:
         return 0 if self.low is None else int(self.low)

@@ -41,7 +41,9 @@ from __future__ import annotations
 import math
 import re
 import sys
+import threading
 import tomllib
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from graphlib import CycleError, TopologicalSorter
 from pathlib import Path
@@ -809,21 +811,18 @@ def channel_table(instance: Any) -> dict[str, ChannelInfo]:
 SLOW_BUILD = 10.0  # seconds a node's IOTA may take to build before the user is told
 
 
-class _said_if_slow:
+@contextmanager
+def _said_if_slow(message: str):
     """Say `message` on stderr if the block is still running after SLOW_BUILD seconds: building
     a node runs its code (module, init), which may block, and nothing else would be printed."""
+    timer = threading.Timer(SLOW_BUILD, lambda: print(f"iotad: {message}", file=sys.stderr, flush=True))
+    timer.daemon = True
+    timer.start()
+    try:
+        yield
+    finally:
+        timer.cancel()
 
-    def __init__(self, message: str):
-        import threading
-
-        self.timer = threading.Timer(SLOW_BUILD, lambda: print(f"iotad: {message}", file=sys.stderr, flush=True))
-        self.timer.daemon = True
-
-    def __enter__(self):
-        self.timer.start()
-
-    def __exit__(self, *exc):
-        self.timer.cancel()
 
 def _positive(value: Any) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool) and value > 0 and not math.isinf(value)

@@ -753,9 +753,8 @@ class Recording:
         meta = self.metadata.get("iotad.recovered")
         if meta is None or meta.get("was_complete") == "true":
             return ""
-        damaged = meta.get("damaged") or ""
-        how = f"damaged: {damaged}" if damaged and damaged != '""' else \
-            f"cut short: {meta.get('stopped_at') or '?'}"
+        damaged = meta.get("damaged")
+        how = f"damaged: {damaged}" if damaged else f"cut short: {meta.get('stopped_at') or '?'}"
         return f"{meta.get('from') or 'a recording'} ({how})"
 
     @property

@@ -37,7 +37,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                             description=__doc__, epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("key", metavar="KEY", type=key_expression,
                         help="where to publish, e.g. iota/figure2/scheduler/req/1 (no wildcards)")
-    parser.add_argument("value", metavar="VALUE", help="the value as JSON ('null' for a channel without a value), @FILE for a file's JSON, "
+    parser.add_argument("value", metavar="VALUE",
+                        help="the value as JSON ('null' for a channel without a value), @FILE for a file's JSON, "
                              "or - for standard input's")
     parser.add_argument("--count", type=nonnegative_int, default=1, metavar="N",
                         help="publish N times (default 1; 0: until Ctrl-C)")
