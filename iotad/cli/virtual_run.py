@@ -3,8 +3,11 @@ recorded in the same MCAP format as a real-time run, with a progress line on lon
 from __future__ import annotations
 
 import argparse
+import contextlib
 import gc
 import json
+import os
+import signal
 import sys
 import time
 from collections import Counter
@@ -16,19 +19,45 @@ PROGRESS_EVERY = 1.0  # wall-clock seconds between progress lines
 
 
 def run_virtual(system, args: argparse.Namespace) -> int:
-    from iotad.kernel.clock import VirtualClock
-    from iotad.kernel.engine import Engine
-    from iotad.kernel.policy import Eager, Random
-    from iotad.launcher.in_process import compose
-    from iotad.kernel.compose import flatten
-    from iotad.recording.mcap_io import (MAX_RECORDED_SECONDS, RUN_END, RUN_ERROR, EngineRecorder, McapSink,
-                                         unused_recording_path)
+    from iotad.recording.mcap_io import MAX_RECORDED_SECONDS
+    from iotad.recording.writer_process import RecordingProcess
 
     if args.until is None:
         raise CliError("--virtual needs --until SECONDS (virtual time; the run is as fast as the machine allows)")
     for option in ("host", "port", "origin", "log_dir"):
         if getattr(args, option, None) is not None:
             raise CliError(f"--{option.replace('_', '-')} is for processes over zenoh, not --virtual")
+    if not args.no_record and args.until > MAX_RECORDED_SECONDS:
+        raise CliError(f"--until {args.until:g}: a recording holds at most {MAX_RECORDED_SECONDS:.3g} s "
+                       "(its times are 64-bit nanoseconds: 584 years); --no-record runs without one")
+    # With a core to spare, the recording is written by a second process (a quarter of the work
+    # of a run): started now, its start-up overlaps building the system.
+    writer = RecordingProcess() if not args.no_record and cores() > 1 else None
+    try:
+        return _run(system, args, writer)
+    finally:
+        if writer is not None:
+            writer.close()
+
+
+def cores() -> int:
+    """CPUs this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        return os.cpu_count() or 1
+
+
+def _run(system, args: argparse.Namespace, writer) -> int:
+    from iotad.kernel.clock import VirtualClock
+    from iotad.kernel.engine import Engine
+    from iotad.kernel.policy import Eager, Random
+    from iotad.launcher.in_process import compose
+    from iotad.kernel.compose import flatten
+    from iotad.recording.mcap_io import (RUN_END, RUN_ERROR, EngineRecorder, McapSink, recording_header,
+                                         unused_recording_path)
+    from iotad.recording.writer_process import WriterFailed
+
     inputs = _read_inputs(args.inputs) if args.inputs else []
     try:
         root = compose(system)
@@ -53,9 +82,6 @@ def run_virtual(system, args: argparse.Namespace) -> int:
 
     sinks.append(count)
     if not args.no_record:
-        if args.until > MAX_RECORDED_SECONDS:
-            raise CliError(f"--until {args.until:g}: a recording holds at most {MAX_RECORDED_SECONDS:.3g} s "
-                           "(its times are 64-bit nanoseconds: 584 years); --no-record runs without one")
         if args.record_to:
             output = Path(args.record_to)
             output_file(str(output))  # a folder, or a path under a file: one line
@@ -69,14 +95,24 @@ def run_virtual(system, args: argparse.Namespace) -> int:
                 raise CliError(f"cannot create {output.parent}: {exc.strerror or exc}") from None
         try:
             output.parent.mkdir(parents=True, exist_ok=True)
-            sink = McapSink(output)
-        except OSError as exc:
+            if writer is not None:
+                writer.open(output)
+                sink = writer
+            else:
+                sink = McapSink(output)
+        except (OSError, WriterFailed) as exc:
             drop_empty_claim(output)
-            raise CliError(f"-o {output}: cannot write: {exc.strerror or exc}") from None
+            why = exc.strerror or exc if isinstance(exc, OSError) else exc
+            raise CliError(f"-o {output}: cannot write: {why}") from None
     policy = Eager() if args.seed is None else Random(args.seed)
     if output is not None:
-        sinks.insert(0, EngineRecorder(sink, root, system.name, time_unit=system.time_unit, policy=policy,
-                                       external=sorted(str(port) for port in system.external)))
+        header = recording_header(root, system.name, time_unit=system.time_unit, policy=policy,
+                                  external=sorted(str(port) for port in system.external))
+        if writer is not None:
+            writer.begin(header)
+            sinks.insert(0, writer)
+        else:
+            sinks.insert(0, EngineRecorder.from_header(sink, header))
     engine = Engine(root, VirtualClock(), policy, record=False, sinks=sinks)
     until = args.until / system.time_unit  # --until is seconds; the engine counts spec units
     for path, entry in posts:
@@ -89,33 +125,48 @@ def run_virtual(system, args: argparse.Namespace) -> int:
     step = max(until / 1000, 1e-3)
     progress = sys.stderr.isatty() and not args.plain
     next_report = started + PROGRESS_EVERY
+    interrupted = False
     try:
-        t = 0.0
-        while t < until and not engine.halted:
-            t = min(until, t + step)
-            engine.run(t)
-            now = time.perf_counter()
-            if now >= next_report:
-                next_report = now + PROGRESS_EVERY
-                line = (f"t = {_seconds(t * system.time_unit, 2):>8} s of {args.until:g} s virtual, "
-                        f"{t * system.time_unit / (now - started):6.1f}x real time, {counts['output']} outputs")
-                print("\r" + line if progress else line, end="" if progress else "\n", file=sys.stderr, flush=True)
-    except KeyboardInterrupt:
+        with _ctrl_c() as stop:
+            t = 0.0
+            while t < until and not engine.halted and not stop:
+                t = min(until, t + step)
+                engine.run(t)
+                now = time.perf_counter()
+                if now >= next_report:
+                    next_report = now + PROGRESS_EVERY
+                    line = (f"t = {_seconds(t * system.time_unit, 2):>8} s of {args.until:g} s virtual, "
+                            f"{t * system.time_unit / (now - started):6.1f}x real time, {counts['output']} outputs")
+                    print("\r" + line if progress else line, end="" if progress else "\n", file=sys.stderr, flush=True)
+            if stop:
+                print(file=sys.stderr)
+                print(f"stopped by Ctrl-C at t = {engine.now() * system.time_unit:.3f} s", file=sys.stderr)
+    except KeyboardInterrupt:  # a second Ctrl-C: at once, wherever the run was
+        interrupted = True
         print(file=sys.stderr)
-        print(f"stopped by Ctrl-C at t = {engine.now() * system.time_unit:.3f} s", file=sys.stderr)
+        print(f"stopped hard by a second Ctrl-C at t = {engine.now() * system.time_unit:.3f} s", file=sys.stderr)
     except BaseException as exc:
         # an error of iotad itself: the recording keeps what happened, and says the run broke off
         # there, so that `iotad check` does not pass it as a whole run
         if output is not None:
-            sink.add_metadata(RUN_ERROR, {"error": f"{type(exc).__name__}: {exc}",
-                                          "t": engine.now() * system.time_unit})
+            try:
+                sink.add_metadata(RUN_ERROR, {"error": f"{type(exc).__name__}: {exc}",
+                                              "t": engine.now() * system.time_unit})
+            except WriterFailed:
+                pass  # the writer is what failed: it has said so
         raise
     else:
-        if output is not None:  # how far every node ran: windows that closed before it are judged
+        # how far every node ran (a Ctrl-C stops between steps, so this holds then too):
+        # windows that closed before it are judged
+        if output is not None:
             sink.add_metadata(RUN_END, {"t": engine.now()})
     finally:
         if output is not None:
-            sink.finish()
+            try:
+                sink.finish()
+            except WriterFailed:
+                if not interrupted:
+                    raise
     wall = time.perf_counter() - started
     if progress:
         print(file=sys.stderr)
@@ -130,8 +181,41 @@ def run_virtual(system, args: argparse.Namespace) -> int:
     if engine.halted:
         print("  engine halted: a loop of actions enabled itself without time passing (see the zeno violation)")
     if output is not None:
-        print(f"  recording: {output}  (iotad info|check|plot {output})")
+        where = " (written by a second process)" if writer is not None else ""
+        print(f"  recording: {output}{where}  (iotad info|check|plot {output})")
     return 1 if engine.halted else 0
+
+
+class _Stop:
+    """Whether a Ctrl-C asked the run to stop (true once one came)."""
+
+    def __init__(self):
+        self.asked = False
+
+    def __bool__(self) -> bool:
+        return self.asked
+
+
+@contextlib.contextmanager
+def _ctrl_c():
+    """The first Ctrl-C asks the run to stop after the step in progress (a few ms), so it never
+    lands inside a node's code or half-way through handing events to the recording; a second one
+    stops it at once (KeyboardInterrupt). Outside the main thread, Ctrl-C is left as it is."""
+    stop = _Stop()
+
+    def asked(signum, frame):
+        stop.asked = True
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+
+    try:
+        previous = signal.signal(signal.SIGINT, asked)
+    except ValueError:  # not the main thread
+        yield stop
+        return
+    try:
+        yield stop
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def _seconds(value: float, decimals: int) -> str:

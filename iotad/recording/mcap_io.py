@@ -556,6 +556,36 @@ RUN_ERROR = "iotad.run_error"
 RUN_END = "iotad.run_end"
 
 
+def recording_header(root: Any, system: str | None = None, *, time_unit: float = 1.0, origin_ns: int = 0,
+                     policy: Any = None, external: Iterable[str] = ()) -> dict[str, Any]:
+    """What an `EngineRecorder` writes before the first event, as plain data (JSON and msgpack
+    carry it as it is): the node paths, each node's spec, the recording's metadata and the
+    system's description. A writer in another process starts from it (`writer_process`)."""
+    from iotad.kernel.compose import Composite, flatten
+    flat = flatten(root)
+    prefix = root.instance_name + "/"
+    node_path = {}
+    for leaf in flat.leaves:
+        rel = leaf.path[len(prefix):] if leaf.path.startswith(prefix) else leaf.path
+        node_path[leaf.path] = rel or leaf.path
+    # each spec as its JSON text reads back: what the file holds, whichever process writes it
+    specs = {node_path[leaf.path]: json.loads(json.dumps(spec_record(leaf.iota, node_path[leaf.path], time_unit),
+                                                         default=_plain))
+             for leaf in flat.leaves}
+    name = system or root.instance_name
+    bindings = [[str(s), str(d)] for s, d in flat.bindings]
+    metadata = {"format": FORMAT, "system": name, "time_unit": time_unit, "origin_ns": origin_ns,
+                "clock": "virtual", "writer": "EngineRecorder", "root": root.instance_name,
+                "nodes": list(specs), "bindings": bindings, "composite": isinstance(root, Composite),
+                **_policy_info(policy)}
+    # `external`: the system file's external inputs ("motor.can_rx"), which the delivery check
+    # judges as fed from outside (an input script's) rather than as a binding's
+    described = {"name": name, "nodes": {p: {k: s[k] for k in ("source", "params")} for p, s in specs.items()},
+                 "bindings": bindings, "external": list(external)}
+    return {"system": name, "time_unit": time_unit, "origin_ns": origin_ns, "node_path": node_path,
+            "specs": specs, "metadata": metadata, "system_json": described}
+
+
 class EngineRecorder:
     """An Engine sink that writes what a system of node hosts would publish: every event of a
     leaf on `iota/<system>/<path>/@trace`, every output on its channel key. Virtual time `t`
@@ -563,34 +593,28 @@ class EngineRecorder:
 
     def __init__(self, sink: McapSink, root: Any, system: str | None = None, *, time_unit: float = 1.0,
                  origin_ns: int = 0, policy: Any = None, external: Iterable[str] = ()):
-        from iotad.kernel.compose import Composite, flatten
-        self.sink, self.root = sink, root
-        self.system = system or root.instance_name
-        self.time_unit, self.origin_ns = time_unit, origin_ns
-        self.flat = flatten(root)
-        prefix = root.instance_name + "/"
-        self.node_path = {}
-        for leaf in self.flat.leaves:
-            rel = leaf.path[len(prefix):] if leaf.path.startswith(prefix) else leaf.path
-            self.node_path[leaf.path] = rel or leaf.path
+        self._begin(sink, recording_header(root, system, time_unit=time_unit, origin_ns=origin_ns,
+                                           policy=policy, external=external))
+
+    @classmethod
+    def from_header(cls, sink: McapSink, header: dict[str, Any]) -> "EngineRecorder":
+        """The recorder of a system known only by its `recording_header` (no IOTAs here)."""
+        recorder = cls.__new__(cls)
+        recorder._begin(sink, header)
+        return recorder
+
+    def _begin(self, sink: McapSink, header: dict[str, Any]) -> None:
+        self.sink = sink
+        self.system, self.time_unit, self.origin_ns = header["system"], header["time_unit"], header["origin_ns"]
+        self.node_path = header["node_path"]
         self._ids: dict[str, list] = {}  # topic -> [channel id, next sequence]
-        self._specs: dict[str, dict] = {}
+        self._specs: dict[str, dict] = header["specs"]
         self._cache: dict[str, dict] = {}
-        for leaf in self.flat.leaves:
-            path = self.node_path[leaf.path]
-            self._specs[path] = spec_record(leaf.iota, path, time_unit)
-            sink.add_spec(path, self._specs[path], origin_ns)
-        bindings = [[str(s), str(d)] for s, d in self.flat.bindings]
-        sink.add_metadata("iotad.recording", {
-            "format": FORMAT, "system": self.system, "time_unit": time_unit, "origin_ns": origin_ns,
-            "clock": "virtual", "writer": "EngineRecorder", "root": root.instance_name,
-            "nodes": list(self._specs), "bindings": bindings,
-            "composite": isinstance(root, Composite), **_policy_info(policy)})
-        # `external`: the system file's external inputs ("motor.can_rx"), which the delivery check
-        # judges as fed from outside (an input script's) rather than as a binding's
-        sink.attach("system.json", "application/json", json.dumps(
-            {"name": self.system, "nodes": {p: {k: s[k] for k in ("source", "params")} for p, s in self._specs.items()},
-             "bindings": bindings, "external": list(external)}, default=_plain).encode(), origin_ns)
+        for path, spec in self._specs.items():
+            sink.add_spec(path, spec, self.origin_ns)
+        sink.add_metadata("iotad.recording", header["metadata"])
+        sink.attach("system.json", "application/json", json.dumps(header["system_json"], default=_plain).encode(),
+                    self.origin_ns)
         self._writers()
 
     # The hot path (bench/worlds.py): per event, one dict look-up for its node's @trace topic (and

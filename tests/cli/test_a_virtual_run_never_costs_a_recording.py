@@ -7,8 +7,9 @@ from pathlib import Path
 
 import pytest
 
-from iotad.cli import main
+from iotad.cli import main, virtual_run
 from iotad.recording.mcap_io import EngineRecorder, read_recording
+from iotad.recording.writer_process import RecordingProcess
 
 ROOT = Path(__file__).resolve().parents[2]
 REQUEST = {"control": {"w": 0.2, "k": 1.0}, "epoch": 1.0, "timeout": 1.0, "priority": 1}
@@ -85,10 +86,14 @@ def test_a_span_beyond_the_recordings_times_is_refused(solo, tmp_path, capsys):
     assert not out.exists()
 
 
-def test_a_run_broken_off_by_an_error_of_iotad_says_so_and_does_not_pass(solo, tmp_path, capsys, monkeypatch):
+@pytest.mark.parametrize("writer", ["in this process", "a second process"])
+def test_a_run_broken_off_by_an_error_of_iotad_says_so_and_does_not_pass(solo, tmp_path, capsys, monkeypatch, writer):
     out = tmp_path / "broken.mcap"
     inputs = script(tmp_path, *({"t": 0.5 * k, "iota": "scheduler", "action": "req", "index": k % 2, "value": REQUEST} for k in range(6)))
-    written = EngineRecorder.__call__
+    # the sink that fails: the recorder itself, or what hands events to the writer process
+    sink = EngineRecorder if writer == "in this process" else RecordingProcess
+    monkeypatch.setattr(virtual_run, "cores", lambda: 1 if writer == "in this process" else 2)
+    written = sink.__call__
     seen = []
 
     def failing(self, event):
@@ -97,7 +102,7 @@ def test_a_run_broken_off_by_an_error_of_iotad_says_so_and_does_not_pass(solo, t
             raise RuntimeError("a recorder fault")
         written(self, event)
 
-    monkeypatch.setattr(EngineRecorder, "__call__", failing)
+    monkeypatch.setattr(sink, "__call__", failing)
     assert main(virtual(solo, out, "--inputs", str(inputs))) == 1
     assert "RuntimeError: a recorder fault" in capsys.readouterr().err
     monkeypatch.undo()

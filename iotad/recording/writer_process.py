@@ -1,0 +1,243 @@
+"""Recording a virtual run in a second process, so that writing MCAP costs the engine one core less.
+
+`iotad run --virtual -o FILE` spends about a quarter of its time turning events into MCAP
+messages (`EngineRecorder`: channel look-ups, packing, the chunk's index). On a machine with a
+second core that work can run beside the engine: the engine's process only packs each event
+(one msgpack call, about a microsecond) and pipes batches of them to this process, which runs
+the same `EngineRecorder` on the same events and writes the same file.
+
+The pipe carries msgpack objects one after the other. An event is a map (the engine's event as
+it is); anything else is a command, an array whose first element names it:
+
+    ["open", PATH]          first: the file to write; the writer answers `ready` on its stdout
+                            (or prints why it cannot write it on stderr, and exits 2)
+    ["header", HEADER]      `recording_header(...)`: the specs and metadata
+    ["metadata", NAME, MAP] a metadata record (the run's end, or the error that broke it off)
+    ["finish"]              the run is over: write the summary and exit 0
+
+The writer is started before the system is built, so that its own start-up (about 0.2 s of
+imports) overlaps that; the file is named later, once the run's input has been found good (a
+wrong input never costs an old recording). Its input ending before `open` is no error: the run
+did not get that far. It ignores Ctrl-C (the engine's process stops the run, then finishes the
+recording), and if its input ends without `finish` (the engine's process was killed, or broke
+off in the middle of a batch) it still writes a whole file, with what came and an
+`iotad.run_error` record saying that the run was cut short, so `iotad check` does not pass it.
+
+    python -m iotad.recording.writer_process      (started by `RecordingProcess`)
+"""
+from __future__ import annotations
+
+import fcntl
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+from typing import Any, Iterator
+
+import msgpack
+
+from iotad.recording.mcap_io import RUN_ERROR, EngineRecorder, McapSink, RecordingError
+
+BATCH = 256          # events per write to the pipe (~40 KB): well under what the pipe holds
+PIPE_SIZE = 1 << 20  # bytes the pipe holds (Linux's default most, /proc/sys/fs/pipe-max-size)
+READ_SIZE = 1 << 20  # bytes the writer reads at a time
+CUT_SHORT = "the run's process ended without finishing its recording (killed, or stopped hard)"
+
+
+class WriterFailed(RecordingError):
+    """The writer process could not open its file, or stopped: the message is its own words."""
+
+
+class RecordingProcess:
+    """An Engine sink that hands every event to a writer process (`python -m
+    iotad.recording.writer_process`); in the engine's process an event costs one msgpack call.
+
+    Start it early (the writer's start-up then overlaps building the system), `open(output)`
+    before the run (a file it cannot write is an error then, not after the run), `begin(header)`
+    with the system's `recording_header`, then use it as a sink; `add_metadata` and `finish` are
+    `McapSink`'s. `finish` waits for the writer to write everything and raises `WriterFailed` if
+    it did not; `close` ends a writer that was never needed."""
+
+    def __init__(self):
+        self.output: Path | None = None
+        self._errors = tempfile.TemporaryFile()  # the writer's stderr, read only if it fails
+        package_root = str(Path(__file__).resolve().parents[2])  # runs from a checkout too
+        env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [package_root, os.environ.get("PYTHONPATH")])))
+        self._process = subprocess.Popen(
+            [sys.executable, "-m", "iotad.recording.writer_process"],
+            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=self._errors, env=env,
+            start_new_session=True)  # a Ctrl-C at the terminal is the engine process's to handle
+        self._fd = self._process.stdin.fileno()
+        # The pipe is the queue between the two: with Linux's default of 64 KB the engine would
+        # wait for the writer at every few batches, and the two would take turns instead of
+        # running side by side. A megabyte holds ~7,000 events, some 60 ms of a busy run.
+        try:
+            fcntl.fcntl(self._fd, getattr(fcntl, "F_SETPIPE_SZ", 1031), PIPE_SIZE)
+        except OSError:
+            pass  # a smaller limit (pipe-max-size): slower, not wrong
+        self._pack = msgpack.Packer(use_bin_type=True).pack
+        self._parts: list[bytes] = []
+        self._torn = False      # a write was broken off in the middle: the stream ends there
+        self._failed: str | None = None
+        self.finished = False
+
+    # ---------------------------------------------------------------- the engine's side
+    def open(self, output: str | Path) -> None:
+        """The file to write; returns once the writer has opened it, `WriterFailed` (its reason,
+        "cannot write PATH: ...") if it cannot."""
+        self.output = Path(output)
+        self._parts.append(self._pack(["open", str(output)]))
+        self._send()
+        said = self._process.stdout.readline()
+        if said != b"ready\n":
+            self.close()
+            raise WriterFailed(self._last_words() or self._reason())
+
+    def begin(self, header: dict[str, Any]) -> None:
+        self._parts.append(self._pack(["header", header]))
+        self._send()
+
+    def __call__(self, event: dict) -> None:
+        parts = self._parts
+        parts.append(self._pack(event))
+        if len(parts) >= BATCH:
+            self._send()
+
+    def add_metadata(self, name: str, data: dict[str, Any]) -> None:
+        self._parts.append(self._pack(["metadata", name, data]))
+        self._send()
+
+    def finish(self) -> None:
+        """Everything to the writer, then wait for it to write the summary and exit."""
+        if self.finished:
+            return
+        self.finished = True
+        try:
+            if not self._torn and self._failed is None:
+                self._parts.append(self._pack(["finish"]))
+                self._send()
+        finally:
+            code = self.close()
+        if self._failed is not None or code != 0:
+            raise WriterFailed(self._failed or self._reason())
+
+    def close(self) -> int:
+        """End the writer's input and wait for it to exit (at once, if it was never `open`ed);
+        its exit status."""
+        for stream in (self._process.stdin, self._process.stdout):
+            try:
+                stream.close()
+            except OSError:
+                pass
+        return self._process.wait()
+
+    def _send(self) -> None:
+        """The batch to the pipe, whole: a Ctrl-C waits until it is written (SIGINT is blocked
+        meanwhile), so the writer never sees half an event."""
+        if self._failed is not None:
+            raise WriterFailed(self._failed)
+        data = memoryview(b"".join(self._parts))
+        self._parts = []
+        blocked = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+        self._torn = True
+        try:
+            while data:
+                data = data[os.write(self._fd, data):]
+            self._torn = False
+        except OSError:  # EPIPE: the writer is gone
+            self._process.wait()
+            self._failed = self._reason()
+            raise WriterFailed(self._failed) from None
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
+
+    def _last_words(self) -> str:
+        self._errors.seek(0)
+        lines = [line for line in self._errors.read().decode(errors="replace").splitlines() if line.strip()]
+        return lines[-1] if lines else ""
+
+    def _reason(self) -> str:
+        """The writer's own last words, or how it ended."""
+        code = self._process.returncode
+        how = (f"killed by signal {-code}" if code is not None and code < 0
+               else f"exit status {code}" if code is not None else "still running")
+        said = self._last_words() or f"it said nothing ({how})"
+        return f"the recording's writer process stopped: {said}; {self.output} holds what it wrote before"
+
+
+# -------------------------------------------------------------------- the writer's side
+def main(argv: list[str] | None = None) -> int:
+    if (sys.argv[1:] if argv is None else argv):
+        print("python -m iotad.recording.writer_process takes no arguments: `iotad run --virtual` starts it "
+              "and names its file on its input", file=sys.stderr)
+        return 2
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    items = _items(sys.stdin.buffer.fileno())
+    first = next(items, None)
+    if first is None:
+        return 0  # the run ended before it had a recording to write
+    if not (isinstance(first, list) and len(first) == 2 and first[0] == "open" and isinstance(first[1], str)):
+        print(f"the first command must be [\"open\", PATH], got {first!r:.80}", file=sys.stderr)
+        return 2
+    output = first[1]
+    try:
+        sink = McapSink(output)
+    except OSError as exc:
+        print(f"cannot write {output}: {exc.strerror or exc}", file=sys.stderr)
+        return 2
+    sys.stdout.write("ready\n")
+    sys.stdout.flush()
+    try:
+        finished, last_t = _write_events(sink, items)
+        if not finished:
+            sink.add_metadata(RUN_ERROR, {"error": CUT_SHORT, "t": last_t})
+        sink.finish()
+    except Exception as exc:  # noqa: BLE001 - a full disk, or a fault: one line for the engine's side
+        print(f"{type(exc).__name__}: {exc.strerror if isinstance(exc, OSError) and exc.strerror else exc}",
+              file=sys.stderr)
+        try:
+            sink.add_metadata(RUN_ERROR, {"error": f"the recording's writer failed: {type(exc).__name__}: {exc}"})
+            sink.finish()
+        except Exception:  # noqa: BLE001 - the file could not be finished: `iotad recover` reads it
+            pass
+        return 1
+    return 0
+
+
+def _items(fd: int) -> Iterator[Any]:
+    """The msgpack objects on `fd`, one by one, until its end (a cut-off last one is dropped)."""
+    unpacker = msgpack.Unpacker(raw=False, strict_map_key=False)
+    while True:
+        data = os.read(fd, READ_SIZE)
+        if not data:
+            return
+        unpacker.feed(data)
+        yield from unpacker
+
+
+def _write_events(sink: McapSink, items: Iterator[Any]) -> tuple[bool, float]:
+    """Commands and events until `finish` or the input's end: (finished, the last event's time
+    in seconds, as `iotad.run_error` gives it)."""
+    recorder = None
+    t = 0.0
+    for item in items:
+        if item.__class__ is dict:
+            if recorder is None:
+                raise ValueError("an event came before the recording's header")
+            recorder(item)
+            t = item["t"]
+        elif item[0] == "header":
+            recorder = EngineRecorder.from_header(sink, item[1])
+        elif item[0] == "metadata":
+            sink.add_metadata(item[1], item[2])
+        elif item[0] == "finish":
+            return True, t * recorder.time_unit if recorder else t
+        else:
+            raise ValueError(f"unknown command {item[0]!r} from the engine's process")
+    return False, t * recorder.time_unit if recorder else t
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,155 @@
+"""`iotad run --virtual -o` on a machine with two cores or more: the recording is written by a
+second process (`iotad.recording.writer_process`). The file is the one the run's own process
+would write; a writer that dies, an engine that dies, a file that cannot be written and a Ctrl-C
+each end in a clear message and a recording that says what happened."""
+import os
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from iotad.cli import main, virtual_run
+from iotad.recording.mcap_io import read_recording, recording_header
+from iotad.recording.writer_process import CUT_SHORT, RecordingProcess, WriterFailed
+
+ROOT = Path(__file__).resolve().parents[2]
+FIGURE2 = ROOT / "examples" / "figure2.toml"
+
+
+def record(out: Path, *more: str) -> int:
+    return main(["run", str(FIGURE2), "--virtual", "--until", "30", "-o", str(out), "--plain", *more])
+
+
+def contents(path: Path):
+    recording = read_recording(path)
+    messages = [(m.topic, m.log_time, m.publish_time, m.sequence, m.data) for m in recording.messages]
+    attachments = [(a.name, a.media_type, a.data) for a in recording.attachments]
+    return recording, messages, attachments
+
+
+def test_the_second_process_writes_the_file_the_run_would_write_itself(tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(virtual_run, "cores", lambda: 1)
+    assert record(tmp_path / "inline.mcap") == 0
+    assert "written by a second process" not in capsys.readouterr().out
+    monkeypatch.setattr(virtual_run, "cores", lambda: 2)
+    monkeypatch.setattr("iotad.recording.writer_process.BATCH", 8)  # many batches, one cut mid-way
+    assert record(tmp_path / "process.mcap") == 0
+    assert "written by a second process" in capsys.readouterr().out
+    inline, inline_messages, inline_attachments = contents(tmp_path / "inline.mcap")
+    process, process_messages, process_attachments = contents(tmp_path / "process.mcap")
+    assert len(inline_messages) == 62  # the whole Figure 2 exchange: requests, acks, commands
+    assert process_messages == inline_messages
+    assert process_attachments == inline_attachments
+    assert process.metadata == inline.metadata and process.run_end == 30.0 and process.complete
+    assert main(["check", str(tmp_path / "process.mcap")]) == 0
+
+
+def test_a_writer_that_dies_is_a_clear_error_and_the_file_keeps_what_it_wrote(tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(virtual_run, "cores", lambda: 2)
+    monkeypatch.setattr("iotad.recording.writer_process.BATCH", 8)  # batches go out during the run
+    handed = RecordingProcess.__call__
+    seen = []
+
+    def killing(self, event):
+        seen.append(event)
+        if len(seen) == 40:  # the writer dies mid-run (a full disk, an OOM kill, a kill -9)
+            os.kill(self._process.pid, signal.SIGKILL)
+            self._process.wait()
+        handed(self, event)
+
+    monkeypatch.setattr(RecordingProcess, "__call__", killing)
+    out = tmp_path / "killed.mcap"
+    assert record(out) == 2
+    err = capsys.readouterr().err
+    assert "iotad: error: the recording's writer process stopped: it said nothing (killed by signal 9); " \
+           f"{out} holds what it wrote before" in err
+    assert "Traceback" not in err
+    monkeypatch.undo()
+    # the file is not taken for a whole one (a killed writer loses the chunk it held, as a
+    # killed run's own process would)
+    assert main(["info", str(out)]) == 0
+    assert f"{out}: INCOMPLETE (no footer" in capsys.readouterr().out
+
+
+def test_an_engine_that_dies_leaves_a_whole_file_that_says_the_run_was_cut_short(tmp_path):
+    from recorded_systems import figure2
+    from iotad.kernel.clock import VirtualClock
+    from iotad.kernel.engine import Engine
+
+    out = tmp_path / "orphan.mcap"
+    writer = RecordingProcess()
+    root = figure2()
+    writer.open(out)
+    writer.begin(recording_header(root, "figure2"))
+    engine = Engine(root, VirtualClock(), sinks=[writer])
+    engine.run(10)
+    writer._send()  # everything handed over, then the engine's side ends without `finish`
+    assert writer.close() == 0  # what a killed engine's process leaves: the pipe's end
+    recording = read_recording(out)
+    assert recording.complete  # summary and footer: every tool reads it
+    assert recording.run_error == f"{CUT_SHORT} at t={engine.trace[-1]['t']:g} s"
+    assert len(recording.trace("scheduler")) == sum(1 for e in engine.trace if e["iota"] == "figure2/scheduler")
+    assert main(["check", str(out)]) == 1
+
+
+def test_a_file_the_writer_cannot_create_is_refused_before_the_run(tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(virtual_run, "cores", lambda: 2)
+    locked = tmp_path / "locked"
+    locked.mkdir()
+    locked.chmod(0o500)
+    try:
+        if os.access(locked, os.W_OK):
+            # root writes anywhere: a path under a file stands in
+            target = tmp_path / "a-file" / "run.mcap"
+            (tmp_path / "a-file").write_text("")
+        else:
+            target = locked / "run.mcap"
+        assert record(target) == 2
+        err = capsys.readouterr().err
+        assert f"-o {target}" in err and "Traceback" not in err
+        assert not target.exists()
+    finally:
+        locked.chmod(0o700)
+    with pytest.raises(WriterFailed, match=r"cannot write /proc/no/such\.mcap: No such file or directory"):
+        writer = RecordingProcess()
+        writer.open("/proc/no/such.mcap")
+
+
+def test_a_writer_never_opened_exits_quietly():
+    writer = RecordingProcess()
+    assert writer.close() == 0
+
+
+def test_the_writer_is_not_a_command_of_its_own():
+    done = subprocess.run([sys.executable, "-m", "iotad.recording.writer_process", "out.mcap"],
+                          capture_output=True, text=True, timeout=60)
+    assert done.returncode == 2 and "takes no arguments" in done.stderr
+
+
+def test_ctrl_c_stops_a_virtual_run_between_steps_and_the_recording_is_whole(tmp_path):
+    out = tmp_path / "stopped.mcap"
+    run = subprocess.Popen([sys.executable, "-m", "iotad", "run", str(ROOT / "examples" / "buggy.toml"), "--virtual",
+                            "--until", "100000", "-o", str(out), "--plain"],
+                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path)
+    try:
+        said = []
+        while not said or "x real time" not in said[-1]:  # the first progress line: the run is going
+            said.append(run.stderr.readline())
+            assert said[-1], "".join(said)  # it ended before saying so
+        run.send_signal(signal.SIGINT)
+        stdout, stderr = run.communicate(timeout=120)
+    finally:
+        if run.poll() is None:
+            run.kill()
+            run.wait()
+    assert run.returncode == 0, stderr
+    stderr = "".join(said) + stderr
+    assert "stopped by Ctrl-C at t = " in stderr and "Traceback" not in stderr
+    stopped_at = float(stderr.split("stopped by Ctrl-C at t = ")[1].split()[0])
+    assert 0 < stopped_at < 100000
+    recording = read_recording(out)
+    assert recording.complete and recording.run_error == ""
+    assert recording.run_end == pytest.approx(stopped_at, abs=1e-3)  # every node ran until then
+    assert f"recording: {out}" in stdout
