@@ -10,7 +10,10 @@ One IOTA drives one CAN bus of ODrive axes (firmware 0.6), one axis per joint of
 - Every `setpoints` message sends one frame per armed axis, by the joint's mode: Set_Input_Pos
   (position, velocity and torque feed-forward), Set_Input_Vel (velocity_ff, torque feed-forward)
   or Set_Input_Torque (torque_ff). A value outside the joint's limits is rejected or clamped as
-  its `out_of_range` says, and reported on `joint_status`.
+  its `out_of_range` says, and reported on `joint_status`. With `skip_unchanged`, a frame the
+  axis was sent last is not sent again: the firmware keeps its input, and `keepalive` repeats
+  that frame often enough for its watchdog (an arm holding still then costs the bus a fraction
+  of its frames).
 - Feedback: Heartbeat, Get_Encoder_Estimates (cyclic), Get_Error and the other axis messages
   (polled with remote frames as `polls` says); `joint_states` every `state_period` once every
   joint has reported a position; `joint_status[i]` at every heartbeat and every event.
@@ -69,6 +72,7 @@ class Axis:
         self.effort = 0.0
         self.command = 0.0            # the joint-unit command the axis follows now
         self.last_sent = 0            # the tick of the last command (or arming) frame
+        self.last_frame = None        # the last command frame sent while ARMED (skip_unchanged)
         self.torque_estimate = 0.0    # controller units from here on
         self.iq_measured = 0.0
         self.fet_temperature = 0.0
@@ -91,6 +95,7 @@ class CanMotor(Iota):
     arm_retry = Param(0.5)          # s after an ARM_TIMEOUT (or a FAULT with auto_rearm) to try again
     auto_rearm = Param(False)       # re-arm an axis that left closed loop on its own
     keepalive = Param(0.05)         # s without a command before an ARMED axis gets its last one again; 0: off
+    skip_unchanged = Param(False)   # a setpoint whose frame is the axis's last is not sent; keepalive repeats it
     arm_hold = Param(0.05)          # s between hold commands to an ARMING axis (feeds its watchdog); 0: off
     reaction_time = Param(0.003)    # s: outputs go out within this of what caused them
 
@@ -120,6 +125,9 @@ class CanMotor(Iota):
         self.lost_timeout = _check_period("heartbeat_period", self.heartbeat_period) * _count(self.lost_after)
         self.poll_plan = _poll_plan(self.polls, self.period)
         self.keepalive_ticks = _ticks("keepalive", self.keepalive, self.period)
+        if self.skip_unchanged and not self.keepalive_ticks:
+            raise ValueError("CanMotor: skip_unchanged needs a keepalive (> 0): an axis holding still would "
+                             "get no frame and its watchdog would stop it")
         self.arm_hold_ticks = _ticks("arm_hold", self.arm_hold, self.period)
         self.axes = [Axis(joint.node_id) for joint in self.joint_map]
         self.reports: list[list[tuple]] = [[] for _ in self.joint_map]  # (event, requested, applied)
@@ -234,11 +242,14 @@ class CanMotor(Iota):
             except EncodeError:  # e.g. a position of 1e300 turns with no limits: no float32 holds it
                 self._report(i, "SETPOINT_REJECTED", wanted, axis.command)
                 continue
-            self.tx.append(frame)
             axis.command = applied
-            axis.last_sent = self.ticks
             if applied != wanted:
                 self._report(i, "SETPOINT_CLAMPED", wanted, applied)
+            if self.skip_unchanged and frame == axis.last_frame:
+                continue  # the axis follows this already; `keepalive` feeds its watchdog
+            self.tx.append(frame)
+            axis.last_frame = frame
+            axis.last_sent = self.ticks
 
     def _receive(self, value) -> None:
         try:
@@ -290,6 +301,7 @@ class CanMotor(Iota):
         if axis.phase == ARMING and closed:
             axis.phase = ARMED
             axis.command = axis.position  # the firmware holds where it is on entering closed loop
+            axis.last_frame = None  # its first command goes out whatever it is
             events.append("ARM_DONE")
         elif axis.phase == ARMED and not closed:
             axis.phase = UNARMED if self.auto_rearm else FAULT
@@ -357,7 +369,9 @@ class CanMotor(Iota):
 
     def _keep_alive(self) -> None:
         """Feed the firmware's watchdog. An ARMED axis with no command for `keepalive` gets its last
-        command again (no feed-forward). An ARMING axis gets "hold where you are" (the measured
+        command again: without feed-forward (the source went silent: a velocity feed-forward
+        would carry the joint on), or with `skip_unchanged` the very frame it was sent last (the
+        source is not silent, its setpoint is unchanged). An ARMING axis gets "hold where you are" (the measured
         position, or 0 velocity or torque) every `arm_hold`: the firmware is in closed loop, its
         watchdog running, up to a heartbeat period before its heartbeat says so."""
         for joint, axis in zip(self.joint_map, self.axes):
@@ -368,7 +382,12 @@ class CanMotor(Iota):
                 if not axis.has_position:
                     continue
                 axis.command = axis.position
-            self.tx.append(_setpoint_frame(joint, axis.command, 0.0, 0.0))
+            if axis.phase == ARMED and self.skip_unchanged and axis.last_frame is not None:
+                frame = axis.last_frame
+            else:
+                frame = _setpoint_frame(joint, axis.command, 0.0, 0.0)
+            self.tx.append(frame)
+            axis.last_frame = frame if axis.phase == ARMED else None
             axis.last_sent = self.ticks
 
     def _joint_states(self):

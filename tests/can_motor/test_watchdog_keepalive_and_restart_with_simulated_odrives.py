@@ -133,3 +133,20 @@ def test_a_fresh_node_clears_tripped_axes_re_arms_and_moves(engines):
     assert all(s["axis_error"] == 0 for s in done)
     final = [e for e in engine.trace if e["action"] == "joint_states"][-1]["value"]["position"]
     assert final == pytest.approx(TARGET, abs=0.01)
+
+
+def test_skipping_unchanged_setpoints_holds_an_armed_arm_on_fewer_frames(engines):
+    """The source repeats the target at every tick once there (trajectory's end at 0.3 s); with
+    `skip_unchanged` only the keep-alive (every 0.05 s) feeds the watchdog (80 ms), and the axes
+    stay armed and where they were told."""
+    received = {}
+    for skip in (False, True):
+        engine = Engine(arm_system(HOME, motor_params={"skip_unchanged": skip}, duration=0.3))
+        engines.append(engine)
+        engine.run(until=1.5)
+        assert not motor_status(engine, "DISARMED")
+        positions, _ = engine.iota("arm/odrives").plant.read_joints()
+        assert positions[:6] == pytest.approx(HOME, abs=0.01)
+        received[skip] = [t for node in range(1, 7) for t, frame in odrives_received(engine, node)
+                          if not frame["rtr"] and frame["id"] & 0x1F == 0x0C and t > 0.5]
+    assert len(received[True]) < len(received[False]) / 2
