@@ -41,7 +41,10 @@ terminal). Afterwards: 'iotad info FILE', 'iotad check FILE', 'iotad replay FILE
 says, each [[can]] bus is the modelled 1 Mbit/s bus (bit times, arbitration by id), and the
 engine runs as fast as the machine allows up to --until virtual seconds (required). The
 recording has the same format as a real-time run's, so info, check, replay, plot and export read
-both. External inputs can be fed with --inputs SCRIPT.jsonl (times in spec units)."""
+both; on a machine with two cores or more a second process writes it, beside the engine.
+External inputs can be fed with --inputs SCRIPT.jsonl (times in spec units). Ctrl-C stops a
+virtual run after the step in progress and finishes its recording; a second Ctrl-C stops it at
+once."""
 
 
 def register(sub: argparse._SubParsersAction) -> None:
