@@ -12,7 +12,11 @@ own). The bus models a classic CAN bus at `bitrate`:
   FIFO, as a SocketCAN socket sends (`station_queue="priority"` models a controller that sends
   its lowest id first). Arbitration is decided at the end of the start-of-frame bit, so frames
   posted at the same instant all take part whatever the order of the components' actions; the
-  frame still ends exactly one frame time after it started.
+  frame still ends exactly one frame time after it started. A frame starts as it is posted to
+  an idle bus, or as the frame before it ends (the bus reads the time with `now()`); one posted
+  before the SOF bit is over and that wins takes the bus then (`rearbitrated`, rare), and the
+  deliveries' windows open again for its end. A frame thus costs the engine its deliveries and
+  its log, not one more firing for its arbitration.
 - Log: with `log_frames` (the default), every frame the bus carried goes out on `frames` as it
   ends, a `CAN_BUS_FRAME` (`frame_log.py`: sender station, bit time, the frame, its CAN Simple
   direction and message name), so a recording holds the bus's frames on one topic.
@@ -27,6 +31,7 @@ frames, bus-off or acknowledgement: every frame is delivered.
 """
 from __future__ import annotations
 
+from iotad.esprit.runtime import esprit_now
 from iotad.kernel.api import Input, Internal, Iota, Output, Param
 from iotad.kernel.types import Float
 
@@ -60,8 +65,8 @@ class CanBus(Iota):
     rx = Output(CAN_FRAME, size="stations", switching=0)
     load = Output(Float(0, None), switching=0)
     frames = Output(CAN_BUS_FRAME, switching=0)
-    arbitrate = Internal(CAN_FRAME, switching=0)   # its value: the frame that won
-    finish = Internal(switching=0)
+    rearbitrated = Internal(CAN_FRAME, switching=0)  # its value: the frame that won late
+    finish = Internal(CAN_FRAME, switching=0)        # its value: the frame that ended unheard
 
     def init(self):
         if self.stuffing not in ("exact", "worst", "none"):
@@ -73,14 +78,15 @@ class CanBus(Iota):
         self.sender = None            # its station
         self.receivers = set()        # stations it is still to be delivered to
         self.frame_time = 0.0         # its bit time, seconds
-        self.finish_delay = 0.0
+        self.start = 0.0              # when its start-of-frame bit began
+        self.finish_delay = 0.0       # from when the deliveries' windows opened to its end
+        self.late_winner = False      # a frame won during the SOF bit: the windows open again
         self.busy_time = 0.0
         self.frames = 0
         self.window_busy = 0.0
         self.elapsed = 0.0
         self.busy_time_reported = 0.0
         self.max_waiting = 0
-        self.won = None               # (station, position, frame) of the arbitration in progress
         self.log = []                 # CAN_BUS_FRAME records of frames that ended, not yet out
 
     @property
@@ -97,23 +103,22 @@ class CanBus(Iota):
             Frame.from_value(frame)  # raises FrameError, in the frame module's words
         self.waiting[i].append(frame)
         self.max_waiting = max(self.max_waiting, sum(len(q) for q in self.waiting))
+        now = esprit_now()
+        if self.current is None:
+            self._start(now)
+        elif now < self.start + 1.0 / self.bitrate:
+            self._rearbitrate(now)
 
-    # The start-of-frame bit: whoever has a frame waiting by its end takes part in arbitration.
-    @arbitrate.action(value=lambda self: self._pick(),
-                      when=lambda self: self.current is None and any(self.waiting),
-                      after=lambda self: 1.0 / self.bitrate)
-    def arbitrated(self):
-        # the value function, run just before in the same firing, found the winner
-        won, self.won = self.won, None
-        station, position, _ = won if won is not None else self._winner()
-        self.current = self.waiting[station].pop(position)
-        self.sender = station
-        self.frame_time = frame_bits_of(self.current, self.stuffing) / self.bitrate
-        self.receivers = set(range(self.stations)) - {station}
-        self.finish_delay = self.frame_time - 1.0 / self.bitrate
+    # The start-of-frame bit: a frame posted before its end takes part in arbitration, so frames
+    # posted at one instant all do, whatever the order of the components' actions. The frame
+    # that was winning goes back to the head of its queue, and the deliveries' windows open
+    # again (this action, at once) for the new winner's end.
+    @rearbitrated.action(value=lambda self: self.current, when=lambda self: self.late_winner, after=0)
+    def reopened(self):
+        self.late_winner = False
 
     @rx.action(value=lambda self, i: self.current,
-               when=lambda self, i: self.current is not None and i in self.receivers,
+               when=lambda self, i: self.current is not None and i in self.receivers and not self.late_winner,
                after=lambda self, i: self.finish_delay)
     def delivered(self, i):
         self.receivers.discard(i)
@@ -121,15 +126,35 @@ class CanBus(Iota):
             self._free()
 
     # Only a frame nobody receives (a bus with one station) ends here; otherwise the last delivery ends it.
-    @finish.action(when=lambda self: self.current is not None and not self.receivers,
+    @finish.action(value=lambda self: self.current,
+                   when=lambda self: self.current is not None and not self.receivers and not self.late_winner,
                    after=lambda self: self.finish_delay)
     def finished(self):
         self._free()
 
-    def _pick(self):
-        """The frame that wins arbitration now; its place is kept for the do-block."""
-        self.won = self._winner()
-        return self.won[2]
+    def _start(self, now: float) -> None:
+        """The next frame starts now: the frame that wins arbitration among the queue heads."""
+        station, position, _ = self._winner()
+        self.current = self.waiting[station].pop(position)
+        self.sender = station
+        self.frame_time = frame_bits_of(self.current, self.stuffing) / self.bitrate
+        self.receivers = set(range(self.stations)) - {station}
+        self.start = now
+        self.finish_delay = self.frame_time
+
+    def _rearbitrate(self, now: float) -> None:
+        """A frame posted during the SOF bit: arbitration again, with the frame that was winning
+        back in its queue (at its head: it was the head, or, with `priority`, the lowest)."""
+        self.waiting[self.sender].insert(0, self.current)
+        station, position, frame = self._winner()
+        if station == self.sender and position == 0:
+            self.waiting[station].pop(0)  # it still wins
+            return
+        start = self.start
+        self._start(now)
+        self.start = start
+        self.finish_delay = self.frame_time - (now - start)  # it ends one frame time after the SOF
+        self.late_winner = True
 
     def _winner(self) -> tuple:
         """(station, position in its queue, frame) of the frame that wins arbitration now."""
@@ -154,6 +179,8 @@ class CanBus(Iota):
         self.frames += 1
         self.current = None
         self.sender = None
+        if any(self.waiting):  # back to back: the next SOF follows the intermission at once
+            self._start(esprit_now())
 
     @load.action(value=lambda self: self.window_busy / self.load_period,
                  when=lambda self: self.load_period > 0, after="load_period")
@@ -166,20 +193,20 @@ class CanBus(Iota):
 def bus_summary(trace, bus: str, bitrate: float = 1_000_000, stuffing: str = "exact",
                 start: float = 0.0, until: float | None = None) -> dict:
     """Exact figures of a bus from a trace: frames, busy time and load over [start, until]
-    (until: the last event of the bus). `bus` is the bus's path in the trace ("iota" field); every
-    `arbitrate` event carries the frame that won, one bit after that frame started."""
-    bit = 1.0 / bitrate
+    (until: the last event of the bus). `bus` is the bus's path in the trace ("iota" field). A
+    frame ends when it is delivered (its `rx` events, one per receiver, all at that instant) or,
+    on a bus with one station, with its `finish` event; it began its bit time before that."""
     events = [e for e in trace if e.get("iota") == bus]
     span_end = until if until is not None else max((e["t"] for e in events), default=start)
-    frames, busy = 0, 0.0
+    ended = {}  # end time -> frame: one frame ends at a time
     for event in events:
-        if event["action"] != "arbitrate" or event["kind"] != "internal":
-            continue
-        frame = event["value"]
-        began = event["t"] - bit
+        if event["action"] in ("rx", "finish") and event["kind"] in ("output", "internal"):
+            ended[event["t"]] = event["value"]
+    frames, busy = 0, 0.0
+    for end, frame in ended.items():
         duration = frame_bits(frame["id"], frame["extended"], frame["rtr"], bytes(frame["data"][:frame["dlc"]]),
                               stuffing, dlc=frame["dlc"]) / bitrate
-        overlap = min(began + duration, span_end) - max(began, start)
+        overlap = min(end, span_end) - max(end - duration, start)
         if overlap > 0:
             busy += overlap
             frames += 1

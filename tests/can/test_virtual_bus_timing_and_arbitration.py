@@ -129,6 +129,26 @@ def test_a_frame_posted_while_the_bus_is_busy_waits_and_then_wins_by_id():
     assert close(got[2][0], (bits(first) + bits(late_low)) * BIT)
 
 
+@pytest.mark.parametrize("late, wins", [(0.4e-6, True), (0.999e-6, True), (1e-6, False), (30e-6, False)])
+def test_a_frame_posted_during_the_start_of_frame_bit_takes_part_in_arbitration(late, wins):
+    """Arbitration ends with the SOF bit: a lower id posted before then takes the bus, and ends
+    one frame time after the SOF; posted after it, it waits for the frame on the bus."""
+    net, bus, members = system(load_period=0)
+    high, low = Frame(0x0C9, b"\x01\x02\x03"), Frame(0x069, bytes(8))
+    engine = Engine(net)
+    engine.post("net/s0", "send", high.to_value(), t=0.5)
+    engine.post("net/s2", "send", low.to_value(), t=0.5 + late)
+    trace = engine.run(until=1.0)
+    got = [(t, f) for t, i, f in deliveries(trace) if i == 1]
+    first, second = (low, high) if wins else (high, low)
+    assert [f for _, f in got] == [first, second]
+    assert close(got[0][0], 0.5 + bits(first) * BIT)
+    assert close(got[1][0], got[0][0] + bits(second) * BIT) if wins else \
+        close(got[1][0], max(got[0][0], 0.5 + late) + bits(second) * BIT)
+    assert [e["t"] for e in trace if e["action"] == "rearbitrated"] == ([0.5 + late] if wins else [])
+    assert members[0].heard == [low] and members[2].heard == [high]
+
+
 def test_arbitration_field_order_data_before_remote_standard_before_extended():
     data, remote = Frame(0x123, b"\x00"), Frame.remote(0x123)
     assert arbitration_key(data) < arbitration_key(remote)
@@ -153,7 +173,8 @@ def test_the_bus_carries_one_frame_at_a_time():
     for n in range(30):  # a burst from all three stations
         engine.post(f"net/s{n % 3}", "send", Frame(0x700 - n * 7, bytes([n] * (n % 9))).to_value(), t=0.01)
     trace = engine.run(until=1.0)
-    starts = [(e["t"] - BIT, Frame.from_value(e["value"])) for e in trace if e["action"] == "arbitrate"]
+    # the bus's log: each frame as it ended, with its bit time
+    starts = [(e["t"] - e["value"]["duration"], Frame.from_value(e["value"])) for e in trace if e["action"] == "frames"]
     assert len(starts) == 30 and bus.frames == 30 and not any(bus.waiting)
     for (t0, frame), (t1, _) in zip(starts, starts[1:]):
         assert close(t1 - t0, bits(frame) * BIT)  # back to back, never overlapping
