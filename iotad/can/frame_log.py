@@ -36,6 +36,8 @@ from . import odrive
 from .bit_timing import frame_bits
 from .frame import CAN_FRAME, Frame, FrameError
 
+_FRAME_RECORD = CAN_FRAME.record
+
 CAN_DIRECTION = Enum("canDirection", "TO_AXIS", "FROM_AXIS", "EITHER", "NOT_ODRIVE")
 CAN_MESSAGE = Enum("canMessage", *odrive.MESSAGES, "UNKNOWN", "MALFORMED")
 
@@ -81,6 +83,15 @@ def _direction(sender: str, rtr: bool) -> str:
 
 def bus_frame(value: Any, station: int | None, duration: float):
     """The CAN_BUS_FRAME record of a CAN_FRAME value the bus carried."""
+    if value.__class__ is _FRAME_RECORD and value.extended is False and value.dlc.__class__ is int:
+        # the bus's usual case, a record its input checked: no Frame built (classify's answer
+        # depends on the id, RTR and DLC only); data past the DLC, and a remote frame's, zeroed
+        rtr, dlc = value.rtr, value.dlc
+        found = _CLASSES.get((value.id, rtr, dlc))
+        if found is not None and 0 <= dlc <= 8:
+            data = [0] * 8 if rtr else value.data[:dlc] + [0] * (8 - dlc)
+            return CAN_BUS_FRAME(duration=duration, station=station, id=value.id, extended=False, rtr=rtr,
+                                 dlc=dlc, data=data, direction=found[0], message=found[1])
     frame = Frame.from_value(value)
     direction, name = classify(frame)
     return CAN_BUS_FRAME(duration=duration, station=station, id=frame.id, extended=frame.extended,

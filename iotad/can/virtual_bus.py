@@ -87,7 +87,10 @@ class CanBus(Iota):
         self.elapsed = 0.0
         self.busy_time_reported = 0.0
         self.max_waiting = 0
+        self.queued = 0               # frames waiting, all stations
         self.log = []                 # CAN_BUS_FRAME records of frames that ended, not yet out
+        self._others = [frozenset(range(self.stations)) - {k} for k in range(self.stations)]
+        self._bit = 1.0 / self.bitrate
 
     @property
     def average_load(self) -> float:
@@ -102,11 +105,13 @@ class CanBus(Iota):
         if not frame.extended and frame.id > STANDARD_ID_MAX:
             Frame.from_value(frame)  # raises FrameError, in the frame module's words
         self.waiting[i].append(frame)
-        self.max_waiting = max(self.max_waiting, sum(len(q) for q in self.waiting))
+        self.queued += 1
+        if self.queued > self.max_waiting:
+            self.max_waiting = self.queued
         now = esprit_now()
         if self.current is None:
             self._start(now)
-        elif now < self.start + 1.0 / self.bitrate:
+        elif now < self.start + self._bit:
             self._rearbitrate(now)
 
     # The start-of-frame bit: a frame posted before its end takes part in arbitration, so frames
@@ -135,10 +140,12 @@ class CanBus(Iota):
     def _start(self, now: float) -> None:
         """The next frame starts now: the frame that wins arbitration among the queue heads."""
         station, position, _ = self._winner()
-        self.current = self.waiting[station].pop(position)
+        self.current = frame = self.waiting[station].pop(position)
+        self.queued -= 1
         self.sender = station
-        self.frame_time = frame_bits_of(self.current, self.stuffing) / self.bitrate
-        self.receivers = set(range(self.stations)) - {station}
+        self.frame_time = frame_bits(frame.id, frame.extended, frame.rtr, bytes(frame.data[:frame.dlc]),
+                                     self.stuffing, dlc=frame.dlc) / self.bitrate
+        self.receivers = set(self._others[station])
         self.start = now
         self.finish_delay = self.frame_time
 
@@ -146,9 +153,11 @@ class CanBus(Iota):
         """A frame posted during the SOF bit: arbitration again, with the frame that was winning
         back in its queue (at its head: it was the head, or, with `priority`, the lowest)."""
         self.waiting[self.sender].insert(0, self.current)
+        self.queued += 1
         station, position, frame = self._winner()
         if station == self.sender and position == 0:
             self.waiting[station].pop(0)  # it still wins
+            self.queued -= 1
             return
         start = self.start
         self._start(now)
@@ -158,6 +167,9 @@ class CanBus(Iota):
 
     def _winner(self) -> tuple:
         """(station, position in its queue, frame) of the frame that wins arbitration now."""
+        stations = [station for station, queue in enumerate(self.waiting) if queue]
+        if len(stations) == 1 and self.station_queue == "fifo":  # the usual case: no contest
+            return stations[0], 0, self.waiting[stations[0]][0]
         heads = []
         for station, queue in enumerate(self.waiting):
             if queue:
@@ -178,9 +190,10 @@ class CanBus(Iota):
         self.window_busy += self.frame_time
         self.frames += 1
         self.current = None
-        self.sender = None
-        if any(self.waiting):  # back to back: the next SOF follows the intermission at once
+        if self.queued:  # back to back: the next SOF follows the intermission at once
             self._start(esprit_now())
+        else:
+            self.sender = None
 
     @load.action(value=lambda self: self.window_busy / self.load_period,
                  when=lambda self: self.load_period > 0, after="load_period")

@@ -39,3 +39,27 @@ def test_frame_from_a_record_is_the_frame_from_its_plain_dict():
                 message = str(exc).replace(repr(record), "VALUE").replace(repr(dict(fields)), "VALUE")
                 outcomes.append((type(exc).__name__, message))
         assert outcomes[0] == outcomes[1], fields
+
+
+def test_a_bus_log_record_from_a_record_is_the_one_from_its_frame():
+    """bus_frame takes a CAN_FRAME record the bus's input checked without building a Frame; the
+    log record must be the one the Frame gives: data past the DLC (and a remote frame's) zeroed,
+    direction and message by id, RTR and DLC, a frame no controller could send still refused."""
+    from iotad.can.frame import CAN_FRAME, FrameError
+    from iotad.can.frame_log import bus_frame
+    from iotad.kernel.types import to_plain
+    import pytest
+
+    rng = random.Random(11)
+    for _ in range(5000):
+        id, rtr, dlc = rng.randrange(0x800), rng.random() < 0.2, rng.randrange(9)
+        record = CAN_FRAME.record(id=id, extended=False, rtr=rtr, dlc=dlc,
+                                  data=[rng.randrange(256) for _ in range(8)])  # garbage past the DLC
+        for _ in range(2):  # the first may fill classify's memory, the second reads it
+            got = to_plain(bus_frame(record, 1, 1e-4))
+            frame = Frame.from_value(record)
+            assert got == to_plain(bus_frame(frame.to_value(), 1, 1e-4))
+            assert got["data"] == list(frame.data) + [0] * (8 - len(frame.data))
+    bad = CAN_FRAME.record(id=0x800, extended=False, rtr=False, dlc=1, data=[1] + [0] * 7)
+    with pytest.raises(FrameError, match="does not fit a 11-bit standard id"):
+        bus_frame(bad, 0, 1e-4)
