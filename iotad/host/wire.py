@@ -66,7 +66,26 @@ def subscription_keys(system: str) -> list[str]:
 def parse_key(key: str) -> tuple[str, str, str, int | None] | None:
     """(system, path, channel, index) of a channel key, or None if it is not one.
 
-    The last chunk is an index when it is all digits; `@`-chunks keep their '@'."""
+    The last chunk is an index when it is all digits; `@`-chunks keep their '@'. A recording
+    has a few hundred keys and a million messages that the tools parse again and again (`iotad
+    check` parsed 6.5 million): answers are remembered, a few thousand keys at most."""
+    if key.__class__ is str:
+        try:
+            return _PARSED[key]
+        except KeyError:
+            pass
+        if len(_PARSED) >= _PARSED_MAX:
+            _PARSED.clear()
+        parsed = _PARSED[key] = _parse_key(key)
+        return parsed
+    return _parse_key(key)
+
+
+_PARSED: dict[str, tuple[str, str, str, int | None] | None] = {}
+_PARSED_MAX = 4096
+
+
+def _parse_key(key: str) -> tuple[str, str, str, int | None] | None:
     parts = key.split("/")
     if len(parts) < 4 or parts[0] != PREFIX:
         return None

@@ -732,7 +732,7 @@ def record_run(root: Any, output: str | Path, until: float, inputs: Iterable[dic
 
 
 # ------------------------------------------------------------------------------------ reading
-@dataclass
+@dataclass(slots=True)  # a recording holds a million of them: ~100 bytes each saved
 class RecordedMessage:
     topic: str
     log_time: int
