@@ -32,7 +32,12 @@ def run_virtual(system, args: argparse.Namespace) -> int:
                        "(its times are 64-bit nanoseconds: 584 years); --no-record runs without one")
     # With a core to spare, the recording is written by a second process (a quarter of the work
     # of a run): started now, its start-up overlaps building the system.
-    writer = RecordingProcess() if not args.no_record and cores() > 1 else None
+    writer = None
+    if not args.no_record and cores() > 1:
+        try:
+            writer = RecordingProcess()
+        except OSError:  # no interpreter to start (an embedded Python): this process writes it
+            writer = None
     try:
         return _run(system, args, writer)
     finally:

@@ -153,3 +153,13 @@ def test_ctrl_c_stops_a_virtual_run_between_steps_and_the_recording_is_whole(tmp
     assert recording.complete and recording.run_error == ""
     assert recording.run_end == pytest.approx(stopped_at, abs=1e-3)  # every node ran until then
     assert f"recording: {out}" in stdout
+
+
+def test_a_writer_that_cannot_be_started_leaves_the_recording_to_the_run_itself(tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(virtual_run, "cores", lambda: 2)
+    monkeypatch.setattr(sys, "executable", str(tmp_path / "no-python-here"))
+    out = tmp_path / "inline.mcap"
+    assert record(out) == 0
+    said = capsys.readouterr().out
+    assert f"recording: {out}  (iotad info" in said  # not "written by a second process"
+    assert read_recording(out).run_end == 30.0
