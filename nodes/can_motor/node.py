@@ -135,6 +135,7 @@ class CanMotor(Iota):
         self.bad: list = []
         self.estopped = False
         self.ticks = 0
+        self.setpoints_tick = -1 << 62  # the tick of the last setpoints message (none yet)
         self.states_due = False
 
     # ------------------------------------------------------------------ inputs
@@ -215,6 +216,7 @@ class CanMotor(Iota):
         self.reports[i].append(("ARM_SENT", 0.0, 0.0))
 
     def _command(self, value) -> None:
+        self.setpoints_tick = self.ticks
         for i, joint in enumerate(self.joint_map):
             axis = self.axes[i]
             if axis.phase != ARMED:
@@ -245,8 +247,10 @@ class CanMotor(Iota):
             axis.command = applied
             if applied != wanted:
                 self._report(i, "SETPOINT_CLAMPED", wanted, applied)
-            if self.skip_unchanged and frame == axis.last_frame:
-                continue  # the axis follows this already; `keepalive` feeds its watchdog
+            if self.skip_unchanged and frame == axis.last_frame and not axis.lost:
+                # the axis follows this already; `keepalive` feeds its watchdog (not a LOST
+                # axis's: it may still be running, and only the setpoints reach it then)
+                continue
             self.tx.append(frame)
             axis.last_frame = frame
             axis.last_sent = self.ticks
@@ -300,7 +304,9 @@ class CanMotor(Iota):
         closed = axis.axis_state == CLOSED_LOOP
         if axis.phase == ARMING and closed:
             axis.phase = ARMED
-            axis.command = axis.position  # the firmware holds where it is on entering closed loop
+            # the firmware holds where it is on entering closed loop: its position, or standing
+            # still (0 velocity or torque) for the other modes, as the arming's hold commands
+            axis.command = axis.position if self.joint_map[i].mode == "position" else 0.0
             axis.last_frame = None  # its first command goes out whatever it is
             events.append("ARM_DONE")
         elif axis.phase == ARMED and not closed:
@@ -369,9 +375,9 @@ class CanMotor(Iota):
 
     def _keep_alive(self) -> None:
         """Feed the firmware's watchdog. An ARMED axis with no command for `keepalive` gets its last
-        command again: without feed-forward (the source went silent: a velocity feed-forward
-        would carry the joint on), or with `skip_unchanged` the very frame it was sent last (the
-        source is not silent, its setpoint is unchanged). An ARMING axis gets "hold where you are" (the measured
+        command again: without feed-forward if the source went silent (a velocity feed-forward
+        would carry the joint on), the very frame it was sent last if it speaks and its setpoint
+        is unchanged (`skip_unchanged`). An ARMING axis gets "hold where you are" (the measured
         position, or 0 velocity or torque) every `arm_hold`: the firmware is in closed loop, its
         watchdog running, up to a heartbeat period before its heartbeat says so."""
         for joint, axis in zip(self.joint_map, self.axes):
@@ -382,7 +388,8 @@ class CanMotor(Iota):
                 if not axis.has_position:
                     continue
                 axis.command = axis.position
-            if axis.phase == ARMED and self.skip_unchanged and axis.last_frame is not None:
+            if (axis.phase == ARMED and self.skip_unchanged and axis.last_frame is not None
+                    and self.ticks - self.setpoints_tick < every):  # the source speaks, unchanged
                 frame = axis.last_frame
             else:
                 frame = _setpoint_frame(joint, axis.command, 0.0, 0.0)

@@ -2,7 +2,9 @@
 an ARMED axis with no setpoint for keepalive gets its last command again, without feed-forward."""
 import struct
 
-from motor_bench import SET_INPUT_POS, SET_INPUT_VEL, Bench, encoder, heartbeat, setpoints
+import pytest
+
+from motor_bench import SET_INPUT_POS, SET_INPUT_TORQUE, SET_INPUT_VEL, Bench, encoder, heartbeat, setpoints
 
 JOINTS = [{"name": "a", "node_id": 1, "gear_ratio": 2.0}, {"name": "w", "node_id": 2, "mode": "velocity"}]
 
@@ -38,3 +40,15 @@ def test_no_hold_before_the_position_is_known_and_none_to_a_lost_axis():
     holds = [t for t, *_ in commands(bench)]
     assert holds[0] == 0.04                  # the first tick at arm_hold's pace once the position is known
     assert holds[-1] < 0.3 + 1e-9            # lost at 0.3 (no heartbeat ever): no more holds
+
+
+@pytest.mark.parametrize("mode, command", [("velocity", SET_INPUT_VEL), ("torque", SET_INPUT_TORQUE)])
+def test_an_armed_velocity_or_torque_joint_is_kept_standing_still_not_at_its_position(mode, command):
+    """On entering closed loop the firmware holds still: for a velocity or torque joint that is
+    0 velocity or torque, not its position (0.5 turns here) taken for one."""
+    bench = Bench([{"name": "w", "node_id": 1, "mode": mode}], keepalive=0.05, polls={})
+    bench.hear(0.005, encoder(1, 0.5, 0.0))
+    bench.hear(0.015, heartbeat(1))
+    bench.run(0.125)
+    sent = [(round(t, 9), data) for t, ident, rtr, data in bench.sent() if ident == 1 << 5 | command]
+    assert len(sent) == 2 and all(not any(data) for _, data in sent)  # 0.0 (and 0 feed-forward)

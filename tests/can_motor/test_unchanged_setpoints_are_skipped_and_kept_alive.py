@@ -71,3 +71,31 @@ def test_skip_unchanged_is_a_bool_and_needs_a_keepalive(bad):
         Bench(JOINTS, keepalive=0.05, skip_unchanged=bad)
     with pytest.raises(ValueError, match="skip_unchanged needs a keepalive"):
         Bench(JOINTS, keepalive=0.0, skip_unchanged=True)
+
+
+def test_a_lost_axis_gets_every_setpoint_even_unchanged():
+    """LOST (no heartbeat for 3 periods) yet maybe running: the keep-alive skips it, so skipping
+    its unchanged setpoints too would starve its watchdog."""
+    bench = Bench(JOINTS[:1], keepalive=0.05, polls={}, skip_unchanged=True, state_period=0.01)
+    bench.arm_all(0.005)  # its only heartbeat: LOST from 0.305
+    for k in range(40):
+        bench.post("setpoints", setpoints(1, [0.5]), t=0.02 + 0.01 * k)
+    bench.run(0.415)
+    assert [s["t"] for s in bench.status(0, "LOST")] == [pytest.approx(0.305)]
+    after = [t for t, *_ in commands(bench, since=0.31)]
+    assert after == pytest.approx([0.31 + 0.01 * k for k in range(11)])  # every one
+
+
+def test_a_silent_source_gets_its_last_command_without_feed_forward():
+    """Unchanged setpoints still coming: the keep-alive repeats the frame, feed-forward and all;
+    the source fallen silent: the command alone, as without skip_unchanged."""
+    bench = Bench(JOINTS[:1], keepalive=0.05, polls={}, skip_unchanged=True, state_period=0.01)
+    bench.arm_all(0.005)
+    for k in range(3):  # 0.02 .. 0.04, then silence
+        bench.post("setpoints", setpoints(1, [0.5], velocity_ff=[0.25]), t=0.02 + 0.01 * k)
+    bench.run(0.125)
+    sent = commands(bench)
+    assert sent[0] == (0.02, 1 << 5 | SET_INPUT_POS, struct.pack("<fhh", 0.5 / TAU, round(0.25 / TAU * 1000), 0))
+    # 0.06: the last setpoints came 20 ms ago, within a keep-alive period: unchanged, repeated as
+    # it is; 0.11 (a keep-alive later): none for 70 ms, the source is silent: the position alone
+    assert [(t, data) for t, _, data in sent[1:]] == [(0.06, sent[0][2]), (0.11, struct.pack("<fhh", 0.5 / TAU, 0, 0))]
