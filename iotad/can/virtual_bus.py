@@ -33,6 +33,7 @@ from __future__ import annotations
 
 from iotad.esprit.runtime import esprit_now
 from iotad.kernel.api import Input, Internal, Iota, Output, Param
+from iotad.kernel.engine import TIME_GRID
 from iotad.kernel.types import Float
 
 from .bit_timing import frame_bits
@@ -90,7 +91,7 @@ class CanBus(Iota):
         self.queued = 0               # frames waiting, all stations
         self.log = []                 # CAN_BUS_FRAME records of frames that ended, not yet out
         self._others = [frozenset(range(self.stations)) - {k} for k in range(self.stations)]
-        self._bit = 1.0 / self.bitrate
+        self._bit_steps = round(TIME_GRID / self.bitrate)  # the SOF bit, in steps of the engine's time grid
 
     @property
     def average_load(self) -> float:
@@ -111,8 +112,8 @@ class CanBus(Iota):
         now = esprit_now()
         if self.current is None:
             self._start(now)
-        elif now < self.start + self._bit:
-            self._rearbitrate(now)
+        elif round((now - self.start) * TIME_GRID) < self._bit_steps:  # on the engine's grid:
+            self._rearbitrate(now)  # start + 1 bit in floats may land either side of that instant
 
     # The start-of-frame bit: a frame posted before its end takes part in arbitration, so frames
     # posted at one instant all do, whatever the order of the components' actions. The frame
@@ -208,7 +209,9 @@ def bus_summary(trace, bus: str, bitrate: float = 1_000_000, stuffing: str = "ex
     """Exact figures of a bus from a trace: frames, busy time and load over [start, until]
     (until: the last event of the bus). `bus` is the bus's path in the trace ("iota" field). A
     frame ends when it is delivered (its `rx` events, one per receiver, all at that instant) or,
-    on a bus with one station, with its `finish` event; it began its bit time before that."""
+    on a bus with one station, with its `finish` event; it began its bit time before that. A
+    frame still on the bus where the trace ends is not in the trace's account, so not in these
+    figures (the bus's own `busy_time` counts it once it ends)."""
     events = [e for e in trace if e.get("iota") == bus]
     span_end = until if until is not None else max((e["t"] for e in events), default=start)
     ended = {}  # end time -> frame: one frame ends at a time

@@ -105,10 +105,12 @@ def _run(system, args: argparse.Namespace, writer) -> int:
                 sink = writer
             else:
                 sink = McapSink(output)
-        except (OSError, WriterFailed) as exc:
+        except OSError as exc:
             drop_empty_claim(output)
-            why = exc.strerror or exc if isinstance(exc, OSError) else exc
-            raise CliError(f"-o {output}: cannot write: {why}") from None
+            raise CliError(f"-o {output}: cannot write: {exc.strerror or exc}") from None
+        except WriterFailed as exc:  # "cannot write: ..." in the writer's words, or how it died
+            drop_empty_claim(output)
+            raise CliError(f"-o {output}: {exc}") from None
     policy = Eager() if args.seed is None else Random(args.seed)
     if output is not None:
         header = recording_header(root, system.name, time_unit=system.time_unit, policy=policy,
@@ -148,8 +150,17 @@ def _run(system, args: argparse.Namespace, writer) -> int:
                 print(f"stopped by Ctrl-C at t = {engine.now() * system.time_unit:.3f} s", file=sys.stderr)
     except KeyboardInterrupt:  # a second Ctrl-C: at once, wherever the run was
         interrupted = True
+        stopped = engine.now() * system.time_unit
         print(file=sys.stderr)
-        print(f"stopped hard by a second Ctrl-C at t = {engine.now() * system.time_unit:.3f} s", file=sys.stderr)
+        print(f"stopped hard by a second Ctrl-C at t = {stopped:.3f} s", file=sys.stderr)
+        # it may have landed in the middle of a firing (an output recorded, not yet delivered):
+        # the recording says the run broke off there, so that `iotad check` does not pass it
+        if output is not None and not getattr(sink, "torn", False):  # torn: the writer says so
+            try:
+                sink.add_metadata(RUN_ERROR, {"error": "stopped hard by a second Ctrl-C, possibly in the "
+                                                       "middle of a firing", "t": stopped})
+            except WriterFailed:
+                pass
     except BaseException as exc:
         # an error of iotad itself: the recording keeps what happened, and says the run broke off
         # there, so that `iotad check` does not pass it as a whole run
@@ -188,6 +199,8 @@ def _run(system, args: argparse.Namespace, writer) -> int:
     if output is not None:
         where = " (written by a second process)" if writer is not None else ""
         print(f"  recording: {output}{where}  (iotad info|check|plot {output})")
+    if interrupted:
+        return 130
     return 1 if engine.halted else 0
 
 

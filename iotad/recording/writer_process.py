@@ -44,6 +44,7 @@ BATCH = 256          # events per write to the pipe (~40 KB): well under what th
 PIPE_SIZE = 1 << 20  # bytes the pipe holds (Linux's default most, /proc/sys/fs/pipe-max-size)
 READ_SIZE = 1 << 20  # bytes the writer reads at a time
 CUT_SHORT = "the run's process ended without finishing its recording (killed, or stopped hard)"
+HARD_STOP_WAIT = 5.0  # s a writer gets to finish its file after a hard stop
 
 
 class WriterFailed(RecordingError):
@@ -89,11 +90,16 @@ class RecordingProcess:
         "cannot write PATH: ...") if it cannot."""
         self.output = Path(output)
         self._parts.append(self._pack(["open", str(output)]))
-        self._send()
-        said = self._process.stdout.readline()
+        try:
+            self._send()
+            said = self._process.stdout.readline()
+        except WriterFailed:
+            said = b""
         if said != b"ready\n":
             self.close()
-            raise WriterFailed(self._last_words() or self._reason())
+            words = self._last_words()
+            raise WriterFailed(f"cannot write: {words}" if words else
+                               f"the recording's writer process stopped before it opened the file ({self._how()})")
 
     def begin(self, header: dict[str, Any]) -> None:
         self._parts.append(self._pack(["header", header]))
@@ -125,45 +131,61 @@ class RecordingProcess:
 
     def close(self) -> int:
         """End the writer's input and wait for it to exit (at once, if it was never `open`ed);
-        its exit status."""
+        its exit status. After a stream broken off (a second Ctrl-C), or a Ctrl-C during the
+        wait, the writer gets `HARD_STOP_WAIT` seconds to finish its file and is then killed (a
+        stalled disk must not hold the command): `iotad recover` reads what it left."""
         for stream in (self._process.stdin, self._process.stdout):
             try:
                 stream.close()
             except OSError:
                 pass
-        return self._process.wait()
+        try:
+            return self._process.wait(HARD_STOP_WAIT if self._torn else None)
+        except (subprocess.TimeoutExpired, KeyboardInterrupt):
+            self._process.kill()
+            code = self._process.wait()
+            print(f"iotad: the recording's writer did not finish {self.output} in time and was stopped; "
+                  f"'iotad recover {self.output}' reads what it wrote", file=sys.stderr)
+            return code
+
+    @property
+    def torn(self) -> bool:
+        """A write was broken off (a second Ctrl-C): the writer marks the file cut short."""
+        return self._torn
 
     def _send(self) -> None:
-        """The batch to the pipe, whole: a Ctrl-C waits until it is written (SIGINT is blocked
-        meanwhile), so the writer never sees half an event."""
+        """The batch to the pipe. An exception in the middle (a second Ctrl-C: `iotad run
+        --virtual` takes the first one as a request, between steps) leaves the stream torn:
+        nothing more is sent, and the writer, reading its end mid-event, marks the file cut short."""
         if self._failed is not None:
             raise WriterFailed(self._failed)
+        if self._torn:
+            return
+        self._torn = True  # until every byte is out
         data = memoryview(b"".join(self._parts))
         self._parts = []
-        blocked = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
-        self._torn = True
         try:
             while data:
                 data = data[os.write(self._fd, data):]
-            self._torn = False
         except OSError:  # EPIPE: the writer is gone
             self._process.wait()
             self._failed = self._reason()
             raise WriterFailed(self._failed) from None
-        finally:
-            signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
+        self._torn = False
 
     def _last_words(self) -> str:
         self._errors.seek(0)
         lines = [line for line in self._errors.read().decode(errors="replace").splitlines() if line.strip()]
         return lines[-1] if lines else ""
 
+    def _how(self) -> str:
+        code = self._process.returncode
+        return (f"killed by signal {-code}" if code is not None and code < 0
+                else f"exit status {code}" if code is not None else "still running")
+
     def _reason(self) -> str:
         """The writer's own last words, or how it ended."""
-        code = self._process.returncode
-        how = (f"killed by signal {-code}" if code is not None and code < 0
-               else f"exit status {code}" if code is not None else "still running")
-        said = self._last_words() or f"it said nothing ({how})"
+        said = self._last_words() or f"it said nothing ({self._how()})"
         return f"the recording's writer process stopped: {said}; {self.output} holds what it wrote before"
 
 
@@ -185,7 +207,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         sink = McapSink(output)
     except OSError as exc:
-        print(f"cannot write {output}: {exc.strerror or exc}", file=sys.stderr)
+        print(exc.strerror or str(exc), file=sys.stderr)
         return 2
     sys.stdout.write("ready\n")
     sys.stdout.flush()

@@ -254,3 +254,18 @@ def test_a_frame_no_controller_could_send_is_refused_once_and_the_bus_goes_on():
     assert "CAN id 0x800 does not fit a 11-bit standard id" in violations[0]["value"]["message"]
     assert [f.id for f in members[1].heard] == [0x101, 0x102]
     assert bus.frames == 2 and not any(bus.waiting)
+
+
+@pytest.mark.parametrize("bitrate", [250_000, 500_000, 1_000_000])
+def test_the_start_of_frame_bit_ends_on_the_engines_time_grid_whatever_the_start(bitrate):
+    """A frame posted exactly one bit after the SOF waits; one nanosecond earlier it takes part.
+    (start + 1 bit in floats lands on either side of that instant, depending on the start.)"""
+    bit = 1 / bitrate
+    for start in (0.001, 0.001664, 0.5, 0.123456789):
+        for late, takes_part in ((bit, False), (bit - 1e-9, True)):
+            net, bus, members = system(load_period=0, bitrate=bitrate)
+            engine = Engine(net)
+            engine.post("net/s0", "send", Frame(0x11, b"\x01").to_value(), t=start)
+            engine.post("net/s1", "send", Frame(0x10, b"\x02").to_value(), t=round(start + late, 9))  # on the grid
+            engine.run(until=start + 0.01)
+            assert [f.id for f in members[2].heard] == ([0x10, 0x11] if takes_part else [0x11, 0x10]), (start, late)

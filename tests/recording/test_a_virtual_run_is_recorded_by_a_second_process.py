@@ -112,7 +112,7 @@ def test_a_file_the_writer_cannot_create_is_refused_before_the_run(tmp_path, mon
         assert not target.exists()
     finally:
         locked.chmod(0o700)
-    with pytest.raises(WriterFailed, match=r"cannot write /proc/no/such\.mcap: No such file or directory"):
+    with pytest.raises(WriterFailed, match=r"^cannot write: No such file or directory$"):
         writer = RecordingProcess()
         writer.open("/proc/no/such.mcap")
 
@@ -163,3 +163,84 @@ def test_a_writer_that_cannot_be_started_leaves_the_recording_to_the_run_itself(
     said = capsys.readouterr().out
     assert f"recording: {out}  (iotad info" in said  # not "written by a second process"
     assert read_recording(out).run_end == 30.0
+
+
+def test_a_writer_dead_before_it_opened_the_file_says_so():
+    writer = RecordingProcess()
+    os.kill(writer._process.pid, signal.SIGKILL)
+    writer._process.wait()
+    with pytest.raises(WriterFailed, match=r"^the recording's writer process stopped before it opened the file "
+                                           r"\(killed by signal 9\)$"):
+        writer.open("/tmp/never-written.mcap")
+    assert not Path("/tmp/never-written.mcap").exists()
+
+
+@pytest.mark.parametrize("where", ["a node's firing", "the middle of a write to the writer"])
+def test_a_second_ctrl_c_exits_130_and_the_recording_says_the_run_broke_off(tmp_path, monkeypatch, capsys, where):
+    """A second Ctrl-C raises at once, wherever the run is: in a firing (an output recorded and not
+    yet delivered, maybe), or half-way through a batch on its way to the writer. Either way the
+    run exits 130 and the recording is whole but marked, so `iotad check` does not pass it."""
+    import iotad.recording.writer_process as writer_process
+
+    monkeypatch.setattr(virtual_run, "cores", lambda: 2)
+    monkeypatch.setattr(writer_process, "BATCH", 8)
+    if where == "a node's firing":
+        handed = RecordingProcess.__call__
+        seen = []
+
+        def interrupting(self, event):
+            seen.append(event)
+            if len(seen) == 30:
+                raise KeyboardInterrupt
+            handed(self, event)
+
+        monkeypatch.setattr(RecordingProcess, "__call__", interrupting)
+    else:
+        writes = []
+        real_write = os.write
+
+        def half_then_interrupt(fd, data):
+            writes.append(len(data))
+            if len(writes) == 4:  # the open command, the header, a batch, then half of the next
+                real_write(fd, bytes(data[:len(data) // 2]))
+                raise KeyboardInterrupt
+            return real_write(fd, data)
+
+        monkeypatch.setattr(writer_process.os, "write", half_then_interrupt)
+    out = tmp_path / "hard.mcap"
+    assert record(out) == 130
+    assert "stopped hard by a second Ctrl-C at t = " in capsys.readouterr().err
+    monkeypatch.undo()
+    recording = read_recording(out)
+    assert recording.complete and recording.run_end is None
+    expected = CUT_SHORT if where != "a node's firing" else "stopped hard by a second Ctrl-C, possibly in the middle"
+    assert recording.run_error.startswith(expected)
+    assert main(["check", str(out)]) == 1
+    assert "BROKE OFF" in capsys.readouterr().out
+
+
+def test_a_stalled_writer_does_not_hold_a_ctrl_c_and_is_stopped(tmp_path, monkeypatch):
+    """The writer stops reading (SIGSTOP here; a hung disk alike): the engine blocks once the
+    pipe is full, a Ctrl-C still gets through, and the writer is given HARD_STOP_WAIT to finish
+    before it is killed."""
+    import iotad.recording.writer_process as writer_process
+    from recorded_systems import figure2
+
+    monkeypatch.setattr(writer_process, "HARD_STOP_WAIT", 0.5)
+    writer = RecordingProcess()
+    writer.open(tmp_path / "stalled.mcap")
+    writer.begin(recording_header(figure2(), "figure2"))
+    os.kill(writer._process.pid, signal.SIGSTOP)
+    previous = signal.signal(signal.SIGALRM, signal.default_int_handler)  # the "Ctrl-C", in 1 s
+    signal.setitimer(signal.ITIMER_REAL, 1.0)
+    event = {"t": 0.0, "iota": "figure2/vision", "action": "req", "index": None, "kind": "output",
+             "value": {"padding": "x" * 1000}}
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            for _ in range(10_000):  # 10 MB: ten times what the pipe holds
+                writer(event)
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, previous)
+    assert writer.torn
+    assert writer.close() == -signal.SIGKILL  # still stopped after the wait: killed
