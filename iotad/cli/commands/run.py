@@ -44,7 +44,7 @@ recording has the same format as a real-time run's, so info, check, replay, plot
 both; on a machine with two cores or more a second process writes it, beside the engine.
 External inputs can be fed with --inputs SCRIPT.jsonl (times in spec units). Ctrl-C stops a
 virtual run after the step in progress and finishes its recording; a second Ctrl-C stops it at
-once."""
+once (exit 130; the recording says the run broke off)."""
 
 
 def register(sub: argparse._SubParsersAction) -> None:
