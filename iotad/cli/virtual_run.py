@@ -129,7 +129,7 @@ def _run(system, args: argparse.Namespace, writer) -> int:
     # collections need not walk them (~30 ms each, a few % of a minute of Buggy recorded).
     gc.freeze()
     started = time.perf_counter()
-    step = max(until / 1000, 1e-3)
+    step = longest = max(until / 1000, 1e-3)
     progress = sys.stderr.isatty() and not args.plain
     next_report = started + PROGRESS_EVERY
     interrupted = False
@@ -138,8 +138,15 @@ def _run(system, args: argparse.Namespace, writer) -> int:
             t = 0.0
             while t < until and not engine.halted and not stop:
                 t = min(until, t + step)
+                before = time.perf_counter()
                 engine.run(t)
                 now = time.perf_counter()
+                # steps of about a tenth of a second of wall time, so that a Ctrl-C (seen between
+                # steps) is answered at once; where the steps fall does not change the run
+                if now - before > 0.2:
+                    step /= 2
+                elif now - before < 0.05 and step < longest:
+                    step = min(longest, step * 2)
                 if now >= next_report:
                     next_report = now + PROGRESS_EVERY
                     line = (f"t = {_seconds(t * system.time_unit, 2):>8} s of {args.until:g} s virtual, "
@@ -216,7 +223,7 @@ class _Stop:
 
 @contextlib.contextmanager
 def _ctrl_c():
-    """The first Ctrl-C asks the run to stop after the step in progress (a few ms), so it never
+    """The first Ctrl-C asks the run to stop after the step in progress (at most ~0.2 s), so it never
     lands inside a node's code or half-way through handing events to the recording; a second one
     stops it at once (KeyboardInterrupt). Outside the main thread, Ctrl-C is left as it is."""
     stop = _Stop()

@@ -15,7 +15,7 @@ it is); anything else is a command, an array whose first element names it:
     ["metadata", NAME, MAP] a metadata record (the run's end, or the error that broke it off)
     ["finish"]              the run is over: write the summary and exit 0
 
-The writer is started before the system is built, so that its own start-up (about 0.2 s of
+The writer is started before the system is built, so that its own start-up (about 0.1 s of
 imports) overlaps that; the file is named later, once the run's input has been found good (a
 wrong input never costs an old recording). Its input ending before `open` is no error: the run
 did not get that far. It ignores Ctrl-C (the engine's process stops the run, then finishes the
