@@ -144,8 +144,7 @@ class CanBus(Iota):
         self.current = frame = self.waiting[station].pop(position)
         self.queued -= 1
         self.sender = station
-        self.frame_time = frame_bits(frame.id, frame.extended, frame.rtr, bytes(frame.data[:frame.dlc]),
-                                     self.stuffing, dlc=frame.dlc) / self.bitrate
+        self.frame_time = frame_bits_of(frame, self.stuffing) / self.bitrate
         self.receivers = set(self._others[station])
         self.start = now
         self.finish_delay = self.frame_time
