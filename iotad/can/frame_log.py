@@ -88,7 +88,7 @@ def bus_frame(value: Any, station: int | None, duration: float):
         # depends on the id, RTR and DLC only); data past the DLC, and a remote frame's, zeroed
         rtr, dlc = value.rtr, value.dlc
         found = _CLASSES.get((value.id, rtr, dlc))
-        if found is not None and 0 <= dlc <= 8:
+        if found is not None and value.data.__class__ is list and len(value.data) == 8:
             data = [0] * 8 if rtr else value.data[:dlc] + [0] * (8 - dlc)
             return CAN_BUS_FRAME(duration=duration, station=station, id=value.id, extended=False, rtr=rtr,
                                  dlc=dlc, data=data, direction=found[0], message=found[1])
