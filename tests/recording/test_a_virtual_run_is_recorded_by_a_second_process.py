@@ -165,14 +165,14 @@ def test_a_writer_that_cannot_be_started_leaves_the_recording_to_the_run_itself(
     assert read_recording(out).run_end == 30.0
 
 
-def test_a_writer_dead_before_it_opened_the_file_says_so():
+def test_a_writer_dead_before_it_opened_the_file_says_so(tmp_path):
     writer = RecordingProcess()
     os.kill(writer._process.pid, signal.SIGKILL)
     writer._process.wait()
     with pytest.raises(WriterFailed, match=r"^the recording's writer process stopped before it opened the file "
                                            r"\(killed by signal 9\)$"):
-        writer.open("/tmp/never-written.mcap")
-    assert not Path("/tmp/never-written.mcap").exists()
+        writer.open(tmp_path / "never-written.mcap")
+    assert not (tmp_path / "never-written.mcap").exists()
 
 
 @pytest.mark.parametrize("where", ["a node's firing", "the middle of a write to the writer"])
