@@ -17,7 +17,9 @@ Simplifications, on purpose:
   that meets a cube does not pick it up. Cubes do not collide with the arm at all, so the hand
   cannot knock them off the belt.
 - A released cube that comes to rest inside the bin counts as `placed`; at rest anywhere else,
-  as `dropped`.
+  as `dropped`. Either is then put to sleep (Bullet's own deactivation: a sleeping body still
+  collides, and wakes when something hits it), so a pile in the bin does not make every later
+  step dearer: without it a step cost 31 us with an empty bin and 134 us with 20 cubes in it.
 The end-effector camera (`camera_image`) renders with TinyRenderer on demand only, without the
 arm's own meshes (it looks away from them, and they are nearly all the rendering cost): a 64x64
 image costs ~1-2 ms instead of ~18.
@@ -133,7 +135,8 @@ class ConveyorWorld(ArmWorld):
         cube.body = physics.box(client, (size, size, size),
                                 (self.belt_x + cube.offset, self.belt_length / 2, self.belt_height + size),
                                 rgba=COLOURS[cube.colour], mass=0.05)
-        pybullet.changeDynamics(cube.body, -1, lateralFriction=1.0, physicsClientId=client)
+        pybullet.changeDynamics(cube.body, -1, lateralFriction=1.0,
+                                activationState=pybullet.ACTIVATION_STATE_ENABLE_SLEEPING, physicsClientId=client)
         for link in self._arm_links:
             pybullet.setCollisionFilterPair(cube.body, self.body, -1, link, 0, physicsClientId=client)
         self._set_state(cube, RIDING)
@@ -199,7 +202,19 @@ class ConveyorWorld(ArmWorld):
             elif position[2] < self.belt_height:  # on the floor: it will not get up again
                 self._set_state(cube, DROPPED)
                 self.dropped += 1
-            # else it rests on the belt's edge or a bin wall: still free, still graspable
+            else:  # it rests on the belt's edge or a bin wall: still free, still graspable
+                continue
+            self._sleep_at_rest()
+
+    def _sleep_at_rest(self) -> None:
+        """Put the placed and dropped cubes at rest to sleep: at once, not after Bullet's own two
+        seconds below its thresholds, which a pile that a newcomer woke seldom meets."""
+        client = self.client
+        for cube in self.cubes:
+            if cube.state in (PLACED, DROPPED) and math.hypot(
+                    *pybullet.getBaseVelocity(cube.body, physicsClientId=client)[0]) <= REST_SPEED:
+                pybullet.changeDynamics(cube.body, -1, activationState=pybullet.ACTIVATION_STATE_SLEEP,
+                                        physicsClientId=client)
 
     def _set_state(self, cube: Cube, state: str) -> None:
         cube.state = state

@@ -151,3 +151,41 @@ def test_bad_options_are_clear_errors():
         ConveyorWorld(colours=("purple",))
     with pytest.raises(ValueError, match="cube_interval > 0"):
         ConveyorWorld(cube_interval=0)
+
+
+def drop_into_bin(world, cube, height):
+    """Put `cube` free above the bin's centre at `height` (m above the floor): as if released there."""
+    import pybullet
+    world._spawn(cube)
+    bx, by = world.bin_position
+    pybullet.resetBasePositionAndOrientation(cube.body, (bx, by, height), (0, 0, 0, 1), physicsClientId=world.client)
+    pybullet.resetBaseVelocity(cube.body, (0, 0, 0), (0, 0, 0), physicsClientId=world.client)
+    world._set_state(cube, "free")
+
+
+def test_cubes_at_rest_in_the_bin_sleep_and_a_newcomer_lands_on_them(world):
+    import pybullet
+
+    def where(cube):
+        return pybullet.getBasePositionAndOrientation(cube.body, physicsClientId=world.client)[0]
+
+    first, second = world.cubes[0], world.cubes[1]
+    for cube in world.cubes:
+        cube.spawn_time = math.inf  # none rides in: the test places them
+    drop_into_bin(world, first, 0.2)
+    while first.state != "placed":
+        world.step()
+    still = set()
+    for _ in range(240):
+        world.step()
+        still.add(where(first))
+    # asleep: not a nanometre of the contact solver's jitter, step after step
+    assert len(still) == 1
+    drop_into_bin(world, second, 0.25)
+    for _ in range(round(2.0 / DT)):
+        world.step()
+    assert world.placed == 2 and second.state == "placed"
+    (_, _, z0), (_, _, z1) = where(first), where(second)
+    # it did not fall through the sleeping cube: it rests on top of it, both in the bin
+    assert z1 == pytest.approx(z0 + world.cube_size, abs=0.01)
+    assert z0 == pytest.approx(0.01 + world.cube_size / 2, abs=0.01)  # on the bin's floor (0.01 thick)
