@@ -396,6 +396,12 @@ class MdlProgramType(Type):
     def default(self) -> Program:
         return HOLD
 
+    def prepare(self) -> None:
+        # A program's expressions are parsed as its value is checked; the first parse imports
+        # the ESPRIT front end and builds its grammar (~0.1 s): at start-up, not in a firing.
+        from iotad.esprit.expressions import parse_expression
+        parse_expression("0")
+
     def json_schema(self) -> dict:
         return {"title": self.name, "anyOf": [_program_schema(), MODE.json_schema()]}
 

@@ -207,6 +207,8 @@ class Engine:
         for slot in self.slots.values():
             # an input whose type checks what the output's does: its values were checked as they left
             slot.deliveries = [(target, same_checks(slot.type, target.type)) for target in slot.targets]
+        for channel_type in {id(slot.type): slot.type for slot in self.slots.values() if slot.type is not None}.values():
+            channel_type.prepare()
 
     def _affected(self, leaf: Leaf, writes: frozenset, index: int | None) -> list[ActionInstance]:
         """Instances of `leaf` whose precondition reads a cell that `writes` (at `index`) may change.

@@ -63,6 +63,11 @@ class Type:
     def json_schema(self) -> dict:  # pragma: no cover - every type overrides it
         raise NotImplementedError
 
+    def prepare(self) -> None:
+        """Work the type does once before its first value, done here instead: the engine calls
+        it for every channel's type as it is built, so that the cost lands at start-up, not in
+        the firing (or the real-time do-block) that carries the first value. Most types have none."""
+
     def __repr__(self) -> str:
         return self.name
 
@@ -307,6 +312,10 @@ class StructType(Type):
     def __call__(self, *args: Any, **fields: Any) -> Record:
         return self.record(*args, **fields)
 
+    def prepare(self) -> None:
+        for field_type in self.fields.values():
+            field_type.prepare()
+
     def checked_plain(self, value: Any) -> Any:
         if value.__class__ is self.record:
             try:
@@ -395,6 +404,9 @@ class ArrayType(Type):
         self._plain_elements = type(self.element).from_checked_plain in _IDENTITY_BUILDS
         if type(self.element) in (IntType, FloatType, BoolType) and self.length <= 16:
             _compile_array(self)
+
+    def prepare(self) -> None:
+        self.element.prepare()
 
     def checked_plain(self, value: Any) -> Any:
         if value.__class__ is list and len(value) == self.length:
