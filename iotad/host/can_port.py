@@ -12,12 +12,19 @@ from __future__ import annotations
 import threading
 from typing import Any, Callable
 
+from iotad.can.error_frames import describe_error_frame
 from iotad.can.frame import Frame, FrameError
 from iotad.host import wire
 from iotad.host.host_clock import RawInput
 from iotad.kernel.types import to_plain
 
 CAN_TX, CAN_RX = "can_tx", "can_rx"
+RETRY = 0.1  # s between receive attempts on a bus that fails (an interface gone down): no busy loop
+
+# What the reader thread saw that no IOTA can take, as the violations the host records (on can_rx):
+ERROR_FRAME = "can_error_frame"        # the controller's report of a bus problem (bus off, no ACK...)
+UNUSABLE = "can_frame_unusable"        # a CAN FD frame: an IOTA takes classic frames only
+RECEIVE_FAILED = "can_receive_failed"  # the bus raised on receive
 
 
 class CanPortError(Exception):
@@ -25,14 +32,22 @@ class CanPortError(Exception):
 
 
 class CanPort:
-    def __init__(self, config: dict[str, Any], post: Callable[[RawInput], None]):
-        self.config, self.post = config, post
+    """`post` takes each frame received (a `RawInput` for the engine thread); `now` is the
+    engine's clock, which stamps the problems `take_problems` hands over."""
+
+    def __init__(self, config: dict[str, Any], post: Callable[[RawInput], None],
+                 now: Callable[[], float] = lambda: 0.0):
+        self.config, self.post, self.now = config, post, now
         self.name = config["bus"]
         self.key = f"can/{self.name}"  # what an input trace event names as where it came from
         self.bus = None
-        self.sent = self.received = self.send_errors = self.unusable = 0
+        self.sent = self.received = self.send_errors = self.unusable = self.error_frames = self.receive_failures = 0
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
+        # violation -> [count, first t, last t, what the first one said]: counted by the reader
+        # thread, handed to the engine thread by `take_problems` (a flood is one record per period)
+        self._problems: dict[str, list] = {}
+        self._problems_lock = threading.Lock()
 
     def open(self) -> None:
         from iotad.can.bus import open_bus
@@ -65,19 +80,50 @@ class CanPort:
         while not stop.is_set():
             try:
                 message = bus.recv(timeout=0.1)
-            except Exception:  # noqa: BLE001 - the bus is shutting down under us
+            except Exception as exc:  # noqa: BLE001 - python-can raises many kinds
                 if stop.is_set():
-                    return
+                    return  # the bus is shutting down under us
+                self.receive_failures += 1
+                self._problem(RECEIVE_FAILED, f"{type(exc).__name__}: {exc}")
+                stop.wait(RETRY)
                 continue
             if message is None:
                 continue
+            if getattr(message, "is_error_frame", False):
+                self.error_frames += 1
+                self._problem(ERROR_FRAME, describe_error_frame(message.arbitration_id, message.data))
+                continue
             try:
                 frame = Frame.from_can_message(message)
-            except FrameError:
-                self.unusable += 1  # error frames, CAN FD: not classic frames any IOTA could take
+            except FrameError as exc:
+                self.unusable += 1  # CAN FD: not a classic frame any IOTA could take
+                self._problem(UNUSABLE, str(exc))
                 continue
             self.received += 1
             post(RawInput(CAN_RX, None, wire.encode(to_plain(frame.to_value())), None, self.key))
+
+    def _problem(self, violation: str, said: str) -> None:
+        t = self.now()
+        with self._problems_lock:
+            entry = self._problems.get(violation)
+            if entry is None:
+                self._problems[violation] = [1, t, t, said]
+            else:
+                entry[0] += 1
+                entry[2] = t
+
+    def take_problems(self) -> list[tuple[str, str, int]]:
+        """(violation, message, count) of each kind of problem the reader thread saw since the
+        last call: error frames, unusable frames, failed receives (engine thread)."""
+        with self._problems_lock:
+            problems, self._problems = self._problems, {}
+        found = []
+        for violation, (count, first, last, said) in problems.items():
+            what = {ERROR_FRAME: f"{count} error frame(s)", UNUSABLE: f"{count} frame(s) no IOTA can take",
+                    RECEIVE_FAILED: f"{count} failed receive(s), retried every {RETRY:g} s"}[violation]
+            found.append((violation, f"CAN bus {self.name!r}: {what} between t={first:.6f} and t={last:.6f}; "
+                                     f"the first: {said}", count))
+        return found
 
     def close(self) -> None:
         self._stop.set()

@@ -116,7 +116,7 @@ class NodeHost:
             if (self._can_source is None and not listen_only) or not any(p.name == "can_rx" for p in self.table.inputs):
                 raise ConfigError(f"{config.path}: sits on CAN bus {config.can['bus']!r} but has no "
                                   f"can_tx output and can_rx input")
-            self.can = CanPort(config.can, self.clock.post)
+            self.can = CanPort(config.can, self.clock.post, self.clock.now)
 
     # ------------------------------------------------------------------ start and stop
     def start(self) -> None:
@@ -168,6 +168,8 @@ class NodeHost:
             self.error = exc
         finally:
             try:
+                if self.can is not None:
+                    self._can_problems(self.clock.now())  # what came since the last heartbeat
                 self._flush_trace()
             except Exception:  # noqa: BLE001 - the session may be closing
                 pass
@@ -266,7 +268,15 @@ class NodeHost:
         self._trace_seq = seq + len(buffer)
         buffer.clear()
 
+    def _can_problems(self, t: float) -> None:
+        """What the CAN reader saw that no IOTA can take (error frames, CAN FD frames, a bus that
+        fails), as violations on can_rx: at most one of each kind per heartbeat period."""
+        for violation, message, count in self.can.take_problems():
+            self._report(t, "can_rx", None, violation, message, count=count)
+
     def _heartbeat(self, t: float, backlog: int) -> None:
+        if self.can is not None:
+            self._can_problems(t)
         self._beat_pub.put(wire.encode({"t": t, "firings": self.engine.firings, "queue": backlog,
                                         "restarts": self.config.restarts}))
 
