@@ -4,15 +4,18 @@
     '    1.250000  rx  06C  [8]  00 00 C0 3F C8 00 00 00  Set_Input_Pos node=3 Input_Pos=1.5 Vel_FF=0.2 Torque_FF=0'
 
 A remote frame shows `R` for its data; a frame CAN Simple does not know ends in `unknown`, a
-known command of the wrong shape in `malformed: ...`. `python -m iotad.can.dump` prints a live bus
+known command of the wrong shape in `malformed: ...`. On a live bus an error frame is a line
+`ERROR  bus off; ...` in words (`error_frames.py`). `python -m iotad.can.dump` prints a live bus
 (the tier's bus by default: run it under `python -m iotad.can.tiers run -- ...`).
 """
 from __future__ import annotations
 
 import argparse
 import sys
+from typing import Callable, Iterator
 
 from . import odrive
+from .error_frames import describe_error_frame
 from .frame import Frame, FrameError
 
 
@@ -25,6 +28,32 @@ def format_frame(t: float, frame, direction: str = "") -> str:
     ident = f"{frame.id:08X}" if frame.extended else f"{frame.id:03X}"
     data = "R" if frame.rtr else frame.data.hex(" ").upper()
     return f"{t:12.6f}  {direction:>3}  {ident:>8}  [{frame.dlc}]  {data:<23}  {decoded(frame)}".rstrip()
+
+
+def live_lines(bus, timeout: float | None = None, count: int = 0,
+               keep: Callable[[Frame], bool] = lambda frame: True) -> Iterator[str]:
+    """The lines of what a live bus (`bus.open_bus`) carries, as it comes, until `count` lines
+    (0: never) or `timeout` quiet seconds (None: never). Its frames that `keep` takes, and, whatever
+    `keep` says (they concern the whole bus), what no IOTA can take: an error frame in words
+    (`ERROR  bus off; ...`), a CAN FD frame."""
+    shown = 0
+    while not count or shown < count:
+        message = bus.recv(timeout)
+        if message is None:
+            return
+        t = message.timestamp
+        if message.is_error_frame:
+            yield f"{t:12.6f}  {'rx':>3}  {'ERROR':>8}  {describe_error_frame(message.arbitration_id, message.data)}"
+        else:
+            try:
+                frame = Frame.from_can_message(message)
+            except FrameError as exc:
+                yield f"{t:12.6f}  {'rx':>3}  {'':>8}  not a classic frame: {exc}"
+            else:
+                if not keep(frame):
+                    continue
+                yield format_frame(t, frame, "rx")
+        shown += 1
 
 
 def decoded(frame: Frame) -> str:
@@ -79,15 +108,10 @@ def main(argv: list[str] | None = None) -> int:
     except BusUnavailable as exc:
         print(f"iotad.can.dump: {exc}", file=sys.stderr)
         return 2
-    seen = 0
     try:
         with bus:
-            while not args.count or seen < args.count:
-                got = bus.recv_frame(timeout=args.timeout or None)
-                if got is None:
-                    break
-                print(format_frame(got[0], got[1], "rx"), flush=True)
-                seen += 1
+            for line in live_lines(bus, args.timeout or None, args.count):
+                print(line, flush=True)
     except KeyboardInterrupt:
         pass
     return 0

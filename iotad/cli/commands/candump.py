@@ -25,7 +25,8 @@ examples:
   iotad candump --live --interface socketcan --channel can0
 
 Times are the recording's seconds (the receive time stamp on a live bus). Frames CAN Simple does
-not know end in 'unknown', known ones of the wrong shape in 'malformed: ...'. See docs/can.md."""
+not know end in 'unknown', known ones of the wrong shape in 'malformed: ...'. On a live bus, error
+frames show as 'ERROR  bus off; ...' in words, whatever the filters. See docs/can.md."""
 
 ACTIONS = {"tx": ("can_tx",), "rx": ("can_rx",), "all": ("can_tx", "can_rx", "tx", "rx"),
            "log": ("frames",)}  # the bus's own log: the modelled bus's, or a real bus's logger node
@@ -207,21 +208,15 @@ def _live_bus(args: argparse.Namespace):
 
 def live(args: argparse.Namespace, keep: _Filter) -> int:
     from iotad.can.bus import BusUnavailable
-    from iotad.can.dump import format_frame
+    from iotad.can.dump import live_lines
     from iotad.cli import CliError
 
     try:
         bus = _live_bus(args)
     except BusUnavailable as exc:
         raise CliError(str(exc)) from None
-    shown = 0
     with bus:
         print(f"candump: {bus.describe()}", file=sys.stderr, flush=True)
-        while not args.count or shown < args.count:
-            got = bus.recv_frame(timeout=args.timeout or None)
-            if got is None:
-                break
-            if keep(got[1]):
-                print(format_frame(got[0], got[1], "rx"), flush=True)
-                shown += 1
+        for line in live_lines(bus, args.timeout or None, args.count, keep):
+            print(line, flush=True)
     return 0
