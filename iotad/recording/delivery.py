@@ -28,7 +28,9 @@ from __future__ import annotations
 import json
 import math
 import re
+import sys
 import tomllib
+from array import array
 from collections import deque
 from dataclasses import dataclass, field
 from typing import Any, Iterable
@@ -36,7 +38,7 @@ from typing import Any, Iterable
 from iotad.host import wire
 from iotad.kernel.engine import INPUT_REFUSALS
 from iotad.launcher.system_file import Port  # one concrete channel, as the system file names it
-from iotad.recording.mcap_io import Recording
+from iotad.recording.mcap_io import RecordedMessage, Recording, packb, unpackb
 
 GRACE = 0.1  # seconds: longer than any delivery seen here (~1 ms, tens under load) by far
 MASK = 0xFFFFFFFF  # MCAP keeps 32 bits of a sequence number
@@ -320,33 +322,116 @@ def _expand(source: Port, target: Port, sizes: dict) -> list[tuple[Port, Port]]:
 
 
 # ------------------------------------------------------------------------------------ accounts
-@dataclass
-class _Sent:
+# A long recording holds hundreds of thousands of messages, and the check reads them all: what it
+# keeps of each is small. A value is kept packed (msgpack), as a range of the bytes of the message
+# that holds it (which the recording holds anyway: nothing is copied), and decoded only to compare
+# two that differ in their bytes (`_same_value`) or to print one, never held decoded for the whole
+# check. The records are slotted (no dict per object) for the same reason.
+_UNDECODABLE = "<undecodable {} bytes>"
+
+
+class _Packed:
+    """A record whose value is `data[start:end]`, packed."""
+
+    __slots__ = ()
+
+    @property
+    def packed(self) -> bytes:
+        return self.data[self.start:self.end]
+
+    @property
+    def value(self) -> Any:
+        return unpackb(self.packed)
+
+
+def _packed_in(data: bytes, value: Any) -> tuple[bytes, int, int]:
+    """(bytes, start, end): where the bytes of `value` packed are, in `data` (a decoded event's
+    own bytes, which hold its value packed the same way when the event was written with msgpack,
+    as an engine's and a node host's are: any place with the same bytes will do), or, where
+    they are not, in bytes of their own."""
+    packed = packb(value)
+    start = data.find(packed)
+    if start < 0:
+        return packed, 0, len(packed)
+    return data, start, start + len(packed)
+
+
+@dataclass(slots=True)
+class _Event(_Packed):
+    """What the check needs of one trace event: an input, a violation or a can_tx output."""
+
+    t: float
+    kind: str
+    action: str
+    index: int | None
+    key: str | None                 # the key it was published or received on, if it names one
+    ident: tuple[int, int] | None   # (seq, send_ns), if the event says
+    iota: Any
+    data: bytes                     # its value packed: data[start:end]
+    start: int
+    end: int
+    raw: dict | None = None         # a violation's whole event: its value says what was refused
+
+
+@dataclass(slots=True)
+class _Sent(_Packed):
     node: str
     key: str
     t: float
-    value: Any
-    ident: tuple[int, int] | None  # (seq, send_ns) as published, if the event says
-    ordinal: int                   # its place among the sender's claims on the key
+    data: bytes                     # its value packed: data[start:end]
+    start: int
+    end: int
+    ident: tuple[int, int] | None   # (seq, send_ns) as published, if the event says
+    ordinal: int = 0                # its place among the sender's claims on the key
 
 
-@dataclass
-class _Got:
+@dataclass(slots=True)
+class _Got(_Packed):
     node: str
     key: str | None
     t: float
-    value: Any
+    data: bytes                     # its value packed: data[start:end]
+    start: int
+    end: int
     ident: tuple[int, int] | None
     action: str
     index: int | None
 
 
-@dataclass
+@dataclass(slots=True)
 class _Wire:
+    """A message on a key, as recorded (made for one key at a time, while it is checked)."""
+
     key: str
     t: float | None    # node clock, when it can be told (virtual time; a sender's origin)
-    value: Any
+    message: RecordedMessage
     ident: tuple[int, int]
+
+    @property
+    def packed(self) -> bytes:
+        return self.message.data
+
+    @property
+    def value(self) -> Any:
+        try:
+            return self.message.value
+        except Exception:  # noqa: BLE001 - bytes that are no msgpack: a value no one sent
+            return _UNDECODABLE.format(len(self.message.data))
+
+
+# A float that may be a NaN (float 64 or 32, exponent all ones): equal bytes decode to equal
+# values but for one, since a NaN inside a list or map is not equal to another NaN.
+_MAY_BE_NAN = re.compile(rb"\xcb[\x7f\xff][\xf0-\xff]|\xca[\x7f\xff][\x80-\xff]")
+
+
+def _same_value(a: Any, b: Any) -> bool:
+    """`_same` of two records' values (each holds its value packed): the same bytes are the same
+    value (but for a NaN), while different bytes may still be equal values (1 and 1.0, a map in
+    another order), so those are decoded and compared."""
+    packed = a.packed
+    if packed == b.packed and not _MAY_BE_NAN.search(packed):
+        return True
+    return _same(a.value, b.value)
 
 
 class _Life:
@@ -478,14 +563,18 @@ class DeliveryChecker:
 
     # -- reading the recording once
     def _read(self, system: RecordedSystem) -> None:
+        """One pass over the messages, keeping little of each: the trace events a check reads
+        (`_take`), when each node ran, and which messages are on each key (decoded per key, as it
+        is checked: `_on_wire`)."""
         specs = self.recording.specs
         self.specs = specs
-        self.events: dict[str, list[dict]] = {}
-        self.wire: dict[str, list[_Wire]] = {}
+        self.origin_ns = self.recording.info.get("origin_ns") if self.virtual else None
+        # node -> its inputs, violations and can_tx outputs; every node with a trace event has a list
+        self.events: dict[str, list[_Event]] = {}
+        self.claims: dict[str, list[_Sent]] = {}  # key -> what its senders' traces say they published
+        self.wire: dict[str, list[RecordedMessage]] = {}
         starts: dict[str, list[float]] = {}
-        signs: dict[str, list[float]] = {}
-        origin_ns = self.recording.info.get("origin_ns") if self.virtual else None
-        raw_wire: list[tuple[str, Any]] = []
+        signs: dict[str, array] = {}  # node -> the times of its trace events and heartbeats
         for message in self.recording.messages:
             parsed = wire.parse_key(message.topic)
             if parsed is None or (system.name and parsed[0] != system.name):
@@ -500,7 +589,7 @@ class DeliveryChecker:
                     continue
                 node = parsed[1]
                 t = float(value["t"])
-                signs.setdefault(node, []).append(t)
+                signs.setdefault(node, array("d")).append(t)
                 if channel == "@trace":
                     index = value.get("index")
                     if not isinstance(value.get("action"), str) or not (index is None or type(index) is int):
@@ -508,48 +597,76 @@ class DeliveryChecker:
                     if value.get("kind") == wire.START_KIND:
                         starts.setdefault(node, []).append(t)
                     else:
-                        self.events.setdefault(node, []).append(value)
+                        self._take(system, node, t, value, message.data)
             elif not channel.startswith("@"):
-                raw_wire.append((message.topic, message))
-        for topic, message in raw_wire:
-            try:
-                value = message.value
-            except Exception:  # noqa: BLE001 - bytes that are no msgpack: a value no one sent
-                value = f"<undecodable {len(message.data)} bytes>"
-            node = wire.parse_key(topic)[1]
-            t = None
-            if self.virtual and isinstance(origin_ns, (int, float)):
-                t = (message.publish_time - origin_ns) / 1e9 / self.unit
-            else:
-                origin = (specs.get(node) or {}).get("origin")
-                if isinstance(origin, (int, float)):
-                    t = (message.publish_time / 1e9 - origin) / self.unit
-            self.wire.setdefault(topic, []).append(_Wire(topic, t, value, (message.sequence & MASK, message.publish_time)))
+                self.wire.setdefault(message.topic, []).append(message)
+        self._number_claims()
         end = max((t for node_signs in signs.values() for t in node_signs), default=0.0)
         nodes = set(self.events) | set(specs) | {p.node for b in system.bindings for p in b}
         self.life = {node: _Life(starts.get(node, []), signs.get(node, []), end if self.virtual else None)
                      for node in nodes}
-        self.claims: dict[str, list[_Sent]] = {}
-        for node, events in self.events.items():
-            for event in events:
-                if event.get("kind") != "output":
-                    continue
-                key = event.get("key")
-                if not isinstance(key, str):
-                    if self._inside_composite(node, event):
-                        continue  # an output inside a composite node that its root does not expose
-                    key = wire.channel_key(system.name, node, str(event.get("action")), event.get("index"))
-                claims = self.claims.setdefault(key, [])
-                claims.append(_Sent(node, key, float(event["t"]), event.get("value"), _ident(event), len(claims)))
         self.gaps: dict[str, list[tuple[int, int]]] = {}
         for gap in self.recording.gaps():
             if isinstance(gap, dict) and isinstance(gap.get("key"), str):
                 self.gaps.setdefault(gap["key"], []).append((int(gap.get("expected", 0)), int(gap.get("got", 0))))
 
-    def _inside_composite(self, node: str, event: dict) -> bool:
+    def _take(self, system: RecordedSystem, node: str, t: float, event: dict, data: bytes) -> None:
+        """Keep what the checks read of one trace event of `node` (no start): an output's claim,
+        an input, a violation (whole: its value says what was refused), a can_tx output (the bus
+        check's); of any other event (internal firings), nothing but its time, a sign of life."""
+        kept = self.events.setdefault(node, [])
+        kind = event.get("kind")
+        if kind not in ("input", "output", "violation"):
+            return
+        # the strings repeat in every event, and are kept once each (sys.intern)
+        key = sys.intern(event["key"]) if isinstance(event.get("key"), str) else None
+        iota = event.get("iota")
+        record = _Event(t, sys.intern(kind), sys.intern(event["action"]), event.get("index"), key, _ident(event),
+                        sys.intern(iota) if isinstance(iota, str) else iota, *_packed_in(data, event.get("value")),
+                        event if kind == "violation" else None)
+        if kind != "output" or record.action == CAN_TX:
+            kept.append(record)
+        if kind != "output":
+            return
+        if key is None:
+            if self._inside_composite(node, iota):
+                return  # an output inside a composite node that its root does not expose
+            key = sys.intern(wire.channel_key(system.name, node, record.action, record.index))
+        self.claims.setdefault(key, []).append(_Sent(node, key, t, record.data, record.start, record.end, record.ident))
+
+    def _number_claims(self) -> None:
+        """Number each key's claims (`_Sent.ordinal`, as reports name a claim without a sequence
+        number) node by node, in the order the nodes first appear on @trace, each node's claims in
+        the order of its trace: a key that several nodes claim to publish on has them in that order."""
+        rank = {node: k for k, node in enumerate(self.events)}
+        for claims in self.claims.values():
+            if any(claim.node != claims[0].node for claim in claims):
+                claims.sort(key=lambda claim: rank[claim.node])  # stable: each node's keep their order
+            for ordinal, claim in enumerate(claims):
+                claim.ordinal = ordinal
+
+    def _on_wire(self, key: str) -> list[_Wire]:
+        """The messages recorded on `key`, with their time on the sender's clock where it can be
+        told (made when a check reads the key, and dropped after it)."""
+        messages = self.wire.get(key)
+        if not messages:
+            return []
+        node = wire.parse_key(key)[1]
+        origin = (self.specs.get(node) or {}).get("origin")
+        out = []
+        for message in messages:
+            t = None
+            if self.virtual and isinstance(self.origin_ns, (int, float)):
+                t = (message.publish_time - self.origin_ns) / 1e9 / self.unit
+            elif isinstance(origin, (int, float)):
+                t = (message.publish_time / 1e9 - origin) / self.unit
+            out.append(_Wire(key, t, message, (message.sequence & MASK, message.publish_time)))
+        return out
+
+    def _inside_composite(self, node: str, iota: Any) -> bool:
         """Whether a keyless event of a real-time node is one of its parts' (a composite node's
         internal outputs and deliveries: one engine in one process, nothing on the wire)."""
-        return not self.virtual and event.get("iota") not in (node, node.rsplit("/", 1)[-1])
+        return not self.virtual and iota not in (node, node.rsplit("/", 1)[-1])
 
     def _covered(self, key: str) -> bool:
         """Whether the recording was made to hold the messages on `key`."""
@@ -619,17 +736,18 @@ class DeliveryChecker:
     def _check_wire(self, key: str) -> None:
         """The sender's claims on `key` against the messages the recording holds on it."""
         claims = self.claims.get(key, [])
-        messages = self.wire.get(key, [])
         if not self._covered(key):
             return
+        messages = self._on_wire(key)
         parsed = wire.parse_key(key)
         sender = parsed[1] if parsed else "?"
         port = Port(sender, parsed[2], parsed[3]) if parsed else None
         link = Link(f"{port} -> (wire)", "wire", (sender,), sent=len(claims))
         self.report.links.append(link)
         by_ident: dict[tuple[int, int], list[_Wire]] = {}
-        for message in messages:
-            by_ident.setdefault(message.ident, []).append(message)
+        if any(claim.ident is not None for claim in claims):  # none does in virtual time: no need
+            for message in messages:
+                by_ident.setdefault(message.ident, []).append(message)
         matched: set[int] = set()
         unkeyed: list[_Sent] = []
         for claim in claims:
@@ -645,7 +763,7 @@ class DeliveryChecker:
         if unkeyed:
             rest = [m for m in messages if id(m) not in matched and m.t is not None]
             pairs = _align(unkeyed, rest, lambda c: c.t, lambda m: m.t, self.tolerance, self.tolerance + self.grace,
-                           lambda c, m: _same(c.value, m.value))
+                           _same_value)
             for claim, found in pairs:
                 if found is None:
                     self._wire_lost(link, key, claim)
@@ -676,7 +794,7 @@ class DeliveryChecker:
                       "published; the wire holds no such message")
 
     def _compare_wire(self, link: Link, claim: _Sent, message: _Wire) -> None:
-        if _same(claim.value, message.value):
+        if _same_value(claim, message):
             link.delivered += 1
             return
         link.altered += 1
@@ -685,24 +803,25 @@ class DeliveryChecker:
                       f"carried {_short(message.value)}")
 
     def _inputs(self, target: Port, keys: set[str]) -> tuple[list[_Got], list[dict]]:
-        """The receiver's input events and rejections that concern `target` (bound from `keys`)."""
+        """The receiver's input events and rejections (whole events) that concern `target`
+        (bound from `keys`)."""
         got, rejected = [], []
         several = sum(1 for s, t in self.system.bindings if t.node == target.node and
                       wire.channel_key(self.system.name, s.node, s.channel, s.index) in keys) > 1
         for event in self.events.get(target.node, []):
-            kind = event.get("kind")
-            here = event.get("action") == target.channel and event.get("index") == target.index
+            kind = event.kind
+            here = event.action == target.channel and event.index == target.index
             if kind == "input":
-                key = event.get("key") if isinstance(event.get("key"), str) else None
+                key = event.key
                 if key is not None and key in keys:
                     if several and not here:
                         continue  # one key bound to two inputs of this node: the other one's
                 elif key is not None or not here:
                     continue
-                got.append(_Got(target.node, key, float(event["t"]), event.get("value"), _ident(event),
-                                str(event.get("action")), event.get("index")))
-            elif kind == "violation" and here and (event.get("value") or {}).get("violation") in REJECTIONS + (OVERFLOW,):
-                rejected.append(event)
+                got.append(_Got(target.node, key, event.t, event.data, event.start, event.end, event.ident,
+                                event.action, event.index))
+            elif kind == "violation" and here and (event.raw.get("value") or {}).get("violation") in REJECTIONS + (OVERFLOW,):
+                rejected.append(event.raw)
         return got, rejected
 
     def _check_target(self, target: Port, sources: list[Port]) -> None:
@@ -741,16 +860,23 @@ class DeliveryChecker:
         if unkeyed:
             free = sorted((c for c in claims if id(c) not in taken), key=lambda c: c.t)
             window = self.tolerance + self.grace
-            pairs = _align(unkeyed, free, lambda g: g.t, lambda c: c.t, window, self.tolerance,
-                           lambda g, c: _same(g.value, c.value))
+            pairs = _align(unkeyed, free, lambda g: g.t, lambda c: c.t, window, self.tolerance, _same_value)
+            decoded: dict[int, Any] = {}  # id(claim) -> its value: each item below is compared with many
+
+            def value_of(claim: _Sent) -> Any:
+                if id(claim) not in decoded:
+                    decoded[id(claim)] = claim.value
+                return decoded[id(claim)]
+
             for item, claim in pairs:
                 if claim is not None:
                     taken[id(claim)] = item
                     self._delivered(links[claim.key], claim, item)
                     continue
                 # the same value again, after a delivery of it: a duplicate (else nobody sent it)
+                value = item.value
                 twins = [c for c in claims if id(c) in taken and taken[id(c)] is not None
-                         and c.t <= item.t + self.tolerance and _same(c.value, item.value)]
+                         and c.t <= item.t + self.tolerance and _same(value_of(c), value)]
                 twin = max(twins, key=lambda c: c.t) if twins else None
                 link = links[twin.key] if twin else next(iter(links.values()))
                 if twin is not None:
@@ -813,7 +939,7 @@ class DeliveryChecker:
 
     def _delivered(self, link: Link, claim: _Sent, item: _Got) -> None:
         latency = item.t - claim.t
-        if not _same(claim.value, item.value):
+        if not _same_value(claim, item):
             link.altered += 1
             number = f"#{claim.ident[0]}" if claim.ident else f"output {claim.ordinal}"
             self._finding(link, "altered", claim.t, f"{number}: {claim.node} sent {_short(claim.value)}, "
@@ -823,8 +949,9 @@ class DeliveryChecker:
             self._finding(link, "causality", claim.t, f"received at t={item.t:.6g}, {-latency * self.unit * 1e3:.3g} ms "
                           f"before it was sent")
         link.delivered += 1
-        link.latencies.append(latency * self.unit)
-        self.report.deliveries.append((link.label, claim.t, latency * self.unit, link.nodes))
+        seconds = latency * self.unit  # one float for both lists: there is one per delivery
+        link.latencies.append(seconds)
+        self.report.deliveries.append((link.label, claim.t, seconds, link.nodes))
 
     def _unclaimed(self, link: Link, item: _Got, source: Port) -> None:
         """A received message (key, seq, send time) that the sender's trace does not hold."""
@@ -857,14 +984,14 @@ class DeliveryChecker:
         received: set[tuple[str, tuple[int, int]]] = set()
         for node, events in self.events.items():
             for event in events:
-                if event.get("kind") != "input":
+                if event.kind != "input":
                     continue
-                key = event.get("key")
-                port = Port(node, str(event.get("action")), event.get("index"))
-                if not isinstance(key, str):
+                key = event.key
+                port = Port(node, event.action, event.index)
+                if key is None:
                     if port in sources_of:
                         continue  # a bound input without a key (virtual time): the binding's
-                    if self._inside_composite(node, event):
+                    if self._inside_composite(node, event.iota):
                         continue  # one part of a composite node to another, in its own process
                     key = "(input script)"  # virtual time: posted into an external input
                 elif key.startswith("can/") or node in system.bus_nodes:
@@ -872,27 +999,27 @@ class DeliveryChecker:
                 elif key in bound_keys.get(port, ()) or any(key in keys for p, keys in bound_keys.items()
                                                             if p.node == node):
                     continue
-                ident = _ident(event)
+                ident = event.ident
                 if ident is not None:
                     received.add((key, ident))
                 link = links.get(port)
                 if link is None:
                     link = links[port] = Link(f"(outside) -> {port}", "external", (node,))
                 link.sent += 1
-                t = float(event["t"])
+                t = event.t
                 if port in sources_of and port not in system.external:
                     link.unexplained += 1
-                    self._finding(link, "unexplained", t, f"{node} took {_short(event.get('value'))} from {key}, "
+                    self._finding(link, "unexplained", t, f"{node} took {_short(event.value)} from {key}, "
                                   f"which the system file does not bind to {port} (nor declares it external)")
                 else:
                     link.delivered += 1
         self.report.links += [links[p] for p in sorted(links, key=str)]
         if self.mode != "direct":
             return  # elsewhere such messages are on the file only because a node took them
-        for key, messages in self.wire.items():
+        for key in self.wire:
             if key in output_keys:
                 continue
-            for message in messages:
+            for message in self._on_wire(key):
                 if (key, message.ident) in received:
                     continue
                 parsed = wire.parse_key(key)
@@ -910,21 +1037,23 @@ class DeliveryChecker:
         sent: dict[str, list[tuple[float, tuple]]] = {}
         for s in stations:
             events = self.events.get(s, [])
-            refused = {float(e["t"]) for e in events if e.get("kind") == "violation" and e.get("action") == CAN_TX
-                       and (e.get("value") or {}).get("violation") == "can_send_failed"}
+            refused = {e.t for e in events if e.kind == "violation" and e.action == CAN_TX
+                       and (e.raw.get("value") or {}).get("violation") == "can_send_failed"}
             frames = []
             for e in events:
-                if e.get("kind") == "output" and e.get("action") == CAN_TX:
-                    t = float(e["t"])
+                if e.kind == "output" and e.action == CAN_TX:
+                    t = e.t
                     if t in refused:  # the port could not send it (recorded): nobody could receive it
                         refused.discard(t)
                         continue
-                    frames.append((t, _frame(e.get("value"))))
+                    frames.append((t, _frame(e.value)))
             sent[s] = frames
         self._check_bus_log(bus, stations, sent)
         window = self._can_window()  # a frame may wait behind others on a busy bus
         for receiver in stations:
-            got = [e for e in self.events.get(receiver, []) if e.get("kind") == "input" and e.get("action") == CAN_RX]
+            # (t, frame) of each frame it received
+            got = [(e.t, _frame(e.value)) for e in self.events.get(receiver, [])
+                   if e.kind == "input" and e.action == CAN_RX]
             senders = [s for s in stations if s != receiver]
             links = {s: Link(f"can {bus}: {s} -> {receiver}", "can", (s, receiver), sent=len(sent[s]))
                      for s in senders}
@@ -936,24 +1065,24 @@ class DeliveryChecker:
             taken: dict[str, set[int]] = {s: set() for s in senders}
             last_taken: dict[str, int] = {}
             foreign: list[tuple[float, tuple]] = []
-            for event in got:
-                t, frame = float(event["t"]), _frame(event.get("value"))
+            for t, frame in got:
                 best = None
                 for s in senders:
                     queue = waiting[s].get(frame)
                     if not queue:
                         continue
                     # an older twin that waited past the window was lost, if a later twin fits
-                    while len(queue) > 1 and sent[s][queue[0]][0] < t - window and sent[s][queue[1]][0] <= t + self.tolerance:
-                        queue.popleft()
-                    k = queue[0]
+                    while len(queue) > 1 and sent[s][queue[-1]][0] < t - window \
+                            and sent[s][queue[-2]][0] <= t + self.tolerance:
+                        queue.pop()
+                    k = queue[-1]
                     if sent[s][k][0] <= t + self.tolerance and (best is None or sent[s][k][0] < sent[best[0]][best[1]][0]):
                         best = (s, k)
                 if best is None:
                     foreign.append((t, frame))
                     continue
                 s, k = best
-                waiting[s][frame].popleft()
+                waiting[s][frame].pop()
                 taken[s].add(k)
                 link = links[s]
                 t_sent = sent[s][k][0]
@@ -1042,7 +1171,7 @@ class DeliveryChecker:
         station's order: a frame sent and never on the bus is lost, a frame on the bus its station
         never sent is unexplained (or altered, when one of the same id is missing)."""
         key = wire.channel_key(self.system.name, bus, BUS_LOG, None)
-        log = self.wire.get(key)
+        log = self._on_wire(key)
         if not log:
             return
         params = (self.specs.get(bus) or {}).get("params") or {}
@@ -1062,11 +1191,12 @@ class DeliveryChecker:
         # a real-time log is a node (iotad.can.frame_log.BusLogger): it logs only while it runs
         logger = self.life.get(bus) if not self.virtual and bus not in self.system.bus_nodes else None
         for message in log:
-            value = message.value if isinstance(message.value, dict) else {}
+            value = message.value
+            value = value if isinstance(value, dict) else {}
             station = value.get("station")
             frame, t = _frame(value), message.t
             if station is None:  # a listener that cannot tell the sender: the station that sent it first
-                heads = [(sent[x][waiting[x][frame][0]][0], x) for x in stations if waiting[x].get(frame)]
+                heads = [(sent[x][waiting[x][frame][-1]][0], x) for x in stations if waiting[x].get(frame)]
                 if not heads:
                     nameless.append((t, frame, previous_sent))
                     continue
@@ -1075,12 +1205,13 @@ class DeliveryChecker:
                 s = stations[station] if isinstance(station, int) and 0 <= station < len(stations) else None
             queue = waiting[s].get(frame) if s is not None else None
             if queue and t is not None:
-                while len(queue) > 1 and sent[s][queue[0]][0] < t - window and sent[s][queue[1]][0] <= t + self.tolerance:
-                    queue.popleft()  # an older twin that waited past the window never made it
-            if not queue or (t is not None and sent[s][queue[0]][0] > t + self.tolerance):
+                while len(queue) > 1 and sent[s][queue[-1]][0] < t - window \
+                        and sent[s][queue[-2]][0] <= t + self.tolerance:
+                    queue.pop()  # an older twin that waited past the window never made it
+            if not queue or (t is not None and sent[s][queue[-1]][0] > t + self.tolerance):
                 strays.append((t, s, frame, station))
                 continue
-            k = queue.popleft()
+            k = queue.pop()
             taken[s].add(k)
             t_sent = previous_sent = sent[s][k][0]
             if fifo and k < last_taken.get(s, -1):
@@ -1173,18 +1304,22 @@ def _logger_down(life: _Life, bus: str, t: float, window: float) -> str | None:
     return f"in flight when the run ended: the bus logger {bus}'s last sign of life is at t={last:.6g}"
 
 
-def _frame_queues(sent: dict[str, list], stations) -> dict[str, dict[tuple, deque]]:
-    """Per station: each frame it sent -> the indices of its sends of that frame, in order (a
-    receiver's or the log's copy is matched to the earliest one not yet taken)."""
-    waiting: dict[str, dict[tuple, deque]] = {s: {} for s in stations}
+def _frame_queues(sent: dict[str, list], stations) -> dict[str, dict[tuple, list[int]]]:
+    """Per station: each frame it sent -> the indices of its sends of that frame, the earliest
+    last (a receiver's or the log's copy is matched to the earliest one not yet taken: `queue[-1]`,
+    taken with `queue.pop()`). A list, not a deque: most frames are sent once (their data differ),
+    and a deque of one costs 800 bytes, a list of one about 100."""
+    waiting: dict[str, dict[tuple, list[int]]] = {s: {} for s in stations}
     for s in stations:
         for k, (_, frame) in enumerate(sent[s]):
-            waiting[s].setdefault(frame, deque()).append(k)
+            waiting[s].setdefault(frame, []).append(k)
+        for queue in waiting[s].values():
+            queue.reverse()
     return waiting
 
 
-def _unheard_before_start(waiting: dict[str, dict[tuple, deque]], sent: dict[str, list], got: list[dict],
-                          life: Any) -> None:
+def _unheard_before_start(waiting: dict[str, dict[tuple, list[int]]], sent: dict[str, list],
+                          got: list[tuple[float, tuple]], life: Any) -> None:
     """Take out of the candidates the frames a receiver cannot have heard: sent before its
     engine started, before its socket was open. A socket opened a little before the engine
     starts hears the last of them, so of the twins (the same frame, sent again and again, as an
@@ -1192,17 +1327,16 @@ def _unheard_before_start(waiting: dict[str, dict[tuple, deque]], sent: dict[str
     sent after; the earlier ones, if left, would be paired with its first receptions, and every
     reception after with a frame sent periods before it (false 'reordered', then 'lost')."""
     received: dict[tuple, int] = {}
-    for event in got:
-        frame = _frame(event.get("value"))
+    for _, frame in got:
         received[frame] = received.get(frame, 0) + 1
     for sender, queues in waiting.items():
         for frame, queue in queues.items():
-            before = sum(1 for k in queue if life.before_start(sent[sender][k][0]))  # a prefix: in sent order
+            before = sum(1 for k in queue if life.before_start(sent[sender][k][0]))  # the earliest sends
             if not before:
                 continue
             keep = max(0, received.get(frame, 0) - (len(queue) - before))
             for _ in range(before - keep):
-                queue.popleft()
+                queue.pop()
 
 
 def _frame(value: Any) -> tuple:

@@ -103,12 +103,11 @@ LONG = 100_000  # messages in a recording past which check says what it is doing
 
 
 def run(args: argparse.Namespace) -> int:
-    from iotad.host.wire import START_KIND
-    from iotad.recording.conformance import check_implements, check_runs
+    from iotad.recording.conformance import check_implements
     from iotad.cli import CliError
     from iotad.cli.commands.info import load
     from iotad.recording.mcap_io import start_time
-    from iotad.recording.replay import default_tolerance, node_root
+    from iotad.recording.replay import default_tolerance
 
     recording = load(args.file)
     tolerance = default_tolerance(recording) if args.tolerance is None else args.tolerance
@@ -165,26 +164,13 @@ def run(args: argparse.Namespace) -> int:
     if recording.recovered_from:
         print(f"{args.file}: RECOVERED from {recording.recovered_from}: the run's end is not in it, so only what "
               f"it holds is checked")
-    real_time = recording.info.get("clock") != "virtual"
     # a long recording takes a while per node (about 2 s per 100,000 events): say what is going on
     long = len(recording.messages) > LONG
     for node in nodes:
-        events = recording.process_trace(node)
-        if long:
-            print(f"checking {node} ({len(events):,} events)...", file=sys.stderr, flush=True)
-        if args.node and not events:
-            raise CliError(f"node {node!r} has no @trace events in {args.file}")
-        # a real-time node whose start is not recorded: from mid-run, or nothing but heartbeats
-        if real_time and (events or recording.info.get("clock") == "real") \
-                and not any(e.get("kind") == START_KIND for e in events):
-            # recorded from mid-run (`iotad record` attached late): the state it was in is unknown
-            print(f"{node}: NOT CHECKED: the recording holds no start of its engine (it began after the node "
-                  f"started), so the state the node was in is unknown")
+        report = _check_node(recording, node, args, tolerance, long)
+        if report is None:
             unchecked.append(node)
             continue
-        report = check_runs(lambda node=node: node_root(recording, node), events, node=node, tolerance=tolerance,
-                            until=None if real_time else recording.run_end,
-                            start=start_time(recording.specs.get(node)))
         all_ok &= report.ok
         print("\n".join(report.lines(limit=limit)))
     conforms = all_ok
@@ -210,6 +196,33 @@ def run(args: argparse.Namespace) -> int:
         verdict = f"PROBLEMS FOUND ({' and '.join(what)})"
     print(f"check: {verdict} (tolerance {tolerance:g})")
     return 0 if all_ok and not unchecked and whole else 1
+
+
+def _check_node(recording, node: str, args: argparse.Namespace, tolerance: float, long: bool):
+    """The conformance report of one node against its own spec, or None (said why) when it cannot
+    be checked. Its trace, decoded, is the bulk of the memory a check takes: it is read here, and
+    let go before the next node's is read."""
+    from iotad.cli import CliError
+    from iotad.host.wire import START_KIND
+    from iotad.recording.conformance import check_runs
+    from iotad.recording.mcap_io import start_time
+    from iotad.recording.replay import node_root
+
+    real_time = recording.info.get("clock") != "virtual"
+    events = recording.process_trace(node)
+    if long:
+        print(f"checking {node} ({len(events):,} events)...", file=sys.stderr, flush=True)
+    if args.node and not events:
+        raise CliError(f"node {node!r} has no @trace events in {args.file}")
+    # a real-time node whose start is not recorded: from mid-run, or nothing but heartbeats
+    if real_time and (events or recording.info.get("clock") == "real") \
+            and not any(e.get("kind") == START_KIND for e in events):
+        # recorded from mid-run (`iotad record` attached late): the state it was in is unknown
+        print(f"{node}: NOT CHECKED: the recording holds no start of its engine (it began after the node "
+              f"started), so the state the node was in is unknown")
+        return None
+    return check_runs(lambda: node_root(recording, node), events, node=node, tolerance=tolerance,
+                      until=None if real_time else recording.run_end, start=start_time(recording.specs.get(node)))
 
 
 def _never_ran(recording, specs: dict, unchecked: list[str]) -> list[str]:
