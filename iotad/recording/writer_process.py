@@ -206,6 +206,10 @@ def main(argv: list[str] | None = None) -> int:
     output = first[1]
     try:
         sink = McapSink(output)
+        # the file's magic and header on disk at once: a writer killed before its first chunk
+        # leaves a recording `iotad info` calls incomplete (and `iotad recover` reads), not an
+        # empty file that is no recording at all
+        sink.flush()
     except OSError as exc:
         print(exc.strerror or str(exc), file=sys.stderr)
         return 2

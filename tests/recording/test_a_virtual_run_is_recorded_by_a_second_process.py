@@ -73,6 +73,19 @@ def test_a_writer_that_dies_is_a_clear_error_and_the_file_keeps_what_it_wrote(tm
     assert f"{out}: INCOMPLETE (no footer" in capsys.readouterr().out
 
 
+def test_a_writer_killed_as_soon_as_it_opened_its_file_leaves_a_recording_not_an_empty_file(tmp_path, capsys):
+    # under load the writer may die before it wrote its first chunk: the file's header is on
+    # disk before it says `ready`, so what is left is an incomplete recording
+    out = tmp_path / "early.mcap"
+    writer = RecordingProcess()
+    writer.open(out)
+    os.kill(writer._process.pid, signal.SIGKILL)
+    writer._process.wait()
+    writer.close()
+    assert main(["info", str(out)]) == 0
+    assert f"{out}: INCOMPLETE (no footer" in capsys.readouterr().out
+
+
 def test_an_engine_that_dies_leaves_a_whole_file_that_says_the_run_was_cut_short(tmp_path):
     from recorded_systems import figure2
     from iotad.kernel.clock import VirtualClock
