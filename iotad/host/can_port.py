@@ -41,7 +41,7 @@ class CanPort:
         self.name = config["bus"]
         self.key = f"can/{self.name}"  # what an input trace event names as where it came from
         self.bus = None
-        self.sent = self.received = self.send_errors = self.unusable = self.error_frames = self.receive_failures = 0
+        self.sent = self.received = self.send_errors = self.unusable = 0
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         # violation -> [count, first t, last t, what the first one said]: counted by the reader
@@ -83,14 +83,12 @@ class CanPort:
             except Exception as exc:  # noqa: BLE001 - python-can raises many kinds
                 if stop.is_set():
                     return  # the bus is shutting down under us
-                self.receive_failures += 1
                 self._problem(RECEIVE_FAILED, f"{type(exc).__name__}: {exc}")
                 stop.wait(RETRY)
                 continue
             if message is None:
                 continue
             if getattr(message, "is_error_frame", False):
-                self.error_frames += 1
                 self._problem(ERROR_FRAME, describe_error_frame(message.arbitration_id, message.data))
                 continue
             try:
