@@ -64,15 +64,11 @@ def main(argv: list[str] | None = None) -> int:
         from iotad.host.can_port import CanPortError
 
         try:
-            host.start()
+            host.start(settle=_freeze_heap)
         except CanPortError as exc:
             return _fail(f"{config.path}: {exc}")
         except Exception as exc:  # noqa: BLE001 - zenoh rejects an endpoint, a port is taken...
             return _fail(f"{config.path}: cannot start on zenoh: {exc}".splitlines()[0])
-        # Everything made so far (modules, the spec, zenoh objects) lives as long as the node: keep
-        # it out of the collector's full passes, which would otherwise stall the engine thread.
-        gc.collect()
-        gc.freeze()
         while not stop.wait(0.25):
             if not host.alive():
                 break
@@ -83,6 +79,15 @@ def main(argv: list[str] | None = None) -> int:
     if host.engine.halted:
         return _fail(f"{config.path}: engine halted (see the zeno violation on @trace)", 1)
     return _signalled(received)
+
+
+def _freeze_heap() -> None:
+    """Everything made so far (modules, the spec, zenoh objects) lives as long as the node: keep it
+    out of the collector's full passes, which would otherwise stall the engine thread. Run on the
+    engine thread before the engine starts: collected in the main thread while the engine ran,
+    it held the interpreter for milliseconds as the first windows closed (deadline misses)."""
+    gc.collect()
+    gc.freeze()
 
 
 def _signalled(received: list[int]) -> int:

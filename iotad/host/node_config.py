@@ -51,6 +51,11 @@ class NodeConfig:
     # How many times the launcher has restarted this node before this process (0: its first):
     # its heartbeats say so, so that a tool attached later (`iotad top`) counts them too.
     restarts: int = 0
+    # The launcher's start gate (a liveliness key, `iota/<system>/@go/<host>`): the node declares
+    # everything, goes live and waits for a token on this key before its engine starts, so that
+    # no engine runs while other nodes are still importing and building on the same cores.
+    # None: the engine starts at once (a restart, or a node run by hand).
+    start_gate: str | None = None
 
     @property
     def name(self) -> str:
@@ -60,7 +65,7 @@ class NodeConfig:
 
 _KNOWN = {"system", "path", "source", "params", "time_unit", "origin", "listen", "connect", "inputs", "readers",
           "heartbeat_period", "deadline_tolerance", "arrival_tolerance", "trace_period", "policy", "seed", "zenoh", "can",
-          "input_queue", "restarts"}
+          "input_queue", "restarts", "start_gate"}
 
 
 def load(path: str | Path) -> NodeConfig:
@@ -113,6 +118,12 @@ def from_dict(data: Any, where: str = "config") -> NodeConfig:
         if isinstance(value, bool) or not isinstance(value, int) or value < 0:
             raise ConfigError(f"{where}: restarts must be a whole number >= 0, got {value!r}")
         config.restarts = value
+    if data.get("start_gate") is not None:
+        gate = data["start_gate"]
+        if not isinstance(gate, str) or not gate or set(gate) & set("*$?#"):
+            raise ConfigError(f"{where}: start_gate must be a liveliness key without wildcards "
+                              f"(the launcher's iota/<system>/@go/<host>), got {gate!r}")
+        config.start_gate = gate
     if "trace_period" in data:
         value = data["trace_period"]
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not (0 <= value <= 1):

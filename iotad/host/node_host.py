@@ -107,6 +107,9 @@ class NodeHost:
         self._declared: list[Any] = []
         self._ports: dict[tuple, list] = {}  # engine (path, channel, index) -> [publisher, seq, key]
         self._thread: threading.Thread | None = None
+        self._settle: Any = None
+        self._go = threading.Event()  # the start gate opened (or the node is closing)
+        self._closing = False
         self.error: BaseException | None = None
         self.can: CanPort | None = None
         self._can_source = None  # the engine (path, channel, index) of the root's can_tx
@@ -119,7 +122,12 @@ class NodeHost:
             self.can = CanPort(config.can, self.clock.post, self.clock.now)
 
     # ------------------------------------------------------------------ start and stop
-    def start(self) -> None:
+    def start(self, settle: Any = None) -> None:
+        """Open the session, declare every port, go live and start the engine thread. With a
+        `start_gate` in the config the engine waits for the launcher's token first. `settle`, if
+        given, runs on the engine thread just before the engine starts (the node process
+        collects and freezes its heap there: a collection in another thread would hold the
+        interpreter while the first windows run)."""
         config = self.config
         # Shared memory is off by default: it buys nothing for small messages and costs each of
         # many node processes ~2 MB (measured with 32 nodes); a config's "zenoh" may turn it on.
@@ -155,13 +163,25 @@ class NodeHost:
                                    self.clock.post_always)
             if watch is not None:
                 self._declared.append(watch)
+        if config.start_gate is not None:
+            self._declared.append(session.liveliness().declare_subscriber(
+                config.start_gate, self._on_gate, history=True))  # history: a token already there counts
         # The token last: whoever sees the node alive may rely on its subscribers being declared.
         self._declared.append(session.liveliness().declare_token(f"{base}/@alive"))
+        self._settle = settle
         self._thread = threading.Thread(target=self._run, name=f"engine {config.path}", daemon=True)
         self._thread.start()
 
+    def _on_gate(self, sample: zenoh.Sample) -> None:
+        if sample.kind == zenoh.SampleKind.PUT:
+            self._go.set()
+
     def _run(self) -> None:
         try:
+            if not self._wait_at_gate():
+                return
+            if self._settle is not None:
+                self._settle()
             self._start_engine()
             self.engine.run()
         except BaseException as exc:  # noqa: BLE001 - reported by the main thread
@@ -173,6 +193,16 @@ class NodeHost:
                 self._flush_trace()
             except Exception:  # noqa: BLE001 - the session may be closing
                 pass
+
+    def _wait_at_gate(self) -> bool:
+        """Wait for the launcher's start gate (if the config names one), heartbeating meanwhile so
+        that the launcher does not take the node for frozen; False: the node was closed first."""
+        if self.config.start_gate is None:
+            return not self._closing
+        period = self.config.heartbeat_period
+        while not self._go.wait(period):
+            self._beat(self.clock.now(), 0)
+        return not self._closing
 
     def _start_engine(self) -> None:
         """Evaluate every precondition at one instant t0 and say so first on @trace: the `start`
@@ -192,6 +222,8 @@ class NodeHost:
 
     def close(self, timeout: float = 5.0) -> None:
         """Stop the engine, then undeclare everything and close the session. Idempotent."""
+        self._closing = True
+        self._go.set()  # a node still waiting at the start gate stops waiting
         if self._thread is not None:
             self.engine.stop()
             self._thread.join(timeout)
@@ -277,6 +309,9 @@ class NodeHost:
     def _heartbeat(self, t: float, backlog: int) -> None:
         if self.can is not None:
             self._can_problems(t)
+        self._beat(t, backlog)
+
+    def _beat(self, t: float, backlog: int) -> None:
         self._beat_pub.put(wire.encode({"t": t, "firings": self.engine.firings, "queue": backlog,
                                         "restarts": self.config.restarts}))
 

@@ -13,7 +13,8 @@
   (when it had the attachment): a trace-sourced recorder rebuilds every message from these.
 - The first event a node host puts on `@trace` is `start_event(...)` (kind `start`): the engine's
   start time `t` in the node's clock, when every precondition was first evaluated.
-- Launcher events (node start, exit, restart) go on `iota/<system>/@launcher`.
+- Launcher events (node start, exit, restart) go on `iota/<system>/@launcher`; a launcher's start
+  gate is a liveliness token on `gate_key(system, host)`.
 - Payload: msgpack of the plain value (None for a channel without a value).
 - Attachment: msgpack `[sequence, send_time_ns]`: a per-publisher counter from 0 (a receiver or
   recorder sees gaps) and the sender's wall clock `time.time_ns()` at send.
@@ -51,6 +52,12 @@ def start_event(t: float, iota: str, wall: float, pid: int) -> dict:
     """A node's engine-start record on its `@trace` (trace-event shape, kind `start`)."""
     return {"t": t, "iota": iota, "action": "@start", "index": None, "kind": START_KIND,
             "value": {"wall": wall, "pid": pid}}
+
+
+def gate_key(system: str, host: str | None = None) -> str:
+    """The liveliness key of a launcher's start gate: its token says "every node of mine is
+    live: start your engines" (docs/internals.md, "Start gate")."""
+    return f"{PREFIX}/{system}/@go/{host or 'hub'}"
 
 
 def launcher_key(system: str) -> str:

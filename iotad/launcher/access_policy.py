@@ -116,7 +116,8 @@ def derive(system: System) -> Policy:
         grant.subscribe = _unique(bound + own_inputs)
         grant.serve = [f"{base}/@spec"]
         grant.tokens = [f"{base}/@alive"]
-        grant.watch = [f"{wire.PREFIX}/{name}/**/@alive"]  # peer_restart inputs watch the others' tokens
+        # peer_restart inputs watch the others' tokens; every node waits for its launcher's start gate
+        grant.watch = [f"{wire.PREFIX}/{name}/**/@alive", wire.gate_key(name, "*")]
         grants.append(grant)
     reader = dict(subscribe=list(READ_KEYS), ask=list(QUERY_KEYS), watch=list(ALIVE_KEYS))
     grants.append(Grant(RECORDER_USER, "recorder", **reader))

@@ -163,6 +163,11 @@ class Launcher:
         self._stop_asked = threading.Event()  # a stop was asked for (signal or request_stop)
         self._hurry = threading.Event()       # a second signal: skip the waiting of the stop
         self._started = 0.0
+        # The start gate: nodes started before it opens go live and wait; once every node is
+        # live (or has ended for good) the launcher declares its token and their engines start
+        # together, none of them running while another still imports on the same cores.
+        self.gate_key = wire.gate_key(system.name, host)
+        self.gate_open = not system.start_gate  # start_gate = false: no gate, as if always open
         from iotad.launcher.status_view import StatusView
         self.view = StatusView(console, live_table, title=f"iotad run {system.file}")
 
@@ -541,11 +546,29 @@ class Launcher:
             return None
         if not self.after_live:
             return self._started
-        if self._live_at is None and self.runs and any(r.state == "running" for r in self.runs.values()) \
-                and all(r.state == "running" or r.finished for r in self.runs.values()):
+        if self._live_at is None and self._everyone_live():
             self._live_at = now
             self.view.line(f"every node is live: --until {self.until:g} s counts from now")
         return self._live_at
+
+    def _everyone_live(self) -> bool:
+        """Every node is live or has ended for good, and one at least is live: a node that failed
+        to start must not hold the others (nor the gate) for ever."""
+        runs = self.runs.values()
+        return bool(self.runs) and any(r.state == "running" for r in runs) \
+            and all(r.state == "running" or r.finished for r in runs)
+
+    def _open_gate(self) -> None:
+        """Declare the start gate's token once every node is live: the waiting engines start."""
+        if self.gate_open or not self._everyone_live():
+            return
+        self.gate_open = True
+        try:
+            self._declared.append(self.session.liveliness().declare_token(self.gate_key))
+        except Exception as exc:  # noqa: BLE001 - a closing session; the nodes are being stopped
+            self.view.line(f"warning: cannot open the start gate {self.gate_key}: {exc}")
+            return
+        self._launcher_event("gate", f"start gate open: all {len(self.runs)} nodes are live or ended; their engines start now")
 
     def _recorder_alive(self) -> None:
         """Kill a recorder that gave no sign of life for RECORDER_STALL s (SIGSTOP, a hung write):
@@ -565,6 +588,7 @@ class Launcher:
     def _supervise(self, now: float) -> None:
         system = self.system
         self._recorder_alive()
+        self._open_gate()
         if self._recorder_ready is not None and self._recorder_ready.exists() and self.recorder is not None:
             # said once it listens, so that the new file holds the news of the old one's end
             self._recorder_ready = None
@@ -599,6 +623,8 @@ class Launcher:
     def _spawn(self, run: NodeRun, event: str) -> None:
         config = self.system.node_config(run.name, self.origin, self.hub)
         config["restarts"] = run.restarts  # its heartbeats say it: a tool attached later counts them
+        if not self.gate_open:  # a node (re)started after the gate opened starts its engine at once
+            config["start_gate"] = self.gate_key
         path = self.run_dir / f"{run.name.replace('/', '.')}.json"
         path.write_text(json.dumps(config, indent=1))
         run.child.argv = self.node_argv(str(path))

@@ -60,7 +60,8 @@ _SYSTEM_NAME = re.compile(r"^[A-Za-z_][\w-]*$")
 _ENDPOINT = re.compile(r"^\s*([A-Za-z_][\w/-]*)\.([A-Za-z_]\w*)(?:\[(\d+)\])?\s*$")
 
 _SYSTEM_KEYS = {"name", "time_unit", "endpoints", "hub_host", "heartbeat_period", "heartbeat_timeout",
-                "start_timeout", "external", "deadline_tolerance", "arrival_tolerance", "input_queue", "debug"}
+                "start_timeout", "external", "deadline_tolerance", "arrival_tolerance", "input_queue", "debug",
+                "start_gate"}
 # In TOML a key written after a [[node]] or [[bind]] table belongs to that table.
 _TABLE_HINT = {"external": " (a top-level key must come before the first table; or put it in [system])"}
 _NODE_KEYS = {"name", "spec", "iota", "python", "params", "restart", "max_restarts", "backoff", "host",
@@ -172,6 +173,9 @@ class System:
     deadline_tolerance: float = 0.002  # seconds a firing may be late before it is a deadline miss
     arrival_tolerance: float = 0.002   # seconds an input may be early (jitter) against its switching time
     input_queue: int = DEFAULT_INPUT_QUEUE  # per node host, unless its [[node]] says otherwise
+    # real time: the engines start together once every node is live (false: each as soon as its
+    # own node is live, as `after` orders them; docs/internals.md "Start gate")
+    start_gate: bool = True
     nodes: dict[str, NodeSpec] = field(default_factory=dict)
     bindings: list[Binding] = field(default_factory=list)  # concrete: one per (source, target) member
     external: set[Port] = field(default_factory=set)
@@ -341,6 +345,11 @@ class _Parser:
                     setattr(system, key, float(value))
                 else:
                     self.error(entry, f"{key} must be a positive number of seconds, got {value!r}")
+        if "start_gate" in raw:
+            if isinstance(raw["start_gate"], bool):
+                system.start_gate = raw["start_gate"]
+            else:
+                self.error(entry, f"start_gate must be true or false, got {raw['start_gate']!r}")
         if "input_queue" in raw:
             if _queue_size(raw["input_queue"]):
                 system.input_queue = raw["input_queue"]
@@ -514,6 +523,11 @@ class _Parser:
                 node.required = raw["required"]
             else:
                 self.error(entry, f"required must be true or false, got {raw['required']!r}")
+        if "start_gate" in raw:
+            if isinstance(raw["start_gate"], bool):
+                system.start_gate = raw["start_gate"]
+            else:
+                self.error(entry, f"start_gate must be true or false, got {raw['start_gate']!r}")
         if "input_queue" in raw:
             if _queue_size(raw["input_queue"]):
                 node.input_queue = raw["input_queue"]

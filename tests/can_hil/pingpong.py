@@ -11,13 +11,14 @@ SYSTEM = "start_timeout = 60.0\nheartbeat_timeout = 15.0"
 
 
 def run_pingpong(can_tier, folder: Path, *, echo: str = "", bus: str = "", pinger: str = "CanPinger",
-                 period: float = 0.05) -> Path:
+                 period: float = 0.05, system_lines: str = "") -> Path:
     """Runs it in `can_tier` and returns the recording. `echo` adds lines to the echo's
-    [[node]], `bus` to the [[can]] table (which says `interface = "env"`: the tier's bus).
+    [[node]], `bus` to the [[can]] table (which says `interface = "env"`: the tier's bus),
+    `system_lines` to the [system] table.
     A node the launcher restarted fails the run here: these tests judge one life of each node."""
     system = folder / "pingpong.toml"
     system.write_text(pingpong_system(
-        period, system=SYSTEM, echo=echo, pinger=pinger,
+        period, system=f"{SYSTEM}\n{system_lines}", echo=echo, pinger=pinger,
         bus='name = "can0"\ninterface = "env"\nstations = ["pinger", "echo"]\n' + bus))
     recording = folder / "pingpong.mcap"
     run = can_tier.run([sys.executable, "-m", "iotad", "run", str(system), "--until", "6", "--after-live", "--plain",

@@ -13,8 +13,9 @@ def test_frames_sent_before_the_echo_started_are_not_judged_and_the_rest_deliver
     # no bus logger: one process less to start (on the one vCPU of user-mode Linux, where it runs there)
     # a frame every 10 ms: the twins sent in the last 0.1 s before the echo started (the check's
     # window for a frame waiting on a busy bus) are candidates for its first receptions
+    # no start gate: the echo's engine starts once its process is live, after the pinger's
     recording = run_pingpong(system_can_tier, tmp_path, echo='after = ["pinger"]', bus="log = false",
-                             pinger="CanTwinPinger", period=0.01)
+                             pinger="CanTwinPinger", period=0.01, system_lines="start_gate = false")
     report = check_delivery(read_recording(recording))
     link = next(link for link in report.links if link.label == "can can0: pinger -> echo")
     early = [f for f in report.notes if f.code == "not judged" and "before echo's engine started" in f.message]

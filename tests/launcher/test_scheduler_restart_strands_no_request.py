@@ -16,11 +16,11 @@ from launcher_helpers import ROOT, Observer, children_of, free_port, launcher
 
 SLACK = 1.0  # seconds for liveliness to travel and a loaded machine to schedule the requester
 
-# hi asks 2 s after it starts (time for every route to the observer to be made) and holds the
-# motors for 3 s; lo starts once hi is live and asks 2 s later, so after hi, with a lower
-# priority: it stays pending
+# The engines start together (the launcher's start gate). hi asks 2 s after that (time for every
+# route to the observer to be made) and holds the motors for 3 s; lo asks a second later, so
+# after hi, with a lower priority: it stays pending
 PARAMS = {"hi": dict(priority=5, epoch=3.0, timeout=3.0, start=2.0, pause=0.5, count=2, setpoint=1.5),
-          "lo": dict(priority=1, epoch=0.5, timeout=3.0, start=2.0, pause=0.5, count=2, setpoint=0.2)}
+          "lo": dict(priority=1, epoch=0.5, timeout=3.0, start=3.0, pause=0.5, count=2, setpoint=0.2)}
 AFTER = {"hi": '["scheduler"]', "lo": '["scheduler", "hi"]'}
 MDL_SWITCHING = 1.0  # the scheduler's mdl_command: a motion may wait this long for its command
 
