@@ -16,11 +16,12 @@ def compose(system: System) -> Composite:
     """The system as one composite named after it; raises what instantiating a node raises."""
     from iotad.can.virtual_bus import CanBus
 
-    # a bus's real-time logger (bus_logger.py) is left out: here the bus model logs its frames
+    # a bus's real-time logger (bus_logger.py) is left out: here the bus model logs its frames,
+    # as the [[can]] entry's `log` says (false: no log in either way of running the file)
     components: list[Any] = [instantiate(node) for node in system.nodes.values() if not is_bus_logger(system, node.name)]
     binds = [(str(b.source), str(b.target)) for b in system.bindings]
     for bus in system.buses.values():
-        components.append(CanBus(bus.name, stations=len(bus.stations), bitrate=bus.bitrate))
+        components.append(CanBus(bus.name, stations=len(bus.stations), bitrate=bus.bitrate, log_frames=bus.log))
         for k, station in enumerate(bus.stations):
             binds.append((f"{station}.{CAN_TX}", f"{bus.name}.tx[{k}]"))
             binds.append((f"{bus.name}.rx[{k}]", f"{station}.{CAN_RX}"))

@@ -110,6 +110,21 @@ def test_virtual_run_carries_frames_over_the_modelled_bus_and_records_them(tmp_p
     assert not any(f.id == 0x11 for _, f in frames(recording, "echo", "can_rx"))
 
 
+@pytest.mark.parametrize("log", [True, False])
+def test_a_virtual_bus_logs_its_frames_as_the_can_entry_says(tmp_path, log):
+    path = tmp_path / "pingpong.toml"
+    path.write_text(pingpong_system(0.01, bus=GOOD_BUS + ("" if log else "\nlog = false")))
+    out = tmp_path / "pingpong.mcap"
+    assert main(["run", str(path), "--virtual", "--until", "0.05", "-o", str(out)]) == 0
+    recording = read_recording(out)
+    logged = [e for e in recording.trace("can0") if e["action"] == "frames" and e["kind"] == "output"]
+    carried = [e for e in recording.trace("can0") if e["action"] == "rx" and e["kind"] == "output"]
+    assert len(carried) >= 8
+    # one log entry per frame carried, at the frame's end, or none at all with log = false
+    assert [e["t"] for e in logged] == ([e["t"] for e in carried] if log else [])
+    assert main(["check", str(out)]) == 0
+
+
 def test_virtual_runs_are_deterministic_for_a_seed(tmp_path):
     path = write(tmp_path)
     traces = []
