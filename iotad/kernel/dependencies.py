@@ -30,6 +30,23 @@ def _module_tree(filename: str) -> ast.Module | None:
         return None
 
 
+@lru_cache(maxsize=None)
+def _functions_by_line(filename: str) -> dict[int, list[ast.AST]] | None:
+    """A module's lambdas and defs by the line a code object of theirs starts on (a def's own
+    line and its decorators' lines): the module is walked once, not once per function."""
+    tree = _module_tree(filename)
+    if tree is None:
+        return None
+    by_line: dict[int, list[ast.AST]] = {}
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Lambda):
+            by_line.setdefault(node.lineno, []).append(node)
+        elif isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            for line in {node.lineno} | {d.lineno for d in node.decorator_list}:
+                by_line.setdefault(line, []).append(node)
+    return by_line
+
+
 def _function_nodes(fn: Callable) -> list[ast.AST]:
     """The AST nodes (lambdas or defs) that may be `fn`; several if a line holds look-alikes."""
     code = getattr(fn, "__code__", None)
@@ -39,20 +56,13 @@ def _function_nodes(fn: Callable) -> list[ast.AST]:
         filename = inspect.getsourcefile(fn)
     except TypeError:
         return []
-    tree = _module_tree(filename) if filename else None
-    if tree is None:
+    by_line = _functions_by_line(filename) if filename else None
+    if by_line is None:
         return []
-    first = code.co_firstlineno
     argnames = code.co_varnames[:code.co_argcount]
-    found = []
-    for node in ast.walk(tree):
-        if isinstance(node, ast.Lambda) and node.lineno == first:
-            found.append(node)
-        elif isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and node.name == code.co_name:
-            starts = {node.lineno} | {d.lineno for d in node.decorator_list}
-            if first in starts:
-                found.append(node)
-    return [n for n in found if tuple(a.arg for a in n.args.args) == argnames]
+    return [n for n in by_line.get(code.co_firstlineno, ())
+            if (isinstance(n, ast.Lambda) or n.name == code.co_name)
+            and tuple(a.arg for a in n.args.args) == argnames]
 
 
 def cells_of(fn: Callable | None, state_names: frozenset[str] | set[str] | None,
