@@ -7,6 +7,7 @@ import argparse
 import importlib
 import math
 import os
+import stat
 import pkgutil
 import sys
 import textwrap
@@ -86,6 +87,17 @@ def nonnegative_int(text: str) -> int:
     return _number(text, int, "a whole number >= 0", 0, False)
 
 
+SEED_MAX = 2**64 - 1  # a recording keeps the seed in msgpack, whose integers end at 64 bits
+
+
+def seed(text: str) -> int:
+    """A random policy's seed: a whole number from 0 to 2**64 - 1."""
+    value = _number(text, int, f"a whole number from 0 to {SEED_MAX}", 0, False)
+    if value > SEED_MAX:
+        raise argparse.ArgumentTypeError(f"expected a whole number from 0 to {SEED_MAX}, got {text!r}")
+    return value
+
+
 def port(text: str) -> int:
     """A TCP port, 0 (any free one) to 65535."""
     value = _number(text, int, "a port number 0-65535", 0, False)
@@ -126,9 +138,9 @@ def new_recording(path: str, force: bool, option: str = "-o") -> None:
 
     found = None if force else existing_recording(path)
     if found is not None:
-        stat = found.stat()
-        written = time.strftime("%Y-%m-%d %H:%M:%S", time.localtime(stat.st_mtime))
-        raise CliError(f"{option} {path}: a recording is already there ({found}, {stat.st_size:,} bytes, "
+        info = found.stat()
+        written = time.strftime("%Y-%m-%d %H:%M:%S", time.localtime(info.st_mtime))
+        raise CliError(f"{option} {path}: a recording is already there ({found}, {info.st_size:,} bytes, "
                        f"written {written}); name another file, or add --force to replace it")
 
 
@@ -146,20 +158,34 @@ def claim_recording(path: str, force: bool, option: str = "-o") -> bool:
             return True
     except OSError:
         return False  # a path that cannot be written: the writer says so in its own words
+    if os.path.exists(path) and not is_regular_file(path):
+        raise CliError(f"{option} {path}: not a plain file (a device, a FIFO or a link); name a file, or add "
+                       "--force to write the recording there anyway")
     raise CliError(f"{option} {path}: an empty file is there: another run has just claimed it for its "
                    "recording (or one stopped before writing any); name another file, or add --force to "
                    "replace it")
 
 
 def drop_empty_claim(path: str | os.PathLike | None) -> None:
-    """Remove a claimed recording file that nothing was written to (the run stopped first)."""
+    """Remove a recording file this run claimed (`claim_recording` returned True) that nothing
+    was written to (the run stopped first). Only an empty regular file: never a device such as
+    /dev/null, and never what was at the path before (call it only for a path this run created)."""
     if path is None:
         return
     try:
-        if os.path.getsize(path) == 0:
+        if is_regular_file(path) and os.path.getsize(path) == 0:
             os.unlink(path)
     except OSError:
         pass
+
+
+def is_regular_file(path: str | os.PathLike) -> bool:
+    """Whether `path` is a plain file (not a device, a FIFO or a folder), without following a
+    symbolic link: what a command may remove of its own output."""
+    try:
+        return stat.S_ISREG(os.lstat(path).st_mode)
+    except OSError:
+        return False
 
 
 def key_expression(text: str) -> str:

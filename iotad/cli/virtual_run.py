@@ -87,15 +87,18 @@ def _run(system, args: argparse.Namespace, writer) -> int:
 
     sinks.append(count)
     if not args.no_record:
+        claimed = False
         if args.record_to:
             output = Path(args.record_to)
             output_file(str(output))  # a folder, or a path under a file: one line
-            claim_recording(str(output), getattr(args, "force", False))  # no other run writes it too
+            # no other run writes it too; created here: the run may remove it if it writes nothing
+            claimed = claim_recording(str(output), getattr(args, "force", False))
         else:
             output = Path(f"recordings/{system.name}-virtual-{time.strftime('%Y%m%d-%H%M%S')}.mcap")
             output_file(str(output))
             try:
                 output = unused_recording_path(output, claim=True)
+                claimed = True
             except OSError as exc:
                 raise CliError(f"cannot create {output.parent}: {exc.strerror or exc}") from None
         try:
@@ -106,10 +109,10 @@ def _run(system, args: argparse.Namespace, writer) -> int:
             else:
                 sink = McapSink(output)
         except OSError as exc:
-            drop_empty_claim(output)
+            drop_empty_claim(output if claimed else None)
             raise CliError(f"-o {output}: cannot write: {exc.strerror or exc}") from None
         except WriterFailed as exc:  # "cannot write: ..." in the writer's words, or how it died
-            drop_empty_claim(output)
+            drop_empty_claim(output if claimed else None)
             raise CliError(f"-o {output}: {exc}") from None
     policy = Eager() if args.seed is None else Random(args.seed)
     if output is not None:
@@ -280,10 +283,10 @@ def _external_entry(entry: dict, system, script: str) -> dict:
 
 def _read_inputs(path: str) -> list[dict]:
     from iotad.kernel.input_script import ScriptError, parse_script
+    from iotad.kernel.text_file import read_text_file
 
     try:
-        with open(path) as stream:
-            return parse_script(stream, path)
+        return parse_script(read_text_file(path).splitlines(), path)
     except OSError as exc:
         raise CliError(f"--inputs {path}: cannot read: {exc.strerror or exc}") from None
     except UnicodeDecodeError:

@@ -15,6 +15,7 @@ from .static_checks import Checker
 from .compiler import Compiler, IotaFactory, Module
 from .errors import Diagnostic, EspritError, Source
 from .parser import parse
+from iotad.kernel.text_file import read_text_file
 
 __all__ = ["Diagnostic", "EspritError", "IotaFactory", "Module", "check_text", "load_file", "load_iota", "load_text"]
 
@@ -58,7 +59,7 @@ def check_text(text: str, filename: str = "<spec>", externs: dict[str, Callable]
 def load_file(path: str | Path, externs: dict[str, Callable] | None = None) -> Module:
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        text = read_text_file(path)
     except (OSError, UnicodeDecodeError) as exc:
         raise EspritError(Diagnostic(str(path), 1, 1, f"cannot read the spec: {exc}")) from None
     return load_text(text, str(path), externs)

@@ -51,6 +51,7 @@ from typing import Any
 
 from iotad.host import wire
 from iotad.host.transport import DEFAULT_HUB_ENDPOINT, endpoint_problem
+from iotad.kernel.text_file import read_text_file
 from iotad.kernel.types import HUGE_INT
 
 RESTART_MODES = ("never", "on-failure", "always")
@@ -263,7 +264,7 @@ def load_system(path: str | Path, check: bool = True) -> System:
     """Parse (and by default check) a system file; raises `SystemFileError` listing every problem."""
     path = Path(path)
     try:
-        data = tomllib.loads(path.read_text())
+        data = tomllib.loads(read_text_file(path))
     except OSError as exc:
         raise SystemFileError([f"{path}: cannot read: {exc.strerror or exc}"]) from None
     except tomllib.TOMLDecodeError as exc:
@@ -514,10 +515,10 @@ class _Parser:
             else:
                 self.error(entry, f"policy must be \"eager\" or \"random\", got {raw['policy']!r}")
         if "seed" in raw:
-            if isinstance(raw["seed"], int) and not isinstance(raw["seed"], bool):
+            if isinstance(raw["seed"], int) and not isinstance(raw["seed"], bool) and 0 <= raw["seed"] < 2**64:
                 node.seed = raw["seed"]
             else:
-                self.error(entry, f"seed must be an integer, got {raw['seed']!r}")
+                self.error(entry, f"seed must be a whole number from 0 to 2**64 - 1, got {raw['seed']!r}")
         if "required" in raw:
             if isinstance(raw["required"], bool):
                 node.required = raw["required"]

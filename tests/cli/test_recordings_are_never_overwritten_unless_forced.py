@@ -53,10 +53,12 @@ def test_record_refuses_before_it_connects(tmp_path, capsys):
     assert out.read_bytes() == b"an earlier recording"
 
 
-def test_no_record_needs_no_force(tmp_path):
+def test_no_record_with_a_recording_named_is_refused_and_touches_nothing(tmp_path, capsys):
     out = tmp_path / "fig2.mcap"
     out.write_bytes(b"kept")
-    assert main(["run", FIGURE2, "--virtual", "--until", "1", "-o", str(out), "--no-record", "--plain"]) == 0
+    for how in (["--virtual", "--until", "1"], ["--until", "1"]):
+        assert main(["run", FIGURE2, *how, "-o", str(out), "--no-record", "--plain"]) == 2
+        assert "--no-record says there is none: give one of them" in capsys.readouterr().err
     assert out.read_bytes() == b"kept"
 
 

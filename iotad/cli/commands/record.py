@@ -198,12 +198,16 @@ def run(args: argparse.Namespace) -> int:
 
 def _remove_empty(recorder) -> None:
     """Remove the files of a recording that never began (no hub came): an empty recording left
-    at -o would only make the next run with the same -o ask for --force."""
+    at -o would only make the next run with the same -o ask for --force. Only regular files: a
+    device named as the output (-o /dev/null) is no recording, and stays."""
+    from iotad.cli import is_regular_file
+
     for path in {recorder.output, *recorder.files}:
-        try:
-            path.unlink()
-        except OSError:
-            pass
+        if is_regular_file(path):
+            try:
+                path.unlink()
+            except OSError:
+                pass
 
 
 def _check_system_file(path: str) -> None:

@@ -22,6 +22,9 @@ what [system.debug] allow_pub does not list, without telling the sender (docs/ac
 See also: 'iotad check FILE' (conformance to the specs), 'iotad info FILE'."""
 
 
+RATE_MIN, RATE_MAX = 1e-6, 1e6  # --rate: a millionth of real time up to a million times it
+
+
 def register(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser(
         "replay", help="re-run a node against its recorded inputs and compare; or republish (--live)",
@@ -65,6 +68,8 @@ def run(args: argparse.Namespace) -> int:
 
     if args.live and (args.internal or args.free or args.tolerance is not None):
         raise CliError("--internal, --free and --tolerance apply to --node, not --live")
+    if not args.live and (args.rate != 1.0 or args.start or args.loop):
+        raise CliError("--rate, --start and --loop are the pace of --live: give --live too")
     recording = load(args.file)
     if args.live:
         return live(args, recording)
@@ -92,8 +97,8 @@ def live(args: argparse.Namespace, recording) -> int:
     from iotad.recording.replay import republish
     from iotad.host.transport import DEFAULT_LISTEN, open_session
 
-    if args.rate <= 0:
-        raise CliError("--rate must be > 0")
+    if not RATE_MIN <= args.rate <= RATE_MAX:  # a pace no wait could keep (sleeps past any clock's range)
+        raise CliError(f"--rate {args.rate:g}: give a speed factor from {RATE_MIN:g} to {RATE_MAX:g}")
     if args.start and args.start > recording.duration():
         raise CliError(f"--start {args.start:g}: past the end of the recording ({recording.duration():.3g} s long)")
     try:

@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from iotad.cli import port, positive_float
+from iotad.cli import port, positive_float, seed
 from iotad.cli.commands.record import byte_size
 
 ORDER = 20
@@ -93,7 +93,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                         help="with --virtual: input script for external inputs ({\"t\", \"iota\", \"action\", "
                              "\"index\", \"value\"} a line; \"iota\" names the node, or leave it out and "
                              "name an external input as `external` does: {\"action\": \"motor.estop\"})")
-    parser.add_argument("--seed", type=int, default=None, metavar="N",
+    parser.add_argument("--seed", type=seed, default=None, metavar="N",
                         help="with --virtual: fire at random times within each window (policy random(N))")
     parser.set_defaults(func=run)
 
@@ -121,6 +121,11 @@ def run(args: argparse.Namespace) -> int:
 
         print("\n".join(derive(system).lines()))
         return 0
+    if args.no_record and getattr(args, "record_to", None):
+        from iotad.cli import CliError
+
+        # one of the two is a mistake: a run the user expects recorded would leave no file
+        raise CliError(f"-o {args.record_to} names the recording, and --no-record says there is none: give one of them")
     if args.virtual:
         from iotad.cli.virtual_run import run_virtual
 

@@ -5,7 +5,7 @@ import argparse
 import json
 import sys
 
-from iotad.cli import nonnegative_float
+from iotad.cli import nonnegative_float, seed
 
 ORDER = 10
 
@@ -74,7 +74,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                      help='input script: one {"t", "action", "index", "value"} object a line (default: no inputs)')
     run.add_argument("--policy", choices=("eager", "random"), default="eager",
                      help="eager: fire at the earliest allowed time (default); random: anywhere in the window")
-    run.add_argument("--seed", type=int, default=0, metavar="S", help="seed of the random policy (default 0)")
+    run.add_argument("--seed", type=seed, default=0, metavar="S", help="seed of the random policy (default 0)")
     run.set_defaults(func=cmd_run)
 
     show = commands.add_parser(
@@ -99,6 +99,8 @@ def _read(path: str, what: str = "") -> str | None:
     """The text of a file, or None after one error line (missing, a folder, not text)."""
     import os
 
+    from iotad.kernel.text_file import read_text_file
+
     label = f"{what} {path}" if what else path
     problem = None
     if os.path.isdir(path):
@@ -107,8 +109,7 @@ def _read(path: str, what: str = "") -> str | None:
         problem = "no such file"
     else:
         try:
-            with open(path, encoding="utf-8") as handle:
-                return handle.read()
+            return read_text_file(path)
         except UnicodeDecodeError:
             problem = "not UTF-8 text (a binary file?)"
         except OSError as exc:
