@@ -11,7 +11,10 @@ A recording carries what replay and check need and nothing else must be found:
 - messages on `@recorder/gaps`: sequence gaps the recorder saw (they survive a kill),
   and metadata `iotad.gaps` with their total at a clean finish;
 - messages on `@recorder/malformed` (only if any): what came on a `@trace` key that was neither
-  an event nor a burst of events, or an element of a burst that was no event.
+  an event nor a burst of events, or an element of a burst that was no event (not a map, or a
+  map without a finite `t` and string `kind` and `action`: `trace_event_problem`), and an
+  `@launcher` or `@heartbeat` payload that was no msgpack map. None of them is written on its
+  own key, where every reader takes what it finds for an event.
 
 Every message on a `@trace` channel is one trace event, whether the node sent it alone or in a
 burst (the recorder splits bursts).
@@ -52,7 +55,7 @@ MESSAGE_ENCODING = "msgpack"
 SCHEMA_ENCODING = "jsonschema"
 PROFILE = "iotad"
 GAP_TOPIC = "@recorder/gaps"
-MALFORMED_TOPIC = "@recorder/malformed"  # what a recorder got on @trace that is no event (nor burst)
+MALFORMED_TOPIC = "@recorder/malformed"  # what a recorder got on @trace that is no event (nor burst), etc.
 FORMAT = "iotad-mcap/1"
 SET_METADATA = "iotad.split_set"  # in the set file of a split recording: its member files
 
@@ -83,7 +86,7 @@ class RecordingError(Exception):
     """A file is not a readable iotad recording (one-line message)."""
 
 
-def _trace_event_problem(event: dict) -> str:
+def trace_event_problem(event: dict) -> str:
     """Why a decoded `@trace` map is not a trace event the tools can read ("" if it is one)."""
     t = event.get("t")
     if t.__class__ not in (int, float) or not math.isfinite(t):
@@ -908,7 +911,7 @@ class Recording:
                 continue
             event = message.value
             if isinstance(event, dict):
-                problem = _trace_event_problem(event)
+                problem = trace_event_problem(event)
                 if problem:
                     raise RecordingError(f"message #{message.sequence} on {message.topic} (log time "
                                          f"{message.log_time} ns) is no trace event: {problem}; the recording is damaged")
@@ -968,8 +971,18 @@ class Recording:
         return [m.value for m in self.messages if m.topic == MALFORMED_TOPIC]
 
     def launcher_events(self) -> list[dict]:
-        return [dict(m.value, log_time=m.log_time) for m in self.messages
-                if m.topic.endswith("/@launcher") and isinstance(m.value, dict)]
+        """The launcher's events; a payload that is no msgpack map (a file written before the
+        recorder set those aside) is left out, not an error: no reading depends on all of them."""
+        out = []
+        for message in self.messages:
+            if message.topic.endswith("/@launcher"):
+                try:
+                    value = unpackb(message.data)
+                except Exception:  # noqa: BLE001 - msgpack raises several kinds for bad bytes
+                    continue
+                if isinstance(value, dict):
+                    out.append(dict(value, log_time=message.log_time))
+        return out
 
     def duration(self) -> float:
         if not self.messages:

@@ -43,10 +43,11 @@ import msgpack
 import zenoh
 
 from iotad.host import wire
-from iotad.recording.mcap_io import (FORMAT, GAP_TOPIC, MALFORMED_TOPIC, McapSink, channel_schemas, member_path, packb,
-                                     schema_for_topic, write_set_file)
+from iotad.recording.mcap_io import (FORMAT, GAP_TOPIC, MALFORMED_TOPIC, McapSink, trace_event_problem,
+                                     channel_schemas, member_path, packb, schema_for_topic, write_set_file)
 from iotad.host.transport import DEFAULT_LISTEN, open_session
 
+_MAPS = ("/@launcher", "/@heartbeat")  # keys whose payload every reader takes for a msgpack map
 NICENESS = 10  # a tenth of a normal process's CPU share when both want the CPU
 _NEVER = 1 << 62  # the next `seq` of a stream whose last burst could not be counted: no gap is seen
 
@@ -371,6 +372,8 @@ class Recorder:
                         if monotonic_ns() >= next_flush:
                             break  # a busy stream must flush on time too
                         continue
+                    if key.endswith(_MAPS) and not self._is_map(key, sequence, data, receipt_ns):
+                        continue  # recorded as malformed: readers of @launcher and @heartbeat take maps
                     write(channel_id, receipt_ns, publish_ns, sequence, data)
                     written += 1
                     if not (received & 255) and monotonic_ns() >= next_flush:
@@ -432,6 +435,11 @@ class Recorder:
                 self._malformed(key, seq, f"element {position} of the burst is a {type(event).__name__}, "
                                 f"not an event dict", pack(event), receipt_ns)
                 continue
+            problem = trace_event_problem(event)
+            if problem:  # on @trace, where every reader takes it for an event: a recorded problem
+                self._malformed(key, seq, f"element {position} of the burst is no trace event: {problem}",
+                                pack(event), receipt_ns)
+                continue
             event_data = data if single else pack(event)
             kind = event.get("kind")
             if not derive or (kind != "output" and kind != "input"):
@@ -466,6 +474,20 @@ class Recorder:
                 write(channel_id, receipt_ns, publish_ns, seq, event_data)
                 written += 1 + traced(key, event, receipt_ns, write, ids, last)
         return written, len(events)
+
+    def _is_map(self, key: str, sequence: int, data: bytes, receipt_ns: int) -> bool:
+        """Whether an `@launcher` or `@heartbeat` payload is a msgpack map; if not, it is recorded
+        on `MALFORMED_TOPIC` (a rogue or broken publisher must not make the file unreadable)."""
+        try:
+            value = self._unpack(data)
+        except Exception as exc:  # noqa: BLE001 - msgpack raises several unrelated types
+            self._malformed(key, sequence, f"undecodable msgpack ({len(data)} bytes): {type(exc).__name__}", data,
+                            receipt_ns)
+            return False
+        if value.__class__ is not dict:
+            self._malformed(key, sequence, f"a {type(value).__name__}, not a map", data, receipt_ns)
+            return False
+        return True
 
     def _malformed(self, key: str, sequence: int, message: str, data: bytes, receipt_ns: int) -> None:
         """Record what could not be read as trace events: on `MALFORMED_TOPIC` (key, seq, why, and

@@ -357,7 +357,8 @@ def test_a_recorder_on_a_hub_gets_the_first_sample_of_every_new_node(tmp_path):
         for n in range(12):
             with open_session(connect=[f"tcp/127.0.0.1:{port}"]) as node:
                 key = f"iota/t/n{n}/@trace"
-                node.declare_publisher(key).put(wire.encode({"n": n}), attachment=wire.encode_attachment(0))
+                node.declare_publisher(key).put(wire.encode(wire.start_event(0.0, f"n{n}", 1.0, n)),
+                                               attachment=wire.encode_attachment(0))
                 sent.append(key)
                 time.sleep(0.05)  # zenoh sends before the session closes
         wait_for(lambda: len(read_recording(recorder.output).messages) >= len(sent), 10,
@@ -441,3 +442,40 @@ def test_given_a_system_file_and_no_connect_the_recorder_goes_to_its_hub(tmp_pat
     system.write_text('[system]\nname = "s"\n')
     assert _hub_of(str(system)) == ["tcp/127.0.0.1:7447"]  # where `iotad run` puts it by default
     assert _hub_of(None) == []  # no system file, no --connect: listen only, as before
+
+
+def test_a_rogue_publisher_cannot_make_a_recording_unreadable(tmp_path, session_for, capsys):
+    """What a rogue or broken publisher puts on `@trace` (a map that is no trace event), on
+    `@launcher` or on `@heartbeat` (no msgpack map) is recorded on @recorder/malformed, not on
+    its key, where every reader would take it for an event: the file stays readable whole."""
+    recorder = RecorderProcess(tmp_path, ["iota/t/**", "iota/t/**/@trace", "iota/t/@launcher",
+                                          "iota/t/**/@heartbeat"])
+    try:
+        session = session_for(recorder.port)
+        trace = session.declare_publisher("iota/t/pub/@trace")
+        launcher = session.declare_publisher("iota/t/@launcher")
+        beat = session.declare_publisher("iota/t/pub/@heartbeat")
+        matched(trace)
+        good = {"t": 1.0, "iota": "pub", "action": "out", "index": None, "kind": "internal", "value": None}
+        trace.put(wire.encode_burst([dict(good, t="x"), {"kind": "output"}, good]),
+                  attachment=wire.encode_attachment(0, 50))
+        launcher.put(b"\xc1", attachment=wire.encode_attachment(0, 60))
+        launcher.put(wire.encode([1, 2]), attachment=wire.encode_attachment(1, 61))
+        launcher.put(wire.encode({"event": "live", "node": "pub", "t_ns": 5}), attachment=wire.encode_attachment(2, 62))
+        beat.put(b"\xc1", attachment=wire.encode_attachment(0, 70))
+        wait_for(lambda: len(read_recording(recorder.output).malformed()) >= 5
+                 and read_recording(recorder.output).launcher_events(), 10, what="the messages in the file")
+    finally:
+        assert recorder.stop() == 0
+    recording = read_recording(recorder.output)
+    assert [e["t"] for e in recording.trace("pub")] == [1.0]  # the good event, read without a fault
+    assert [e["event"] for e in recording.launcher_events()] == ["live"]
+    problems = sorted((p["key"], p["message"].split(":")[0]) for p in recording.malformed())
+    assert problems == sorted([("iota/t/pub/@trace", "element 0 of the burst is no trace event"),
+                        ("iota/t/pub/@trace", "element 1 of the burst is no trace event"),
+                        ("iota/t/@launcher", "undecodable msgpack (1 bytes)"),
+                        ("iota/t/@launcher", "a list, not a map"),
+                        ("iota/t/pub/@heartbeat", "undecodable msgpack (1 bytes)")])
+    capsys.readouterr()
+    assert main(["info", str(recorder.output)]) == 0
+    assert "Traceback" not in capsys.readouterr().err
