@@ -8,7 +8,8 @@ from typing import Any
 
 COLUMNS = ("node", "host", "pid", "state", "restarts", "uptime", "heartbeat")
 _STATE_STYLE = {"running": "green", "starting": "yellow", "waiting": "dim", "backoff": "yellow",
-                "lost": "red", "stopping": "yellow", "stopped": "dim", "exited": "dim", "failed": "bold red"}
+                "lost": "red", "stopping": "yellow", "stopped": "dim", "exited": "dim", "failed": "bold red",
+                "down": "bold red"}
 
 
 class StatusView:

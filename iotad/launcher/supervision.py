@@ -59,6 +59,8 @@ class NodeRun:
     restarts: int = 0
     consecutive: int = 0          # restarts since it last ran healthy_after seconds
     restart_at: float | None = None
+    down_since: float | None = None  # when it exited, while it waits for its restart (backoff)
+    down_at_end: float = 0.0      # state "down": seconds it had been down when the run ended
     live_since: float | None = None
     lost_since: float | None = None
     last_beat: float | None = None
@@ -73,7 +75,7 @@ class NodeRun:
 
     @property
     def finished(self) -> bool:
-        return self.state in ("stopped", "exited", "failed")
+        return self.state in ("stopped", "exited", "failed", "down")
 
 
 @dataclass
@@ -197,7 +199,7 @@ class Launcher:
             self._restore_signals(previous)
         if self._stop_reason in _SIGNAL_STATUS:
             return _SIGNAL_STATUS[self._stop_reason]
-        failed = any(r.state == "failed" for r in self.runs.values()) or self.never_live()
+        failed = any(r.state in ("failed", "down") for r in self.runs.values()) or self.never_live()
         # a recorder that died mid-run left a gap between its files: what happened then is lost
         return 1 if failed or self.recording_lost or self._recorder_restarts else 0
 
@@ -508,7 +510,7 @@ class Launcher:
         if policy.wants_restart(code, run.restarts):
             delay = policy.delay(run.consecutive)
             run.consecutive += 1
-            run.state, run.restart_at = "backoff", now + delay
+            run.state, run.restart_at, run.down_since = "backoff", now + delay, now
             self._event("exit", run, f"{what}; restart {run.restarts + 1}/{policy.max_restarts} "
                                      f"in {delay:.2f} s{tail}", code=code)
             return
@@ -676,7 +678,7 @@ class Launcher:
         for run in self.runs.values():
             uptime = f"{now - run.live_since:.1f}s" if run.live_since and run.state == "running" else "-"
             beat = f"{now - run.last_beat:.2f}s" if run.last_beat and not run.finished else "-"
-            state = run.state if run.state not in ("exited", "failed") or run.last_code is None else \
+            state = run.state if run.state not in ("exited", "failed", "down") or run.last_code is None else \
                 f"{run.state} ({describe_exit(run.last_code)})"
             pid = str(run.child.pid) if run.child.pid and not run.finished else "-"
             rows.append((run.name, run.spec.host or "", pid, state, str(run.restarts), uptime, beat))
@@ -693,7 +695,9 @@ class Launcher:
         for run in self.runs.values():
             if run.child.running():
                 run.state = "stopping"
-            elif run.state in ("waiting", "backoff", "starting", "running", "lost"):
+            elif run.state == "backoff":
+                run.state = "down"  # it crashed and its restart was still to come: not a clean stop
+            elif run.state in ("waiting", "starting", "running", "lost"):
                 run.state = "stopped"
         stop_all([r.child for r in self.runs.values()], interrupt, terminate, hurry=self._hurry)
         # Report the exits now: the waiters queued them, and the recorder is still listening.
@@ -704,9 +708,12 @@ class Launcher:
                 break
             if item[0] in ("exit", "recorder"):
                 self._handle(item)
+        ended = time.monotonic()
         for run in self.runs.values():
             if run.state == "stopping":
                 run.state = "stopped"
+            elif run.state == "down":
+                run.down_at_end = ended - run.down_since
         if self.recorder is not None:
             recorder, self.recorder = self.recorder, None  # its exit is ours, not a death
             time.sleep(0.1)  # let the last events reach the recorder before it closes its file
@@ -727,7 +734,7 @@ class Launcher:
         if self.session is not None:
             session, self.session = self.session, None
             session.close()
-        if self._own_dir and not any(r.state == "failed" for r in self.runs.values()):
+        if self._own_dir and not any(r.state in ("failed", "down") for r in self.runs.values()):
             shutil.rmtree(self.run_dir, ignore_errors=True)
         if self.access is not None:
             self.access.close()  # the credentials never outlive the run
@@ -764,6 +771,10 @@ class Launcher:
             if run.name in never_live:
                 lines.append(f"  {run.name}: NEVER LIVE: it failed {run.failures} time(s), last with "
                              f"{describe_exit(run.last_code)} (its output above says why); the run's exit status is 1")
+            elif run.state == "down":
+                lines.append(f"  {run.name}: DOWN AT THE END: {describe_exit(run.last_code)} "
+                             f"{run.down_at_end:.1f} s before the run ended, its restart still to come; "
+                             "the run's exit status is 1")
         if len(self.recordings) == 1 and not self.recording_lost:
             lines.append(f"  recording: {self.recordings[0]}")
         elif len(self.recordings) == 1:
@@ -776,7 +787,7 @@ class Launcher:
             lines.append(f"  RECORDING INCOMPLETE: {self.recording_lost}")
         if self.access is not None:
             lines += self.access.summary_lines()
-        if not self._own_dir or any(r.state == "failed" for r in self.runs.values()):
+        if not self._own_dir or any(r.state in ("failed", "down") for r in self.runs.values()):
             lines.append(f"  configs and logs: {self.run_dir}")
         return lines
 

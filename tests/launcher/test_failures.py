@@ -158,6 +158,28 @@ params = {{ token = true, beat = true, exit_after = 60 }}
     assert run.runs["n"].failures >= 2 and "good: NEVER LIVE" not in summary
 
 
+def test_a_node_down_when_the_run_ends_is_reported_and_the_run_exits_1(tmp_path):
+    """A node that went live, crashed and was still waiting for its restart when --until came was
+    down for the end of the run: not "stopped", and not a clean run (it exited 0)."""
+    path = write_system(tmp_path, "downatend", f"""
+[[node]]
+name = "n"
+python = "{IOTAS}:Rogue"
+params = {{ token = true, beat = true, exit_code = 3, exit_after = 0.3 }}
+backoff = 60
+[[node]]
+name = "good"
+python = "{IOTAS}:Rogue"
+params = {{ token = true, beat = true, exit_after = 60 }}
+""")
+    run, lines = in_process(tmp_path, path, node_argv=stub_argv(), until=1.5)
+    assert run.run() == 1, texts(lines)
+    assert run.runs["n"].state == "down" and run.runs["n"].went_live and run.runs["good"].state == "stopped"
+    summary = "\n".join(run.summary())
+    assert "n: DOWN AT THE END: exit 3 " in summary and "its restart still to come" in summary, summary
+    assert "NEVER LIVE" not in summary
+
+
 def test_the_launcher_says_where_its_hub_listens(tmp_path):
     """With `--port 0` the OS picks the port: the launcher's line is the only place it is told."""
     path = write_system(tmp_path, "hubline", f"""
