@@ -1142,9 +1142,18 @@ def _read_set(index: Recording, path: Path, progress: Callable[[str, int, int], 
                                      "the set's files are out of order, or one is another run's")
             last_time = max(m.log_time for m in member.messages)
         out.files.append(str(file))
+        hole = not member.complete and position < len(names) - 1
         if not member.complete:
             out.complete = False
             out.truncated_reason = f"{name}: {member.truncated_reason or 'cut short'}"
+        if hole:
+            # A file cut short before the last: what came between its end and the next file's
+            # start is missing. Read as one across that hole, the trace would run on as if
+            # nothing were missing, and a check would blame the nodes for windows that closed in
+            # it. The set reads as a recording cut short here; each later file reads alone.
+            later = names[position + 1:]
+            out.truncated_reason += (f"; a hole in the split recording: the set is read up to there, its "
+                                     f"{len(later)} later file(s) ({', '.join(later)}) each read alone")
         if member.damaged and not out.damaged:
             out.damaged = f"{name}: {member.damaged}"
         new_schema: dict[int, int] = {0: 0}
@@ -1171,6 +1180,8 @@ def _read_set(index: Recording, path: Path, progress: Callable[[str, int, int], 
                 out.metadata.setdefault(name_, data)
             elif name_ != SET_METADATA:
                 out.metadata[name_] = data
+        if hole:
+            break
     if not out.files:
         raise RecordingError(f"{path}: a split recording none of whose files exist")
     return out

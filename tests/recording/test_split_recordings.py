@@ -220,5 +220,18 @@ def test_a_set_with_another_runs_file_or_a_missing_last_file_is_never_read_as_wh
     capsys.readouterr()
     main(["info", str(cut)])
     assert "the last file the set lists, is missing" in capsys.readouterr().out
+    # a hole: a file before the last cut short. Read on across it, the trace would run on as if
+    # nothing were missing (a check then blamed the nodes for windows that closed in the hole)
+    holed = variant("holed")
+    middle = holed.parent / names[1]
+    with open(middle, "r+b") as file:
+        file.truncate(middle.stat().st_size // 2)
+    recording = read_recording(holed)
+    assert not recording.complete and "a hole in the split recording: the set is read up to there" in \
+        recording.truncated_reason and names[2] in recording.truncated_reason
+    assert [Path(f).name for f in recording.files] == names[:2]
+    up_to_hole = received(holed.parent / names[0]) + received(middle)
+    assert received(holed) == up_to_hole < source.sent
+    assert read_recording(holed.parent / names[2]).complete  # the file after the hole reads alone
     assert main(["info", str(foreign)]) == 2
     assert "belongs to another split recording" in capsys.readouterr().err
