@@ -135,16 +135,13 @@ backoff = 0.1
     assert "motor driver not found" in giveup[0]
 
 
-def test_a_run_that_ends_while_a_node_never_went_live_exits_1(tmp_path):
-    """The run's --until comes while the restart policy still retries a node that fails at every
-    start: the system never ran whole, and the exit status says so (it was 0)."""
-    path = write_system(tmp_path, "neverlive", f"""
+def run_n_beside_a_good_node(tmp_path, name: str, n_lines: str) -> tuple[Launcher, str]:
+    """A run of 1.5 s of two stand-in nodes, a healthy one and `n` (its `[[node]]` lines after
+    the name and class: `n_lines`); the run must exit 1. The launcher and its summary."""
+    path = write_system(tmp_path, name, f"""
 [[node]]
 name = "n"
-python = "{IOTAS}:Rogue"
-params = {{ exit_code = 2, exit_after = 0.0, stderr = "n: no CAN bus" }}
-max_restarts = 100
-backoff = 0.2
+python = "{IOTAS}:Rogue"{n_lines}
 [[node]]
 name = "good"
 python = "{IOTAS}:Rogue"
@@ -152,8 +149,17 @@ params = {{ token = true, beat = true, exit_after = 60 }}
 """)
     run, lines = in_process(tmp_path, path, node_argv=stub_argv(), until=1.5)
     assert run.run() == 1, texts(lines)
+    return run, "\n".join(run.summary())
+
+
+def test_a_run_that_ends_while_a_node_never_went_live_exits_1(tmp_path):
+    """The run's --until comes while the restart policy still retries a node that fails at every
+    start: the system never ran whole, and the exit status says so (it was 0)."""
+    run, summary = run_n_beside_a_good_node(tmp_path, "neverlive", """
+params = { exit_code = 2, exit_after = 0.0, stderr = "n: no CAN bus" }
+max_restarts = 100
+backoff = 0.2""")
     assert run.runs["n"].state != "failed"  # not given up: still being retried when the run ended
-    summary = "\n".join(run.summary())
     assert f"n: NEVER LIVE: it failed {run.runs['n'].failures} time(s), last with exit 2" in summary
     assert run.runs["n"].failures >= 2 and "good: NEVER LIVE" not in summary
 
@@ -161,21 +167,10 @@ params = {{ token = true, beat = true, exit_after = 60 }}
 def test_a_node_down_when_the_run_ends_is_reported_and_the_run_exits_1(tmp_path):
     """A node that went live, crashed and was still waiting for its restart when --until came was
     down for the end of the run: not "stopped", and not a clean run (it exited 0)."""
-    path = write_system(tmp_path, "downatend", f"""
-[[node]]
-name = "n"
-python = "{IOTAS}:Rogue"
-params = {{ token = true, beat = true, exit_code = 3, exit_after = 0.3 }}
-backoff = 60
-[[node]]
-name = "good"
-python = "{IOTAS}:Rogue"
-params = {{ token = true, beat = true, exit_after = 60 }}
-""")
-    run, lines = in_process(tmp_path, path, node_argv=stub_argv(), until=1.5)
-    assert run.run() == 1, texts(lines)
+    run, summary = run_n_beside_a_good_node(tmp_path, "downatend", """
+params = { token = true, beat = true, exit_code = 3, exit_after = 0.3 }
+backoff = 60""")
     assert run.runs["n"].state == "down" and run.runs["n"].went_live and run.runs["good"].state == "stopped"
-    summary = "\n".join(run.summary())
     assert "n: DOWN AT THE END: exit 3 " in summary and "its restart still to come" in summary, summary
     assert "NEVER LIVE" not in summary
 
