@@ -135,7 +135,8 @@ def _run(system, args: argparse.Namespace, writer) -> int:
     step = longest = max(until / 1000, 1e-3)
     progress = sys.stderr.isatty() and not args.plain
     next_report = started + PROGRESS_EVERY
-    interrupted = False
+    interrupted = raised = False
+    stop = None
     try:
         with _ctrl_c() as stop:
             t = 0.0
@@ -159,16 +160,19 @@ def _run(system, args: argparse.Namespace, writer) -> int:
                 print(file=sys.stderr)
                 print(f"stopped by Ctrl-C at t = {engine.now() * system.time_unit:.3f} s", file=sys.stderr)
     except KeyboardInterrupt:  # a second Ctrl-C: at once, wherever the run was
-        interrupted = True
         stopped = engine.now() * system.time_unit
+        # with no first Ctrl-C seen, a node's own code raised it (the first one only sets a flag)
+        raised = stop is not None and not stop.asked
+        interrupted = not raised
+        how = ("a node's code raised KeyboardInterrupt (no Ctrl-C was pressed)" if raised
+               else "stopped hard by a second Ctrl-C")
         print(file=sys.stderr)
-        print(f"stopped hard by a second Ctrl-C at t = {stopped:.3f} s", file=sys.stderr)
+        print(f"{how} at t = {stopped:.3f} s" + ("; the run broke off there" if raised else ""), file=sys.stderr)
         # it may have landed in the middle of a firing (an output recorded, not yet delivered):
         # the recording says the run broke off there, so that `iotad check` does not pass it
         if output is not None and not getattr(sink, "torn", False):  # torn: the writer says so
             try:
-                sink.add_metadata(RUN_ERROR, {"error": "stopped hard by a second Ctrl-C, possibly in the "
-                                                       "middle of a firing", "t": stopped})
+                sink.add_metadata(RUN_ERROR, {"error": f"{how}, possibly in the middle of a firing", "t": stopped})
             except WriterFailed:
                 pass
     except BaseException as exc:
@@ -211,7 +215,7 @@ def _run(system, args: argparse.Namespace, writer) -> int:
         print(f"  recording: {output}{where}  (iotad info|check|plot {output})")
     if interrupted:
         return 130
-    return 1 if engine.halted else 0
+    return 1 if engine.halted or raised else 0
 
 
 class _Stop:

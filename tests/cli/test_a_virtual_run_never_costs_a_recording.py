@@ -114,3 +114,34 @@ def test_a_run_broken_off_by_an_error_of_iotad_says_so_and_does_not_pass(solo, t
     assert main(["check", str(out)]) == 1
     said = capsys.readouterr().out
     assert "BROKE OFF" in said and "PROBLEMS FOUND (the run broke off)" in said
+
+
+INTERRUPTING = """
+from iotad import Internal, Iota
+
+
+class Interrupting(Iota):
+    tick = Internal()
+
+    def init(self):
+        self.ticks = 0
+
+    @tick.action(after=0.5)
+    def ticked(self):
+        self.ticks += 1
+        if self.ticks == 3:
+            raise KeyboardInterrupt  # node code's own, at t=1.5: no Ctrl-C was pressed
+"""
+
+
+def test_a_keyboard_interrupt_raised_by_node_code_is_no_ctrl_c(tmp_path, capsys):
+    (tmp_path / "interrupting.py").write_text(INTERRUPTING)
+    system = tmp_path / "interrupting.toml"
+    system.write_text('[system]\nname = "interrupting"\n\n[[node]]\nname = "n"\npython = "interrupting.py:Interrupting"\n')
+    out = tmp_path / "interrupting.mcap"
+    assert main(virtual(system, out)) == 1  # not 130: nobody interrupted the run
+    err = capsys.readouterr().err
+    assert "a node's code raised KeyboardInterrupt (no Ctrl-C was pressed) at t = 1.500 s; the run broke off" in err
+    assert "Ctrl-C at" not in err
+    recording = read_recording(out)
+    assert recording.run_error.startswith("a node's code raised KeyboardInterrupt (no Ctrl-C was pressed)")
