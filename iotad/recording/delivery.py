@@ -1065,15 +1065,26 @@ class DeliveryChecker:
             taken: dict[str, set[int]] = {s: set() for s in senders}
             last_taken: dict[str, int] = {}
             foreign: list[tuple[float, tuple]] = []
+            heard_until = -math.inf  # the latest send time among the frames it received so far
+            starts = [run[0] for run in life.runs] if life is not None and life.seen \
+                and life.virtual_end is None else []
+
+            def run_start(t: float) -> float:  # the engine start of the receiver's process at t
+                k = _last_at_or_before(starts, t)
+                return starts[k] if k >= 0 else -math.inf
             for t, frame in got:
                 best = None
                 for s in senders:
                     queue = waiting[s].get(frame)
                     if not queue:
                         continue
-                    # an older twin that waited past the window was lost, if a later twin fits
-                    while len(queue) > 1 and sent[s][queue[-1]][0] < t - window \
-                            and sent[s][queue[-2]][0] <= t + self.tolerance:
+                    # an older twin was lost if the receiver already got a frame its sender sent
+                    # after it (per-sender FIFO), or one any station sent well after it (the bus
+                    # is one FIFO): a receiver that was frozen drains its backlog in order, late
+                    while len(queue) > 1 and sent[s][queue[-2]][0] <= t + self.tolerance and (
+                            queue[-1] < last_taken.get(s, -1)
+                            or sent[s][queue[-1]][0] + window < heard_until
+                            or sent[s][queue[-1]][0] + window < run_start(t)):
                         queue.pop()
                     k = queue[-1]
                     if sent[s][k][0] <= t + self.tolerance and (best is None or sent[s][k][0] < sent[best[0]][best[1]][0]):
@@ -1084,6 +1095,7 @@ class DeliveryChecker:
                 s, k = best
                 waiting[s][frame].pop()
                 taken[s].add(k)
+                heard_until = max(heard_until, sent[s][k][0])
                 link = links[s]
                 t_sent = sent[s][k][0]
                 if k < last_taken.get(s, -1):
