@@ -116,11 +116,13 @@ def plot(recording: Recording, output: str | Path, title: str | None = None) -> 
     legend = [Line2D([], [], color=c, linewidth=2.5, label=LABELS[k]) for k, c in COLOURS.items()]
     legend += [Line2D([], [], color="#5b3a1e", linewidth=3, label="crack"),
                Line2D([], [], marker="s", color="#2a9d3f", markeredgecolor="black", linestyle="none", label="food"),
-               Line2D([], [], marker="o", color="white", markeredgecolor="black", linestyle="none", label="start")]
+               Line2D([], [], marker="o", color="white", markeredgecolor="black", linestyle="none", label="start"),
+               Line2D([], [], marker="o", color="black", linestyle="none", label="end")]
     if any(on for _, on in data["estops"]):
         legend.append(Line2D([], [], marker="X", color="#d00000", markeredgecolor="black", linestyle="none",
                              label="estop"))
-    ax.legend(handles=legend, loc="upper center", bbox_to_anchor=(0.5, -0.11), ncol=3, fontsize=8, frameon=False)
+    # under the arena, as many rows as it takes: the figure is saved with room for all of them
+    ax.legend(handles=legend, loc="upper center", bbox_to_anchor=(0.5, -0.11), ncol=4, fontsize=8, frameon=False)
 
     # hunger and fear over time, the active behaviour as a band underneath
     ts = mood_t
@@ -147,6 +149,6 @@ def plot(recording: Recording, output: str | Path, title: str | None = None) -> 
                  fontsize=12, parse_math=False)  # a title is text: "$5" is not mathtext
     fig.tight_layout()
     output = Path(output)
-    fig.savefig(output, dpi=90)
+    fig.savefig(output, dpi=90, bbox_inches="tight")  # "tight": the legend below the arena included
     plt.close(fig)
     return output
