@@ -64,7 +64,8 @@ def load(path: str, salvage: bool = False):
 
 
 def _launcher_line(event: dict, first_ns: int) -> str:
-    """`   0.334 s  live     scheduler      pid 26749` (seconds from the recording's start)."""
+    """`   0.334 s  live     scheduler      pid 26749` (seconds in the nodes' clock, as every t of the
+    report: from their origin; from the recording's first message where the specs give none)."""
     t_ns = event.get("t_ns") or event.get("log_time") or first_ns
     what = event.get("event", "?")
     node = event.get("node") or "(launcher)"
@@ -141,7 +142,11 @@ def run(args: argparse.Namespace) -> int:
     launcher = recording.launcher_events()
     if launcher:
         print(f"  launcher events: {len(launcher)}")
-        first = min([m.log_time for m in recording.messages] + [e["t_ns"] for e in launcher if e.get("t_ns")])
+        # the nodes' clock (t of every trace event, violation and delivery line above): their origin
+        origins = [spec["origin"] for spec in recording.specs.values()
+                   if isinstance(spec, dict) and isinstance(spec.get("origin"), (int, float))]
+        first = int(round(min(origins) * 1e9)) if origins else \
+            min([m.log_time for m in recording.messages] + [e["t_ns"] for e in launcher if e.get("t_ns")])
         for event in launcher[:args.violations]:
             print("    " + _launcher_line(event, first))
         if len(launcher) > args.violations:
