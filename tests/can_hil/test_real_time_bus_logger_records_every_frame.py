@@ -52,6 +52,9 @@ def test_the_log_holds_every_frame_both_stations_sent_in_their_order(pingpong):
         # frames sent before it started or in flight at the stop may be missing
         first = sent.index(heard[0])
         assert sent[first:first + len(heard)] == heard, node
+    # the frames are on the log's topic once each, and nowhere else: not once per receiver on a
+    # topic named after the CAN port's input key (`can/can0`), which said nothing of who got them
+    assert not [m.topic for m in recording.messages if not m.topic.startswith(("iota/", "@recorder/"))]
     # each answer is on the bus after the ping it answers
     order = {(f.id, f.data): k for k, f in enumerate(frames)}
     assert all(order[(0x10, f.data)] < k for k, f in enumerate(frames) if f.id == 0x11 and (0x10, f.data) in order)
