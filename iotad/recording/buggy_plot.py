@@ -38,7 +38,8 @@ def buggy_data(recording: Recording) -> dict:
     poses, moods, landmarks = (_outputs(recording, c) for c in ("pose", "mood", "landmark"))
     if not poses or not moods:
         raise RecordingError("not a Buggy recording: no node outputs both 'pose' and 'mood'")
-    path = sorted(next(iter(poses.values())), key=lambda p: p[0])
+    world = next(iter(poses))
+    path = sorted(poses[world], key=lambda p: p[0])
     mood = sorted(next(iter(moods.values())), key=lambda p: p[0])
     arena = {"walls": None, "cracks": [], "food": {}, "eaten": []}
     for t, mark in sorted(next(iter(landmarks.values()), []), key=lambda p: p[0]):
@@ -46,14 +47,30 @@ def buggy_data(recording: Recording) -> dict:
         if kind == "WALL":
             arena["walls"] = (mark["x1"], mark["y1"], mark["x2"], mark["y2"])
         elif kind == "CRACK":
-            arena["cracks"].append(((mark["x1"], mark["x2"]), (mark["y1"], mark["y2"])))
+            crack = ((mark["x1"], mark["x2"]), (mark["y1"], mark["y2"]))
+            if crack not in arena["cracks"]:  # a restarted world says its landmarks again
+                arena["cracks"].append(crack)
         elif kind == "FOOD":
             arena["food"][mark["id"]] = (mark["x1"], mark["y1"])
         elif kind == "EATEN":
             arena["eaten"].append((t, mark["id"]))
     estops = sorted((float(e["t"]) * recording.time_unit, bool(e.get("value"))) for e in recording.trace()
                     if e.get("kind") == "input" and e.get("action") == "estop")
-    return {"path": path, "mood": mood, "arena": arena, "estops": estops}
+    restarts = [t * recording.time_unit for t in recording.restart_times(world)]
+    return {"path": path, "mood": mood, "arena": arena, "estops": estops, "world": world, "restarts": restarts}
+
+
+def _runs(path: list, restarts: list[float]) -> list[list]:
+    """`path` cut at each restart of the world node: the poses of each of its runs."""
+    runs: list[list] = [[]]
+    cuts = iter(sorted(restarts))
+    cut = next(cuts, float("inf"))
+    for t, pose in path:
+        while t >= cut:
+            runs.append([])
+            cut = next(cuts, float("inf"))
+        runs[-1].append((t, pose))
+    return runs
 
 
 def _pose_at(path: list, t: float) -> dict | None:
@@ -93,14 +110,21 @@ def plot(recording: Recording, output: str | Path, title: str | None = None) -> 
         ax.plot(fx, fy, marker="s", color="#2a9d3f", markersize=8, markeredgecolor="black", zorder=2,
                 linestyle="none")
     segments, colours = [], []
-    for (t0, a), (t1, b) in zip(path, path[1:]):
-        segments.append([(a["x"], a["y"]), (b["x"], b["y"])])
-        colours.append(COLOURS.get(doing_at(t1), "0.5"))
+    restarts = data["restarts"]
+    for run in _runs(path, restarts):  # no line from the last pose of a world to the first of the next
+        for (t0, a), (t1, b) in zip(run, run[1:]):
+            segments.append([(a["x"], a["y"]), (b["x"], b["y"])])
+            colours.append(COLOURS.get(doing_at(t1), "0.5"))
     ax.add_collection(LineCollection(segments, colors=colours, linewidths=1.6, zorder=3))
     if path:
         start, end = path[0][1], path[-1][1]
         ax.plot(start["x"], start["y"], marker="o", color="white", markeredgecolor="black", markersize=9, zorder=4)
         ax.plot(end["x"], end["y"], marker="o", color="black", markersize=7, zorder=4)
+    for t in restarts:  # where the new world put Buggy
+        pose = next((p for tp, p in path if tp >= t), None)
+        if pose is not None:
+            ax.plot(pose["x"], pose["y"], marker="D", color="white", markeredgecolor="#6a1b9a", markersize=8,
+                    zorder=5, linestyle="none")
     for t, on in data["estops"]:
         pose = _pose_at(path, t)
         if on and pose is not None:
@@ -110,7 +134,8 @@ def plot(recording: Recording, output: str | Path, title: str | None = None) -> 
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
     eaten = len(arena["eaten"])
-    bumps = path[-1][1].get("bumps", 0) if path else 0
+    # each run of the world counts its bumps from 0: the counts the runs ended with, summed
+    bumps = sum(run[-1][1].get("bumps", 0) for run in _runs(path, restarts) if run)
     ax.set_title(f"path ({path[-1][0] - path[0][0]:.0f} s): {eaten} food eaten, {bumps} bumps" if path else "path",
                  fontsize=10)
     legend = [Line2D([], [], color=c, linewidth=2.5, label=LABELS[k]) for k, c in COLOURS.items()]
@@ -121,6 +146,9 @@ def plot(recording: Recording, output: str | Path, title: str | None = None) -> 
     if any(on for _, on in data["estops"]):
         legend.append(Line2D([], [], marker="X", color="#d00000", markeredgecolor="black", linestyle="none",
                              label="estop"))
+    if restarts:
+        legend.append(Line2D([], [], marker="D", color="white", markeredgecolor="#6a1b9a", linestyle="none",
+                             label=f"{data['world']} restarted: a new world"))
     # under the arena, as many rows as it takes: the figure is saved with room for all of them
     ax.legend(handles=legend, loc="upper center", bbox_to_anchor=(0.5, -0.11), ncol=4, fontsize=8, frameon=False)
 
@@ -134,6 +162,10 @@ def plot(recording: Recording, output: str | Path, title: str | None = None) -> 
         bx.axvspan(t0, t1, ymin=0, ymax=0.05, color=COLOURS.get(m.get("doing"), "0.5"), linewidth=0)
     for t, _ in arena["eaten"]:
         bx.axvline(t, color="#2a9d3f", linewidth=0.8, alpha=0.6)
+    for t in restarts:
+        bx.axvline(t, color="#6a1b9a", linewidth=1.6, linestyle="-.")
+        bx.annotate(f"{data['world']} restarted", (t, top), xytext=(3, -24), textcoords="offset points",
+                    color="#6a1b9a", fontsize=8)
     for t, on in data["estops"]:  # estop on: red; released: grey
         bx.axvline(t, color="#d00000" if on else "0.4", linewidth=1.6, linestyle="--")
         bx.annotate("estop" if on else "estop off", (t, top), xytext=(3, -12), textcoords="offset points",

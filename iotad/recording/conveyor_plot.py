@@ -28,7 +28,7 @@ def conveyor_data(recording: Recording) -> dict:
     """tally [(t, counts)], picks [t], spans [(start, end, requester index)], acks [(t, index, ack)],
     the scheduler's node and the end time; RecordingError if it is no conveyor recording."""
     tally, picks, commands, acks, owners = [], [], [], [], {}
-    scheduler, end = None, 0.0
+    scheduler, world, end = None, None, 0.0
     unit = recording.time_unit  # events count spec units; the picture shows seconds
     for event in recording.trace():
         t, kind, action = float(event.get("t", 0.0)) * unit, event.get("kind"), event.get("action")
@@ -36,6 +36,7 @@ def conveyor_data(recording: Recording) -> dict:
         value = event.get("value")
         if kind == "output" and action == "tally":
             tally.append((t, value))
+            world = event.get("node")
         elif kind == "output" and action == "pick":
             picks.append(t)
         elif kind == "input" and action == "req" and isinstance(value, dict) and isinstance(value.get("control"), dict):
@@ -48,8 +49,24 @@ def conveyor_data(recording: Recording) -> dict:
     if not tally or scheduler is None:
         raise RecordingError("not a conveyor recording: no node outputs both 'tally' and 'mdl_command'")
     spans = [(t, commands[k + 1][0] if k + 1 < len(commands) else end, who) for k, (t, who) in enumerate(commands)]
-    return {"tally": sorted(tally, key=lambda p: p[0]), "picks": picks, "spans": spans, "acks": acks,
-            "scheduler": scheduler, "end": end}
+    restarts = [t * unit for t in recording.restart_times(world)]
+    return {"tally": _across_restarts(sorted(tally, key=lambda p: p[0]), restarts), "picks": picks, "spans": spans,
+            "acks": acks, "scheduler": scheduler, "end": end, "world": world, "restarts": restarts}
+
+
+def _across_restarts(tally: list[tuple[float, dict]], restarts: list[float]) -> list[tuple[float, dict]]:
+    """The world's counts over the whole run: a restarted world node counts from 0 in a new
+    world, so each count (but `held`, an object in the hand now) goes on from where the runs
+    before it ended."""
+    out, carried, last, cuts = [], {}, None, sorted(restarts)
+    for t, counts in tally:
+        while cuts and t >= cuts[0]:
+            cuts.pop(0)
+            if last is not None:
+                carried = {key: carried.get(key, 0) + last.get(key, 0) for key, _, _ in COUNTS}
+        last = counts
+        out.append((t, dict(counts, **{key: counts.get(key, 0) + carried.get(key, 0) for key, _, _ in COUNTS})))
+    return out
 
 
 def plot(recording: Recording, output: str | Path, title: str | None = None) -> Path:
@@ -69,6 +86,9 @@ def plot(recording: Recording, output: str | Path, title: str | None = None) -> 
     top.fill_between(times, 0, held + held[-1:], step="post", color="#3a6ea5", alpha=0.25, label="an object in the hand")
     for k, t in enumerate(data["picks"]):
         top.axvline(t, color="#3a6ea5", lw=0.6, ls=":", label="pick goal (planning)" if k == 0 else None)
+    for k, t in enumerate(data["restarts"]):  # a new world: its counts go on from the old one's
+        top.axvline(t, color="#6a1b9a", lw=1.6, ls="-.",
+                    label=f"{data['world']} restarted: a new world" if k == 0 else None)
     final = data["tally"][-1][1]
     top.set_ylabel("objects")
     top.set_title(title or f"conveyor arm: {final['placed']} of {final['spawned']} objects placed in the bin "

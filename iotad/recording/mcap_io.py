@@ -870,7 +870,7 @@ class Recording:
 
         unit = self.info.get("time_unit")
         if not usable(unit):  # a recording without the metadata: its specs say it, if they agree
-            units = {spec.get("time_unit") for spec in self.specs().values()}
+            units = {spec.get("time_unit") for spec in self.specs.values()}
             unit = units.pop() if len(units) == 1 else None
         return float(unit) if usable(unit) else 1.0
 
@@ -959,6 +959,13 @@ class Recording:
             at = next((k for k, e in enumerate(events) if float(e["t"]) > since), len(events))
             events.insert(at, made)
         return events
+
+    def restart_times(self, node: str) -> list[float]:
+        """When each process after the first that ran `node` started its engine (spec units, the
+        node's clock): a restarted node begins again from its initial state (a world node, from a
+        new world), which a picture of the run must not join to what came before."""
+        starts = [float(e["t"]) for e in self.process_trace(node) if e.get("kind") == wire.START_KIND]
+        return starts[1:]
 
     def violations(self) -> list[dict]:
         return [e for e in self.trace() if e.get("kind") == "violation"]
