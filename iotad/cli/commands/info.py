@@ -1,5 +1,6 @@
-"""`iotad info`: what a recording holds: nodes, channels, message counts, duration, violations, gaps,
-and per binding how many messages were delivered, lost, altered, duplicated or unexplained."""
+"""`iotad info`: what a recording holds: nodes, channels, message counts, duration, where each
+motor joint was at the end, violations, gaps, and per binding how many messages were delivered,
+lost, altered, duplicated or unexplained."""
 from __future__ import annotations
 
 import argparse
@@ -83,6 +84,41 @@ def _launcher_line(event: dict, first_ns: int) -> str:
     return "  ".join(parts)
 
 
+def _joints_at_the_end(recording) -> list[str]:
+    """Where each joint of a motor node (a node with `joint_status[i]` outputs: the CAN motor
+    node's) was when the recording ends: a robot whose axes went to FAULT and stayed there (a
+    controller restarted, a trip) stops, with no violation to say so; this says it."""
+    last: dict[str, dict[int, dict]] = {}   # node -> joint -> its last status
+    since: dict[str, dict[int, tuple]] = {}  # node -> joint -> (when, event) its phase became that one
+    unit = recording.time_unit
+    for event in recording.trace():
+        value = event.get("value")
+        if event.get("kind") != "output" or event.get("action") != "joint_status" or not isinstance(value, dict):
+            continue
+        node, joint = event["node"], event.get("index")
+        before = last.setdefault(node, {}).get(joint)
+        if before is None or (before.get("phase"), before.get("lost")) != (value.get("phase"), value.get("lost")):
+            since.setdefault(node, {})[joint] = (float(event["t"]) * unit, value.get("event"))
+        last[node][joint] = value
+    lines = []
+    for node, joints in sorted(last.items()):
+        groups: dict[tuple, list[int]] = {}
+        for joint, value in sorted(joints.items(), key=lambda item: (item[0] is None, item[0] or 0)):
+            groups.setdefault((value.get("phase"), bool(value.get("lost"))), []).append(joint)
+        parts = []
+        for (phase, lost), members in sorted(groups.items(), key=lambda item: (item[0][0] != "ARMED", str(item[0]))):
+            state = f"{phase}{' and LOST' if lost else ''}"
+            if phase == "ARMED" and not lost:
+                parts.append(f"{len(members)} of {len(joints)} joints ARMED")
+                continue
+            first = min(since[node][j][0] for j in members)
+            causes = sorted({str(since[node][j][1]) for j in members})  # the events that brought them there
+            parts.append(f"joint(s) {', '.join(str(j) for j in members)} {state} since t={first:.3f} s "
+                         f"({'/'.join(causes)})")
+        lines.append(f"  joints at the end: {node}: {'; '.join(parts)}")
+    return lines
+
+
 def _delivery(recording, limit: int) -> None:
     """The per-binding delivery summary (`iotad check` has the full report: docs/checking.md)."""
     from iotad.recording.delivery import check_delivery
@@ -129,6 +165,8 @@ def run(args: argparse.Namespace) -> int:
     for topic, count in sorted(recording.topics().items()):
         schema = recording.schema_of(topic)
         print(f"    {topic:<48} {count:>8}  {schema.name if schema else '-'}")
+    for line in _joints_at_the_end(recording):
+        print(line)
     violations = recording.violations()
     print(f"  violations: {len(violations)}")
     for event in violations[:args.violations]:
