@@ -570,7 +570,8 @@ class Launcher:
         except Exception as exc:  # noqa: BLE001 - a closing session; the nodes are being stopped
             self.view.line(f"warning: cannot open the start gate {self.gate_key}: {exc}")
             return
-        self._launcher_event("gate", f"start gate open: all {len(self.runs)} nodes are live or ended; their engines start now")
+        self._launcher_event("gate", f"start gate open: all {len(self.runs)} nodes are live or ended; "
+                                     "their engines start now")
 
     def _recorder_alive(self) -> None:
         """Kill a recorder that gave no sign of life for RECORDER_STALL s (SIGSTOP, a hung write):
