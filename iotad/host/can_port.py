@@ -19,6 +19,7 @@ from iotad.host.host_clock import RawInput
 from iotad.kernel.types import to_plain
 
 CAN_TX, CAN_RX = "can_tx", "can_rx"
+KEY_PREFIX = "can/"  # an input trace event's `key` for a frame from the bus: can/<bus> (no zenoh key)
 RETRY = 0.1  # s between receive attempts on a bus that fails (an interface gone down): no busy loop
 
 # What the reader thread saw that no IOTA can take, as the violations the host records (on can_rx):
@@ -39,7 +40,7 @@ class CanPort:
                  now: Callable[[], float] = lambda: 0.0):
         self.config, self.post, self.now = config, post, now
         self.name = config["bus"]
-        self.key = f"can/{self.name}"  # what an input trace event names as where it came from
+        self.key = f"{KEY_PREFIX}{self.name}"  # what an input trace event names as where it came from
         self.bus = None
         self.sent = self.received = self.send_errors = self.unusable = 0
         self._stop = threading.Event()

@@ -36,6 +36,7 @@ from dataclasses import dataclass, field
 from typing import Any, Iterable
 
 from iotad.host import wire
+from iotad.host.can_port import KEY_PREFIX as CAN_KEY_PREFIX
 from iotad.kernel.engine import INPUT_REFUSALS
 from iotad.launcher.system_file import Port  # one concrete channel, as the system file names it
 from iotad.recording.mcap_io import RecordedMessage, Recording, packb, unpackb
@@ -994,7 +995,7 @@ class DeliveryChecker:
                     if self._inside_composite(node, event.iota):
                         continue  # one part of a composite node to another, in its own process
                     key = "(input script)"  # virtual time: posted into an external input
-                elif key.startswith("can/") or node in system.bus_nodes:
+                elif key.startswith(CAN_KEY_PREFIX) or node in system.bus_nodes:
                     continue  # a CAN frame: the bus check's
                 elif key in bound_keys.get(port, ()) or any(key in keys for p, keys in bound_keys.items()
                                                             if p.node == node):

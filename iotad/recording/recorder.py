@@ -43,11 +43,11 @@ import msgpack
 import zenoh
 
 from iotad.host import wire
+from iotad.host.can_port import KEY_PREFIX as CAN_KEY_PREFIX
 from iotad.recording.mcap_io import (FORMAT, GAP_TOPIC, MALFORMED_TOPIC, McapSink, trace_event_problem,
                                      channel_schemas, member_path, packb, schema_for_topic, write_set_file)
 from iotad.host.transport import DEFAULT_LISTEN, open_session
 
-CAN_INPUT_PREFIX = "can/"  # the key a CAN port's input events name (iotad/host/can_port.py)
 _MAPS = ("/@launcher", "/@heartbeat")  # keys whose payload every reader takes for a msgpack map
 NICENESS = 10  # a tenth of a normal process's CPU share when both want the CPU
 _NEVER = 1 << 62  # the next `seq` of a stream whose last burst could not be counted: no gap is seen
@@ -508,7 +508,7 @@ class Recorder:
             return 0  # a node host older than these fields: its trace holds its events still
         if event.get("kind") == "output":
             self._output_keys.add(key)
-        elif key.startswith(CAN_INPUT_PREFIX) or not self._unexplained(key, trace_key):
+        elif key.startswith(CAN_KEY_PREFIX) or not self._unexplained(key, trace_key):
             # a CAN frame a station received (`can/<bus>`, no zenoh key): the receiver's trace
             # holds it and the bus log the frame itself; a topic of its own would hold it once
             # per receiving station, with nothing saying which
