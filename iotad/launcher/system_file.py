@@ -524,11 +524,6 @@ class _Parser:
                 node.required = raw["required"]
             else:
                 self.error(entry, f"required must be true or false, got {raw['required']!r}")
-        if "start_gate" in raw:
-            if isinstance(raw["start_gate"], bool):
-                system.start_gate = raw["start_gate"]
-            else:
-                self.error(entry, f"start_gate must be true or false, got {raw['start_gate']!r}")
         if "input_queue" in raw:
             if _queue_size(raw["input_queue"]):
                 node.input_queue = raw["input_queue"]

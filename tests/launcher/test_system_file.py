@@ -132,6 +132,8 @@ CASES = [
     ("start_gate not a boolean", '[system]\nname = "t"\nstart_gate = "no"\n[[node]]\nname = "d"\npython = "IOTAS:Stub"\n',
      '[system]\nname = "t"\nstart_gate = false\n[[node]]\nname = "d"\npython = "IOTAS:Stub"\n',
      "start_gate must be true or false, got 'no'"),
+    ("start_gate in a node, not in [system]", '[[node]]\nname = "d"\npython = "IOTAS:Stub"\nstart_gate = false\n',
+     '[system]\nstart_gate = false\n[[node]]\nname = "d"\npython = "IOTAS:Stub"\n', "unknown key 'start_gate'"),
     ("bad time_unit", '[system]\nname = "t"\ntime_unit = 0\n[[node]]\nname = "d"\npython = "IOTAS:Stub"\n',
      '[system]\nname = "t"\ntime_unit = 0.001\n[[node]]\nname = "d"\npython = "IOTAS:Stub"\n', "time_unit"),
     ("bind unknown node", ss(sink="Sink", to="dts.inp"), ss(sink="Sink", to="dst.inp"),
