@@ -26,15 +26,21 @@ own). The bus models a classic CAN bus at `bitrate`:
   busy time over elapsed time as of that report.
   `bus_summary(trace, ...)` gives the exact figures over any span from a trace.
 
+- Queues: a station's queue holds at most `queue_limit` frames (1000; 0: no limit). A frame
+  posted to a full one is refused, as a controller's full transmit queue refuses it (SocketCAN:
+  ENOBUFS): it never reaches the bus, and `refused[k]` reports how many were refused, one event
+  per `load_period` at most. A station that floods the bus (a cyclic period shorter than its
+  frames take) then costs the run a count, not memory without bound.
+
 Bind station k's `can_tx` to `tx[k]` and `rx[k]` to its `can_rx`. The bus does not model error
-frames, bus-off or acknowledgement: every frame is delivered.
+frames, bus-off or acknowledgement: every frame it takes onto the bus is delivered.
 """
 from __future__ import annotations
 
 from iotad.esprit.runtime import esprit_now
 from iotad.kernel.api import Input, Internal, Iota, Output, Param
 from iotad.kernel.engine import TIME_GRID
-from iotad.kernel.types import Float
+from iotad.kernel.types import Float, Int
 
 from .bit_timing import frame_bits
 from .frame import CAN_FRAME, STANDARD_ID_MAX, Frame
@@ -61,11 +67,13 @@ class CanBus(Iota):
     station_queue = Param("fifo")    # "fifo" (SocketCAN) or "priority" (lowest id of a station first)
     load_period = Param(0.1)         # seconds between `load` reports; 0: no reports
     log_frames = Param(True)         # every frame carried out on `frames` (one recorded topic per bus)
+    queue_limit = Param(1000)        # frames a station's queue holds; one more is refused (0: no limit)
 
     tx = Input(CAN_FRAME, size="stations", switching=0)
     rx = Output(CAN_FRAME, size="stations", switching=0)
     load = Output(Float(0, None), switching=0)
     frames = Output(CAN_BUS_FRAME, switching=0)
+    refused = Output(Int(0, None), size="stations", switching=0)  # frames a full queue refused, per report
     rearbitrated = Internal(CAN_FRAME, switching=0)  # its value: the frame that won late
     finish = Internal(CAN_FRAME, switching=0)        # its value: the frame that ended unheard
 
@@ -90,6 +98,7 @@ class CanBus(Iota):
         self.max_waiting = 0
         self.queued = 0               # frames waiting, all stations
         self.log = []                 # CAN_BUS_FRAME records of frames that ended, not yet out
+        self.refusals = [0] * self.stations  # frames each station's full queue refused, not yet reported
         self._others = [frozenset(range(self.stations)) - {k} for k in range(self.stations)]
         self._bit_steps = round(TIME_GRID / self.bitrate)  # the SOF bit, in steps of the engine's time grid
 
@@ -105,6 +114,11 @@ class CanBus(Iota):
         # queued; taken onto the bus it would fail at every delivery and stop the bus
         if not frame.extended and frame.id > STANDARD_ID_MAX:
             Frame.from_value(frame)  # raises FrameError, in the frame module's words
+        if self.queue_limit and len(self.waiting[i]) >= self.queue_limit:
+            # a controller's transmit queue is finite (SocketCAN says ENOBUFS): the frame is lost,
+            # and a flood costs the run a count, not memory without bound
+            self.refusals[i] += 1
+            return
         self.waiting[i].append(frame)
         self.queued += 1
         if self.queued > self.max_waiting:
@@ -178,6 +192,13 @@ class CanBus(Iota):
                 heads.append((arbitration_key(queue[position]), station, position))
         _, station, position = min(heads)  # equal ids (an error on a real bus): the lower station
         return station, position, self.waiting[station][position]
+
+    # How many frames station i's full queue refused: one report per load period (0.1 s if the
+    # reports are off) however many came, so that a flood is not one event per frame.
+    @refused.action(value=lambda self, i: self.refusals[i], when=lambda self, i: self.refusals[i] > 0,
+                    after=lambda self, i: self.load_period or 0.1)
+    def reported_refusals(self, i):
+        self.refusals[i] = 0
 
     @frames.action(value=lambda self: self.log[0], when=lambda self: bool(self.log), after=0)
     def logged(self):

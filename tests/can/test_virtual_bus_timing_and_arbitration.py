@@ -256,6 +256,31 @@ def test_a_frame_no_controller_could_send_is_refused_once_and_the_bus_goes_on():
     assert bus.frames == 2 and not any(bus.waiting)
 
 
+def test_a_full_station_queue_refuses_frames_and_reports_how_many_once_per_period():
+    """A station's queue holds `queue_limit` frames: what is posted beyond is refused (never on the
+    bus), and `refused[k]` says how many, once per load period, not once per frame."""
+    net, bus, members = system(stations=2, queue_limit=5, load_period=0.01)
+    engine = Engine(net)
+    for k in range(12):  # all at once: the first goes on the bus, five wait, six are refused
+        engine.post("net/s0", "send", Frame(0x100 + k, bytes([k])).to_value(), t=0.0)
+    for k in range(3):   # later, with room again: carried
+        engine.post("net/s0", "send", Frame(0x200 + k, bytes([k])).to_value(), t=0.02)
+    trace = engine.run(until=0.05)
+    assert [f.id for f in members[1].heard] == [0x100 + k for k in range(6)] + [0x200, 0x201, 0x202]
+    refused = [(e["t"], e["index"], e["value"]) for e in trace if e["action"] == "refused"]
+    assert refused == [(0.01, 0, 6)]
+    assert not [e for e in trace if e["kind"] == "violation"] and bus.refusals == [0, 0]
+
+
+def test_without_a_queue_limit_nothing_is_refused():
+    net, bus, members = system(stations=2, queue_limit=0, load_period=0.01)
+    engine = Engine(net)
+    for k in range(1500):
+        engine.post("net/s0", "send", Frame(0x100, bytes([k % 256])).to_value(), t=0.0)
+    trace = engine.run(until=0.5)
+    assert len(members[1].heard) == 1500 and not [e for e in trace if e["action"] == "refused"]
+
+
 @pytest.mark.parametrize("bitrate", [250_000, 500_000, 1_000_000])
 def test_the_start_of_frame_bit_ends_on_the_engines_time_grid_whatever_the_start(bitrate):
     """A frame posted exactly one bit after the SOF waits; one nanosecond earlier it takes part.
