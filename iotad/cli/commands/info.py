@@ -84,14 +84,13 @@ def _launcher_line(event: dict, first_ns: int) -> str:
     return "  ".join(parts)
 
 
-def _joints_at_the_end(recording) -> list[str]:
+def _joints_at_the_end(trace: list[dict], unit: float) -> list[str]:
     """Where each joint of a motor node (a node with `joint_status[i]` outputs: the CAN motor
     node's) was when the recording ends: a robot whose axes went to FAULT and stayed there (a
     controller restarted, a trip) stops, with no violation to say so; this says it."""
     last: dict[str, dict[int, dict]] = {}   # node -> joint -> its last status
     since: dict[str, dict[int, tuple]] = {}  # node -> joint -> (when, event) its phase became that one
-    unit = recording.time_unit
-    for event in recording.trace():
+    for event in trace:
         value = event.get("value")
         if event.get("kind") != "output" or event.get("action") != "joint_status" or not isinstance(value, dict):
             continue
@@ -151,8 +150,9 @@ def run(args: argparse.Namespace) -> int:
     print(f"  duration: {recording.duration():.3f} s   messages: {len(recording.messages)}   "
           f"attachments: {', '.join(a.name for a in recording.attachments) or 'none'}")
     specs = recording.specs
+    trace = recording.trace()  # decoded once: every section below reads it
     trace_counts: dict[str, int] = {}
-    for event in recording.trace():
+    for event in trace:
         trace_counts[event["node"]] = trace_counts.get(event["node"], 0) + 1
     print("  nodes:")
     for node in recording.nodes():
@@ -165,9 +165,9 @@ def run(args: argparse.Namespace) -> int:
     for topic, count in sorted(recording.topics().items()):
         schema = recording.schema_of(topic)
         print(f"    {topic:<48} {count:>8}  {schema.name if schema else '-'}")
-    for line in _joints_at_the_end(recording):
+    for line in _joints_at_the_end(trace, recording.time_unit):
         print(line)
-    violations = recording.violations()
+    violations = [event for event in trace if event.get("kind") == "violation"]
     print(f"  violations: {len(violations)}")
     for event in violations[:args.violations]:
         value = event.get("value") or {}
