@@ -111,7 +111,8 @@ def plot(recording: Recording, output: str | Path, title: str | None = None) -> 
                 linestyle="none")
     segments, colours = [], []
     restarts = data["restarts"]
-    for run in _runs(path, restarts):  # no line from the last pose of a world to the first of the next
+    runs = _runs(path, restarts)  # one list of poses per world
+    for run in runs:  # no line from the last pose of a world to the first of the next
         for (t0, a), (t1, b) in zip(run, run[1:]):
             segments.append([(a["x"], a["y"]), (b["x"], b["y"])])
             colours.append(COLOURS.get(doing_at(t1), "0.5"))
@@ -135,7 +136,7 @@ def plot(recording: Recording, output: str | Path, title: str | None = None) -> 
     ax.set_ylabel("y (m)")
     eaten = len(arena["eaten"])
     # each run of the world counts its bumps from 0: the counts the runs ended with, summed
-    bumps = sum(run[-1][1].get("bumps", 0) for run in _runs(path, restarts) if run)
+    bumps = sum(run[-1][1].get("bumps", 0) for run in runs if run)
     ax.set_title(f"path ({path[-1][0] - path[0][0]:.0f} s): {eaten} food eaten, {bumps} bumps" if path else "path",
                  fontsize=10)
     legend = [Line2D([], [], color=c, linewidth=2.5, label=LABELS[k]) for k, c in COLOURS.items()]
