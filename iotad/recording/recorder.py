@@ -50,6 +50,7 @@ from iotad.host.transport import DEFAULT_LISTEN, open_session
 
 _MAPS = ("/@launcher", "/@heartbeat")  # keys whose payload every reader takes for a msgpack map
 NICENESS = 10  # a tenth of a normal process's CPU share when both want the CPU
+_UNDECODABLE = object()  # what `_decoded` gives for a payload that is no msgpack
 _NEVER = 1 << 62  # the next `seq` of a stream whose last burst could not be counted: no gap is seen
 
 
@@ -413,12 +414,8 @@ class Recorder:
         the message each output or input event describes. A payload that is no event and no
         burst, or an element that is no event, is a recorded problem (`MALFORMED_TOPIC`), never
         an error. Returns (messages written, events the burst held: its length in `seq`)."""
-        try:
-            value = self._unpack(data)
-        except Exception as exc:  # noqa: BLE001 - msgpack raises several unrelated types
-            detail = str(exc) or f"starts {data[:16].hex(' ')}"  # some msgpack errors say nothing
-            self._malformed(key, sequence, f"undecodable msgpack ({len(data)} bytes): {type(exc).__name__}: {detail}",
-                            data, receipt_ns)
+        value = self._decoded(key, sequence, data, receipt_ns)
+        if value is _UNDECODABLE:
             return 0, _NEVER - sequence
         if value.__class__ is dict:
             events, single = (value,), True
@@ -479,16 +476,23 @@ class Recorder:
     def _is_map(self, key: str, sequence: int, data: bytes, receipt_ns: int) -> bool:
         """Whether an `@launcher` or `@heartbeat` payload is a msgpack map; if not, it is recorded
         on `MALFORMED_TOPIC` (a rogue or broken publisher must not make the file unreadable)."""
-        try:
-            value = self._unpack(data)
-        except Exception as exc:  # noqa: BLE001 - msgpack raises several unrelated types
-            self._malformed(key, sequence, f"undecodable msgpack ({len(data)} bytes): {type(exc).__name__}", data,
-                            receipt_ns)
+        value = self._decoded(key, sequence, data, receipt_ns)
+        if value is _UNDECODABLE:
             return False
         if value.__class__ is not dict:
             self._malformed(key, sequence, f"a {type(value).__name__}, not a map", data, receipt_ns)
             return False
         return True
+
+    def _decoded(self, key: str, sequence: int, data: bytes, receipt_ns: int) -> Any:
+        """The msgpack value of a payload, or `_UNDECODABLE` (recorded on `MALFORMED_TOPIC`)."""
+        try:
+            return self._unpack(data)
+        except Exception as exc:  # noqa: BLE001 - msgpack raises several unrelated types
+            detail = str(exc) or f"starts {data[:16].hex(' ')}"  # some msgpack errors say nothing
+            self._malformed(key, sequence, f"undecodable msgpack ({len(data)} bytes): {type(exc).__name__}: {detail}",
+                            data, receipt_ns)
+            return _UNDECODABLE
 
     def _malformed(self, key: str, sequence: int, message: str, data: bytes, receipt_ns: int) -> None:
         """Record what could not be read as trace events: on `MALFORMED_TOPIC` (key, seq, why, and
