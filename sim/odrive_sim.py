@@ -200,6 +200,11 @@ class SimulatedOdrives(Iota):
                 return axis
         raise KeyError(f"no axis drives joint {joint!r}; driven: {[self.joint_names[i] for i, _, _ in self.driven]}")
 
+    def can_node_ids(self) -> tuple[str, dict[int, str]]:
+        """("device", {node id: joint}): the ids this station answers to on its bus (the system
+        file's check refuses two stations answering one id)."""
+        return "device", {axis.node_id: self.joint_names[index] for index, axis, _ in self.driven}
+
     def close(self) -> None:
         """Close the world (its PyBullet client)."""
         if self.plant is not None:

@@ -284,6 +284,7 @@ class _Parser:
     def __init__(self, path: Path, data: dict):
         self.path, self.data, self.errors = path.resolve(), data, []
         self.unbuilt: set[str] = set()  # nodes whose IOTA could not be made: their channels are unknown
+        self.can_claims: dict[str, tuple[str, dict[int, str]]] = {}  # node -> its `can_node_ids()`
         self.base = self.path.parent
         self.file = path.name
 
@@ -538,6 +539,9 @@ class _Parser:
                                    "its module or init may block (Ctrl-C stops)"):
                     instance = instantiate(node)
                 node.channels = channel_table(instance)
+                claims = getattr(instance, "can_node_ids", None)
+                if callable(claims):
+                    self.can_claims[node.name] = claims()
             except Exception as exc:  # noqa: BLE001 - whatever the spec raises is the user's message
                 message = str(exc).strip() or type(exc).__name__
                 if "\n" in message:  # an ESPRIT error: keep its caret picture, indented
@@ -758,6 +762,21 @@ class _Parser:
                                               f"of type canFrame to sit on a CAN bus")
                     elif channel.type is None or getattr(channel.type, "name", None) != "canFrame":
                         self.error(bus.entry, f"{station}.{name} carries {_type_name(channel.type)}, not canFrame")
+            self.check_node_ids(bus)
+
+    # Two devices answering one node id garble each other's replies; two hosts commanding one
+    # axis bypass the scheduler that should arbitrate them. Neither shows as an error on a real
+    # bus (the frames are well-formed), only as a robot that misbehaves: said here, before it runs.
+    def check_node_ids(self, bus) -> None:
+        claimed: dict[tuple[str, int], tuple[str, str]] = {}
+        for station in bus.stations:
+            role, ids = self.can_claims.get(station, (None, {}))
+            for node_id, label in sorted(ids.items()):
+                first = claimed.setdefault((role, node_id), (station, label))
+                if first[0] != station:
+                    what = "answered by two devices" if role == "device" else "commanded by two hosts"
+                    self.error(bus.entry, f"CAN node id {node_id} is {what}: {first[0]} ({first[1]}) and "
+                                          f"{station} ({label}); every axis on a bus needs a node id of its own")
 
     def check_inputs_covered(self, system: System) -> None:
         bound = {b.target for b in system.bindings}

@@ -138,6 +138,11 @@ class CanMotor(Iota):
         self.setpoints_tick = -1 << 62  # the tick of the last setpoints message (none yet)
         self.states_due = False
 
+    def can_node_ids(self) -> tuple[str, dict[int, str]]:
+        """("host", {node id: joint}): the axes this station commands (the system file's check
+        refuses two hosts commanding one axis on a bus)."""
+        return "host", {joint.node_id: joint.name for joint in self.joint_map}
+
     # ------------------------------------------------------------------ inputs
     @setpoints.input
     def on_setpoints(self, value):
