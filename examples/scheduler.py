@@ -57,6 +57,9 @@ class Scheduler(Iota):
                    after=lambda self, i: self.request[i].command.timeout)
     def on_reject(self, i):
         self.request[i].status = REJECTED
+        if self.current_master == i:  # a STARTING request is the master: the motors are free again
+            self.current_master = None
+            self.current_priority = 0
 
     @mdl_command.action(value=lambda self: self.request[self.current_master].command.control,
                         when=lambda self: self.current_master is not None

@@ -28,6 +28,10 @@ SCENARIOS = {
     "timeout_reject": [req(0.0, 0, 5, epoch=5.0), req(0.5, 1, 1, timeout=1.0)],
     "lower_waits_then_runs": [req(0.0, 0, 5, epoch=2.0), req(0.5, 1, 1, epoch=1.0, timeout=10.0)],
     "input_sooner_than_switching": [req(0.0, 0, 1), req(0.5, 0, 1)],
+    # req[1] takes the motors at 0.4 but its mode waits for mdl_command's switching time (until
+    # 1.0), and it times out at 0.7: the motors are free again for the priority-4 request at 8
+    "rejected_master_frees_the_motors": [req(0.0, 0, 1, epoch=4.0), req(0.4, 1, 5, timeout=0.3),
+                                         req(8.0, 0, 4, epoch=1.0, timeout=1.0)],
 }
 
 
@@ -80,6 +84,14 @@ def test_lower_priority_waits_and_runs_after_commit(tmp_path, capsys):
     got = spec_run(tmp_path, capsys, SCENARIOS["lower_waits_then_runs"])
     assert events(got, "schedule") == [(0.0, 0, None), (2.0, 1, None)]
     assert events(got, "ack") == [(2.0, 0, "COMMIT"), (3.0, 1, "COMMIT")]
+
+
+def test_a_master_rejected_before_its_mode_went_out_frees_the_motors(tmp_path, capsys):
+    # Figure 2 as printed kept current_master on the rejected request: the request at 8 was
+    # rejected too, and so was every later one of priority 5 or less
+    got = spec_run(tmp_path, capsys, SCENARIOS["rejected_master_frees_the_motors"])
+    assert events(got, "ack") == [(0.4, 0, "ABORT"), (0.7, 1, "REJECT"), (9.0, 0, "COMMIT")]
+    assert events(got, "mdl_command") == [(0.0, None, {"w": 0.5, "k": 1.0}), (8.0, None, {"w": 0.5, "k": 1.0})]
 
 
 def test_input_sooner_than_switching_time_is_a_violation(tmp_path, capsys):

@@ -33,6 +33,10 @@ SCENARIOS = {
     "timeout_reject": [req(0.0, 0, 5, epoch=5.0), req(0.5, 1, 1, timeout=1.0)],
     "lower_waits_then_runs": [req(0.0, 0, 5, epoch=2.0), req(0.5, 1, 1, epoch=1.0, timeout=10.0, w=-0.5)],
     "input_sooner_than_switching": [req(0.0, 0, 1), req(0.5, 0, 1)],
+    # req[1] takes the motors at 0.4 but its mode waits for mdl_command's switching time (until
+    # 1.0), and it times out at 0.7: the motors are free again for the priority-4 request at 8
+    "rejected_master_frees_the_motors": [req(0.0, 0, 1, epoch=4.0), req(0.4, 1, 5, timeout=0.3),
+                                         req(8.0, 0, 4, epoch=1.0, timeout=1.0)],
 }
 
 

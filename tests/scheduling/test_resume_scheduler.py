@@ -119,6 +119,24 @@ def test_a_request_preempted_before_it_signalled_waits_again_and_is_rejected_as_
 
 
 
+def test_a_master_rejected_before_its_mode_went_out_lets_the_suspended_one_resume():
+    # 1 takes the motors at 0.4 (0 suspended, 3.6 left); its mode waits for mdl_command's
+    # switching time (1.0) and it times out at 0.7: 0 resumes then, its mode goes out at 1.0,
+    # and the motors are free again for the priority-4 request at 8
+    engine = run(scheduler(), [req(0.0, 0, 1, epoch=4.0, w=0.1), req(0.4, 1, 5, timeout=0.3),
+                               req(8.0, 0, 4, epoch=1.0, timeout=1.0)])
+    assert [(t, i) for t, a, i, _ in story(engine) if a == "schedule"] == [(0.0, 0), (0.4, 1), (0.7, 0), (8.0, 0)]
+    assert [t for t, a, _, _ in story(engine) if a == "mdl_command"] == [0.0, 1.0, 8.0]
+    assert acks(engine) == [(0.7, 1, "REJECT"), (4.6, 0, "COMMIT"), (9.0, 0, "COMMIT")]
+    assert not violations(engine)
+
+
+def test_a_master_lowered_below_zero_lets_no_request_of_priority_zero_or_less_take_the_motors():
+    engine = run(scheduler(), [req(0.0, 0, 3, epoch=4.0), priority(1.0, 0, -5), req(2.0, 1, -2, timeout=1.0)])
+    assert [(t, i) for t, a, i, _ in story(engine) if a == "schedule"] == [(0.0, 0)]
+    assert acks(engine) == [(3.0, 1, "REJECT"), (4.0, 0, "COMMIT")]
+
+
 def test_a_request_that_replaces_a_waiting_one_is_rejected_after_its_own_timeout():
     # 0 waits behind 1 with a timeout of 2; at 1.5 a new request on index 0, timeout 8, replaces
     # it: its rejection counts from 1.5 (docs/schedulers.md rule 5), not from the old request
