@@ -204,8 +204,9 @@ def _run(system, args: argparse.Namespace, writer) -> int:
     print(f"summary of {system.name} (virtual time, one process):")
     speed = virtual / wall if wall > 0 else float("inf")
     print(f"  {_seconds(virtual, 3)} s virtual in {wall:.2f} s wall ({_seconds(speed, 1)}x real time)")
-    print(f"  {engine.firings} firings: {counts['output']} outputs, {counts['input']} inputs, "
-          f"{counts['internal']} internal, {counts['violation']} violations")
+    # an input is an event, not a firing: the firings are the outputs and internal actions
+    print(f"  {engine.firings} firings ({counts['output']} outputs, {counts['internal']} internal), "
+          f"{counts['input']} inputs, {counts['violation']} violations")
     for line in examples:
         print(f"  violation {line}")
     if engine.halted:

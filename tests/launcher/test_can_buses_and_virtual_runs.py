@@ -135,12 +135,18 @@ def test_virtual_runs_are_deterministic_for_a_seed(tmp_path):
     assert traces[0] == traces[1] and len(traces[0]) > 10
 
 
-def test_virtual_run_of_figure2_passes_check_and_shows_the_scheduler_at_work(tmp_path):
+def test_virtual_run_of_figure2_passes_check_and_shows_the_scheduler_at_work(tmp_path, capsys):
     out = tmp_path / "fig2.mcap"
     assert main(["run", str(ROOT / "examples/figure2.toml"), "--virtual", "--until", "20", "-o", str(out)]) == 0
+    summary = capsys.readouterr().out
     assert main(["check", str(out)]) == 0
-    acks = {e["value"] for e in read_recording(out).trace("scheduler") if e["action"] == "ack" and e["kind"] == "output"}
+    trace = read_recording(out).trace()
+    acks = {e["value"] for e in trace if e["iota"] == "scheduler" and e["action"] == "ack" and e["kind"] == "output"}
     assert "COMMIT" in acks
+    # the summary's counts are the recording's: firings are outputs and internal actions; inputs are events
+    kinds = {kind: sum(1 for e in trace if e["kind"] == kind) for kind in ("output", "internal", "input")}
+    assert (f"{kinds['output'] + kinds['internal']} firings ({kinds['output']} outputs, {kinds['internal']} internal), "
+            f"{kinds['input']} inputs, 0 violations") in summary
 
 
 @pytest.mark.parametrize("args, expected", [

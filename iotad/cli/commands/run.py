@@ -56,7 +56,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--check", action="store_true",
                         help="check the file (nodes, channels, bindings) and exit: 0 fine, 2 errors")
     parser.add_argument("--until", type=positive_float, metavar="SECONDS",
-                        help="stop everything after SECONDS of wall-clock time (default: run until Ctrl-C)")
+                        help="stop everything after SECONDS of wall-clock time (default: run until Ctrl-C); with --virtual, "
+                             "SECONDS of virtual time, and required")
     parser.add_argument("--after-live", action="store_true",
                         help="count --until from the moment every node is first live, not from the launch, "
                              "so that start-up (imports, PyBullet worlds; 10-30 s in user-mode Linux) is not "
@@ -94,7 +95,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                              "\"index\", \"value\"} a line; \"iota\" names the node, or leave it out and "
                              "name an external input as `external` does: {\"action\": \"motor.estop\"})")
     parser.add_argument("--seed", type=seed, default=None, metavar="N",
-                        help="with --virtual: fire at random times within each window (policy random(N))")
+                        help="with --virtual: fire at random times within each window (policy random(N)); default: "
+                             "every action at the earliest time its window allows (eager)")
     parser.set_defaults(func=run)
 
 
