@@ -427,7 +427,13 @@ class Engine:
         value = None
         if slot.type is not None:
             try:
-                value = slot.type.from_checked_plain(plain) if checked else slot.type.from_plain(plain)
+                if checked:
+                    value = slot.type.from_checked_plain(plain)
+                else:
+                    value = slot.type.from_plain(plain)
+                    # what the IOTA got, as its type writes it: an int of 100 bits in a float
+                    # field is recorded as the float it became, which msgpack can carry
+                    plain = slot.type.checked_plain(value)
             except Exception as exc:  # noqa: BLE001 - BadValue, or a type's own fault on odd input
                 why = exc if isinstance(exc, BadValue) else f"{type(exc).__name__}: {exc}"
                 self._violation(now, leaf.path, channel.name, index, "bad_value",
