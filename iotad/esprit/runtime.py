@@ -6,7 +6,7 @@ from __future__ import annotations
 import sys
 from typing import Any
 
-from iotad.kernel.types import Record
+from iotad.kernel.types import INT_MAX, INT_MIN, Record
 
 
 def ix(sequence: Any, index: Any) -> Any:
@@ -21,7 +21,12 @@ def ix_set(sequence: Any, index: Any, value: Any) -> None:
 def in_range(value: Any, low: Any, high: Any, name: str, then: str = "; it keeps its value") -> Any:
     """`value`, to store in state `name` declared `in [low, high]` (None: unbounded that side)."""
     if value is not None and not ((low is None or low <= value) and (high is None or value <= high)):
-        raise ValueError(f"{name} = {value!r} is outside its declared range [{'-inf' if low is None else low}, "
+        shown = f"an int of {value.bit_length()} bits" if isinstance(value, int) and value.bit_length() > 64 \
+            else repr(value)
+        if (low, high) == (INT_MIN, INT_MAX):
+            raise ValueError(f"{name} = {shown} overflows an int (the wire and recordings carry "
+                             f"{INT_MIN}..{INT_MAX}){then}")
+        raise ValueError(f"{name} = {shown} is outside its declared range [{'-inf' if low is None else low}, "
                          f"{'inf' if high is None else high}]{then}")
     return value
 

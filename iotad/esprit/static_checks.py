@@ -13,7 +13,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
-from iotad.kernel.types import ArrayType, Bool, EnumType, Float, Int, StructType, Type
+from iotad.kernel.types import INT_MAX, INT_MIN, ArrayType, Bool, EnumType, Float, Int, StructType, Type
 
 from . import syntax as S
 from .errors import Diagnostic, Source
@@ -821,9 +821,17 @@ class Checker:
         elif isinstance(ttype, (ArrayOf, ArrayType)):
             # an array keeps its length: a length known only when it runs is checked then (codegen)
             node.keeps_length = True
-        elif is_number(ttype) and (ttype.low is not None or ttype.high is not None):
-            # a declared range holds for state too (the paper's declarations give states ranges)
-            node.within_range = (ttype.low, ttype.high)
+        elif is_number(ttype):
+            # a declared range holds for state too (the paper's declarations give states ranges);
+            # an int's range is at most what the wire carries, so that a loop squaring an int
+            # stops with a runtime_error at the first overflow instead of growing a number of
+            # millions of digits (each product slower than the last: a hung node)
+            low, high = ttype.low, ttype.high
+            if getattr(ttype, "name", None) == "int":
+                low = INT_MIN if low is None else max(low, INT_MIN)
+                high = INT_MAX if high is None else min(high, INT_MAX)
+            if low is not None or high is not None:
+                node.within_range = (low, high)
 
     # ---------------------------------------------------------------- expressions
     def expr(self, node: S.Expr, scope: _Scope, expected=None, statement: bool = False):

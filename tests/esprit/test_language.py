@@ -170,6 +170,22 @@ def test_an_array_keeps_its_declared_length():
     assert violations(run(spec, M=3)) == []
 
 
+def test_an_int_that_overflows_64_bits_is_a_runtime_error_not_a_hung_node():
+    # squaring 26 times would build a number of 2**26 digits, each product slower than the last
+    spec = """
+    iota x: a()/0 -> b(int)/0 {
+      states int v = 3; bool d = false;
+      actions
+      a() do { for (j = 0; j < 26; j++) v = v * v; d = true; }
+      b(v % 7) when d after 1 do d = false;
+    }"""
+    trace = run(spec, inputs=[{"t": 0.5, "action": "a"}], until=5.0)
+    assert violations(trace) == [
+        (0.5, "runtime_error", "a(): ValueError: v = an int of 102 bits overflows an int (the wire and recordings "
+                               "carry -9223372036854775808..18446744073709551615); it keeps its value")]
+    assert outputs(trace) == []  # the do-block stopped there: d was never set
+
+
 def test_a_state_keeps_to_its_declared_range():
     spec = """
     struct pt { float x in [0.0, 1.0]; };
