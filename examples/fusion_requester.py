@@ -10,7 +10,7 @@ from iotad import Array, Float, Input, Int, Iota, Output, Param, Struct
 from channels.messages import ACK
 
 JOINTS = 2  # fusion.iota's JOINTS
-FUSE_REQ = Struct("fuseReq", position=Array(Float, JOINTS), weight=Array(Float(0, None), JOINTS),
+FUSE_REQ = Struct("fuseReq", position=Array(Float(-1e6, 1e6), JOINTS), weight=Array(Float(0, 1e6), JOINTS),
                   epoch=Float(0, None), timeout=Float(0, None), priority=Int)
 
 

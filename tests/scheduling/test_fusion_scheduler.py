@@ -127,3 +127,16 @@ def test_fusion_requesters_drive_the_spec_in_one_composite():
     assert setpoints(engine) == [(0.0, [0.0, 1.0]), (1.0, [0.75, 1.0]), (3.0, [0.0, 1.0])]
     assert engine.iota("fusion/vision").answers == ["COMMIT"]
     assert engine.iota("fusion/manipulation").answers == ["COMMIT"]
+
+
+@pytest.mark.parametrize("position, weight, field", [
+    ([0.3, 0.5], [float("inf"), 1.0], "fuseReq.weight: [0]: inf outside range [0, 1000000.0]"),
+    ([1e308, 0.5], [1e308, 1.0], "fuseReq.position: [0]: 1e+308 outside range [-1000000.0, 1000000.0]"),
+])
+def test_a_request_whose_sums_could_not_be_finite_is_refused_and_never_acked(position, weight, field):
+    # with any float allowed, a weight of inf made the mean NaN (the setpoint was refused, the
+    # request still COMMITted) and 1e308 * 1e308 an infinite setpoint
+    engine = run(scheduler(), [fuse_req(0.1, 0, position, weight)])
+    assert [(e["t"], e["value"]["message"]) for e in engine.trace if e["kind"] == "violation"] == [
+        (0.1, f"input req: {field}; rejected")]
+    assert setpoints(engine) == [] and acks(engine) == []
