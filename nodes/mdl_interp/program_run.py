@@ -91,6 +91,8 @@ def compile_program(program: Program, robot: Robot, cache: ExpressionCache) -> C
             if index is None:
                 raise ProgramFault(f"{where}: unknown joint {key!r}; this robot has {list(robot.joints)} "
                                    f"(or indices 0..{robot.size - 1})")
+            if index in out:  # by name and by index: which one was meant is not for us to guess
+                raise ProgramFault(f"{where}: joint {robot.joints[index]!r} is given twice ({key!r} is it too)")
             out[index] = value
         return out
 

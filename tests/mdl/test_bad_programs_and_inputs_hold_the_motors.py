@@ -173,6 +173,8 @@ def test_a_program_of_more_atoms_than_one_instant_can_end_is_refused_and_the_lar
      "LoopBudgetExceeded"),
     (atom(u={"kind": "ramp", "target": {"²": 0.3}}, T=0.5), "unknown joint '²'"),
     (atom(u={"kind": "ramp", "target": {"٣": 0.3}}, T=0.5), "unknown joint '٣'"),  # not index 3
+    (atom(u={"kind": "ramp", "target": {"joint1": 0.5, "0": 0.1}}, T=0.5),  # one joint by name and by index
+     "behaviours[0].atoms[0].u.target: joint 'joint1' is given twice ('0' is it too)"),
     (atom(u={"kind": "hold"}, xi="!" * 395 + "true"), "the expression nests too deeply"),
 ])
 def test_a_program_whose_numbers_break_something_is_a_fault_and_the_next_one_runs(make_run, bad, said):
