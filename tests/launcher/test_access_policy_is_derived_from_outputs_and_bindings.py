@@ -72,3 +72,19 @@ def test_run_check_prints_the_policy(tmp_path):
     assert done.returncode == 0, done.stderr
     assert "access control of figure2 (default: deny" in done.stdout
     assert "node-scheduler (node)" in done.stdout and "iota/figure2/scheduler/mdl_command" in done.stdout
+
+
+def test_run_check_says_access_control_is_off_for_a_system_spread_over_hosts(tmp_path, capsys):
+    # its runs say "access control is OFF": the check must not print a policy no hub enforces
+    from iotad.cli import main
+
+    path = figure2(tmp_path)
+    text = path.read_text()
+    for node in ("scheduler", "vision", "manipulation"):  # every node names its host, or none does
+        assert text.count(f'name = "{node}"') == 1
+        text = text.replace(f'name = "{node}"', f'name = "{node}"\nhost = "brain"')
+    path.write_text(text)
+    assert main(["run", "--check", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert "access control of figure2: OFF (not yet for systems spread over hosts" in out
+    assert "default: deny" not in out and "node-scheduler" not in out
