@@ -44,6 +44,7 @@ import zenoh
 
 from iotad.host import wire
 from iotad.host.can_port import KEY_PREFIX as CAN_KEY_PREFIX
+from iotad.host.credentials import for_endpoints
 from iotad.recording.mcap_io import (FORMAT, GAP_TOPIC, MALFORMED_TOPIC, McapSink, trace_event_problem,
                                      channel_schemas, member_path, packb, schema_for_topic, write_set_file)
 from iotad.host.transport import DEFAULT_LISTEN, open_session
@@ -224,8 +225,13 @@ class Recorder:
         # that a recorder waiting for a system's hub joins it before the nodes start talking
         retry = {"connect/retry": {"period_init_ms": 100, "period_max_ms": 100, "period_increase_factor": 1.0}}
         while True:
+            # Credentials are read as an attempt begins. A hub that `iotad run` guards lets no
+            # one in without them, and the run writes them only as it starts: until they are
+            # there, short attempts, so that the recorder is in before the nodes start (with 1 s
+            # it came in after them, and a recording without the nodes' starts cannot be checked)
+            timeout = 1.0 if for_endpoints(self.connect) is not None else 0.2
             try:
-                return open_session((), self.connect, mode="client", connect_timeout=1.0, extra=retry)
+                return open_session((), self.connect, mode="client", connect_timeout=timeout, extra=retry)
             except zenoh.ZError:
                 if keep_waiting is None or not keep_waiting():
                     raise
