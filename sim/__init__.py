@@ -1,1 +1,1 @@
-"""PyBullet worlds and simulated motor controllers on CAN (not written yet)."""
+"""PyBullet worlds and simulated motor controllers on CAN."""
