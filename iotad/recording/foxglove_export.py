@@ -9,7 +9,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from iotad.recording.mcap_io import McapSink, Recording
+from iotad.recording.mcap_io import EXPORTED, McapSink, Recording
 
 
 def _is_object_schema(schema: dict) -> bool:
@@ -17,8 +17,9 @@ def _is_object_schema(schema: dict) -> bool:
     return schema.get("type") in ("object", None)
 
 
-def export_json(recording: Recording, output: str | Path) -> int:
-    """Write `output` with message encoding `json`; attachments and metadata are copied. Returns the count."""
+def export_json(recording: Recording, output: str | Path, extra_metadata: dict[str, dict] | None = None) -> int:
+    """Write `output` with message encoding `json`; attachments and metadata are copied, and
+    `extra_metadata` added. Returns the count."""
     sink = McapSink(output)
     try:
         for attachment in recording.attachments:
@@ -26,6 +27,8 @@ def export_json(recording: Recording, output: str | Path) -> int:
                                        attachment.media_type, attachment.data)
         for name, data in recording.metadata.items():
             sink.writer.add_metadata(name, data)
+        for name, data in {EXPORTED: {"from": str(recording.path), "encoding": "json"}, **(extra_metadata or {})}.items():
+            sink.add_metadata(name, data)
         by_topic = {c.topic: c for c in recording.channels.values()}
         ids: dict[str, tuple[int, bool]] = {}
         schema_ids: dict[tuple, int] = {}

@@ -1050,17 +1050,26 @@ def _read_file(path: Path, progress: Callable[[str, int, int], None] | None = No
                     recording.schemas[record.id] = record
                 elif isinstance(record, McapChannel):
                     if record.message_encoding == "json":
-                        # `iotad export --json` writes one for Foxglove; its payloads are not ours
-                        raise RecordingError(f"{path}: a JSON copy for Foxglove ('iotad export --json'); iotad's "
-                                             "tools read the msgpack recording it was exported from")
+                        raise RecordingError(_json_copy(path))  # `iotad export --json` writes one for Foxglove
                     recording.channels[record.id] = record
                 elif isinstance(record, Attachment):
                     recording.attachments.append(record)
                 elif isinstance(record, Metadata):
+                    if record.name == EXPORTED:  # a JSON copy of no message at all says so here
+                        raise RecordingError(_json_copy(path))
                     recording.metadata[record.name] = dict(record.metadata)
         except RecordingError:
             raise
     return recording
+
+
+EXPORTED = "iotad.exported"  # metadata of a JSON copy (`iotad export --json`): which file it copies
+
+
+def _json_copy(path) -> str:
+    # its payloads are JSON, not ours
+    return (f"{path}: a JSON copy for Foxglove ('iotad export --json'); iotad's tools read the msgpack "
+            f"recording it was exported from")
 
 
 def set_files(path: str | Path) -> list[Path]:

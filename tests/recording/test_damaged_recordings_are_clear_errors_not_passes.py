@@ -243,3 +243,29 @@ def test_long_reads_and_checks_say_what_they_are_doing(recorded, tmp_path, capsy
     err = capsys.readouterr().err
     assert f"reading {recorded}:" in err and "% (" in err and " MB)" in err
     assert "checking scheduler (" in err and "checking the delivery of " in err
+
+
+def test_a_json_copy_of_a_cut_recording_says_it_is_part_of_a_run(recorded, tmp_path, capsys):
+    """`iotad export --json` of a cut recording writes a whole file: it says so on the terminal
+    and in its metadata (for Foxglove's viewers), and iotad's tools refuse it as a JSON copy even
+    when it holds no message at all (the JSON channels were how they told)."""
+    from mcap.reader import make_reader
+
+    data = recorded.read_bytes()
+    for keep, messages in ((len(data) * 17 // 20, True), (200, False)):  # some messages; none, only the header
+        cut = tmp_path / f"cut-{keep}.mcap"
+        cut.write_bytes(data[:keep])
+        out = tmp_path / f"json-{keep}.mcap"
+        assert main(["export", str(cut), "-o", str(out), "--json"]) == 0
+        said = capsys.readouterr().out
+        assert f"{cut} is cut short" in said and "its metadata says so (iotad.recovered)" in said
+        with open(out, "rb") as stream:
+            metadata = {m.name: dict(m.metadata) for m in make_reader(stream).iter_metadata()}
+        assert metadata["iotad.recovered"]["from"] == str(cut)
+        assert metadata["iotad.recovered"]["was_complete"] == "false"
+        assert metadata["iotad.exported"] == {"from": str(cut), "encoding": "json"}
+        assert main(["info", str(out)]) == 2
+        assert "a JSON copy for Foxglove" in capsys.readouterr().err
+    whole = tmp_path / "whole.json.mcap"
+    assert main(["export", str(recorded), "-o", str(whole), "--json"]) == 0
+    assert "cut short" not in capsys.readouterr().out

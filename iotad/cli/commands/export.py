@@ -41,6 +41,16 @@ def run(args: argparse.Namespace) -> int:
     output_file(args.output)
     new_recording(args.output, args.force)
     recording = load(args.file)
-    count = export_json(recording, args.output)
+    extra = None
+    if not recording.complete or recording.damaged:
+        # the copy is a whole file, but not of a whole run: it says so as `iotad recover`'s do,
+        # so that info and check read it as the part of a run it is
+        extra = {"iotad.recovered": {"from": str(args.file), "was_complete": False, "messages": len(recording.messages),
+                                     "stopped_at": recording.truncated_reason or "footer",
+                                     "damaged": recording.damaged}}
+    count = export_json(recording, args.output, extra)
     print(f"wrote {count} JSON messages to {args.output}")
+    if extra is not None:
+        print(f"{args.file} is cut short ({recording.damaged or recording.truncated_reason or 'no footer'}): the copy "
+              f"holds what it holds, and its metadata says so (iotad.recovered)")
     return 0
