@@ -230,6 +230,22 @@ def test_cli_check_warns_of_default_parameters_that_build_nothing(tmp_path, caps
     assert cli.main(["spec", "run", str(spec), "--until", "1", "--param", "N=2"]) == 0  # other values build it
 
 
+@pytest.mark.parametrize("text, why", [
+    ("iota x: a()/0 -> b()/0 { states int v in [0, 5] = 10; actions a() do v = 1; }",
+     "initial value of v: ValueError: v = 10 is outside its declared range [0, 5]"),
+    ("const int N = 9223372036854775807 * 4;\niota x: a[N]()/0 -> b()/0 { actions (i=0; i<N; i++) a[i]() do {} }",
+     "size of a is 36893488147419103228; a channel family has at most 10000 members"),
+])
+def test_cli_check_refuses_an_iota_without_parameters_that_cannot_be_built(tmp_path, capsys, text, why):
+    # no parameter could change how it is built: a warning and exit 0 passed a spec nothing can run
+    spec = tmp_path / "never.iota"
+    spec.write_text(text + "\n")
+    assert cli.main(["spec", "check", str(spec)]) == 2
+    err = capsys.readouterr().err
+    assert "error: iota x cannot be built" in err and why in err and "no parameters that could change that" in err
+    assert "1 iota(s) that nothing can build" in err and "Traceback" not in err
+
+
 def test_cli_run_errors_exit_2(tmp_path, capsys):
     spec = tmp_path / "a.iota"
     spec.write_text("iota a(int N = 1): -> out()/1 { actions out() after 1 }\n")

@@ -168,9 +168,19 @@ def cmd_check(args: argparse.Namespace) -> int:
     if not module.iotas:  # as `spec show` and `spec run` say
         return _fail(f"{args.file}: the file declares no iota (only comments, types or constants)")
     unbuildable = _unbuildable(module)
+    # an IOTA without parameters is built one way only: if that fails, nothing can build it
+    never = {name: why for name, why in unbuildable.items() if not getattr(module.iotas[name], "params", True)}
     for name, why in unbuildable.items():
-        print(f"{args.file}: warning: iota {name} cannot be built with its default parameters ({why}): "
-              f"a system file must give it others", file=sys.stderr)
+        if name in never:
+            print(f"{args.file}: error: iota {name} cannot be built ({why}), and it has no parameters that "
+                  f"could change that", file=sys.stderr)
+        else:
+            print(f"{args.file}: warning: iota {name} cannot be built with its default parameters ({why}): "
+                  f"a system file must give it others", file=sys.stderr)
+    if never:
+        print(f"iotad: error: {args.file}: {len(never)} iota(s) that nothing can build" + _hint(args.file),
+              file=sys.stderr)
+        return 2
     print(f"{args.file}: ok ({len(warnings) + len(unbuildable)} warning(s))")
     return 0
 
