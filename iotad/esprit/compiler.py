@@ -60,6 +60,23 @@ class IotaFactory:
     def __repr__(self) -> str:
         return f"<ESPRIT iota {self.name}>"
 
+    def _check_windows(self, values: dict[str, Any]) -> None:
+        """The time bounds that depend on parameters only, checked with these values as the
+        static checks did with the defaults: `within [0, T]` with T = -1 is an error when the
+        IOTA is built (`iotad run --check`), not a bad_window at every enabling of the run."""
+        changed = ", ".join(f"{name} = {value!r}" for name, value in values.items() if value != self.params.get(name))
+        for lower, upper in self.info.constant_windows:
+            try:
+                low = float(self.info.fold(lower, values))
+                high = None if upper is None else float(self.info.fold(upper, values))
+            except Exception:  # noqa: BLE001 - not foldable with these values: the run says what fails
+                continue
+            if not low >= 0:
+                raise self.source.error(lower.pos, f"a time bound must be >= 0, got {low:g} (with {changed})")
+            if high is not None and not high >= low:
+                raise self.source.error(upper.pos, f"within [{low:g}, {high:g}]: the upper bound is below the "
+                                                   f"lower one (with {changed})")
+
     def check_params(self, params: dict[str, Any]) -> dict[str, Any]:
         """Parameter values checked against their declared types (an int param takes no 2.5)."""
         decl = self.info.decl
@@ -81,6 +98,8 @@ class IotaFactory:
 
     def __call__(self, name: str | None = None, **params: Any) -> Any:
         values = self.check_params(params)
+        if values != self.params:
+            self._check_windows(values)
         instance_name = name or self.name
         own = None
         if self.spec is not None:

@@ -63,6 +63,10 @@ class IotaInfo:
     components: dict[str, S.InstanceDecl] = field(default_factory=dict)
     uses_reset: bool = False     # a do-block calls the built-in reset()
     uses_inhibit: bool = False   # a do-block calls the built-in inhibit(d)
+    # the time bounds that depend on parameters and constants only, [(lower, upper or None)]:
+    # checked here with the defaults, and again by the factory with the values an instance gets
+    constant_windows: list = field(default_factory=list)
+    fold: Any = None             # fold(expr, params): the value of such a bound
 
 
 @dataclass
@@ -453,6 +457,7 @@ class Checker:
         self._check_windows_static = defaults
         scope = _Scope(names)
         self._info = info
+        info.fold = self.fold
         self._actions(info, scope, defaults)
         self._info = None
         for builtin, hidden in HIDDEN_CHANNELS.items():
@@ -553,6 +558,8 @@ class Checker:
             (_, low), (upper_expr, high) = bounds
             if low is not None and high is not None and high < low:
                 self.error(upper_expr.pos, f"within [{low:g}, {high:g}]: the upper bound is below the lower one")
+        if self._info is not None and bounds and all(value is not None for _, value in bounds):
+            self._info.constant_windows.append((bounds[0][0], bounds[1][0] if len(bounds) == 2 else None))
         if action.do is not None:
             self._where = "do"
             self.stmt(action.do, scope)

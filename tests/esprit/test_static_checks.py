@@ -1,9 +1,11 @@
 """Every static check of `iotad spec check` has a spec that trips it and one that does not;
 errors name file:line:col, show the line with a caret, and exit 2 without a traceback."""
+import re
+
 import pytest
 
 from iotad import cli
-from iotad.esprit import EspritError, check_text, load_text
+from iotad.esprit import EspritError, check_text, load_iota, load_text
 
 PINGPONG = """
 iota ping: inp()/0 -> out()/0 { states int n = 0;
@@ -244,6 +246,19 @@ def test_cli_check_refuses_an_iota_without_parameters_that_cannot_be_built(tmp_p
     err = capsys.readouterr().err
     assert "error: iota x cannot be built" in err and why in err and "no parameters that could change that" in err
     assert "1 iota(s) that nothing can build" in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize("params, says", [
+    ({"T": -1.0}, "within [0, -1]: the upper bound is below the lower one (with T = -1.0)"),
+    ({"D": -2.0}, "a time bound must be >= 0, got -2 (with D = -2.0)"),
+])
+def test_parameters_that_make_a_window_empty_are_refused_when_the_iota_is_built(params, says):
+    # checked with the defaults by the static checks, and again with the values an instance
+    # gets: `iotad run --check` said ok, and every window of the run was a bad_window
+    text = "iota a(float T = 1.0, float D = 0.5): -> out()/1, other()/1 {\n  actions\n  out() within [0, T]\n  other() after D\n}\n"
+    with pytest.raises(EspritError, match=re.escape(says)):
+        load_iota(text, **params)
+    load_iota(text, T=2.0, D=0.0)  # values that keep the windows whole build it
 
 
 def test_cli_run_errors_exit_2(tmp_path, capsys):
