@@ -46,6 +46,9 @@ class Source:
     """The text of one spec file, to turn positions into diagnostics."""
 
     def __init__(self, text: str, filename: str):
+        # a byte-order mark (editors on Windows write one) says how the file is encoded; it is no
+        # character of the spec, and an invisible one is the worst error to point a caret at
+        text = text[1:] if text.startswith("\ufeff") else text
         self.text, self.filename = text, filename
         self.lines = text.split("\n")
 

@@ -298,3 +298,14 @@ def test_a_state_array_of_structs_counts_every_value_against_the_limit():
     assert len(make(N=1000).s) == 1000  # 1e6 values: at the limit
     with pytest.raises(EspritError, match="2000 elements of 1000 values each are past the limit of 1000000"):
         make(N=2000)
+
+
+def test_a_spec_saved_with_a_byte_order_mark_reads_as_without_it(tmp_path, capsys):
+    # editors on Windows write one; it was "1:1: unexpected character" under an invisible caret
+    spec = tmp_path / "bom.iota"
+    spec.write_bytes(b"\xef\xbb\xbfiota x: -> b()/0 { actions b() after 1 }\n")
+    assert cli.main(["spec", "check", str(spec)]) == 0
+    assert "ok (0 warning(s))" in capsys.readouterr().out
+    spec.write_bytes(b"\xef\xbb\xbfiota x: -> b()/0 { actions b() aftr 1 }\n")
+    assert cli.main(["spec", "check", str(spec)]) == 2
+    assert f"{spec}:1:37: unexpected '1'" in capsys.readouterr().err  # columns as an editor counts them
