@@ -223,7 +223,7 @@ class MdlInterpreter(Iota):
             except ProgramFault as fault:
                 return self._fail(run, str(fault))
             except Exception as exc:  # noqa: BLE001 - what a program's numbers make fail is its fault
-                return self._fail(run, _unforeseen(exc))
+                return self._fail(run, _unforeseen(exc, run))
             if hit is None:
                 break
             level, condition = hit
@@ -241,7 +241,7 @@ class MdlInterpreter(Iota):
         except ProgramFault as fault:
             return self._fail(run, str(fault))
         except Exception as exc:  # noqa: BLE001 - e.g. a sine of frequency 1e308: math domain error
-            return self._fail(run, _unforeseen(exc))
+            return self._fail(run, _unforeseen(exc, run))
         run.holding = None
         current = run.current
         atom = current.atom
@@ -436,10 +436,12 @@ class MdlInterpreter(Iota):
                                          tick=max(0, self.tick_index or 0), t=max(0.0, esprit_now())))
 
 
-def _unforeseen(exc: Exception) -> str:
-    """A program fault that no check named: the error itself (an MDL program is input; whatever
-    it makes fail ends that program with a fault, never the node)."""
-    return f"{type(exc).__name__}: {exc}"
+def _unforeseen(exc: Exception, run: ProgramRun | None = None) -> str:
+    """A program fault that no check named: the error itself, at the atom that ran (an MDL
+    program is input; whatever it makes fail ends that program with a fault, never the node)."""
+    atom = getattr(run, "spec", None)
+    where = f"behaviours[{atom.behaviour}].atoms[{atom.index}]: " if atom is not None else ""
+    return f"{where}{type(exc).__name__}: {exc}"
 
 
 @functools.cache

@@ -103,6 +103,8 @@ def compile_program(program: Program, robot: Robot, cache: ExpressionCache) -> C
         for a, atom in enumerate(behaviour.atoms):
             where = f"behaviours[{b}].atoms[{a}]"
             u = atom.u
+            if atom.T is not None and not math.isfinite(atom.T / robot.period):
+                raise ProgramFault(f"{where}.T: {atom.T:g} s is more ticks of {robot.period:g} s than can be counted")
             ticks = None if atom.T is None else max(1, math.ceil(atom.T / robot.period - 1e-9))
             compiled = CompiledAtom(b, a, u.kind, atom.T, ticks, pose=u.pose, frequency=u.frequency, phase=u.phase,
                                     goal=joints(u.target, f"{where}.u.target"),

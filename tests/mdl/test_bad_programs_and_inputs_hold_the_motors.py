@@ -163,9 +163,9 @@ def test_a_program_of_more_atoms_than_one_instant_can_end_is_refused_and_the_lar
 
 @pytest.mark.parametrize("bad, said", [
     (atom(u={"kind": "ramp", "target": {"joint1": 0.3}}, T=1e307),
-     "program 'p' cannot run here: OverflowError: cannot convert float infinity to integer"),
+     "program 'p' cannot run here: behaviours[0].atoms[0].T: 1e+307 s is more ticks of 0.01 s than can be counted"),
     (atom(u={"kind": "sine", "amplitude": {"joint1": 0.1}, "frequency": 1e308}, T=0.5),
-     "program 'p' stopped: ValueError: math domain error"),
+     "program 'p' stopped: behaviours[0].atoms[0]: ValueError: math domain error"),
     (atom(u={"kind": "ramp", "target": {"joint1": 0.3}}, T=0.5, xi="exists (j=0; j<2000000000; j++) (position[0] > 1.0)"),
      "LoopBudgetExceeded: a loop or quantifier from 0 to 2000000000 passes the budget of 1,000,000 iterations"),
     (atom(u={"kind": "ramp", "target": {"joint1": 0.3}}, T=0.5,
