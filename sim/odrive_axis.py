@@ -12,8 +12,9 @@ What it models of the firmware, and where it simplifies (docs/simulation.md has 
   (IDLE) and latches in `disarm_reason`; `active_errors` holds the faults not yet cleared.
   Heartbeat.Axis_Error is their OR, as the firmware sends it. Clear_Errors clears both; it does
   not re-arm. Closed loop asked for while an error is latched is refused (procedure DISARMED).
-- Watchdog (`watchdog_timeout` > 0): every command frame addressed to the axis feeds it (remote
-  requests do not: a host that only polls is not commanding). Entering closed loop feeds it. No
+- Watchdog (`watchdog_timeout` > 0): every frame addressed to the axis feeds it, remote requests
+  and frames it ignores included, as the firmware's CAN handler does (can_simple.cpp do_command
+  feeds it before it looks at the command): a host that polls keeps it fed. Entering closed loop feeds it. No
   command for longer than the timeout while armed: IDLE with WATCHDOG_TIMER_EXPIRED. It is
   checked at every control step, so it trips at most one step after the timeout.
 - Controller: input modes INACTIVE, PASSTHROUGH, VEL_RAMP, POS_FILTER and TORQUE_RAMP; control
@@ -173,6 +174,7 @@ class OdriveAxis:
     # ------------------------------------------------------------------ CAN in
     def handle(self, message: Message, now: float) -> list[Frame]:
         """Act on one decoded message addressed to this axis; return the frames it answers with."""
+        self.last_command = now  # any frame to the axis feeds the watchdog, as the firmware's CAN handler does
         spec = MESSAGES[message.name]
         if message.rtr:
             if spec.sender in ("axis", "both"):
@@ -185,7 +187,6 @@ class OdriveAxis:
         for name, value in values.items():
             if isinstance(value, float) and not math.isfinite(value):
                 return self._ignore(f"{message.name}: {name}={value} is not a finite number")
-        self.last_command = now  # any command feeds the watchdog, as the firmware's CAN handler does
         handler = getattr(self, "_on_" + message.name, None)
         if handler is None:
             return self._ignore(f"{message.name} is not simulated")
@@ -210,11 +211,13 @@ class OdriveAxis:
             self.procedure_result = INVALID_STATE
 
     def _arm(self, now: float) -> None:
-        # As the firmware does on entering closed loop: hold where it is, nothing stored drives it.
+        # As the firmware does on entering closed loop (axis.cpp start_closed_loop_control,
+        # controller.cpp control_mode_updated): a position input is reset to where the axis is and
+        # the integrator cleared; the input velocity and torque it was last given are kept, and
+        # drive it (a host re-arming an axis sends its hold command first: nodes/can_motor does)
         self.state = CLOSED_LOOP
-        self.input_pos = self.pos_setpoint = self.pos_estimate
-        self.input_vel = self.vel_setpoint = 0.0
-        self.input_torque = self.torque_setpoint = 0.0
+        if self.control_mode == POSITION:
+            self.input_pos = self.pos_setpoint = self.pos_estimate
         self.integrator = 0.0
         self.last_command = now
 

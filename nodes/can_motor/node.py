@@ -213,11 +213,19 @@ class CanMotor(Iota):
     # ------------------------------------------------------------------ behaviour
     def _send_arming(self, i: int) -> None:
         joint, axis = self.joint_map[i], self.axes[i]
-        self.tx.extend(_arming_frames(joint))
+        axis.command = axis.position if joint.mode == "position" else 0.0
+        frames = _arming_frames(joint)
+        # The hold command before closed loop: the firmware keeps the input velocity and torque it
+        # was last given across IDLE (only a position input is reset to where the axis is), so an
+        # axis re-armed after a watchdog trip, an estop reset or a restart would resume its last
+        # speed or torque until our first setpoint came. A position axis gets one only where it
+        # was measured: to an axis still armed (a restarted node) any other position is a move.
+        if joint.mode != "position" or axis.has_position:
+            frames.insert(-1, _setpoint_frame(joint, axis.command, 0.0, 0.0))
+        self.tx.extend(frames)
         axis.phase = ARMING
         axis.retry = True  # until a reset: an axis that fails or drops out is not hammered
         axis.last_sent = self.ticks
-        axis.command = axis.position if joint.mode == "position" else 0.0
         self.reports[i].append(("ARM_SENT", 0.0, 0.0))
 
     def _command(self, value) -> None:

@@ -9,7 +9,9 @@ from motor_bench import SET_INPUT_POS, SET_INPUT_TORQUE, SET_INPUT_VEL, Bench, e
 JOINTS = [{"name": "a", "node_id": 1, "gear_ratio": 2.0}, {"name": "w", "node_id": 2, "mode": "velocity"}]
 
 
-def commands(bench, since=0.0):
+def commands(bench, since=0.001):
+    """The setpoint frames sent from `since` on (by default after the arming frames at 0, which
+    end with a velocity joint's hold command)."""
     return [(round(t, 9), ident, data) for t, ident, rtr, data in bench.sent(since=since)
             if not rtr and ident & 0x1F in (SET_INPUT_POS, SET_INPUT_VEL)]
 
@@ -44,11 +46,12 @@ def test_no_hold_before_the_position_is_known_and_none_to_a_lost_axis():
 
 @pytest.mark.parametrize("mode, command", [("velocity", SET_INPUT_VEL), ("torque", SET_INPUT_TORQUE)])
 def test_an_armed_velocity_or_torque_joint_is_kept_standing_still_not_at_its_position(mode, command):
-    """On entering closed loop the firmware holds still: for a velocity or torque joint that is
-    0 velocity or torque, not its position (0.5 turns here) taken for one."""
+    """Holding still is, for a velocity or torque joint, 0 velocity or torque, not its position
+    (0.5 turns here) taken for one: in the arming frames, and in the keep-alive."""
     bench = Bench([{"name": "w", "node_id": 1, "mode": mode}], keepalive=0.05, polls={})
     bench.hear(0.005, encoder(1, 0.5, 0.0))
     bench.hear(0.015, heartbeat(1))
     bench.run(0.125)
     sent = [(round(t, 9), data) for t, ident, rtr, data in bench.sent() if ident == 1 << 5 | command]
-    assert len(sent) == 2 and all(not any(data) for _, data in sent)  # 0.0 (and 0 feed-forward)
+    assert sent[0][0] == 0.0  # the hold command before closed loop
+    assert len(sent) == 3 and all(not any(data) for _, data in sent)  # 0.0 (and 0 feed-forward)

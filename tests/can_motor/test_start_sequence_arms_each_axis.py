@@ -4,7 +4,7 @@ import math
 import struct
 
 from motor_bench import (CLEAR_ERRORS, CLOSED_LOOP, IDLE, SET_AXIS_STATE, SET_CONTROLLER_MODE, SET_INPUT_POS,
-                      SET_LIMITS, SET_POS_GAIN, SET_TRAJ_ACCEL_LIMITS, SET_TRAJ_INERTIA, SET_TRAJ_VEL_LIMIT,
+                      SET_INPUT_TORQUE, SET_INPUT_VEL, SET_LIMITS, SET_POS_GAIN, SET_TRAJ_ACCEL_LIMITS, SET_TRAJ_INERTIA, SET_TRAJ_VEL_LIMIT,
                       SET_VEL_GAINS, TAU, Bench, heartbeat, setpoints)
 
 
@@ -24,7 +24,7 @@ def test_start_sequence_byte_for_byte(bench):
                 + arming(5, 3, 1, math.pi / TAU, 10.0))
     assert [(ident, rtr, data) for _, ident, rtr, data in sent] == expected
     # Set_Axis_State goes out with the DLC of the DBC (8), zero-padded
-    assert len(sent[3][3]) == 8
+    assert len(sent[3][3]) == 8  # no hold command: a position axis not yet measured (see below)
     assert [s["event"] for s in bench.status()] == ["ARM_SENT"] * 3
     assert [s["phase"] for s in bench.status()] == ["ARMING"] * 3
 
@@ -38,7 +38,7 @@ def test_modes_gains_and_trajectory_limits_go_out_before_closed_loop():
     bench.run(0.0)
     sent = [(ident, data) for _, ident, _, data in bench.sent()]
     a = 3 << 5
-    assert sent[:9] == [(a | CLEAR_ERRORS, b"\x00"),
+    assert sent[:10] == [(a | CLEAR_ERRORS, b"\x00"),
                         (a | SET_CONTROLLER_MODE, struct.pack("<II", 2, 2)),
                         (a | SET_LIMITS, struct.pack("<ff", 1.0, 4.5)),
                         (a | SET_POS_GAIN, struct.pack("<f", 20.0) + bytes(4)),
@@ -46,9 +46,12 @@ def test_modes_gains_and_trajectory_limits_go_out_before_closed_loop():
                         (a | SET_TRAJ_VEL_LIMIT, struct.pack("<f", 2.0) + bytes(4)),
                         (a | SET_TRAJ_ACCEL_LIMITS, struct.pack("<ff", 1.0, 1.5)),
                         (a | SET_TRAJ_INERTIA, struct.pack("<f", 0.0) + bytes(4)),
+                        (a | SET_INPUT_VEL, struct.pack("<ff", 0.0, 0.0)),  # stand still, no torque
                         (a | SET_AXIS_STATE, struct.pack("<I", 8) + bytes(4))]
     b = 4 << 5
-    assert sent[10] == (b | SET_CONTROLLER_MODE, struct.pack("<II", 1, 6))  # torque, TORQUE_RAMP
+    assert sent[11] == (b | SET_CONTROLLER_MODE, struct.pack("<II", 1, 6))  # torque, TORQUE_RAMP
+    assert sent[13:15] == [(b | SET_INPUT_TORQUE, struct.pack("<f", 0.0) + bytes(4)),  # no torque
+                           (b | SET_AXIS_STATE, struct.pack("<I", 8) + bytes(4))]
 
 
 def test_no_setpoint_goes_out_before_the_heartbeat_shows_closed_loop(bench):

@@ -14,7 +14,9 @@ from motor_bench import SET_INPUT_POS, SET_INPUT_VEL, TAU, Bench, heartbeat, set
 JOINTS = [{"name": "a", "node_id": 1}, {"name": "w", "node_id": 2, "mode": "velocity"}]
 
 
-def commands(bench, since=0.0):
+def commands(bench, since=0.001):
+    """The setpoint frames sent from `since` on (by default after the arming frames at 0, which
+    end with the velocity joint's hold command)."""
     return [(round(t, 9), ident, data) for t, ident, rtr, data in bench.sent(since=since)
             if not rtr and ident & 0x1F in (SET_INPUT_POS, SET_INPUT_VEL)]
 

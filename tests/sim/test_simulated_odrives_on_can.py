@@ -81,17 +81,17 @@ def test_commands_stop_every_axis_trips_its_watchdog_within_100ms_and_nothing_mo
     arm_all(sim, 0.05, nodes)
     # the motion is cut half-way: the commanding node dies
     last = stream_trajectory(sim, nodes, start, goal, 0.1, 2.0, cut=1.0)
-    for step in range(1, 60):  # a bystander polls the heartbeats every 5 ms
-        for node in nodes:
-            sim.post(last + 0.005 * step, odrive.request(node, "Heartbeat"))
+    sim.run(last)
+    assert all(axis.armed for axis in sim.iota.axes)
+    # no frame reaches the axes any more (a poll would feed the watchdog, as the firmware's does)
+    sim.run(last + 0.1)
+    assert [(axis.armed, axis.disarm_reason) for axis in sim.iota.axes] == [(False, WATCHDOG)] * len(nodes)
     sim.run(last + 0.3)
     moving_at_cut, _ = world.read_joints()
     for node in nodes:
         beats = sim.sent("Heartbeat", node)
         assert all(m.signals["Axis_State"] == CLOSED_LOOP for t, m in beats if 0.2 < t <= last)
-        idle = [t for t, m in beats if t > last and m.signals["Axis_State"] == IDLE]
-        assert idle and idle[0] - last <= 0.1, f"node {node} went IDLE at {idle[:1]}, last command {last}"
-        assert beats[-1][1].signals["Axis_Error"] == WATCHDOG
+        assert beats[-1][1].signals["Axis_State"] == IDLE and beats[-1][1].signals["Axis_Error"] == WATCHDOG
     sim.run(last + 2.3)
     after, _ = world.read_joints()
     assert max(abs(a - b) for a, b in zip(moving_at_cut, after)) < 1e-3  # the brakes hold
