@@ -18,7 +18,7 @@ import functools
 import math
 
 from channels.joints import JOINT_SETPOINTS, JOINT_STATES, joint_setpoints, joint_states
-from channels.mdl import (ATOM_END, MDL_FAULT, MDL_PROGRAM, PROGRAM_END, SENSOR_READING, Program,
+from channels.mdl import (ATOM_END, MDL_FAULT, MDL_PROGRAM, MODE_JOINT, PROGRAM_END, SENSOR_READING, Program,
                           mode_program)
 from channels.messages import MODE
 from iotad.esprit.runtime import esprit_now
@@ -113,6 +113,7 @@ class MdlInterpreter(Iota):
         self.out_atom_ends = []
         self.out_program_ends = []
         self.out_faults = []
+        self._refused: dict[str, str] = {}  # program id -> why: a mode refused when it came
 
     # ------------------------------------------------------------------ inputs
     @mdl_command.input
@@ -121,7 +122,14 @@ class MdlInterpreter(Iota):
 
     @mode_command.input
     def on_mode_command(self, mode):
-        self._command_arrived(mode_program(mode.w, mode.k))
+        program = mode_program(mode.w, mode.k)
+        robot, joint = self._robot, int(MODE_JOINT)
+        if not robot.lower[joint] <= mode.w <= robot.upper[joint]:
+            # a goal outside the limits is refused, as a ramp's is, not driven into the limit
+            self._refused[program.id] = (f"behaviours[0].atoms[0]: the mode's setpoint w = {mode.w:.6g} of joint "
+                                         f"{robot.joints[joint]} is outside its limits "
+                                         f"[{robot.lower[joint]:g}, {robot.upper[joint]:g}]")
+        self._command_arrived(program)
 
     @joint_states.input
     def on_joint_states(self, states):
@@ -357,6 +365,7 @@ class MdlInterpreter(Iota):
             saved = self.suspended.get(replaced.id)
             where = (saved.behaviour, saved.atom) if saved is not None and saved.program == replaced else (0, 0)
             self._report_program_end(replaced.id, "PREEMPTED", "NONE", "", where)
+            self._refused.pop(replaced.id, None)
         self.incoming = program
 
     def _apply_incoming(self) -> None:
@@ -378,6 +387,9 @@ class MdlInterpreter(Iota):
                 saved.current.reanchor(self.command, saved.current.ticks * self._robot.period)
             return
         try:
+            refused = self._refused.pop(new.id, None)
+            if refused is not None:
+                raise ProgramFault(refused)
             compiled = compile_program(new, self._robot, self._expressions)
         except Exception as fault:  # noqa: BLE001 - ProgramFault, or what its numbers made fail
             self.running = None

@@ -49,3 +49,18 @@ def test_a_new_mode_preempts_the_old_one(make_run):
     assert [(v["program"], v["end"]) for v in run.values("program_end")] == [("mode w=0.4 k=5.0", "PREEMPTED")]
     points = {round(t * 100): p for t, p in run.setpoints(0)}
     assert points[149] == pytest.approx(0.4, abs=0.002) and points[300] == pytest.approx(-0.2, abs=0.002)
+
+
+def test_a_mode_beyond_the_joints_limits_is_refused_as_a_ramp_goal_is(make_run):
+    # it was driven into the limit with no fault: the requester asked for 100 rad and got 6.28
+    run = make_run()
+    run.engine.post("arm/mdl", "mode_command", {"w": 100.0, "k": 1.0}, t=0.0)
+    run.engine.post("arm/mdl", "mode_command", {"w": 0.4, "k": 2.0}, t=1.0)
+    run.run(until=4.0)
+    [fault] = run.values("fault")
+    assert ("program 'mode w=100.0 k=1.0' cannot run here: behaviours[0].atoms[0]: the mode's setpoint w = 100 of "
+            "joint joint1 is outside its limits [-6.28319, 6.28319]; motors held") == fault["message"], fault["message"]
+    assert [(v["program"], v["end"]) for v in run.values("program_end")] == [("mode w=100.0 k=1.0", "FAULT")]
+    points = {round(t * 100): p for t, p in run.setpoints(0)}
+    assert abs(points[99]) < 1e-9                                  # held where it was
+    assert points[400] == pytest.approx(0.4, abs=0.002)            # the next mode runs
