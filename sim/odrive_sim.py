@@ -180,7 +180,7 @@ class SimulatedOdrives(Iota):
 
     def _receive(self, value: Any) -> None:
         try:
-            message = decode(Frame.from_value(value))
+            message = decode(Frame.from_value(value), as_axis=True)  # as lenient as the firmware
         except FrameError as exc:
             return self._ignored(str(exc))
         axis = self.by_node.get(message.node_id)

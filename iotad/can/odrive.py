@@ -242,9 +242,14 @@ def spec_of(frame: Frame) -> MessageSpec | None:
     return None if frame.extended else _BY_CMD.get(cmd_id_of(frame.id))
 
 
-def decode(frame: Frame) -> Message:
+def decode(frame: Frame, as_axis: bool = False) -> Message:
     """The ODrive message a frame carries. UnknownFrame for a command id CAN Simple does not have,
-    MalformedFrame for an extended id or a DLC other than the DBC's (remote frames: any DLC)."""
+    MalformedFrame for an extended id or a DLC other than the DBC's (remote frames: any DLC).
+
+    `as_axis`: read it as the firmware's CAN handler does (the simulated axes do): a data frame
+    with no data for a message the axis sends is a request, as a remote frame is ("a message with
+    RTR=0 and an empty payload can also be used"), and a command whose DLC is not the DBC's is
+    read from the bytes it has, the missing ones 0 (the firmware reads its signals unchecked)."""
     if not isinstance(frame, Frame):
         raise MalformedFrame(f"expected a Frame, got {type(frame).__name__} {frame!r}")
     if frame.extended:
@@ -254,8 +259,10 @@ def decode(frame: Frame) -> Message:
     if spec is None:
         raise UnknownFrame(f"frame 0x{frame.id:03X} (node {node}, cmd 0x{cmd:02X}): no ODrive CAN Simple "
                            f"command has id 0x{cmd:02X}")
-    if frame.rtr:
+    if frame.rtr or as_axis and frame.dlc == 0 and spec.sender in ("axis", "both"):
         return Message(node, spec.name, {}, rtr=True)
+    if as_axis and frame.dlc != spec.dlc:
+        frame = Frame(frame.id, (frame.data + bytes(8))[:spec.dlc])
     if frame.dlc != spec.dlc:
         raise MalformedFrame(f"{spec.name} frame 0x{frame.id:03X} (node {node}) has DLC {frame.dlc}, "
                              f"the protocol gives {spec.dlc}: {frame.data.hex(' ') or 'no data'}")

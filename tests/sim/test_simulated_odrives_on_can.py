@@ -1,6 +1,7 @@
 """SimulatedOdrives in virtual time: the cyclic frames, an arm following a trajectory through CAN,
 the watchdog when the commands stop, recovery, bad frames, and determinism."""
 import math
+import struct
 
 import pytest
 
@@ -107,14 +108,15 @@ def test_commands_stop_every_axis_trips_its_watchdog_within_100ms_and_nothing_mo
 def test_bad_frames_are_ignored_without_answer_or_violation(make_sim):
     sim = make_sim(world="buggy")
     bad = [Frame(0x7FF, bytes(8)),                                  # node 63: nobody here
-           Frame(odrive.frame_id(0, 0x0C), bytes(3)),               # Set_Input_Pos with DLC 3
+           Frame(odrive.frame_id(0, 0x0C), struct.pack("<f", math.nan) + bytes(4)),  # Set_Input_Pos to NaN
            Frame(odrive.frame_id(1, 0x08), bytes(8)),               # cmd 0x08: no such message
            Frame(odrive.frame_id(0, 0x07), bytes(8), extended=True),  # an extended id
            Frame(0x123, b"\xff" * 8)]                               # garbage
     for k, frame in enumerate(bad):
         sim.post(0.01 * (k + 1), frame)
     sim.run(0.2)
-    assert sim.iota.frames_ignored == len(bad)
+    assert sim.iota.frames_ignored == len(bad) - 1  # not for an axis, or not understood
+    assert "Input_Pos=nan is not a finite number" in sim.iota.axes[0].ignored[-1]  # axis 0 ignored it
     assert not sim.violations()
     assert {m.name for _, m in sim.sent()} == {"Heartbeat", "Get_Encoder_Estimates"}  # no answers
     assert all(axis.state == IDLE and axis.axis_error == 0 for axis in sim.iota.axes)
