@@ -1,6 +1,7 @@
 """Loading a Python IOTA class named as "path/to/file.py:Class" or "package.module:Class"."""
 from __future__ import annotations
 
+import hashlib
 import importlib
 import importlib.util
 import os
@@ -50,7 +51,11 @@ def load_object(reference: str, base: Path | None = None) -> Any:
             path = base / path
         if not path.is_file():
             raise LoadError(f"{reference!r}: no file {path}")
-        module_name = f"_iotad_user_{path.stem}_{abs(hash(str(path.resolve())))}"
+        # named after its path by a stable digest: str hash() changes from process to process,
+        # and the name ends up in recordings (specs name their module), which must not differ
+        # between two identical runs
+        digest = hashlib.blake2s(str(path.resolve()).encode(), digest_size=8).hexdigest()
+        module_name = f"_iotad_user_{path.stem}_{digest}"
         module = sys.modules.get(module_name)
         if module is None:
             # The file's folder goes on sys.path so that it can import its neighbours.
