@@ -378,7 +378,9 @@ def split_runs(events: list[dict], start: float = 0.0) -> list[tuple[float, list
             runs[-1][1].append(event)
         else:  # before any start record: in-process, or a recording without them
             runs.append((start, [event]))
-    return runs
+    # no event at all is a run too: one that did nothing, which a run's known end can judge
+    # (a node that should have fired by then and is silent is not "0 problems")
+    return runs or [(start, [])]
 
 
 def check_runs(build: Callable[[], Any], events: list[dict], *, node: str = "", tolerance: float = 0.0,

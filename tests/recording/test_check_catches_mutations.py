@@ -1,5 +1,7 @@
 """`iotad check` on the Figure 2 demo: the honest recording passes; hand-mutated ones are caught
 with a message that names the event."""
+from pathlib import Path
+
 import pytest
 
 from iotad.recording.conformance import check_implements, check_trace
@@ -9,6 +11,8 @@ from requesters import Requester
 from scheduler import Scheduler
 from recorded_systems import find, mutate
 from recorded_systems import figure2
+
+ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture(scope="module")
@@ -121,3 +125,17 @@ def test_bad_input_is_exit_2(recorded, tmp_path, capsys):
     assert main(["check", str(recorded), "--spec", "x.py:Y"]) == 2
     err = capsys.readouterr().err
     assert err.count("iotad: error:") == 3 and "Traceback" not in err
+
+
+def test_a_node_silent_for_the_whole_run_is_no_pass(tmp_path, capsys):
+    # vision asks for the motors on its own: its first window closed long before the run's
+    # recorded end (`iotad run --virtual` writes it) and never fired. With no event at all it
+    # was "0 events, 0 problem(s)" and passed
+    source = tmp_path / "fig2.mcap"
+    assert main(["run", str(ROOT / "examples" / "figure2.toml"), "--virtual", "--until", "20", "-o", str(source)]) == 0
+    code = main(["check", str(mutate(source, tmp_path / "m.mcap", "vision", lambda events: [])), "--no-delivery"])
+    out = capsys.readouterr().out
+    assert code == 1
+    assert "vision: 0 events" in out and "[expired] req" in out, out
+    assert main(["check", str(tmp_path / "m.mcap"), "--node", "vision", "--no-delivery"]) == 1
+    assert "[expired] req" in capsys.readouterr().out
