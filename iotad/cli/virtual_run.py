@@ -54,14 +54,8 @@ def cores() -> int:
 
 
 def _run(system, args: argparse.Namespace, writer) -> int:
-    from iotad.kernel.clock import VirtualClock
-    from iotad.kernel.engine import Engine
-    from iotad.kernel.policy import Eager, Random
     from iotad.launcher.in_process import compose
     from iotad.kernel.compose import flatten
-    from iotad.recording.mcap_io import (RUN_END, RUN_ERROR, EngineRecorder, McapSink, recording_header,
-                                         unused_recording_path)
-    from iotad.recording.writer_process import WriterFailed
 
     inputs = _read_inputs(args.inputs) if args.inputs else []
     try:
@@ -70,6 +64,33 @@ def _run(system, args: argparse.Namespace, writer) -> int:
         raise CliError(f"{system.file}: cannot compose the system: {type(exc).__name__}: {exc}") from None
     # Every input's node is found before a recording is opened (or, with --force, replaced).
     leaves = {leaf.path: leaf for leaf in flatten(root).leaves}
+    try:
+        return _run_composed(system, args, writer, root, leaves, inputs)
+    finally:
+        _close(leaves.values())
+
+
+def _close(leaves) -> None:
+    """Close what the nodes hold (a PyBullet world, by its `close()`), as their processes would at
+    their end: a second run in this process (a test, a notebook) must not find the first one's
+    worlds open under their keys."""
+    for leaf in leaves:
+        close = getattr(leaf.iota, "close", None)
+        if callable(close):
+            try:
+                close()
+            except Exception:  # noqa: BLE001 - the run is over; one node's close fault must not hide its result
+                pass
+
+
+def _run_composed(system, args: argparse.Namespace, writer, root, leaves: dict, inputs: list) -> int:
+    from iotad.kernel.clock import VirtualClock
+    from iotad.kernel.engine import Engine
+    from iotad.kernel.policy import Eager, Random
+    from iotad.recording.mcap_io import (RUN_END, RUN_ERROR, EngineRecorder, McapSink, recording_header,
+                                         unused_recording_path)
+    from iotad.recording.writer_process import WriterFailed
+
     inputs = [_external_entry(entry, system, args.inputs) for entry in inputs]
     posts = [(_input_path(entry.get("iota"), root.instance_name, leaves, args.inputs), entry)
              for entry in inputs]

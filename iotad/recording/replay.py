@@ -111,16 +111,26 @@ def replay_node(recording: Recording, node: str, tolerance: float = 0.01,
     if not any(e.get("kind") != START_KIND for e in events):
         raise RecordingError(f"node {node!r} has no @trace events in {recording.path}")
     runs = split_runs(events, start_time(recording.specs.get(node)))
+    # A virtual run says how far its engine ran: every node ran to there, so what the replay makes
+    # after the node's last recorded event and by then is an event the recording lacks (a node
+    # cut short). A real-time recording says no such thing of a node.
+    run_end = None if real_time else recording.run_end
     recorded, replayed = [], []
     for number, (begun, run) in enumerate(runs):
+        last = number == len(runs) - 1
         mine = [e for e in run if e.get("kind") in kinds]
         root = node_root(recording, node)
-        again = (_guided_run if guided else _replay_run)(root, begun, run, tolerance, kinds)
+        if guided:
+            again = _guided_run(root, begun, run, tolerance, kinds)
+        else:
+            again = _replay_run(root, begun, run, tolerance, kinds, until=run_end if last else None)
         # A firing the recording may simply not have reached (it ended first, or the process was
         # killed at that instant; a real process, a little late, up to `tolerance` before) is not
         # a divergence.
         end = max((float(e["t"]) for e in run), default=begun)
-        cut = end if number == len(runs) - 1 else math.nextafter(end, -math.inf)
+        if last and run_end is not None:
+            end = max(end, run_end)
+        cut = end if last else math.nextafter(end, -math.inf)
         if reorder:
             cut -= tolerance
         while len(again) > len(mine) and again[-1]["t"] > cut:
@@ -171,8 +181,10 @@ def _moved_forward(wanted: dict, replayed: list[dict], k: int, tolerance: float)
     return False
 
 
-def _replay_run(root: Any, begun: float, events: list[dict], tolerance: float, kinds: tuple) -> list[dict]:
-    """The events of `kinds` that `root` makes when given the inputs of one recorded run."""
+def _replay_run(root: Any, begun: float, events: list[dict], tolerance: float, kinds: tuple,
+                until: float | None = None) -> list[dict]:
+    """The events of `kinds` that `root` makes when given the inputs of one recorded run, up to
+    `until` (a virtual run's recorded end) or just past its last event."""
     engine = Engine(root, VirtualClock(begun))
     mapping = align_paths((e.get("iota", "") for e in events), list(engine.leaves))
     # Inputs bound to an output inside the node (a composite) are delivered by that output's
@@ -212,14 +224,16 @@ def _replay_run(root: Any, begun: float, events: list[dict], tolerance: float, k
         if engine.now() < t:
             engine.clock.wait(t)
         engine.deliver(mapping[event.get("iota", "")], event["action"], event.get("value"), event.get("index"))
-    engine.run(max((float(e["t"]) for e in events), default=begun) + tolerance)
+    last = max((float(e["t"]) for e in events), default=begun) + tolerance
+    engine.run(last if until is None else max(last, until))
     return _as_recorded(mapping, [e for e in engine.trace if e["kind"] in kinds])
 
 
 def _guided_run(root: Any, begun: float, events: list[dict], tolerance: float, kinds: tuple) -> list[dict]:
     """The events of `kinds` that `root` makes when each of its firings is the one the recording
     has, at its time (the trace checker's way: an enabled instance of that channel and index, its
-    value computed by the spec; none enabled: no firing)."""
+    value computed by the spec; none enabled: no firing). When each firing came is what happened, not
+    judged here: `iotad check` says whether it was inside its window."""
     from iotad.recording.conformance import TraceChecker
 
     checker = TraceChecker(root, tolerance=tolerance, start=begun)

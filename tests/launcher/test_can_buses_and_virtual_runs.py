@@ -192,3 +192,12 @@ def test_two_identical_virtual_runs_write_the_same_bytes(tmp_path):
         assert done.returncode == 0, done.stderr
         files.append(out.read_bytes())
     assert files[0] == files[1]
+
+
+def test_a_virtual_run_closes_the_worlds_its_nodes_opened(capsys):
+    # as each node's process would at its end: a second run in this process (a test, a notebook)
+    # found the first one's PyBullet world still open under its key
+    from sim.worlds import find_world
+
+    assert main(["run", str(ROOT / "examples" / "buggy.toml"), "--virtual", "--until", "0.5", "--no-record"]) == 0
+    assert find_world("body") is None

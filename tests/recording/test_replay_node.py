@@ -53,3 +53,18 @@ def test_time_beyond_tolerance_diverges(recorded, tmp_path, capsys):
 def test_unknown_node_is_exit_2(recorded, capsys):
     assert main(["replay", str(recorded), "--node", "nosuch"]) == 2
     assert capsys.readouterr().err.startswith("iotad: error: node 'nosuch'")
+
+
+FIGURE2_FILE = __import__("pathlib").Path(__file__).resolve().parents[2] / "examples" / "figure2.toml"
+
+
+def test_a_node_cut_short_before_the_runs_end_diverges(tmp_path, capsys):
+    # a virtual run records how far every node ran: what the replay makes between the node's
+    # last recorded event and then is an event the recording lacks (it "agreed" before)
+    source = tmp_path / "fig2.mcap"
+    assert main(["run", str(FIGURE2_FILE), "--virtual", "--until", "20", "-o", str(source)]) == 0
+    path = mutate(source, tmp_path / "m.mcap", "scheduler", lambda events: [e for e in events if e["t"] <= 5.0])
+    capsys.readouterr()
+    assert main(["replay", str(path), "--node", "scheduler"]) == 1
+    assert "the replay has an extra event: output ack[0]=COMMIT at t=7" in capsys.readouterr().out
+    assert main(["replay", str(source), "--node", "scheduler"]) == 0  # the whole recording agrees

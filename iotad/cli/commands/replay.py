@@ -41,8 +41,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     what.add_argument("--live", action="store_true", help="republish the recording on zenoh")
     parser.add_argument("--tolerance", type=nonnegative_float, default=None, metavar="T",
                         help="allowed time difference, spec time units (default: exact for virtual-time "
-                             "recordings, 10 ms for real ones); replaying at the recorded times, how far "
-                             "outside its window a firing may be")
+                             "recordings, 10 ms for real ones); replaying at the recorded times, values are "
+                             "compared and times are the recording's: 'iotad check' judges each firing's window")
     parser.add_argument("--internal", action="store_true", help="compare internal events too, not only outputs")
     parser.add_argument("--free", action="store_true",
                         help="let the node fire on its own at the earliest times its spec allows, and compare "
