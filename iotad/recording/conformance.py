@@ -138,6 +138,31 @@ def _short(value: Any) -> str:
     return text if len(text) <= 60 else text[:57] + "..."
 
 
+def first_difference(a: Any, b: Any, path: str = "") -> str:
+    """Where two plain values first differ, for a message that shows them cut short: "data[0]:
+    44 against 45" ("" where they are the same)."""
+    if isinstance(a, dict) and isinstance(b, dict):
+        for key in list(a) + [k for k in b if k not in a]:
+            if key not in a or key not in b:
+                return f"{path}.{key}: {'missing' if key not in a else _short(a[key])} against " \
+                       f"{'missing' if key not in b else _short(b[key])}".lstrip(".")
+            found = first_difference(a[key], b[key], f"{path}.{key}")
+            if found:
+                return found
+        return ""
+    if isinstance(a, (list, tuple)) and isinstance(b, (list, tuple)):
+        for k, (x, y) in enumerate(zip(a, b)):
+            found = first_difference(x, y, f"{path}[{k}]")
+            if found:
+                return found
+        if len(a) != len(b):
+            return f"{path or 'the value'}: {len(a)} elements against {len(b)}"
+        return ""
+    if _same(a, b):
+        return ""
+    return f"{path.lstrip('.') or 'the value'}: {_short(a)} against {_short(b)}"
+
+
 def label_of(instance: ActionInstance) -> str:
     label = instance.action.label
     if instance.index is not None:
@@ -327,7 +352,11 @@ class TraceChecker:
                 continue
         if not matching:
             options = ", ".join(f"{label_of(i)}={_short(_value_of_safe(i))}" for i in enabled)
-            self._find(t, "wrong_value", f"{describe(event)}: the spec allows only {options} here", position)
+            # values too long to show whole look alike cut short: say where the first one differs
+            where = first_difference(event.get("value"), _value_of_safe(enabled[0])) if len(enabled) == 1 else ""
+            differs = f" (recorded against the spec's: {where})" if where else ""
+            self._find(t, "wrong_value", f"{describe(event)}: the spec allows only {options} here{differs}",
+                       position)
             matching = enabled  # keep the state in step with what the node did
         inside = [i for i in matching if i.lower - self.tolerance <= t <= i.upper + self.tolerance]
         instance = (inside or matching)[0]

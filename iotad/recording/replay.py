@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from typing import Any, Callable
 
 from iotad.host.wire import START_KIND
-from iotad.recording.conformance import _same, align_paths, describe, split_runs
+from iotad.recording.conformance import _same, align_paths, describe, first_difference, split_runs
 from iotad.kernel.clock import VirtualClock
 from iotad.kernel.engine import Engine
 from iotad.recording.mcap_io import Recording, RecordingError, build_node, start_time
@@ -150,7 +150,9 @@ def replay_node(recording: Recording, node: str, tolerance: float = 0.01,
             break
         a, b = recorded[k], replayed[k]
         if not _agree(a, b):
-            result.divergence, result.reason = k, f"recorded {describe(a)}, replayed {describe(b)}"
+            where = first_difference(a.get("value"), b.get("value")) if a["action"] == b["action"] else ""
+            result.divergence, result.reason = k, (f"recorded {describe(a)}, replayed {describe(b)}"
+                                                   + (f" (recorded against replayed: {where})" if where else ""))
             break
         error = abs(float(a["t"]) - float(b["t"]))
         result.max_time_error = max(result.max_time_error, error)

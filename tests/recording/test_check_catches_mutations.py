@@ -139,3 +139,25 @@ def test_a_node_silent_for_the_whole_run_is_no_pass(tmp_path, capsys):
     assert "vision: 0 events" in out and "[expired] req" in out, out
     assert main(["check", str(tmp_path / "m.mcap"), "--node", "vision", "--no-delivery"]) == 1
     assert "[expired] req" in capsys.readouterr().out
+
+
+def test_a_wrong_value_too_long_to_show_says_where_it_differs(tmp_path, capsys):
+    # a CAN frame printed cut short looks the same recorded and expected: the message says which
+    # field differs, and so does replay's
+    source = tmp_path / "buggy.mcap"
+    assert main(["run", str(ROOT / "examples" / "buggy.toml"), "--virtual", "--until", "3", "-o", str(source)]) == 0
+
+    def flip(events):
+        k = [j for j, e in enumerate(events) if e["action"] == "can_tx" and e["kind"] == "output"][20]
+        value = events[k]["value"]
+        events[k] = dict(events[k], value=dict(value, data=[value["data"][0] ^ 1] + value["data"][1:]))
+        flipped.append((value["data"][0] ^ 1, value["data"][0]))
+        return events
+    flipped = []
+    path = mutate(source, tmp_path / "m.mcap", "motor", flip)
+    capsys.readouterr()
+    assert main(["check", str(path), "--node", "motor", "--no-delivery"]) == 1
+    mine, spec = flipped[0]
+    assert f"(recorded against the spec's: data[0]: {mine} against {spec})" in capsys.readouterr().out
+    assert main(["replay", str(path), "--node", "motor"]) == 1
+    assert f"(recorded against replayed: data[0]: {mine} against {spec})" in capsys.readouterr().out
