@@ -353,7 +353,8 @@ class TraceChecker:
         if not matching:
             options = ", ".join(f"{label_of(i)}={_short(_value_of_safe(i))}" for i in enabled)
             # values too long to show whole look alike cut short: say where the first one differs
-            where = first_difference(event.get("value"), _value_of_safe(enabled[0])) if len(enabled) == 1 else ""
+            where = first_difference(event.get("value"), _value_of_safe(enabled[0])) \
+                if len(enabled) == 1 and isinstance(event.get("value"), (dict, list)) else ""
             differs = f" (recorded against the spec's: {where})" if where else ""
             self._find(t, "wrong_value", f"{describe(event)}: the spec allows only {options} here{differs}",
                        position)

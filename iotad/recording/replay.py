@@ -150,7 +150,8 @@ def replay_node(recording: Recording, node: str, tolerance: float = 0.01,
             break
         a, b = recorded[k], replayed[k]
         if not _agree(a, b):
-            where = first_difference(a.get("value"), b.get("value")) if a["action"] == b["action"] else ""
+            where = first_difference(a.get("value"), b.get("value")) \
+                if a["action"] == b["action"] and isinstance(a.get("value"), (dict, list)) else ""
             result.divergence, result.reason = k, (f"recorded {describe(a)}, replayed {describe(b)}"
                                                    + (f" (recorded against replayed: {where})" if where else ""))
             break
