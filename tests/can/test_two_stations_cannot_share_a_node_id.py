@@ -45,22 +45,17 @@ to = "motor2.setpoints"
 """
 
 
-def test_two_simulated_axes_answering_one_node_id_are_refused(tmp_path):
-    path = _arm_can(tmp_path, SECOND_SIM.format(first=4), '["motor", "odrives", "spare"]')
+@pytest.mark.parametrize("extra, stations, said", [
+    (SECOND_SIM.format(first=4), '["motor", "odrives", "spare"]',
+     "CAN node id 4 is answered by two devices: odrives (joint4) and spare (joint1)"),
+    (SECOND_MOTOR, '["motor", "odrives", "motor2"]',
+     "CAN node id 3 is commanded by two hosts: motor (joint3) and motor2 (a)"),
+])
+def test_two_stations_claiming_one_node_id_are_refused(tmp_path, extra, stations, said):
     with pytest.raises(SystemFileError) as caught:
-        load_system(path)
+        load_system(_arm_can(tmp_path, extra, stations))
     assert caught.value.errors == [
-        "arm_can.toml: [[can]] #1 (name=\"arm_bus\"): CAN node id 4 is answered by two devices: odrives (joint4) "
-        "and spare (joint1); every axis on a bus needs a node id of its own"]
-
-
-def test_two_motor_nodes_commanding_one_axis_are_refused(tmp_path):
-    path = _arm_can(tmp_path, SECOND_MOTOR, '["motor", "odrives", "motor2"]')
-    with pytest.raises(SystemFileError) as caught:
-        load_system(path)
-    assert caught.value.errors == [
-        "arm_can.toml: [[can]] #1 (name=\"arm_bus\"): CAN node id 3 is commanded by two hosts: motor (joint3) "
-        "and motor2 (a); every axis on a bus needs a node id of its own"]
+        f"arm_can.toml: [[can]] #1 (name=\"arm_bus\"): {said}; every axis on a bus needs a node id of its own"]
 
 
 def test_stations_with_ids_of_their_own_share_a_bus(tmp_path):
