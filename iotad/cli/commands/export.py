@@ -43,8 +43,8 @@ def run(args: argparse.Namespace) -> int:
     recording = load(args.file)
     extra = None
     if not recording.complete or recording.damaged:
-        # the copy is a whole file, but not of a whole run: it says so as `iotad recover`'s do,
-        # so that info and check read it as the part of a run it is
+        # the copy is a whole file, but not of a whole run: its metadata says so as `iotad
+        # recover`'s does, for whoever opens it (Foxglove shows a file's metadata)
         extra = {"iotad.recovered": {"from": str(args.file), "was_complete": False, "messages": len(recording.messages),
                                      "stopped_at": recording.truncated_reason or "footer",
                                      "damaged": recording.damaged}}
