@@ -17,8 +17,9 @@ What it models of the firmware, and where it simplifies (docs/simulation.md has 
   feeds it before it looks at the command): a host that polls keeps it fed. Entering closed loop feeds it. No
   command for longer than the timeout while armed: IDLE with WATCHDOG_TIMER_EXPIRED. It is
   checked at every control step, so it trips at most one step after the timeout.
-- Controller: input modes INACTIVE, PASSTHROUGH, VEL_RAMP, POS_FILTER and TORQUE_RAMP; control
-  modes TORQUE, VELOCITY, POSITION (VOLTAGE, TRAP_TRAJ, MIRROR... are refused as BAD_CONFIG).
+- Controller: input modes INACTIVE, PASSTHROUGH, VEL_RAMP, POS_FILTER, TORQUE_RAMP and TRAP_TRAJ
+  (the firmware's trapezoidal planner, sim/trap_traj.py, with the Set_Traj_* limits); control
+  modes TORQUE, VELOCITY, POSITION (VOLTAGE, MIRROR... are refused as BAD_CONFIG).
   Position P loop -> velocity PI loop -> torque, the shape of the open 0.5 firmware's
   controller.cpp: velocity limited to vel_limit, torque to current_limit * torque_constant, the
   integrator decays while the torque saturates; torque mode limits torque near vel_limit.
@@ -34,6 +35,8 @@ from iotad.can.frame import Frame
 from iotad.can.odrive import (AXIS_ERROR, AXIS_STATE, COMMANDS, CONTROL_MODE, INPUT_MODE, MESSAGES,
                               PROCEDURE_RESULT, Message, encode, frame_id)
 
+from .trap_traj import plan
+
 IDLE = AXIS_STATE["IDLE"]
 CLOSED_LOOP = AXIS_STATE["CLOSED_LOOP_CONTROL"]
 CALIBRATION_STATES = frozenset(AXIS_STATE[name] for name in (
@@ -44,7 +47,10 @@ TORQUE, VELOCITY, POSITION = CONTROL_MODE["TORQUE"], CONTROL_MODE["VELOCITY"], C
 SUPPORTED_CONTROL_MODES = frozenset((TORQUE, VELOCITY, POSITION))
 INACTIVE, PASSTHROUGH = INPUT_MODE["INACTIVE"], INPUT_MODE["PASSTHROUGH"]
 VEL_RAMP, POS_FILTER, TORQUE_RAMP = INPUT_MODE["VEL_RAMP"], INPUT_MODE["POS_FILTER"], INPUT_MODE["TORQUE_RAMP"]
-SUPPORTED_INPUT_MODES = frozenset((INACTIVE, PASSTHROUGH, VEL_RAMP, POS_FILTER, TORQUE_RAMP))
+TRAP_TRAJ = INPUT_MODE["TRAP_TRAJ"]
+SUPPORTED_INPUT_MODES = frozenset((INACTIVE, PASSTHROUGH, VEL_RAMP, POS_FILTER, TORQUE_RAMP, TRAP_TRAJ))
+# the firmware's defaults of trap_traj.config and controller.config.inertia
+TRAJ_DEFAULTS = {"Traj_Vel_Limit": 2.0, "Traj_Accel_Limit": 0.5, "Traj_Decel_Limit": 0.5, "Traj_Inertia": 0.0}
 
 WATCHDOG_TIMER_EXPIRED = AXIS_ERROR["WATCHDOG_TIMER_EXPIRED"]
 ESTOP_REQUESTED = AXIS_ERROR["ESTOP_REQUESTED"]
@@ -145,8 +151,12 @@ class OdriveAxis:
         self.torque_target = 0.0
         self.pos_estimate = self.vel_estimate = 0.0
         self.position_offset = 0.0     # Set_Absolute_Position: estimate = measured + offset
-        self.traj_limits = {"Traj_Vel_Limit": 0.0, "Traj_Accel_Limit": 0.0, "Traj_Decel_Limit": 0.0,
-                            "Traj_Inertia": 0.0}
+        self.traj_limits = dict(TRAJ_DEFAULTS)
+        self.inertia = config.inertia  # controller.config.inertia: Set_Traj_Inertia sets it
+        self.trajectory = None         # TRAP_TRAJ: the move planned at the last Set_Input_Pos
+        self.trajectory_time = 0.0
+        self.trajectory_done = True    # Heartbeat's Trajectory_Done_Flag, as the firmware starts
+        self.input_pos_updated = False
         self.last_command = -math.inf  # when the watchdog was last fed
 
     # ------------------------------------------------------------------ state
@@ -218,6 +228,7 @@ class OdriveAxis:
         self.state = CLOSED_LOOP
         if self.control_mode == POSITION:
             self.input_pos = self.pos_setpoint = self.pos_estimate
+            self.input_pos_updated = True  # in TRAP_TRAJ: a move of no length, to where it is
         self.integrator = 0.0
         self.last_command = now
 
@@ -239,6 +250,7 @@ class OdriveAxis:
 
     def _on_Set_Input_Pos(self, values: dict, now: float) -> None:
         self.input_pos = values["Input_Pos"]
+        self.input_pos_updated = True  # TRAP_TRAJ plans a move to it at the next control step
         self.input_vel = values["Vel_FF"]
         self.input_torque = values["Torque_FF"]
 
@@ -271,7 +283,8 @@ class OdriveAxis:
         self.pos_setpoint += shift
 
     def _traj(self, values: dict, now: float) -> None:
-        self.traj_limits.update(values)  # kept for Get answers; TRAP_TRAJ itself is not simulated
+        self.traj_limits.update(values)  # the next move planned uses them, as the firmware's
+        self.inertia = self.traj_limits["Traj_Inertia"] if "Traj_Inertia" in values else self.inertia
 
     _on_Set_Traj_Vel_Limit = _on_Set_Traj_Accel_Limits = _on_Set_Traj_Inertia = _traj
 
@@ -334,23 +347,48 @@ class OdriveAxis:
             most = self.config.vel_ramp_rate * dt
             step = _clamp(self.input_vel - self.vel_setpoint, -most, most)
             self.vel_setpoint += step
-            self.torque_setpoint = self.input_torque + step / dt * self.config.inertia
+            self.torque_setpoint = self.input_torque + step / dt * self.inertia
         elif mode == POS_FILTER:
             # a critically damped second-order filter toward input_pos (the firmware's gains)
             ki = 2.0 * self.config.input_filter_bandwidth
             kp = 0.25 * ki * ki
             accel = kp * (self.input_pos - self.pos_setpoint) + ki * (self.input_vel - self.vel_setpoint)
-            self.torque_setpoint = self.input_torque + accel * self.config.inertia
+            self.torque_setpoint = self.input_torque + accel * self.inertia
             self.vel_setpoint += dt * accel
             self.pos_setpoint += dt * self.vel_setpoint
         elif mode == TORQUE_RAMP:
             most = self.config.torque_ramp_rate * dt
             self.torque_setpoint += _clamp(self.input_torque - self.torque_setpoint, -most, most)
+        elif mode == TRAP_TRAJ:
+            self._follow_trajectory(dt)
         # INACTIVE: the setpoints stay as they are
+
+    def _follow_trajectory(self, dt: float) -> None:
+        # as the firmware's controller does in TRAP_TRAJ: a new input position plans a move from
+        # where the setpoint is (position and velocity); the setpoints follow it, with the
+        # acceleration times the inertia as torque feed-forward; at its end it holds the goal
+        if self.input_pos_updated:
+            limits = self.traj_limits
+            self.trajectory = plan(self.input_pos, self.pos_setpoint, self.vel_setpoint, limits["Traj_Vel_Limit"],
+                                   limits["Traj_Accel_Limit"], limits["Traj_Decel_Limit"])
+            self.trajectory_time = 0.0
+            self.trajectory_done = False
+            self.input_pos_updated = False
+        if self.trajectory_done or self.trajectory is None:
+            return
+        if self.trajectory_time > self.trajectory.tf:
+            self.pos_setpoint, self.vel_setpoint, self.torque_setpoint = self.trajectory.xf, 0.0, 0.0
+            self.trajectory_done = True
+            return
+        position, velocity, acceleration = self.trajectory.eval(self.trajectory_time)
+        self.pos_setpoint, self.vel_setpoint = position, velocity
+        self.torque_setpoint = acceleration * self.inertia
+        self.trajectory_time += dt
 
     # ------------------------------------------------------------------ CAN out
     def heartbeat(self) -> Frame:
-        return Frame(self._heartbeat_id, _HEARTBEAT.pack(self.axis_error, self.state, self.procedure_result, 1))
+        return Frame(self._heartbeat_id, _HEARTBEAT.pack(self.axis_error, self.state, self.procedure_result,
+                                                         int(self.trajectory_done)))
 
     def encoder_estimates(self) -> Frame:
         return Frame(self._encoder_id, _ENCODER.pack(_float32(self.pos_estimate), _float32(self.vel_estimate)))

@@ -88,7 +88,7 @@ def test_unsupported_controller_mode_is_a_bad_config_error_that_disarms():
     assert beat["Axis_State"] == IDLE and beat["Axis_Error"] == AXIS_ERROR["BAD_CONFIG"]
     assert axis.control_mode == odrive.CONTROL_MODE["POSITION"]  # unchanged
     axis.handle(command(5, "Clear_Errors"), 0.2)
-    axis.handle(command(5, "Set_Controller_Mode", Control_Mode=3, Input_Mode=5), 0.3)  # TRAP_TRAJ
+    axis.handle(command(5, "Set_Controller_Mode", Control_Mode=3, Input_Mode=7), 0.3)  # MIRROR
     assert heartbeat(axis)["Axis_Error"] == AXIS_ERROR["BAD_CONFIG"]
 
 
