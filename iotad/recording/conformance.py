@@ -248,11 +248,20 @@ class TraceChecker:
     def check(self, events: list[dict], until: float | None = None) -> CheckReport:
         mapping = align_paths((e.get("iota", "") for e in events), self._leaf_paths)
         report = self.report
+        latest = -INF  # the latest time recorded so far: a node's trace never goes back in time
         for position, event in enumerate(events):
             report.events += 1
             leaf = mapping.get(event.get("iota", ""), self._leaf_paths[0])
             t = float(event["t"])
             kind = event.get("kind")
+            if t < latest - self.tolerance:
+                # an edited or damaged recording: judged at the time the checker has reached, the
+                # event would be blamed on its neighbours (a switching time "of -0.6 ms"); say
+                # what is wrong with it, and judge the events after it
+                self._find(t, "out_of_order", f"{describe(event)} is recorded after an event at t={latest:.6g}: "
+                                              f"the node's trace goes back in time here", position)
+                continue
+            latest = max(latest, t)
             if kind == "violation":
                 report.recorded_violations.append(event)
                 value = event.get("value") or {}

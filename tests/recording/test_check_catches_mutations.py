@@ -161,3 +161,18 @@ def test_a_wrong_value_too_long_to_show_says_where_it_differs(tmp_path, capsys):
     assert f"(recorded against the spec's: data[0]: {mine} against {spec})" in capsys.readouterr().out
     assert main(["replay", str(path), "--node", "motor"]) == 1
     assert f"(recorded against replayed: data[0]: {mine} against {spec})" in capsys.readouterr().out
+
+
+def test_an_event_recorded_out_of_time_order_is_named_itself(recorded, tmp_path, capsys):
+    # it was blamed on the event after it ("came -0.4 after the previous one, sooner than its
+    # switching time"), and the moved event itself was not named
+    def back(events):
+        k = find(events, action="ack", value="COMMIT", index=1)
+        moved = dict(events.pop(k), t=events[k - 1]["t"] - 0.4)
+        events.insert(k, moved)
+        return events
+    recording = read_recording(recorded)
+    events = back(recording.trace("scheduler"))
+    report = check_trace(Scheduler("scheduler", T=0.5), events)
+    [finding] = [f for f in report.findings if f.code == "out_of_order"]
+    assert finding.message.startswith("output ack[1]=COMMIT at t=") and "goes back in time" in finding.message
