@@ -47,6 +47,7 @@ REJECTIONS = (*INPUT_REFUSALS, "malformed_payload")  # a receiver saw it and ref
 OVERFLOW = "input_overflow"  # a receiver's full input queue dropped `dropped` inputs between two times
 _BETWEEN = re.compile(r"between t=(?P<first>[-+\d.eE]+) and t=(?P<last>[-+\d.eE]+)")
 PROBLEMS = ("lost", "altered", "duplicated", "unexplained", "reordered", "causality")
+MISTIMED = 1.0  # s: a receipt this near a message of its value that nothing took is that message, mistimed
 CAN_TX, CAN_RX = "can_tx", "can_rx"
 BUS_LOG = "frames"  # a bus's log of every frame it carried (iotad.can.frame_log), if the recording has one
 _ENDPOINT = re.compile(r"^\s*(?P<node>[^\s\[\]]+)\.(?P<channel>[A-Za-z_]\w*)(?:\[(?P<index>\d+)\])?\s*$")
@@ -767,6 +768,19 @@ class DeliveryChecker:
                            _same_value)
             for claim, found in pairs:
                 if found is None:
+                    # on the wire with its value, near its time, and taken by no other claim:
+                    # that message, mistimed (as a receipt can be, `_check_target`)
+                    near = [m for m in rest if id(m) not in matched and abs(m.t - claim.t) <= MISTIMED / self.unit
+                            and _same_value(claim, m)]
+                    if near:
+                        found = min(near, key=lambda m: abs(m.t - claim.t))
+                        matched.add(id(found))
+                        link.altered += 1
+                        self._finding(link, "altered", claim.t, f"output {claim.ordinal} ({_short(claim.value)}), "
+                                      f"published at t={claim.t:.6g}, is on the wire at t={found.t:.6g}: "
+                                      f"{abs(found.t - claim.t) * self.unit * 1e3:.3g} ms from its time, beyond the "
+                                      f"tolerance")
+                        continue
                     self._wire_lost(link, key, claim)
                 else:
                     matched.add(id(found))
@@ -874,8 +888,25 @@ class DeliveryChecker:
                     taken[id(claim)] = item
                     self._delivered(links[claim.key], claim, item)
                     continue
-                # the same value again, after a delivery of it: a duplicate (else nobody sent it)
                 value = item.value
+                # a message sent with this value and taken by no receipt, near in time: the one
+                # received, at another time than it was sent (an edited recording, a clock gone
+                # wrong). Said as such, once, instead of the claim "lost" and this receipt
+                # "duplicated" (of an earlier message with the same value) or "unexplained"
+                near = [c for c in claims if id(c) not in taken and abs(c.t - item.t) <= MISTIMED / self.unit
+                        and _same(value_of(c), value)]
+                if near:
+                    claim = min(near, key=lambda c: abs(c.t - item.t))
+                    taken[id(claim)] = item
+                    link = links[claim.key]
+                    link.altered += 1
+                    number = f"#{claim.ident[0]}" if claim.ident else f"output {claim.ordinal}"
+                    self._finding(link, "altered", claim.t, f"{number} ({_short(claim.value)}), sent at "
+                                  f"t={claim.t:.6g}, was received at t={item.t:.6g}: "
+                                  f"{abs(item.t - claim.t) * self.unit * 1e3:.3g} ms from its time, beyond the "
+                                  f"tolerance")
+                    continue
+                # the same value again, after a delivery of it: a duplicate (else nobody sent it)
                 twins = [c for c in claims if id(c) in taken and taken[id(c)] is not None
                          and c.t <= item.t + self.tolerance and _same(value_of(c), value)]
                 twin = max(twins, key=lambda c: c.t) if twins else None

@@ -176,3 +176,21 @@ def test_an_event_recorded_out_of_time_order_is_named_itself(recorded, tmp_path,
     report = check_trace(Scheduler("scheduler", T=0.5), events)
     [finding] = [f for f in report.findings if f.code == "out_of_order"]
     assert finding.message.startswith("output ack[1]=COMMIT at t=") and "goes back in time" in finding.message
+
+
+def test_a_message_recorded_at_another_time_than_it_was_sent_is_said_so_once(tmp_path, capsys):
+    # vision's second request moved by 1 ms in its own trace: the delivery check called the
+    # receipt "duplicated" (of the first request, which had the same value) and the request "lost"
+    source = tmp_path / "fig2.mcap"
+    assert main(["run", str(ROOT / "examples" / "figure2.toml"), "--virtual", "--until", "20", "-o", str(source)]) == 0
+
+    def shift(events):
+        k = [j for j, e in enumerate(events) if e["action"] == "req" and e["kind"] == "output"][1]
+        events[k] = dict(events[k], t=events[k]["t"] + 1e-3)
+        return events
+    capsys.readouterr()
+    assert main(["check", str(mutate(source, tmp_path / "m.mcap", "vision", shift))]) == 1
+    out = capsys.readouterr().out
+    assert "[duplicated]" not in out and "[lost]" not in out and "[unexplained]" not in out, out
+    assert "[altered] vision.req -> scheduler.req[0]: output 1" in out and "was received at t=2.7: 1 ms from its time" in out
+    assert "[altered] vision.req -> (wire): output 1" in out and "is on the wire at t=2.7: 1 ms from its time" in out
