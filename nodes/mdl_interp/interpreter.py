@@ -334,8 +334,10 @@ class MdlInterpreter(Iota):
                 value = self._evaluate(expression, f"{where}.k[{g}].sensor")
                 rates[joint] += gain * value
         current.ticks += steps
+        increments = None
         if rates is not None:
-            current.feedback = [e + r * dt for e, r in zip(current.feedback, rates)]
+            increments = [r * dt for r in rates]
+            current.feedback = [e + d for e, d in zip(current.feedback, increments)]
         reference = [u + e for u, e in zip(current.open_loop(current.ticks * robot.period), current.feedback)]
         command = []
         short = 0.0  # the largest gap the velocity limit left between a joint and its reference
@@ -345,18 +347,34 @@ class MdlInterpreter(Iota):
             lo, hi = robot.lower[j], robot.upper[j]
             if r < lo or r > hi:
                 limited = lo if r < lo else hi
-                if rates is not None:
-                    current.feedback[j] += limited - r  # anti-windup: the integral stops at the limit
+                if increments is not None:
+                    increments[j] = self._unwind(current, j, increments[j], limited - r)
                 r = limited
             most = robot.max_velocity[j] * dt
             step = r - c
             if step > most or step < -most:
                 if abs(step) - most > short:
                     short, slowest = abs(step) - most, j
-                step = most if step > most else -most
+                clipped = most if step > most else -most
+                if increments is not None:
+                    self._unwind(current, j, increments[j], clipped - step)
+                step = clipped
             command.append(c + step)
         self.command = command
         current.short = (short, slowest) if short > GOAL_SLACK else None
+
+    @staticmethod
+    def _unwind(current, j: int, increment: float, cut: float) -> float:
+        """Anti-windup: a limit (a joint's position limit, `max_velocity`) cut the reference by
+        `cut`; the feedback integral gives back this step's increment where it pushed that way,
+        up to the cut, and no more: it neither grows against a limit (a first-order law would
+        overshoot) nor absorbs what the open-loop motion lost at it (a clipped sine would leave
+        a lasting offset). Returns the increment left."""
+        if increment * cut >= 0:  # it did not push toward the limit
+            return increment
+        back = -increment if abs(increment) <= abs(cut) else cut
+        current.feedback[j] += back
+        return increment + back
 
     # ------------------------------------------------------------------ commands
     def _command_arrived(self, program: Program) -> None:

@@ -175,7 +175,9 @@ class AtomRun:
             # what moved them while it was preempted is not undone
             for j, c in enumerate(command):
                 if j not in self.atom.goal:
-                    self.base[j] = self.goal[j] = c
+                    # the open-loop part holds there: the feedback integral, in the command already,
+                    # is added to it again below, so it is taken out here (not counted twice)
+                    self.base[j] = self.goal[j] = c - self.feedback[j]
         self.anchor = tau
         self.offset = [0.0] * len(command)
         now = self.open_loop(tau)
