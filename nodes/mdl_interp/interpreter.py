@@ -274,7 +274,7 @@ class MdlInterpreter(Iota):
         if atom.kind in ("ramp", "minimum_jerk"):
             if atom.pose is not None:
                 try:
-                    goal = self._kinematics.solve(atom.pose, self.command)
+                    goal = self._kinematics.solve(atom.pose, self.command, robot.lower, robot.upper)
                 except KinematicsError as exc:
                     raise ProgramFault(f"{where}.u.pose: {exc}") from None
             else:
