@@ -67,8 +67,9 @@ class Kinematics:
               upper: list[float] | None = None) -> list[float]:
         """Joint positions (in the order of `joints`) that put the end-effector link at `pose`.
         With `lower` and `upper` (the joints' limits), a solution found outside them is sought
-        again within them (PyBullet's null-space solver, resting at `start`): the first solver
-        knows no limits, and refused poses the arm can reach within them."""
+        again within them (PyBullet's null-space solver, from `start`, then from the middle of
+        every range): the first solver knows no limits, and refused poses the arm can reach
+        within them."""
         self.load()
         result, error = self._solve(pose, start, None)
         if lower is not None and upper is not None and (
