@@ -40,7 +40,7 @@ from iotad.kernel.engine import Engine  # noqa: E402
 from iotad.kernel.policy import Eager  # noqa: E402
 from iotad.launcher.in_process import compose  # noqa: E402
 from iotad.launcher.system_file import load_system  # noqa: E402
-from iotad.cli.virtual_run import cores  # noqa: E402
+from iotad.cli.virtual_run import close_nodes, cores  # noqa: E402
 from iotad.recording.mcap_io import EngineRecorder, McapSink, recording_header  # noqa: E402
 from iotad.recording.writer_process import RecordingProcess  # noqa: E402
 
@@ -80,10 +80,7 @@ def _run(system, seconds: float, record: Path | None = None, timed=None,
         sink.finish()
     wall = time.perf_counter() - started
     gc.unfreeze()  # the next run's system is another
-    for leaf in flatten(root).leaves:
-        close = getattr(leaf.iota, "close", None)
-        if callable(close):
-            close()
+    close_nodes(flatten(root).leaves)
     return wall, engine.firings, events[0]
 
 

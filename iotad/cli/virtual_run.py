@@ -67,10 +67,10 @@ def _run(system, args: argparse.Namespace, writer) -> int:
     try:
         return _run_composed(system, args, writer, root, leaves, inputs)
     finally:
-        _close(leaves.values())
+        close_nodes(leaves.values())
 
 
-def _close(leaves) -> None:
+def close_nodes(leaves) -> None:
     """Close what the nodes hold (a PyBullet world, by its `close()`), as their processes would at
     their end: a second run in this process (a test, a notebook) must not find the first one's
     worlds open under their keys."""

@@ -432,8 +432,9 @@ class Engine:
                 else:
                     value = slot.type.from_plain(plain)
                     # what the IOTA got, as its type writes it: an int of 100 bits in a float
-                    # field is recorded as the float it became, which msgpack can carry
-                    plain = slot.type.checked_plain(value)
+                    # field is recorded as the float it became, which msgpack can carry (checked
+                    # once, by from_plain: to_plain only writes it)
+                    plain = slot.type.to_plain(value)
             except Exception as exc:  # noqa: BLE001 - BadValue, or a type's own fault on odd input
                 why = exc if isinstance(exc, BadValue) else f"{type(exc).__name__}: {exc}"
                 self._violation(now, leaf.path, channel.name, index, "bad_value",

@@ -770,10 +770,8 @@ class DeliveryChecker:
                 if found is None:
                     # on the wire with its value, near its time, and taken by no other claim:
                     # that message, mistimed (as a receipt can be, `_check_target`)
-                    near = [m for m in rest if id(m) not in matched and abs(m.t - claim.t) <= MISTIMED / self.unit
-                            and _same_value(claim, m)]
-                    if near:
-                        found = min(near, key=lambda m: abs(m.t - claim.t))
+                    found = self._mistimed(rest, claim.t, lambda m: id(m) not in matched and _same_value(claim, m))
+                    if found is not None:
                         matched.add(id(found))
                         link.altered += 1
                         self._finding(link, "altered", claim.t, f"output {claim.ordinal} ({_short(claim.value)}), "
@@ -797,6 +795,12 @@ class DeliveryChecker:
             self._finding(link, "unexplained", message.t,
                           f"#{message.ident[0]} ({_short(message.value)}) is on the wire, and {sender}'s trace "
                           f"claims no such message")
+
+    def _mistimed(self, candidates: list, t: float, fits) -> Any:
+        """The candidate nearest `t`, within MISTIMED, that `fits`: the message a receipt (or a
+        wire copy) is, found at another time than it was sent. None if there is none."""
+        near = [c for c in candidates if abs(c.t - t) <= MISTIMED / self.unit and fits(c)]
+        return min(near, key=lambda c: abs(c.t - t)) if near else None
 
     def _wire_lost(self, link: Link, key: str, claim: _Sent) -> None:
         number = f"#{claim.ident[0]}" if claim.ident else f"output {claim.ordinal}"
@@ -893,10 +897,8 @@ class DeliveryChecker:
                 # received, at another time than it was sent (an edited recording, a clock gone
                 # wrong). Said as such, once, instead of the claim "lost" and this receipt
                 # "duplicated" (of an earlier message with the same value) or "unexplained"
-                near = [c for c in claims if id(c) not in taken and abs(c.t - item.t) <= MISTIMED / self.unit
-                        and _same(value_of(c), value)]
-                if near:
-                    claim = min(near, key=lambda c: abs(c.t - item.t))
+                claim = self._mistimed(claims, item.t, lambda c: id(c) not in taken and _same(value_of(c), value))
+                if claim is not None:
                     taken[id(claim)] = item
                     link = links[claim.key]
                     link.altered += 1
