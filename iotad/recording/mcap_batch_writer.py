@@ -90,18 +90,8 @@ class BatchWriter:
                     index.records.append(record)
             for channel_id, n in Counter(channels).items():
                 channel_counts[channel_id] += n
-            if builder.num_messages == 0:
-                builder.message_start_time, builder.message_end_time = first, last
-            else:
-                builder.message_start_time = min(builder.message_start_time, first)
-                builder.message_end_time = max(builder.message_end_time, last)
-            builder.num_messages += count
-            if stats.message_count == 0:
-                stats.message_start_time, stats.message_end_time = first, last
-            else:
-                stats.message_start_time = min(stats.message_start_time, first)
-                stats.message_end_time = max(stats.message_end_time, last)
-            stats.message_count += count
+            _add_span(builder, "num_messages", first, last, count)  # the chunk's
+            _add_span(stats, "message_count", first, last, count)  # the file's
             parts.clear()
             channels.clear()
             logs.clear()
@@ -110,6 +100,17 @@ class BatchWriter:
         self.write = write
         self.write_pair = write_pair
         self.commit = commit
+
+
+def _add_span(counted: Any, count_field: str, first: int, last: int, count: int) -> None:
+    """`count` more messages logged from `first` to `last` (ns) in a chunk builder's or the
+    Writer's statistics: its message count, start and end time."""
+    if getattr(counted, count_field) == 0:
+        counted.message_start_time, counted.message_end_time = first, last
+    else:
+        counted.message_start_time = min(counted.message_start_time, first)
+        counted.message_end_time = max(counted.message_end_time, last)
+    setattr(counted, count_field, getattr(counted, count_field) + count)
 
 
 class _SpilledChunkIndexes:

@@ -18,7 +18,9 @@ examples:
 
 The image format follows the extension of -o: .png, .pdf, .svg or .jpg. The time axis is the
 nodes' clock, the t of their events: spec time units (seconds unless the system file's time_unit
-says otherwise) from the system's start. See also: 'iotad info FILE', 'iotad export FILE
+says otherwise) from the system's start. A recording of a robot with a picture of its own is
+drawn as that picture: pictures are plug-ins in the entry-point group 'iotad.pictures' (Buggy's
+and the conveyor arm's come with iotad). See also: 'iotad info FILE', 'iotad export FILE
 -o OUT.mcap --json' (every channel in Foxglove)."""
 
 
