@@ -178,6 +178,7 @@ def schema_for_topic(topic: str, specs: dict[str, dict], cache: dict[str, dict])
             return found
     return "any", PERMISSIVE_SCHEMA
 
+
 def write_set_file(path: str | Path, set_id: str, files: list[str], info: dict[str, Any]) -> None:
     """Write (or replace, atomically) the set file of a split recording: an MCAP file holding no
     messages, only metadata `iotad.recording` (`info`) and `iotad.split_set` (`set`: an id that
@@ -191,6 +192,7 @@ def write_set_file(path: str | Path, set_id: str, files: list[str], info: dict[s
     finally:
         sink.finish()
     os.replace(temp, path)
+
 
 def copy_recording(recording: Recording, output: str | Path, convert: Callable[[Schema | None, McapChannel, bytes],
                    tuple[Schema | None, McapChannel, bytes]] | None = None,
