@@ -102,13 +102,16 @@ class SimulatedOdrives(Iota):
     def answered(self):
         self.outbox.popleft()
 
+    # (`when`: a subclass may drive no ODrive axis at all, sim/cia402_sim.py)
     @can_tx.action(value=lambda self: self.axes[self.next_heartbeat].heartbeat().to_value(),
+                   when=lambda self: len(self.axes) > 0,
                    within=(lambda self: self.heartbeat_period / len(self.axes),
                            lambda self: self.heartbeat_period / len(self.axes) + self.timing_slack))
     def heartbeat(self):
         self.next_heartbeat = (self.next_heartbeat + 1) % len(self.axes)
 
     @can_tx.action(value=lambda self: self.axes[self.next_encoder].encoder_estimates().to_value(),
+                   when=lambda self: len(self.axes) > 0,
                    within=(lambda self: self.encoder_period / len(self.axes),
                            lambda self: self.encoder_period / len(self.axes) + self.timing_slack))
     def encoder_estimates(self):
