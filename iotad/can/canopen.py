@@ -393,7 +393,9 @@ def _value_text(od: ObjectDictionary | None, index: int, subindex: int, data: by
     if od is not None:
         try:
             value = decode_value(od, index, subindex, data)
-            return f"0x{value:08X}" if index in range(0x1400, 0x1C00) and subindex else str(value)
+            cob_or_map = (0x1600 <= index < 0x1800 or 0x1A00 <= index < 0x1C00) and subindex or \
+                ((0x1400 <= index < 0x1600 or 0x1800 <= index < 0x1A00) and subindex == 1)
+            return f"0x{value:08X}" if cob_or_map else str(value)
         except (KeyError, ValueError, struct.error, Exception):  # an odd length: show the bytes
             pass
     return bytes(data).hex(" ").upper()
@@ -458,7 +460,17 @@ class PdoTracker:
         count = words.get(0, 0)
         self.maps[cob] = PdoMap.from_words(words.get(k, 0) for k in range(1, count + 1))
 
+    def claims(self, frame: Frame) -> bool:
+        """Whether a frame is CANopen on this bus: NMT, SYNC, a heartbeat, or a service of one of
+        the nodes (the ids an ODrive of a mixed bus must not use, nodes/can_motor checks that)."""
+        if frame.extended or not self.nodes:
+            return False
+        if frame.id in (NMT, SYNC) or frame.id & 0x780 == HEARTBEAT:
+            return True
+        return frame.id & 0x7F in self.nodes and frame.id & 0x780 in SERVICES
+
     def describe(self, frame: Frame) -> str:
+        """The frame in words (`decode` and `describe`); raises FrameError if it is not CANopen."""
         message = decode(frame)
         self.feed(message)
         node = message.node_id or (message.fields.get("target") if message.kind == "NMT" else 0)
