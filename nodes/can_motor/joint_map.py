@@ -168,8 +168,8 @@ def _joint(k: int, entry: Any) -> JointConfig:
         raise JointMapError(f"{where}: needs a node_id ({low}..{high})")
     node_id = entry["node_id"]
     if isinstance(node_id, bool) or not isinstance(node_id, int) or not low <= node_id <= high:
-        raise JointMapError(f"{where}: node_id must be a whole number {low}..{high} for a {protocol} axis, "
-                            f"got {node_id!r}")
+        kind = " (a cia402 axis: CANopen)" if protocol == "cia402" else ""
+        raise JointMapError(f"{where}: node_id must be a whole number {low}..{high}, got {node_id!r}{kind}")
     settings: dict[str, Any] = {"name": name, "node_id": node_id}
     for key, raw in entry.items():
         if key in ("name", "node_id"):
