@@ -35,7 +35,7 @@ class Cia402Link:
     """The host's knowledge of one drive, and the frames that drive it."""
 
     def __init__(self, joint: JointConfig, master_id: int, master_period: float, lost_after: int,
-                 heartbeat_period: float):
+                 heartbeat_period: float, velocity_every: int = 1):
         self.joint = joint
         self.node = joint.node_id
         self.od = co.object_dictionary(co.DRIVE_EDS, self.node)
@@ -46,7 +46,7 @@ class Cia402Link:
         self.rpdo_cob = co.RPDO[0] + self.node
         self.tpdo_maps = {co.TPDO[0] + self.node: TPDO1_MAP, co.TPDO[1] + self.node: TPDO2_MAP}
         self.rated_torque = co.default(self.od, 0x6076) / 1000.0  # Nm
-        self.config = self._configuration(master_id, master_period, lost_after, heartbeat_period)
+        self.config = self._configuration(master_id, master_period, lost_after, heartbeat_period, velocity_every)
         self.configured = False
         self.queue: deque[tuple[int, int, bytes]] = deque()
         self.waiting: tuple[int, int] | None = None
@@ -59,7 +59,7 @@ class Cia402Link:
 
     # ------------------------------------------------------------------ start-up
     def _configuration(self, master_id: int, master_period: float, lost_after: int,
-                       heartbeat_period: float) -> tuple[tuple[int, int, bytes], ...]:
+                       heartbeat_period: float, velocity_every: int) -> tuple[tuple[int, int, bytes], ...]:
         joint, od = self.joint, self.od
 
         def u(index: int, sub: int, value: int) -> tuple[int, int, bytes]:
@@ -70,7 +70,8 @@ class Cia402Link:
                   u(0x1017, 0, max(1, round(1000.0 * heartbeat_period))),
                   u(0x6060, 0, co.MODES[self.mode.upper()])]
         sync_type = 255 if self.mode == "pp" else 1  # Profile Position takes a new set-point at once
-        for comm, mapping, kind in ((0x1400, self.rpdo_map, sync_type), (0x1800, TPDO1_MAP, 1), (0x1801, TPDO2_MAP, 1)):
+        for comm, mapping, kind in ((0x1400, self.rpdo_map, sync_type), (0x1800, TPDO1_MAP, 1),
+                                     (0x1801, TPDO2_MAP, velocity_every)):
             cob = co.default(od, comm, 1) & 0x7FF
             writes.append(u(comm, 1, cob | 0x80000000))           # invalid while it changes
             writes.append(u(comm + 0x200, 0, 0))

@@ -106,6 +106,7 @@ class CanMotor(Iota):
     reaction_time = Param(0.003)    # s: outputs go out within this of what caused them
     master_node_id = Param(127)     # CiA 402: this node's CANopen node id (its heartbeat's COB-ID 0x700 + id)
     master_heartbeat = Param(0.05)  # CiA 402: s between this node's heartbeats; drives fault after lost_after of them
+    velocity_every = Param(1)       # CiA 402: SYNCs between a drive's TPDO2 (velocity actual); 1..240
 
     # Sized per joint map (see `_sized`); the declarations here are for six joints.
     setpoints = Input(joint_setpoints(6), switching=0)
@@ -138,8 +139,11 @@ class CanMotor(Iota):
                              "get no frame and its watchdog would stop it")
         self.arm_hold_ticks = _ticks("arm_hold", self.arm_hold, self.period)
         self.axes = [Axis(joint.node_id) for joint in self.joint_map]
+        if isinstance(self.velocity_every, bool) or not isinstance(self.velocity_every, int) \
+                or not 1 <= self.velocity_every <= 240:
+            raise ValueError(f"CanMotor: velocity_every must be a whole number of SYNCs 1..240, got {self.velocity_every!r}")
         self.links = {k: Cia402Link(joint, self.master_node_id, self.master_heartbeat, self.lost_after,
-                                    self.heartbeat_period)
+                                    self.heartbeat_period, self.velocity_every)
                       for k, joint in enumerate(self.joint_map) if joint.protocol == "cia402"}
         self.co_rx, self.co_host = _canopen_ids(self.joint_map, self.master_node_id) if self.links else ({}, frozenset())
         self.master_ticks = _ticks("master_heartbeat", self.master_heartbeat, self.period) if self.links else 0
