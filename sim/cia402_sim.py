@@ -39,7 +39,9 @@ class SimulatedCia402Drives(SimulatedOdrives):
     def _make_axes(self, plant) -> None:
         names = list(plant.joint_names)
         odrive_of = _node_ids(self.node_ids, names) if self.node_ids else {}
-        drive_of = _cia402_ids(self.cia402, [n for n in names if n not in odrive_of])
+        if not isinstance(self.cia402, (list, dict)):
+            raise ValueError(f"cia402 must be a list (joint order) or a table {{joint = id}}, got {self.cia402!r}")
+        drive_of = _node_ids(self.cia402, [n for n in names if n not in odrive_of], "cia402", 1, co.NODE_ID_MAX)
         both = set(odrive_of) & set(drive_of)
         if both:
             raise ValueError(f"joints {sorted(both)} are in both node_ids (ODrive) and cia402")
@@ -113,26 +115,3 @@ class SimulatedCia402Drives(SimulatedOdrives):
     def can_node_ids(self) -> tuple[str, dict[int, str]]:
         """("device", {node id: joint}) of both families."""
         return "device", {controller.node_id: self.joint_names[index] for index, controller, _ in self.driven}
-
-
-def _cia402_ids(value: list | dict, names: list[str]) -> dict[str, int]:
-    if isinstance(value, dict):
-        unknown = set(value) - set(names)
-        if unknown:
-            raise ValueError(f"cia402 names joints the world does not have (or an ODrive drives): {sorted(unknown)}")
-        mapping = dict(value)
-    elif not isinstance(value, list):
-        raise ValueError(f"cia402 must be a list (joint order) or a table {{joint = id}}, got {value!r}")
-    elif not value:
-        mapping = {name: k + 1 for k, name in enumerate(names)}
-    elif len(value) != len(names):
-        raise ValueError(f"cia402 has {len(value)} ids for {len(names)} joints {names}")
-    else:
-        mapping = dict(zip(names, value))
-    ids = list(mapping.values())
-    for node in ids:
-        if isinstance(node, bool) or not isinstance(node, int) or not 1 <= node <= co.NODE_ID_MAX:
-            raise ValueError(f"CANopen node id {node!r} is not 1..{co.NODE_ID_MAX}")
-    if len(set(ids)) != len(ids):
-        raise ValueError(f"CANopen node ids must be distinct, got {mapping}")
-    return mapping
