@@ -56,7 +56,11 @@ def test_clear_errors_and_arm_read_back_their_result(drives, capsys):
     assert "arm done: CLOSED_LOOP_CONTROL" in capsys.readouterr().out
     assert can(drives, "idle", "--node", "2") == 0 and can(drives, "estop", "--node", "5") == 0
     out = capsys.readouterr().out
-    assert "idle done: IDLE" in out and "estop done: QUICK STOP ACTIVE" in out
+    assert "idle done: IDLE" in out
+    # quick stop (transition 11), then, standing still, the end of its ramp (12, option code 2)
+    assert "estop done: QUICK STOP ACTIVE" in out or "estop done: SWITCH ON DISABLED" in out
+    with drives.lock:
+        assert drives.drives[5].transitions[-2:] in ([4, 11], [11, 12])
 
 
 def test_set_limits_takes_si_units_and_reads_them_back(drives, capsys):
