@@ -75,3 +75,18 @@ def test_a_mixed_bus_of_odrives_and_cia402_drives_reaches_the_waypoint(tmp_path)
     odrive_ids = {f.id >> 5 for f in frames if 0 < f.id < 0x80}  # 0: NMT
     canopen_ids = {f.id & 0x7F for f in frames if f.id & 0x780 == co.RPDO[0]}
     assert odrive_ids == {1, 2, 3} and canopen_ids == {4, 5, 6}
+
+
+def test_profile_position_drives_reach_the_waypoint_too(tmp_path):
+    text = EXAMPLE.read_text().replace('python = "arm_trajectory.py:', f'python = "{ROOT / "examples" / "arm_trajectory.py"}:')
+    text = text.replace('protocol = "cia402"\n', 'protocol = "cia402"\noperation_mode = "pp"\nacceleration_limit = 20.0\n')
+    system = tmp_path / "pp.toml"
+    system.write_text(text)
+    trace = run(tmp_path / "pp.mcap", system).trace()
+    assert final_positions(trace) == pytest.approx(FINAL, abs=0.01)
+    writes = [co.decode(frame) for frame in received(trace, "drives")]
+    modes = {m.fields["data"][0] for m in writes if m.kind == "SDO_REQUEST" and m.fields["index"] == 0x6060}
+    assert modes == {co.MODES["PP"]}
+    # each setpoint raised the new set-point bit, then lowered it
+    words = [int.from_bytes(m.fields["data"][:2], "little") for m in writes if m.kind == "RPDO1"]
+    assert 0x3F in words and 0x2F in words
