@@ -89,6 +89,13 @@ def test_a_held_axis_is_refused_unless_forced(drives, capsys):
         assert main(args) == 2
         assert "node 5 (cia402) is held by the running motor node held/motor" in capsys.readouterr().err
         with drives.lock:
+            drives.drives[5].fault(0x2310)
+        clear = ["can", "clear-errors", *args[2:]]
+        assert main(clear) == 2 and "is held by the running motor node" in capsys.readouterr().err
+        with drives.lock:
+            assert drives.drives[5].state == "FAULT"  # refused: the fault stays
+        assert main(clear + ["--force"]) == 0
+        with drives.lock:
             assert drives.drives[5].state == "SWITCH ON DISABLED"  # nothing was sent to it
         assert main(args + ["--force"]) == 0
         # the ODrive at 1 is nobody's: commanded without --force
