@@ -25,6 +25,7 @@ GROUPS = (
     ("record and examine a recording (MCAP)", ("record", "info", "replay", "check", "plot", "export", "recover",
                                                "candump")),
     ("watch a running system", ("top", "view", "ls", "echo", "pub", "hz")),
+    ("bring up a CAN bus", ("can",)),
 )
 
 EPILOG = """\
