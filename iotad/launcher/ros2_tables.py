@@ -59,7 +59,9 @@ def add_ros2_bridge(parser: Any, system: Any, raw_tables: list) -> None:
         if direction == "out":
             system.bindings.append(Binding(port, Port(NODE_NAME, channel_names(number, "out")[0]), entry))
         else:
-            system.bindings.append(Binding(Port(NODE_NAME, channel_names(number, "in")[1]), port, entry))
+            inbound, forward = channel_names(number, "in")
+            system.bindings.append(Binding(Port(NODE_NAME, forward), port, entry))
+            system.external.add(Port(NODE_NAME, inbound))  # fed from outside: ROS 2, by the bridge's port
 
 
 def mappings_of(system: Any) -> list[dict]:

@@ -8,7 +8,8 @@ round trip in test_a_ros2_peer_sees_the_arm_and_drives_buggy.py.
         --publish /cmd_vel=geometry_msgs/msg/Twist='{"linear": {"x": 0.2}, "angular": {"z": 0.5}}'
 
 Prints one JSON object a line: {"ready": ...} once subscribed; {"topic", "key", "message",
-"attachment": [seq, stamp_ns, gid_hex]} per message heard; {"tokens": [...]} at the end, the
+"attachment": [seq, stamp_ns, gid_hex]} per message heard, until --seconds pass or messages have
+stopped for --idle seconds; {"tokens": [...]} at the end, the
 rmw_zenoh liveliness tokens seen in domain 0.
 """
 import argparse
@@ -62,7 +63,8 @@ def main() -> int:
     parser.add_argument("--listen", action="append", default=[], help="TOPIC=TYPE")
     parser.add_argument("--publish", action="append", default=[], help="TOPIC=TYPE=JSON")
     parser.add_argument("--every", type=float, default=0.5, help="seconds between publications")
-    parser.add_argument("--count", type=int, default=0, help="stop after this many messages heard (0: never)")
+    parser.add_argument("--idle", type=float, default=2.0,
+                        help="stop once messages stop for this long, after the first (the system ended)")
     args = parser.parse_args()
 
     config = zenoh.Config()
@@ -70,8 +72,7 @@ def main() -> int:
     config.insert_json5("connect/endpoints", json.dumps([args.connect]))
     config.insert_json5("listen/endpoints", '["tcp/127.0.0.1:0"]')
     config.insert_json5("scouting/multicast/enabled", "false")
-    lock, heard, tokens = threading.Lock(), [0], set()
-    done = threading.Event()
+    lock, last, tokens = threading.Lock(), [None], set()
 
     def say(obj):
         with lock:
@@ -90,9 +91,7 @@ def main() -> int:
                 say({"topic": topic, "key": str(sample.key_expr), "message": plain(message),
                      "attachment": [seq, stamp, gid.hex()], "header": sample.payload.to_bytes()[:4].hex()})
                 with lock:
-                    heard[0] += 1
-                    if args.count and heard[0] >= args.count:
-                        done.set()
+                    last[0] = time.monotonic()
             declared.append(session.declare_subscriber(key_of(topic, ros_type), on_sample))
 
         def on_token(sample):
@@ -108,12 +107,15 @@ def main() -> int:
         say({"ready": True})
         deadline = time.monotonic() + args.seconds
         seq = 0
-        while time.monotonic() < deadline and not done.is_set():
+        while time.monotonic() < deadline:
+            with lock:
+                if last[0] is not None and time.monotonic() - last[0] > args.idle:
+                    break
             for publisher, ros_type, fields in publishers:
                 data = bytes(STORE.serialize_cdr(build(ros_type, fields), ros_type))
                 publisher.put(data, attachment=struct.pack("<qqB", seq, time.time_ns(), 16) + gid)
             seq += 1
-            done.wait(args.every if publishers else 0.05)
+            time.sleep(args.every if publishers else 0.05)
         say({"tokens": sorted(tokens)})
         for entity in declared:
             entity.undeclare()
