@@ -30,7 +30,10 @@ def ros2_bridge(name: str = NODE_NAME, mappings: list | None = None, switching: 
     mapping k's target input (in the system's time unit), `lag` the forwarding window."""
     mappings = list(mappings or [])
     switching = list(switching or [0.0] * len(mappings))
-    attributes: dict[str, Any] = {"lag": Param(lag), "__module__": __name__}
+    # the mappings are parameters too: the node's @spec (and so a recording) holds them, and
+    # replay or `iotad export --ros2` rebuild the same bridge from it
+    attributes: dict[str, Any] = {"lag": Param(lag), "mappings": Param(mappings), "switching": Param(switching),
+                                  "ros_node": Param(ros_node), "__module__": __name__}
     for number, mapping in enumerate(mappings):
         value_type = value_types.build(mapping["value_type"])
         if mapping["direction"] == "out":
@@ -48,8 +51,10 @@ def ros2_bridge(name: str = NODE_NAME, mappings: list | None = None, switching: 
         self.pending = {k: [] for k, m in enumerate(mappings) if m["direction"] == "in"}
 
     attributes["init"] = init
-    cls = type("Ros2Bridge", (Iota,), attributes)
-    bridge = cls(name, lag=lag)
+    # named as the factory: a recording of a virtual run names the class as its source, and
+    # replay then finds this function, which builds the same class again from the parameters
+    cls = type("ros2_bridge", (Iota,), attributes)
+    bridge = cls(name, lag=lag, mappings=mappings, switching=switching, ros_node=ros_node)
     # what the node host's ROS 2 port needs: not a parameter of the IOTA, a description of its wire
     object.__setattr__(bridge, "ros2_port", {"node": ros_node, "mappings": mappings})
     return bridge

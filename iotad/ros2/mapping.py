@@ -64,6 +64,12 @@ class Mapping:
     def to_cdr(self, plain: Any, stamp_ns: int) -> bytes:
         return messages.serialize(self.to_message(plain, stamp_ns), self.ros_type)
 
+    def reversed(self) -> "Mapping":
+        """An in mapping turned around: the message a value of its input came from (the fields
+        taken from the message; constants of the input are not in it). For recordings."""
+        fields = {source: target for target, source in self.fields.items() if isinstance(source, str)}
+        return Mapping(self.channel, self.topic, self.ros_type, "out", self.domain, fields, self.value_type)
+
     def from_cdr(self, data: bytes) -> Any:
         """The channel's plain value for one CDR message (direction in); MessageError if it is not one."""
         message = messages.to_dict(messages.deserialize(data, self.ros_type))
