@@ -149,3 +149,23 @@ def test_an_exported_run_carries_the_robot_in_foxglove_schemas(tmp_path, system,
         landmarks = [m.value for m in values if m.topic == "iota/buggy/body/landmark"]
         assert len(arena.lines) == sum(v["kind"] in ("WALL", "CRACK") for v in landmarks)
         assert len(arena.spheres) == len({v["id"] for v in landmarks if v["kind"] == "FOOD"})
+
+
+def test_the_layout_in_the_repository_opens_the_scene_topics():
+    from iotad.recording.foxglove_layout import LOG_TOPIC, layout_json
+    from iotad.recording.foxglove_scene import TOPICS
+
+    committed = json.loads((ROOT / "docs" / "foxglove-layout.json").read_text())
+    assert committed == json.loads(layout_json())  # regenerate it with layout_json() when the scene changes
+    panels = {}
+
+    def walk(node):
+        if node.get("type") == "panel":
+            panels[node["panelType"]] = node["config"]
+        for item in node.get("items", []):
+            walk(item["content"])
+    walk(committed["content"])
+    assert set(panels) == {"ThreeDee", "Plot", "Log"}
+    assert set(panels["ThreeDee"]["topics"]) <= set(TOPICS) and panels["ThreeDee"]["fixedFrame"] == "world"
+    assert all(p["value"].split(".")[0] in TOPICS for p in panels["Plot"]["paths"])
+    assert panels["Log"]["topicToRender"] == LOG_TOPIC
