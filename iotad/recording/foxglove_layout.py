@@ -1,10 +1,10 @@
 """The Foxglove layout that opens the robot ready to watch (docs/foxglove-layout.json), built
 with foxglove-sdk's layout types: the 3D scene (the arm's model moving in its frames, Buggy's
-arena, path and pose), the arm's joint positions plotted, and /log. `iotad view` serves and
+arena, path and pose, the conveyor's belt, bin and cubes), the arm's joint positions plotted, and /log. `iotad view` serves and
 `iotad export --json` writes exactly the topics it names (iotad/recording/foxglove_scene.py)."""
 from __future__ import annotations
 
-from iotad.recording.foxglove_scene import ARENA, ARM_JOINTS, ARM_MODEL, PATH, POSE, WORLD
+from iotad.recording.foxglove_scene import ARENA, ARM_JOINTS, ARM_MODEL, CONVEYOR, PATH, POSE, WORLD
 
 LOG_TOPIC = "/log"  # iotad/cli/foxglove_bridge.py's
 
@@ -18,6 +18,7 @@ def layout_json() -> str:
         fixed_frame=WORLD, follow_tf=WORLD, follow_mode="follow-none",
         topics={ARM_MODEL: BaseRendererSceneUpdateTopicSettings(visible=True),
                 ARENA: BaseRendererSceneUpdateTopicSettings(visible=True),
+                CONVEYOR: BaseRendererSceneUpdateTopicSettings(visible=True),
                 PATH: BaseRendererSceneUpdateTopicSettings(visible=True),
                 POSE: BaseRendererPoseTopicSettings(visible=True)}))
     joints = PlotPanel(title="arm joints (rad)", config=PlotConfig(show_legend=True, paths=[

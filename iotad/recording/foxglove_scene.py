@@ -6,13 +6,17 @@ frames and named joint states; Buggy's arena, path and pose. Live (`iotad view`)
 as (topic, message) pairs, keeping what it needs across messages (the arena's landmarks, the
 path so far, whether the model went out). What it recognises, by shape:
 
-- six joint positions (`position`, optional `velocity`, `effort`): the arm. Once: the URDF on
+- six joint positions or more (`position`, optional `velocity`, `effort`): the arm, its first
+  six joints (a seventh is the conveyor's gripper). Once: the URDF on
   `/robot_description` and the links' meshes as a SceneUpdate on `/scene/arm_model` (each entity
   locked to its link's frame); each time: `/scene/transforms` (FrameTransforms from `world`
   through every link, computed from the URDF) and `/scene/arm_joints` (JointStates, joint1..6).
 - landmarks (`kind` WALL, CRACK, FOOD, EATEN, GROWN with `x1, y1, x2, y2`): Buggy's arena on
   `/scene/arena`: the wall square, the cracks, the food (eaten food goes grey).
 - a planar pose (`x`, `y`, `yaw`): `/scene/pose` (PoseInFrame) and the path so far on `/scene/path`.
+- the conveyor's world (`belt` [x, length, width, height], `bin` [x, y, size, height], `cube_size`
+  and `count` cubes at `x`, `y`, `z` with `colour` indices: examples/conveyor's `conveyorScene`):
+  the belt, the bin and the cubes on `/scene/conveyor`.
 """
 from __future__ import annotations
 
@@ -25,7 +29,10 @@ WORLD = robot_model.ROOT_FRAME
 ROBOT_DESCRIPTION = "/robot_description"
 ARM_MODEL, TRANSFORMS, ARM_JOINTS = "/scene/arm_model", "/scene/transforms", "/scene/arm_joints"
 ARENA, PATH, POSE = "/scene/arena", "/scene/path", "/scene/pose"
-TOPICS = (ARM_MODEL, TRANSFORMS, ARM_JOINTS, ARENA, PATH, POSE)
+CONVEYOR = "/scene/conveyor"
+TOPICS = (ARM_MODEL, TRANSFORMS, ARM_JOINTS, ARENA, PATH, POSE, CONVEYOR)
+# the cubes' colours by index, as the conveyor world paints them (red, green, blue, yellow)
+CUBE_COLOURS = ((0.9, 0.1, 0.1), (0.1, 0.8, 0.1), (0.1, 0.2, 0.9), (0.95, 0.85, 0.1))
 PATH_STEP = 0.01  # m: a pose closer than this to the path's last point adds none
 URDF_SCHEMA = {"title": "std_msgs/msg/String", "type": "object", "properties": {"data": {"type": "string"}}}
 
@@ -46,7 +53,7 @@ class SceneTracker:
             return []
         out: list[tuple[str, Any]] = []
         positions = value.get("position")
-        if isinstance(positions, list) and len(positions) == len(robot_model.ARM_JOINTS) \
+        if isinstance(positions, list) and len(positions) >= len(robot_model.ARM_JOINTS) \
                 and all(_number(p) for p in positions) and self.arm_key in (None, key):
             self.arm_key = key
             if not self.model_sent:
@@ -59,6 +66,8 @@ class SceneTracker:
             group = "FOOD" if kind in ("EATEN", "GROWN") else kind
             self.landmarks[(group, int(value.get("id", 0)))] = dict(value, kind=kind)
             out.append((ARENA, arena(self.landmarks.values(), stamp_ns)))
+        if _is_conveyor(value):
+            out.append((CONVEYOR, conveyor(value, stamp_ns)))
         yaw = value.get("yaw", value.get("heading"))
         if _number(value.get("x")) and _number(value.get("y")) and _number(yaw):
             x, y = float(value["x"]), float(value["y"])
@@ -90,7 +99,7 @@ class SceneTracker:
 def transforms(positions: list, stamp_ns: int) -> Any:
     from foxglove.messages import FrameTransform, FrameTransforms, Quaternion, Vector3
 
-    named = dict(zip(robot_model.ARM_JOINTS, (float(p) for p in positions)))
+    named = dict(zip(robot_model.ARM_JOINTS, (float(p) for p in positions)))  # zip: the first six
     return FrameTransforms(transforms=[
         FrameTransform(timestamp=_stamp(stamp_ns), parent_frame_id=parent, child_frame_id=child,
                        translation=Vector3(x=t[0], y=t[1], z=t[2]), rotation=Quaternion(x=r[0], y=r[1], z=r[2], w=r[3]))
@@ -137,6 +146,36 @@ def path(points: list[tuple[float, float]], stamp_ns: int) -> Any:
     line = LinePrimitive(type=LinePrimitiveLineType.LineStrip, thickness=0.01,
                          points=[_point(x, y, 0.005) for x, y in points], color=_color(0.1, 0.4, 0.9, 1.0))
     return SceneUpdate(entities=[SceneEntity(timestamp=_stamp(stamp_ns), frame_id=WORLD, id="buggy/path", lines=[line])])
+
+
+def _is_conveyor(value: dict) -> bool:
+    belt, tray, count = value.get("belt"), value.get("bin"), value.get("count")
+    return (isinstance(belt, list) and len(belt) == 4 and isinstance(tray, list) and len(tray) == 4
+            and isinstance(count, int) and all(isinstance(value.get(k), list) and len(value[k]) >= count
+                                               for k in ("x", "y", "z", "colour"))
+            and all(_number(v) for v in belt + tray + [value.get("cube_size")]))
+
+
+def conveyor(value: dict, stamp_ns: int) -> Any:
+    """The belt (a slab), the bin (floor and four walls) and the cubes, in `world`."""
+    from foxglove.messages import CubePrimitive, SceneEntity, SceneUpdate
+
+    x, length, width, height = value["belt"]
+    bx, by, size, wall = value["bin"]
+    thin = 0.01
+    cubes = [CubePrimitive(pose=_pose((x, 0.0, height / 2)), size=_vector(width, length, height),
+                           color=_color(0.2, 0.2, 0.22, 1.0))]
+    tray = _color(0.55, 0.4, 0.25, 1.0)
+    cubes.append(CubePrimitive(pose=_pose((bx, by, thin / 2)), size=_vector(size, size, thin), color=tray))
+    for dx, dy, sx, sy in ((size / 2, 0, thin, size), (-size / 2, 0, thin, size), (0, size / 2, size, thin),
+                           (0, -size / 2, size, thin)):
+        cubes.append(CubePrimitive(pose=_pose((bx + dx, by + dy, wall / 2)), size=_vector(sx, sy, wall), color=tray))
+    edge = float(value["cube_size"])
+    for k in range(value["count"]):
+        r, g, b = CUBE_COLOURS[value["colour"][k] % len(CUBE_COLOURS)]
+        cubes.append(CubePrimitive(pose=_pose((value["x"][k], value["y"][k], value["z"][k])),
+                                   size=_vector(edge, edge, edge), color=_color(r, g, b, 1.0)))
+    return SceneUpdate(entities=[SceneEntity(timestamp=_stamp(stamp_ns), frame_id=WORLD, id="conveyor", cubes=cubes)])
 
 
 def pose_in_frame(x: float, y: float, yaw: float, stamp_ns: int) -> Any:

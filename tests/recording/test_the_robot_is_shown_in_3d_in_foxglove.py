@@ -82,9 +82,12 @@ def test_every_scene_message_validates_against_foxglove_schemas():
     made += tracker.feed("iota/s/body/landmark", {"kind": "FOOD", "id": 1, "x1": 0.5, "y1": 0.5, "x2": 0.5, "y2": 0.5}, 2)
     made += tracker.feed("iota/s/body/landmark", {"kind": "EATEN", "id": 1, "x1": 0.5, "y1": 0.5, "x2": 0.5, "y2": 0.5}, 3)
     made += tracker.feed("iota/s/body/pose", {"x": 0.5, "y": -0.25, "yaw": math.pi / 2}, 4)
+    made += tracker.feed("iota/s/sim/scene", {"t": 1.0, "belt": [0.45, 1.2, 0.16, 0.1], "bin": [0.1, -0.45, 0.3, 0.12],
+                                              "cube_size": 0.04, "count": 2, "x": [0.45, 0.1, 0.0], "y": [0.3, -0.45, 0.0],
+                                              "z": [0.12, 0.03, 0.0], "colour": [2, 0, 0]}, 5)
     topics = [topic for topic, _ in made]
     assert topics == ["/robot_description", "/scene/arm_model", "/scene/transforms", "/scene/arm_joints",
-                      "/scene/arena", "/scene/arena", "/scene/arena", "/scene/path", "/scene/pose"]
+                      "/scene/arena", "/scene/arena", "/scene/arena", "/scene/path", "/scene/pose", "/scene/conveyor"]
     typed = {topic: valid(message) for topic, message in made if not isinstance(message, dict)}
     model = typed["/scene/arm_model"]
     assert [e.frame_id for e in model.entities] == [v.link for v in robot_model.model()[1]]
@@ -99,6 +102,11 @@ def test_every_scene_message_validates_against_foxglove_schemas():
     assert len(arena.lines) == 1 and len(arena.lines[0].points) == 5 and arena.spheres[0].color.g < 0.7
     pose = typed["/scene/pose"]
     assert pose.frame_id == "world" and math.isclose(pose.pose.orientation.z, math.sqrt(0.5))
+    (world,) = typed["/scene/conveyor"].entities  # the belt, the bin's floor and four walls, two cubes
+    assert len(world.cubes) == 1 + 5 + 2
+    belt, cube = world.cubes[0], world.cubes[6]
+    assert (belt.size.x, belt.size.y, belt.pose.position.x) == (0.16, 1.2, 0.45)
+    assert (cube.pose.position.x, cube.pose.position.y, cube.size.x, cube.color.b) == (0.45, 0.3, 0.04, 0.9)
     # the URDF is the simulation's, for Foxglove's URDF layer
     assert dict(made)["/robot_description"]["data"] == robot_model.urdf_text()
 
@@ -110,7 +118,7 @@ def test_the_live_server_answers_the_meshes_and_nothing_else():
     assert Bridge.asset("file:///etc/passwd") is None
 
 
-@pytest.mark.parametrize("system, seconds", [("arm_ros2.toml", "2"), ("buggy.toml", "4")])
+@pytest.mark.parametrize("system, seconds", [("arm_ros2.toml", "2"), ("buggy.toml", "4"), ("conveyor.toml", "3")])
 def test_an_exported_run_carries_the_robot_in_foxglove_schemas(tmp_path, system, seconds):
     recording, exported = tmp_path / "run.mcap", tmp_path / "run-foxglove.mcap"
     done = subprocess.run([IOTAD, "run", f"examples/{system}", "--virtual", "--until", seconds, "-o", str(recording)],
@@ -140,6 +148,14 @@ def test_an_exported_run_carries_the_robot_in_foxglove_schemas(tmp_path, system,
         (_, model), = found["/scene/arm_model"]
         assert all(e.models[0].media_type == "model/stl" and len(e.models[0].data) > 1000 for e in model.entities)
         assert found["/robot_description"][0][1]["data"] == robot_model.urdf_text()
+    elif system == "conveyor.toml":
+        scenes = [m.value for m in values if m.topic == "iota/conveyor/sim/scene"]
+        assert len(found["/scene/conveyor"]) == len(scenes) > 10
+        (entity,) = found["/scene/conveyor"][-1][1].entities
+        assert len(entity.cubes) == 6 + scenes[-1]["count"] and scenes[-1]["count"] >= 1  # the first cube is out
+        arm = [m.value for m in values if m.topic == "iota/conveyor/motor/joint_states"]
+        assert len(found["/scene/arm_joints"]) == len(arm) and len(arm[0]["position"]) == 7  # the gripper, left out
+        assert [j.position for j in found["/scene/arm_joints"][-1][1].joints] == arm[-1]["position"][:6]
     else:
         poses = [m.value for m in values if m.topic == "iota/buggy/body/pose"]
         assert len(found["/scene/pose"]) == len(poses) > 10
