@@ -156,7 +156,7 @@ class NodeHost:
         if self.can is not None:
             self.can.open()  # CanPortError: the caller reports it, the node does not start
         if self.ros2 is not None:
-            self.ros2.open(session)
+            self._declared += self.ros2.open(session)  # undeclared with the node's own entities
         post = self.clock.post
         for port in self.table.inputs:
             for key in port.keys:
@@ -240,8 +240,6 @@ class NodeHost:
         if self.can is not None:
             self._last_can_frames()
             self.can.close()
-        if self.ros2 is not None:
-            self.ros2.close()
         for entity in reversed(self._declared):
             try:
                 entity.undeclare()

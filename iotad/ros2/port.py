@@ -37,7 +37,9 @@ class Ros2Port:
         self._lock = threading.Lock()
         self.sent = self.received = 0
 
-    def open(self, session: Any) -> None:
+    def open(self, session: Any) -> list[Any]:
+        """Declare the node, its publishers, subscriptions and their tokens on `session`; what
+        was declared, for the node host to undeclare with its own entities."""
         session_id = str(session.zid())
         nodes: dict[int, rmw_zenoh.Node] = {}
         liveliness = session.liveliness()
@@ -55,6 +57,7 @@ class Ros2Port:
             else:
                 self._declared.append(session.declare_subscriber(mapping.key, self._receiver(number, mapping)))
             self._declared.append(liveliness.declare_token(token))
+        return self._declared
 
     def on_event(self, event: dict) -> None:
         """The engine's sink: publish the value of each input event of an `out_k` channel."""
@@ -106,10 +109,3 @@ class Ros2Port:
         return [(channel, violation, f"{count} message(s) between t={first:.6f} and t={last:.6f}; the first: {said}",
                  count) for (channel, violation), (count, first, last, said) in problems.items()]
 
-    def close(self) -> None:
-        for entity in reversed(self._declared):
-            try:
-                entity.undeclare()
-            except Exception:  # noqa: BLE001 - already gone with a closing session
-                pass
-        self._declared.clear()
