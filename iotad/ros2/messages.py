@@ -62,15 +62,16 @@ def message_definition(ros_type: str) -> str:
     return typestore().generate_msgdef(check_type(ros_type), ros_version=2)[0]
 
 
-def split_path(path: str) -> list[tuple[str, list[int]]]:
+@lru_cache(maxsize=1024)
+def split_path(path: str) -> tuple[tuple[str, tuple[int, ...]], ...]:
     """`transforms[0].transform.x` -> [("transforms", [0]), ("transform", []), ("x", [])]."""
     steps = []
     for part in path.split("."):
         match = _STEP.match(part)
         if not match:
             raise MessageError(f"{path!r} is not a field path such as header.frame_id or transforms[0].child_frame_id")
-        steps.append((match.group(1), [int(i) for i in re.findall(r"\d+", match.group(2))]))
-    return steps
+        steps.append((match.group(1), tuple(int(i) for i in re.findall(r"\d+", match.group(2)))))
+    return tuple(steps)
 
 
 def field_kind(ros_type: str, path: str) -> tuple[str, str]:
@@ -115,8 +116,9 @@ def build(ros_type: str, values: dict[str, Any], stamp_ns: int | None = None) ->
 
 def _stamp(node: Any, stamp: dict) -> None:
     if isinstance(node, list):
-        for item in node:
-            _stamp(item, stamp)
+        if node and isinstance(node[0], (dict, list)):  # a sequence of numbers holds no header
+            for item in node:
+                _stamp(item, stamp)
     elif isinstance(node, dict):
         if node.keys() == {"stamp", "frame_id"} and node["stamp"] == {"sec": 0, "nanosec": 0}:
             node["stamp"] = dict(stamp)
@@ -223,8 +225,22 @@ def _freeze_value(nodetype: int, detail: Any, value: Any, where: str) -> Any:
         raise MessageError(f"{where}: an array of {size}, got {len(value)} values")
     kind, inner = int(element[0]), element[1]
     if kind == 1 and inner[0] in _NUMPY:
-        return np.array([_base(inner[0], v, where) for v in value], dtype=_NUMPY[inner[0]])
+        return _numbers(inner[0], value, where)
     return [_freeze_value(kind, inner, v, where) for v in value]
+
+
+def _numbers(name: str, values: Any, where: str) -> np.ndarray:
+    """A sequence of numbers (or bools) as the array rosbags serializes, each checked as `_base` would."""
+    given = np.asarray(values)
+    if given.size and (given.dtype.kind not in "biuf" or (name == "bool") != (given.dtype.kind == "b")):
+        return np.array([_base(name, v, where) for v in values], dtype=_NUMPY[name])  # says which value is wrong
+    if name in FLOATS or name == "bool":
+        return given.astype(_NUMPY[name])
+    low, high = INTEGER_RANGES[name]
+    if given.size and (given.dtype.kind == "f" and not np.all(given == np.floor(given))
+                       or given.min() < low or given.max() > high):
+        return np.array([_base(name, v, where) for v in values], dtype=_NUMPY[name])
+    return given.astype(_NUMPY[name])
 
 
 def _base(name: str, value: Any, where: str) -> Any:
