@@ -87,3 +87,22 @@ def test_the_check_command_says_it_in_one_line(tmp_path):
                           timeout=60)
     assert done.returncode == 2 and "Traceback" not in done.stderr
     assert "[[ros2]] #1" in done.stderr and "fully qualified" in done.stderr
+
+
+def test_an_input_that_a_bind_feeds_already_takes_no_topic(tmp_path):
+    text = (ROOT / "examples" / "arm_ros2.toml").read_text()
+    text = text.replace('"../nodes/', f'"{ROOT.as_posix()}/nodes/').replace('"mdl_requester.py:', f'"{ROOT.as_posix()}/examples/mdl_requester.py:')
+    text = text.replace('"mdl_ideal_arm.py:', f'"{ROOT.as_posix()}/examples/mdl_ideal_arm.py:')
+    path = tmp_path / "arm.toml"
+    path.write_text(text + '''
+[[ros2]]
+channel = "arm.setpoints"
+topic = "/arm/setpoints"
+type = "sensor_msgs/msg/JointState"
+direction = "in"
+fields = { position = "position" }
+''')
+    with pytest.raises(SystemFileError) as caught:
+        load_system(path)
+    (error,) = caught.value.errors
+    assert "[[ros2]] #3" in error and "arm.setpoints is already bound ([[bind]]" in error
