@@ -6,35 +6,28 @@ import math
 
 import pytest
 
-from iotad import Composite, Engine, Input, Int, Iota, Output, Random
+from iotad import Engine, Int, Iota, Output, Random
 
 
-def players(lower, upper):
-    """A ping-pong whose hit has the window [lower, upper]; each as given (constant or function)."""
+def ticker(lower, upper):
+    """An IOTA whose one output counts its firings in the window [lower, upper], each bound as
+    given (constant or function); each firing opens the next window."""
 
-    class Player(Iota):
-        inp = Input(Int)
+    class Ticker(Iota):
         out = Output(Int)
 
         def init(self):
-            self.ball = None
+            self.count = 0
 
-        @inp.input
-        def got(self, x):
-            self.ball = x
+        @out.action(value=lambda self: self.count, within=(lower, upper))
+        def tick(self):
+            self.count += 1
 
-        @out.action(value=lambda self: self.ball + 1, when=lambda self: self.ball is not None,
-                    within=(lower, upper))
-        def hit(self):
-            self.ball = None
-
-    first = Player("ping")
-    first.ball = 0
-    return Composite("pp", first, Player("pong"), bind=[("ping.out", "pong.inp"), ("pong.out", "ping.inp")])
+    return Ticker("ticker")
 
 
 def trace(lower, upper, policy=None):
-    engine = Engine(players(lower, upper), policy=policy)
+    engine = Engine(ticker(lower, upper), policy=policy)
     engine.run(3.0)
     return [(e["t"], e["iota"], e["action"], e["kind"], repr(e["value"])) for e in engine.trace]
 
@@ -50,7 +43,7 @@ def test_a_constant_window_fires_as_the_same_window_given_as_functions(lower, up
     constant = trace(lower, upper, policy)
     policy = None if seed is None else Random(seed)
     assert constant == trace(as_function(lower), as_function(upper), policy)
-    assert [e for e in constant if e[3] == "output"], "the ball was never hit"
+    assert [e for e in constant if e[3] == "output"], "it never fired"
 
 
 @pytest.mark.parametrize("lower, upper", [(math.nan, 1.0), (-0.5, 1.0), (0.5, 0.25), (0.1, math.nan)])
