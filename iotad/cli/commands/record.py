@@ -81,8 +81,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--force", action="store_true",
                         help="replace a recording already at FILE (default: refuse, so that none is lost)")
     parser.add_argument("--system-file", metavar="SYSTEM.toml",
-                        help="system file to store in the recording (refused if 'iotad run' would refuse "
-                             "its form; its nodes' code is not loaded)")
+                        help="system file to store in the recording (refused, before anything starts, "
+                             "where 'iotad run --check' would refuse it: its nodes' specs and code are "
+                             "loaded to check their channels and bindings)")
+    # `iotad run` checked the file already and starts its recorder beside nodes that are starting:
+    # that recorder checks only the file's form, loads no node code and is subscribed at once
+    parser.add_argument("--system-checked", action="store_true", help=argparse.SUPPRESS)
     parser.add_argument("--connect", action="append", default=[], metavar="EP", type=endpoint,
                         help="zenoh endpoint to connect to, e.g. tcp/127.0.0.1:7447 (repeatable; default: "
                              "the hub of --system-file's [system.endpoints] listen; without --system-file none: "
@@ -129,7 +133,7 @@ def run(args: argparse.Namespace) -> int:
         if not Path(args.system_file).is_file():
             what = "not a regular file" if Path(args.system_file).exists() else "no such file"
             raise CliError(f"--system-file {args.system_file}: {what}")
-        _check_system_file(args.system_file)
+        _check_system_file(args.system_file, whole=not args.system_checked)
     connect = args.connect or _hub_of(args.system_file)
     try:
         recorder = Recorder(args.keys, args.output, system_file=args.system_file, connect=connect,
@@ -210,16 +214,19 @@ def _remove_empty(recorder) -> None:
                 pass
 
 
-def _check_system_file(path: str) -> None:
-    """Refuse a system file `iotad run` would refuse for its shape (nodes, keys, bindings' form),
-    before recording: a recording stores it for check and replay, which would fail on it later.
-    Its nodes' code is not loaded (check=False): the recorder must start at once, beside a
-    system that is already starting, and imports no robot code."""
+def _check_system_file(path: str, whole: bool = True) -> None:
+    """Refuse a system file `iotad run --check` would refuse, before recording: a recording stores
+    it for check and replay, which would fail on it later. `whole`: its specs are parsed and its
+    nodes instantiated, so that a TOML file that is no valid system (a binding to a channel no
+    node has, a spec with a syntax error) is refused in the parser's words. Not `whole` (the
+    recorder `iotad run` starts, on a file it checked): only its form (nodes, keys, bindings'
+    shape), so that the recorder starts at once, beside a system already starting, and imports
+    no robot code."""
     from iotad.cli import CliError
     from iotad.launcher.system_file import SystemFileError, load_system
 
     try:
-        load_system(path, check=False)
+        load_system(path, check=whole)
     except SystemFileError as exc:
         more = "" if len(exc.errors) == 1 else \
             f" (and {len(exc.errors) - 1} more: 'iotad run --check {path}' lists them)"
