@@ -326,7 +326,7 @@ class Launcher:
         argv = [sys.executable, "-m", "iotad", "record", f"{wire.PREFIX}/{system.name}/**",
                 "-o", str(output), "--system-file", str(system.path), "--ready-file", str(ready),
                 "--from-traces",  # one wake-up per trace burst, not per message: see iotad.recording.recorder
-                "--system-checked"]  # checked before the launch: the recorder loads no node code
+                "--from-launcher"]  # the file checked and the name claimed: the recorder loads no node code
         if self.record_force:
             argv.append("--force")
         if self.record_max_size is not None:

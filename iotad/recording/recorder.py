@@ -46,7 +46,8 @@ from iotad.host import wire
 from iotad.host.can_port import KEY_PREFIX as CAN_KEY_PREFIX
 from iotad.host.credentials import for_endpoints
 from iotad.recording.mcap_io import (FORMAT, GAP_TOPIC, MALFORMED_TOPIC, McapSink, trace_event_problem,
-                                     channel_schemas, member_path, packb, schema_for_topic, write_set_file)
+                                     channel_schemas, member_path, packb, schema_for_topic, unused_recording_path,
+                                     write_set_file)
 from iotad.host.transport import DEFAULT_LISTEN, open_session
 
 _MAPS = ("/@launcher", "/@heartbeat")  # keys whose payload every reader takes for a msgpack map
@@ -135,7 +136,7 @@ class Recorder:
                  connect: Iterable[str] = (), listen: Iterable[str] | None = None,
                  flush_period: float = 0.05, spec_timeout: float = 0.5, query_specs: bool = True,
                  fifo_capacity: int = 65536, background: bool = False, from_traces: bool = False,
-                 max_size: int | None = None, max_duration: float | None = None):
+                 max_size: int | None = None, max_duration: float | None = None, replace: bool = False):
         self.system_text, self.system_table = (None, {})
         if system_file is not None:
             self.system_text, self.system_table = read_system_file(system_file)
@@ -171,6 +172,9 @@ class Recorder:
             raise ValueError(f"max_duration must be a positive number of seconds, got {max_duration!r}")
         self.max_size, self.max_duration = max_size, max_duration
         self.split = max_size is not None or max_duration is not None
+        # split: a numbered file's name that is taken is skipped, unless the recording at `output`
+        # is being replaced (--force), numbered files included
+        self.replace = replace
         self.files: list[Path] = []  # the files written so far (split: the members; else output)
         self._set_id = uuid.uuid4().hex
         self.connect, self.listen = list(connect), list(listen or ())
@@ -272,6 +276,8 @@ class Recorder:
         path = self.output
         if self.split:
             path = member_path(self.output, len(self.files))
+            if not self.replace:  # never over another file: the set file names its members
+                path = unused_recording_path(path, claim=True)
             write_set_file(self.output, self._set_id, [p.name for p in self.files] + [path.name],
                            dict(info, split={"set": self._set_id, "set_file": self.output.name}))
         self.sink = McapSink(path)

@@ -51,5 +51,5 @@ def test_a_valid_system_file_is_taken(tmp_path, capsys):
 def test_the_launchers_recorder_checks_the_form_only(tmp_path, capsys):
     node, _ = CASES["a parameter the IOTA lacks"]
     path = system(tmp_path, node)
-    main(["record", "-o", str(tmp_path / "r.mcap"), "--system-file", str(path), "--system-checked", *DEAD[:-1]])
+    main(["record", "-o", str(tmp_path / "r.mcap"), "--system-file", str(path), "--from-launcher", *DEAD[:-1]])
     assert "waiting for a hub" in capsys.readouterr().err

@@ -4,7 +4,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from iotad.cli import new_recording, output_file
+from iotad.cli import new_recording, not_its_own_file, output_file
 
 ORDER = 35
 
@@ -41,6 +41,7 @@ def run(args: argparse.Namespace) -> int:
     output_file(args.output)
     new_recording(args.output, args.force)
     recording = load(args.file)
+    not_its_own_file(args.output, recording)
     extra = None
     if not recording.complete or recording.damaged:
         # the copy is a whole file, but not of a whole run: its metadata says so as `iotad
