@@ -4,8 +4,12 @@ starts empty and the program it ran for the master is gone, so the master's prog
 once mdl_command's switching time allows; the master still commits when Figure 2 says. A notice
 while nobody signals, or one whose master stopped signalling before the re-send, sends nothing.
 In virtual time (the notice as an input) and through the node host's enum filtering."""
+import json
+
 from iotad.esprit import load_iota
-from iotad.host.peer_restart import notice_values
+from iotad.host.node_config import parse
+from iotad.host.peer_restart import notice_values, peers_of
+from iotad.launcher.system_file import load_system
 
 from scheduling_helpers import ROOT, acks, req, run, story, violations
 
@@ -52,7 +56,11 @@ def test_a_master_preempted_before_its_resend_is_not_sent_again_nor_is_its_succe
     assert not violations(engine)
 
 
-def test_the_node_host_passes_it_the_interpreters_restart_only():
+def test_in_the_mdl_systems_the_node_host_passes_it_the_interpreters_restart_only():
     peer = load_iota(str(PROGRAMS)).iota_spec.channels["peer_restart"].type
-    assert notice_values(peer, ["mdl_command"]) == ["mdl_command"]
-    assert notice_values(peer, ["req", "ack"]) == []
+    for example in ("mdl_arm_realtime.toml", "mdl_arm.toml"):
+        config = parse(json.dumps(load_system(ROOT / "examples" / example).node_config("scheduler", origin=0.0, hub=[])))
+        peers = peers_of(config.system, config.path, config.inputs, config.readers)
+        notices = {name: notice_values(peer, channels) for name, channels in peers.items()}
+        assert notices.pop("mdl") == ["mdl_command"], (example, peers)     # the interpreter
+        assert notices and all(v == [] for v in notices.values()), (example, notices)  # requesters: nothing
