@@ -62,6 +62,7 @@ class Finding:
     code: str       # early, late, expired, not_enabled, wrong_value, switching_time, unknown_event, ...
     message: str
     position: int   # index of the recorded event it is about (-1: the end of the recording)
+    due: float | None = None  # a late firing: when its window closed
 
     def __str__(self) -> str:
         return f"t={self.t:.6g} [{self.code}] {self.message}"
@@ -284,8 +285,8 @@ class TraceChecker:
         return report
 
     # -- steps
-    def _find(self, t: float, code: str, message: str, position: int) -> None:
-        self.report.findings.append(Finding(t, code, message, position))
+    def _find(self, t: float, code: str, message: str, position: int, due: float | None = None) -> None:
+        self.report.findings.append(Finding(t, code, message, position, due))
 
     def _engine_violations(self, t: float, position: int) -> None:
         found = self.collect.violations
@@ -379,7 +380,7 @@ class TraceChecker:
         elif t > instance.upper + self.tolerance:
             self._find(t, "late", f"{describe(event)} fired {t - instance.upper:.6g} after its window "
                        f"[{instance.lower:.6g}, {instance.upper:.6g}] closed ({name} enabled at "
-                       f"t={instance.te:.6g})", position)
+                       f"t={instance.te:.6g})", position, due=instance.upper)
         if t < plus(slot.last, slot.switching) - self.tolerance:
             self._find(t, "switching_time", f"{describe(event)} came {t - slot.last:.6g} after the previous "
                        f"event on {channel} at t={slot.last:.6g}, sooner than its switching time "

@@ -45,7 +45,7 @@ class ReplayResult:
         if self.ok:
             if self.guided:
                 return [f"{self.node}: replay agrees: {len(self.recorded)} {'/'.join(self.kinds)} events, every "
-                        f"value computed again, each firing at its recorded time"]
+                        f"value computed again, each firing at its recorded time"] + self._lateness()
             order = (f"; {self.reordered} in another order than the replay's, within the tolerance"
                      if self.reordered else "")
             return [f"{self.node}: replay agrees: {len(self.recorded)} {'/'.join(self.kinds)} events, "
@@ -73,7 +73,9 @@ class ReplayResult:
 
 
     def _lateness(self) -> list[str]:
-        """The firings the process made later than the tolerance (up to the divergence)."""
+        """The firings the process made later than the tolerance (up to the divergence): guided,
+        after their windows closed; free, after the replay has them due, and replayed where the
+        recording has them."""
         late = self.late
         if not self.ok:
             until = float(self.recorded[min(self.divergence, len(self.recorded) - 1)]["t"]) if self.recorded else 0.0
@@ -82,10 +84,14 @@ class ReplayResult:
             return []
         event, due = late[0]
         worst, worst_due = max(late, key=lambda pair: float(pair[0]["t"]) - pair[1])
+        if self.guided:
+            what, when = "after their windows closed", "its window closed at"
+        else:
+            what, when = ("after the replay has them due, and are replayed where the recording has them, "
+                          "not on time"), "it was due at"
         return [f"  {len(late)} firing(s) {'before that ' if not self.ok else ''}came later than the tolerance "
-                f"after they were due: replayed where the recording has them, not on time; the first, "
-                f"{describe(event)}, was due at t={due:.6g} ({float(event['t']) - due:.3g} late); the latest, "
-                f"{describe(worst)}, {float(worst['t']) - worst_due:.3g} late ('iotad check' judges their windows)"]
+                f"{what}; the first, {describe(event)} ({when} t={due:.6g}, {float(event['t']) - due:.3g} late), "
+                f"the latest {describe(worst)} ({float(worst['t']) - worst_due:.3g} late): 'iotad check' judges them"]
 
 
 def node_root(recording: Recording, node: str) -> Any:
@@ -142,7 +148,7 @@ def replay_node(recording: Recording, node: str, tolerance: float = 0.01,
         mine = [e for e in run if e.get("kind") in kinds]
         root = node_root(recording, node)
         if guided:
-            again = _guided_run(root, begun, run, tolerance, kinds)
+            again = _guided_run(root, begun, run, tolerance, kinds, late)
         else:
             again = _replay_run(root, begun, run, tolerance, kinds, until=run_end if last else None,
                                 late=late if reorder else None)
@@ -292,17 +298,20 @@ def _replay_run(root: Any, begun: float, events: list[dict], tolerance: float, k
     return _as_recorded(mapping, [e for e in engine.trace if e["kind"] in kinds])
 
 
-def _guided_run(root: Any, begun: float, events: list[dict], tolerance: float, kinds: tuple) -> list[dict]:
+def _guided_run(root: Any, begun: float, events: list[dict], tolerance: float, kinds: tuple,
+                late: list) -> list[dict]:
     """The events of `kinds` that `root` makes when each of its firings is the one the recording
     has, at its time (the trace checker's way: an enabled instance of that channel and index, its
-    value computed by the spec; none enabled: no firing). When each firing came is what happened, not
-    judged here: `iotad check` says whether it was inside its window."""
+    value computed by the spec; none enabled: no firing). When each firing came is what happened,
+    not judged here (`iotad check` says whether it was inside its window), but a firing later
+    than the tolerance after its window closed goes on `late`, with when it closed."""
     from iotad.recording.conformance import TraceChecker
 
     checker = TraceChecker(root, tolerance=tolerance, start=begun)
     made: list[dict] = []
     checker.engine.sinks.append(lambda event: made.append(event) if event["kind"] in kinds else None)
-    checker.check(events)
+    report = checker.check(events)
+    late += [(events[f.position], f.due) for f in report.findings if f.code == "late" and f.due is not None]
     return _as_recorded(align_paths((e.get("iota", "") for e in events), list(checker.engine.leaves)), made)
 
 

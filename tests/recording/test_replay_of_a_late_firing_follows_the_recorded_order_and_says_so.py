@@ -65,8 +65,18 @@ def test_a_late_firing_is_replayed_where_the_recording_has_it_and_its_lateness_i
     assert [(e["action"], round(e["t"], 6), due) for e, due in result.late] == [
         ("tick", 1.05, 1.0), ("echo", 1.05, 1.02)]
     lines = "\n".join(result.lines())
-    assert "2 firing(s) came later than the tolerance after they were due" in lines
-    assert "output tick=1 at t=1.05, was due at t=1 (0.05 late)" in lines
+    assert "2 firing(s) came later than the tolerance after the replay has them due, and are replayed " \
+        "where the recording has them" in lines
+    assert "the first, output tick=1 at t=1.05 (it was due at t=1, 0.05 late)" in lines
+
+
+def test_the_default_replay_at_the_recorded_times_says_which_came_after_their_windows_closed(on_time):
+    events = late_tick(on_time.trace("counter", starts=True))
+    result = replay_node(real_time(on_time, events), "counter", tolerance=0.01)
+    assert result.ok and result.guided, "\n".join(result.lines())
+    assert [(e["action"], round(e["t"], 6), due) for e, due in result.late] == [("tick", 1.05, 1.0)]
+    assert "1 firing(s) came later than the tolerance after their windows closed; the first, output tick=1 " \
+        "at t=1.05 (its window closed at t=1, 0.05 late)" in result.lines()[1]
 
 
 def test_a_value_that_differs_is_compared_in_the_recorded_order(on_time):
