@@ -8,7 +8,7 @@ import shutil
 from pathlib import Path
 
 from iotad.cli import main
-from iotad.recording.mcap_io import read_recording
+from iotad.recording.mcap_reader import read_recording
 
 ROOT = Path(__file__).resolve().parents[2]
 FIGURE2 = str(ROOT / "examples" / "figure2.toml")
@@ -34,12 +34,13 @@ def test_record_that_writes_nothing_leaves_no_claim_behind(tmp_path, capsys):
 
 def split_set(tmp_path) -> tuple[Path, Path]:
     """A recording read as a split set of one member: run.mcap lists run_0.mcap."""
-    from iotad.recording.mcap_io import member_path, write_set_file
+    from iotad.launcher.recording_paths import continuation_path
+    from iotad.recording.mcap_sink import write_set_file
 
     whole = tmp_path / "whole.mcap"
     assert main(["run", FIGURE2, "--virtual", "--until", "2", "-o", str(whole), "--plain"]) == 0
     info = dict(read_recording(whole).info)
-    member = member_path(tmp_path / "run.mcap", 0)
+    member = continuation_path(tmp_path / "run.mcap", 0)
     shutil.copy(whole, member)
     write_set_file(tmp_path / "run.mcap", "s1", [member.name], info)
     return tmp_path / "run.mcap", member
