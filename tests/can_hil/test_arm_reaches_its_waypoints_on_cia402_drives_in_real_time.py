@@ -14,7 +14,7 @@ pytest.importorskip("pybullet")
 from arm_hil import FINAL, ROOT, settled_positions  # noqa: E402
 from iotad.can import canopen as co  # noqa: E402
 from iotad.can.frame import Frame  # noqa: E402
-from iotad.recording.mcap_io import read_recording  # noqa: E402
+from iotad.recording.mcap_reader import read_recording  # noqa: E402
 
 
 @pytest.fixture(scope="module")

@@ -10,7 +10,7 @@ from arm_hil import FINAL, ROOT, final_positions  # noqa: E402
 from iotad.can import canopen as co  # noqa: E402
 from iotad.can.frame import Frame  # noqa: E402
 from iotad.cli import main  # noqa: E402
-from iotad.recording.mcap_io import read_recording  # noqa: E402
+from iotad.recording.mcap_reader import read_recording  # noqa: E402
 
 EXAMPLE = ROOT / "examples" / "arm_canopen.toml"
 

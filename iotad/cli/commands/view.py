@@ -67,7 +67,8 @@ def run(args: argparse.Namespace) -> int:
     server = None
     try:
         try:
-            server = foxglove.start_server(name=f"iotad {args.system or ''}".strip(), host=args.host, port=args.port)
+            server = foxglove.start_server(name=f"iotad {args.system or ''}".strip(), host=args.host, port=args.port,
+                                           asset_handler=Bridge.asset)  # the arm's meshes (package:// URLs)
         except Exception as exc:  # noqa: BLE001 - port taken, bad address: one line
             raise CliError(f"cannot serve on {args.host}:{args.port}: {exc}") from None
         bridge = Bridge()
