@@ -3,7 +3,8 @@ test_recordings_are_never_overwritten_unless_forced.py): `iotad record` claims i
 `iotad run -o` does, so of two started together on one -o the second is refused instead of both
 writing the file; `iotad export` and `iotad recover` never write into a file of the recording they
 read, --force or not (a member of a split set was destroyed while being copied); a split set's
-numbered files skip a name that is taken (tests/recording/test_split_recordings.py)."""
+numbered files skip a name that is taken (tests/recording/test_split_recordings.py); and
+`iotad export --ros2 --force` never removes a bag folder that holds the recording it exports."""
 import shutil
 from pathlib import Path
 
@@ -55,3 +56,16 @@ def test_export_and_recover_never_write_into_the_set_they_read(tmp_path, capsys)
         assert main([*command, "-o", str(member), "--force"]) == 2, command
         assert f"-o {member}: is a file of the recording being read" in capsys.readouterr().err
     assert member.read_bytes() == before
+
+
+def test_a_rosbag_export_never_removes_the_bag_that_holds_the_recording(tmp_path, capsys):
+    bag = tmp_path / "bag"
+    bag.mkdir()
+    (bag / "metadata.yaml").write_text("rosbag2_bagfile_information: {}\n")  # a bag, as --force wants
+    recording = bag / "run.mcap"
+    assert main(["run", FIGURE2, "--virtual", "--until", "1", "-o", str(recording), "--plain"]) == 0
+    before = recording.read_bytes()
+    capsys.readouterr()
+    assert main(["export", str(recording), "--ros2", "-o", str(bag), "--force"]) == 2
+    assert f"-o {bag}: holds the recording being exported" in capsys.readouterr().err
+    assert recording.read_bytes() == before

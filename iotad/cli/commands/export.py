@@ -73,6 +73,9 @@ def _ros2(args: argparse.Namespace) -> int:
 
     output = Path(args.output)
     if output.exists():
+        if Path(args.file).resolve().is_relative_to(output.resolve()):
+            # --force would remove the bag, and the recording being exported with it
+            raise CliError(f"-o {output}: holds the recording being exported ({args.file}); name another folder")
         if not args.force or not (output / "metadata.yaml").is_file():
             raise CliError(f"{output} exists" + ("" if args.force else "; --force replaces a bag")
                            + (" (and is not a rosbag2 bag: not removed)" if args.force else ""))
