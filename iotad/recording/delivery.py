@@ -29,7 +29,6 @@ import json
 import math
 import re
 import sys
-import tomllib
 from array import array
 from collections import deque
 from dataclasses import dataclass, field
@@ -38,8 +37,9 @@ from typing import Any, Iterable
 from iotad.host import wire
 from iotad.host.can_port import KEY_PREFIX as CAN_KEY_PREFIX
 from iotad.kernel.engine import INPUT_REFUSALS
-from iotad.launcher.system_file import Port  # one concrete channel, as the system file names it
+from iotad.kernel.ports import Port
 from iotad.recording.mcap_io import RecordedMessage, Recording, packb, unpackb
+from iotad.recording.recorded_system import RecordedSystem, recorded_system
 
 GRACE = 0.1  # seconds: longer than any delivery seen here (~1 ms, tens under load) by far
 MASK = 0xFFFFFFFF  # MCAP keeps 32 bits of a sequence number
@@ -50,7 +50,6 @@ PROBLEMS = ("lost", "altered", "duplicated", "unexplained", "reordered", "causal
 MISTIMED = 1.0  # s: a receipt this near a message of its value that nothing took is that message, mistimed
 CAN_TX, CAN_RX = "can_tx", "can_rx"
 BUS_LOG = "frames"  # a bus's log of every frame it carried (iotad.can.frame_log), if the recording has one
-_ENDPOINT = re.compile(r"^\s*(?P<node>[^\s\[\]]+)\.(?P<channel>[A-Za-z_]\w*)(?:\[(?P<index>\d+)\])?\s*$")
 
 
 # ------------------------------------------------------------------------------------ results
@@ -209,118 +208,6 @@ def _ms(seconds: float) -> str:
 def _short(value: Any) -> str:
     text = json.dumps(value, default=str) if not isinstance(value, str) else value
     return text if len(text) <= 48 else text[:45] + "..."
-
-
-# ------------------------------------------------------------------------------------ the system
-@dataclass
-class RecordedSystem:
-    """What delivery needs of the recorded system file: concrete bindings, external inputs, buses."""
-
-    name: str
-    bindings: list[tuple[Port, Port]] = field(default_factory=list)
-    external: set[Port] = field(default_factory=set)
-    buses: dict[str, list[str]] = field(default_factory=dict)  # bus -> its stations, in order
-    bus_nodes: set[str] = field(default_factory=set)          # bus models (virtual time): not stations
-
-
-def recorded_system(recording: Recording) -> RecordedSystem | str:
-    """The system attached to `recording` (system.toml, or system.json of an in-process run),
-    with family bindings expanded by the recorded channel tables; or why there is none."""
-    toml_text = json_text = None
-    for attachment in recording.attachments:
-        if attachment.name == "system.toml":
-            toml_text = attachment.data.decode(errors="replace")
-        elif attachment.name == "system.json":
-            json_text = attachment.data.decode(errors="replace")
-    sizes = _channel_sizes(recording.specs)
-    name = recording.system or ""
-    pairs: list[tuple[str, str]] = []
-    external: list[str] = []
-    buses: dict[str, list[str]] = {}
-    if toml_text is not None:
-        try:
-            table = tomllib.loads(toml_text)
-        except tomllib.TOMLDecodeError as exc:
-            return f"the recorded system.toml is not TOML: {exc}"
-        pairs = [(b.get("from"), b.get("to")) for b in table.get("bind", []) if isinstance(b, dict)]
-        system = table.get("system") if isinstance(table.get("system"), dict) else {}
-        for raw in (table.get("external"), system.get("external")):
-            if isinstance(raw, list):
-                external += [e for e in raw if isinstance(e, str)]
-        for bus in table.get("can", []) if isinstance(table.get("can"), list) else []:
-            if isinstance(bus, dict) and isinstance(bus.get("name"), str) and isinstance(bus.get("stations"), list):
-                buses[bus["name"]] = [s for s in bus["stations"] if isinstance(s, str)]
-        prefix = ""
-    elif json_text is not None:
-        try:
-            data = json.loads(json_text)
-        except ValueError as exc:
-            return f"the recorded system.json is not JSON: {exc}"
-        if not isinstance(data, dict):
-            return f"the recorded system.json is a {type(data).__name__}, not a JSON object"
-        pairs = [tuple(p) for p in data.get("bindings", []) if isinstance(p, (list, tuple)) and len(p) == 2]
-        if isinstance(data.get("external"), list):
-            external += [e for e in data["external"] if isinstance(e, str)]
-        root = recording.info.get("root") or data.get("name") or name
-        prefix = f"{root}/"
-    else:
-        return "the recording holds no system file (system.toml or system.json), so no bindings"
-    out = RecordedSystem(name)
-    for source_text, target_text in pairs:
-        source, target = _port(source_text, prefix), _port(target_text, prefix)
-        if source is None or target is None:
-            continue
-        out.bindings += _expand(source, target, sizes)
-    for text in external:
-        port = _port(text, "")
-        if port is not None:
-            members = [port.index] if port.index is not None else _members(sizes.get((port.node, port.channel)))
-            out.external.update(Port(port.node, port.channel, k) for k in members)
-    if not buses:  # a virtual run: the bus is a node; station k's can_tx -> bus.tx[k], bus.rx[k] -> can_rx
-        found: dict[str, dict[int, str]] = {}
-        for source, target in out.bindings:
-            if source.channel == CAN_TX and target.channel == "tx" and target.index is not None:
-                found.setdefault(target.node, {})[target.index] = source.node
-        buses = {bus: [stations[k] for k in sorted(stations)] for bus, stations in found.items()}
-        out.bus_nodes = set(buses)
-    out.buses = buses
-    return out
-
-
-def _port(text: Any, prefix: str) -> Port | None:
-    if not isinstance(text, str):
-        return None
-    match = _ENDPOINT.match(text)
-    if not match:
-        return None
-    node = match["node"]
-    if prefix and node.startswith(prefix):
-        node = node[len(prefix):]
-    return Port(node, match["channel"], None if match["index"] is None else int(match["index"]))
-
-
-def _channel_sizes(specs: dict[str, dict]) -> dict[tuple[str, str], int | None]:
-    out: dict[tuple[str, str], int | None] = {}
-    for node, spec in specs.items():
-        for entry in (spec.get("channels") or []) if isinstance(spec, dict) else []:
-            if isinstance(entry, dict) and isinstance(entry.get("name"), str):
-                size = entry.get("size")
-                out[(node, entry["name"])] = size if isinstance(size, int) else None
-    return out
-
-
-def _members(size: int | None) -> list[int | None]:
-    return [None] if size is None else list(range(size))
-
-
-def _expand(source: Port, target: Port, sizes: dict) -> list[tuple[Port, Port]]:
-    """A family bound to a family binds member to member (docs/system-file.md)."""
-    src_size = sizes.get((source.node, source.channel)) if source.index is None else None
-    dst_size = sizes.get((target.node, target.channel)) if target.index is None else None
-    if src_size is not None and dst_size is not None:
-        return [(Port(source.node, source.channel, k), Port(target.node, target.channel, k))
-                for k in range(min(src_size, dst_size))]
-    return [(source, target)]
 
 
 # ------------------------------------------------------------------------------------ accounts
