@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 from graphlib import CycleError, TopologicalSorter
 from pathlib import Path
 from types import MappingProxyType
-from typing import Any, Mapping
+from typing import Any, Callable, Mapping
 
 from iotad.host.transport import DEFAULT_HUB_ENDPOINT, endpoint_problem, reachable
 from iotad.kernel.ports import Port
@@ -271,16 +271,8 @@ class _Parser:
                     system[key] = float(value)
                 else:
                     self.error(entry, f"{key} must be a positive number of seconds, got {value!r}")
-        if "start_gate" in raw:
-            if isinstance(raw["start_gate"], bool):
-                system["start_gate"] = raw["start_gate"]
-            else:
-                self.error(entry, f"start_gate must be true or false, got {raw['start_gate']!r}")
-        if "input_queue" in raw:
-            if _queue_size(raw["input_queue"]):
-                system["input_queue"] = raw["input_queue"]
-            else:
-                self.error(entry, f"input_queue must be a whole number of inputs >= 1, got {raw['input_queue']!r}")
+        self.take(raw, "start_gate", system, entry, _flag, "true or false")
+        self.take(raw, "input_queue", system, entry, _queue_size, "a whole number of inputs >= 1")
         period = system.get("heartbeat_period", Declaration.heartbeat_period)
         timeout = system.get("heartbeat_timeout", Declaration.heartbeat_timeout)
         if period >= timeout:
@@ -442,17 +434,18 @@ class _Parser:
                 node["seed"] = raw["seed"]
             else:
                 self.error(entry, f"seed must be a whole number from 0 to 2**64 - 1, got {raw['seed']!r}")
-        if "required" in raw:
-            if isinstance(raw["required"], bool):
-                node["required"] = raw["required"]
-            else:
-                self.error(entry, f"required must be true or false, got {raw['required']!r}")
-        if "input_queue" in raw:
-            if _queue_size(raw["input_queue"]):
-                node["input_queue"] = raw["input_queue"]
-            else:
-                self.error(entry, f"input_queue must be a whole number of inputs >= 1, got {raw['input_queue']!r}")
+        self.take(raw, "required", node, entry, _flag, "true or false")
+        self.take(raw, "input_queue", node, entry, _queue_size, "a whole number of inputs >= 1")
         return NodeDecl(**node)
+
+    def take(self, raw: dict, key: str, into: dict, entry: str, fits: Callable[[Any], bool], wanted: str) -> None:
+        """`raw[key]` into `into` where it `fits`; else the error that says it must be `wanted`."""
+        if key not in raw:
+            return
+        if fits(raw[key]):
+            into[key] = raw[key]
+        else:
+            self.error(entry, f"{key} must be {wanted}, got {raw[key]!r}")
 
     def file_named(self, written: str, entry: str, what: str, suffix: str) -> str | None:
         """The absolute file a node names, relative to the system file's folder; as written in a
@@ -520,11 +513,7 @@ class _Parser:
                 self.error(entry, f"bitrate must be an integer from 10000 to 1000000 bit/s, got {bitrate!r}")
             else:
                 bus["bitrate"] = bitrate
-            if "log" in raw:
-                if isinstance(raw["log"], bool):
-                    bus["log"] = raw["log"]
-                else:
-                    self.error(entry, f"log must be true or false, got {raw['log']!r}")
+            self.take(raw, "log", bus, entry, _flag, "true or false")
             options = raw.get("options", {})
             if not isinstance(options, dict):
                 self.error(entry, "options must be a table of python-can bus arguments")
@@ -564,6 +553,10 @@ class _Parser:
 
 def _positive(value: Any) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool) and value > 0 and not math.isinf(value)
+
+
+def _flag(value: Any) -> bool:
+    return isinstance(value, bool)
 
 
 def _queue_size(value: Any) -> bool:

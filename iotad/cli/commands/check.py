@@ -231,7 +231,7 @@ def _never_ran(recording, specs: dict, unchecked: list[str]) -> list[str]:
     nothing of, where it was made to hold them (its key expressions cover their @trace)."""
     from iotad.host import wire
     from iotad.launcher.declaration import SystemFileError
-    from iotad.recording.delivery import _keyexpr_matches
+    from iotad.recording.delivery_accounts import keyexpr_matches
     from iotad.recording.recorded_system import recorded_declaration
 
     try:
@@ -246,7 +246,7 @@ def _never_ran(recording, specs: dict, unchecked: list[str]) -> list[str]:
 
     def covered(node: str) -> bool:
         trace = wire.trace_key(system, node)
-        return not isinstance(keys, list) or any(isinstance(k, str) and _keyexpr_matches(k, trace) for k in keys)
+        return not isinstance(keys, list) or any(isinstance(k, str) and keyexpr_matches(k, trace) for k in keys)
 
     seen = set(specs) | set(unchecked) | set(recording.nodes())
     return sorted(n for n in names if n not in seen and covered(n))
