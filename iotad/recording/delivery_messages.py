@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 import re
+from dataclasses import dataclass, field
 from typing import Any
 
 from iotad.host import wire
@@ -14,7 +15,7 @@ from iotad.host.can_port import KEY_PREFIX as CAN_KEY_PREFIX
 from iotad.kernel.engine import INPUT_REFUSALS
 from iotad.kernel.ports import Port
 from iotad.recording.delivery_accounts import Accounts, Got, OnWire, Sent, ident_of, same_value, short
-from iotad.recording.delivery_report import DeliveryFinding, Link, Rows
+from iotad.recording.delivery_report import Link, Rows
 from iotad.recording.values import values_equal
 
 REJECTIONS = (*INPUT_REFUSALS, "malformed_payload")  # a receiver saw it and refused it (the engine, or its host)
@@ -144,115 +145,153 @@ def _inputs(acc: Accounts, target: Port, keys: set[str]) -> tuple[list[Got], lis
     return got, rejected
 
 
+@dataclass
+class _Target:
+    """One bound input and the claims of the outputs bound to it, as they are taken."""
+
+    target: Port
+    keys: dict[str, Port]                 # key of a bound output -> the output
+    links: dict[str, Link]                # key of a bound output -> its row
+    claims: list[Sent]
+    by_ident: dict[tuple, Sent] = field(default_factory=dict)      # (key, ident) -> the claim
+    taken: dict[int, Got | None] = field(default_factory=dict)    # id(claim) -> the input that took it (None: refused)
+
+    def __post_init__(self) -> None:
+        self.by_ident = {(c.key, c.ident): c for c in self.claims if c.ident is not None}
+
+
 def check_target(acc: Accounts, target: Port, sources: list[Port]) -> Rows:
     """Every claim of the outputs bound to `target` against what `target`'s node took."""
     rows = Rows()
     name = acc.system.name
     keys = {wire.channel_key(name, s.node, s.channel, s.index): s for s in sources}
     got, rejections = _inputs(acc, target, set(keys))
-    links = {key: Link(f"{source} -> {target}", "binding", (source.node, target.node),
-                       sent=len(acc.claims.get(key, []))) for key, source in keys.items()}
-    rows.links += list(links.values())
-    claims = [c for key in keys for c in acc.claims.get(key, [])]
-    by_ident = {(c.key, c.ident): c for c in claims if c.ident is not None}
-    taken: dict[int, Got | None] = {}  # id(claim) -> the input that took it (None: a rejection)
+    links = {key: rows.link(f"{source} -> {target}", "binding", (source.node, target.node),
+                            sent=len(acc.claims.get(key, []))) for key, source in keys.items()}
+    bound = _Target(target, keys, links, [c for key in keys for c in acc.claims.get(key, [])])
+    unkeyed = _keyed(acc, rows, bound, got)
+    if unkeyed:
+        _unkeyed(acc, rows, bound, unkeyed)
+    _refused(acc, bound, rejections)
+    _untaken(acc, rows, bound)
+    return rows
+
+
+def _keyed(acc: Accounts, rows: Rows, bound: _Target, got: list[Got]) -> list[Got]:
+    """Match the inputs that name their message (key, seq, send time) to its claim exactly;
+    returns the inputs that name none (virtual time)."""
     last_ordinal: dict[str, int] = {}
     unkeyed: list[Got] = []
+    taken = bound.taken
     for item in got:
-        claim = by_ident.get((item.key, item.ident)) if item.ident is not None and item.key else None
+        claim = bound.by_ident.get((item.key, item.ident)) if item.ident is not None and item.key else None
         if item.ident is None or item.key is None:
             unkeyed.append(item)
             continue
-        link = links[item.key]
+        link = bound.links[item.key]
         if claim is None:
-            _unclaimed(acc, rows, link, item, keys[item.key])
+            _unclaimed(acc, rows, link, item, bound.keys[item.key])
             continue
         if id(claim) in taken:
             link.duplicated += 1
             rows.finding(link, "duplicated", claim.t, f"#{claim.ident[0]} ({short(claim.value)}) received "
-                          f"again at t={item.t:.6g} (first at t={taken[id(claim)].t:.6g})")
+                         f"again at t={item.t:.6g} (first at t={taken[id(claim)].t:.6g})")
             continue
         taken[id(claim)] = item
         if claim.ordinal < last_ordinal.get(claim.key, -1):
             rows.finding(link, "reordered", claim.t, f"#{claim.ident[0]} received at t={item.t:.6g}, after a "
-                          "message sent later")
+                         "message sent later")
         last_ordinal[claim.key] = max(claim.ordinal, last_ordinal.get(claim.key, -1))
         _delivered(acc, rows, link, claim, item)
-    if unkeyed:
-        free = sorted((c for c in claims if id(c) not in taken), key=lambda c: c.t)
-        window = acc.tolerance + acc.grace
-        pairs = _align(unkeyed, free, lambda g: g.t, lambda c: c.t, window, acc.tolerance, same_value)
-        decoded: dict[int, Any] = {}  # id(claim) -> its value: each item below is compared with many
+    return unkeyed
 
-        def value_of(claim: Sent) -> Any:
-            if id(claim) not in decoded:
-                decoded[id(claim)] = claim.value
-            return decoded[id(claim)]
 
-        for item, claim in pairs:
-            if claim is not None:
-                taken[id(claim)] = item
-                _delivered(acc, rows, links[claim.key], claim, item)
-                continue
-            value = item.value
-            # a message sent with this value and taken by no receipt, near in time: the one
-            # received, at another time than it was sent (an edited recording, a clock gone
-            # wrong). Said as such, once, instead of the claim "lost" and this receipt
-            # "duplicated" (of an earlier message with the same value) or "unexplained"
-            claim = acc.mistimed(claims, item.t, lambda c: id(c) not in taken and values_equal(value_of(c), value))
-            if claim is not None:
-                taken[id(claim)] = item
-                _mistimed(acc, rows, links[claim.key], claim, "sent", f"was received at t={item.t:.6g}", item.t)
-                continue
-            # the same value again, after a delivery of it: a duplicate (else nobody sent it)
-            twins = [c for c in claims if id(c) in taken and taken[id(c)] is not None
-                     and c.t <= item.t + acc.tolerance and values_equal(value_of(c), value)]
-            twin = max(twins, key=lambda c: c.t) if twins else None
-            link = links[twin.key] if twin else next(iter(links.values()))
-            if twin is not None:
-                link.duplicated += 1
-                rows.finding(link, "duplicated", twin.t, f"{short(item.value)} received again at t={item.t:.6g}")
-            elif acc.virtual and target in acc.system.external:
-                # bound and declared external: an input script's, posted into it from outside
-                rows.notes.append(DeliveryFinding(
-                    "external", f"(outside) -> {target}", item.t, f"{target.node} took "
-                    f"{short(item.value)} at t={item.t:.6g} from outside ({target} is external)", False,
-                    (target.node,)))
-            else:
-                link.unexplained += 1
-                rows.finding(link, "unexplained", item.t, f"{target.node} took {short(item.value)} at "
-                              f"t={item.t:.6g}, and no sender bound to {target} sent it")
-    for event in rejections:  # the receiver saw the message and refused it: no loss
+def _unkeyed(acc: Accounts, rows: Rows, bound: _Target, unkeyed: list[Got]) -> None:
+    """Match the inputs that name no message to the claims by time and value (virtual time: a
+    binding delivers at the instant of the firing); what matches none is a mistimed message,
+    a duplicate, an input from outside or unexplained."""
+    target, links, claims, taken = bound.target, bound.links, bound.claims, bound.taken
+    free = sorted((c for c in claims if id(c) not in taken), key=lambda c: c.t)
+    window = acc.tolerance + acc.grace
+    pairs = _align(unkeyed, free, lambda g: g.t, lambda c: c.t, window, acc.tolerance, same_value)
+    decoded: dict[int, Any] = {}  # id(claim) -> its value: each item below is compared with many
+
+    def value_of(claim: Sent) -> Any:
+        if id(claim) not in decoded:
+            decoded[id(claim)] = claim.value
+        return decoded[id(claim)]
+
+    for item, claim in pairs:
+        if claim is not None:
+            taken[id(claim)] = item
+            _delivered(acc, rows, links[claim.key], claim, item)
+            continue
+        value = item.value
+        # a message sent with this value and taken by no receipt, near in time: the one
+        # received, at another time than it was sent (an edited recording, a clock gone
+        # wrong). Said as such, once, instead of the claim "lost" and this receipt
+        # "duplicated" (of an earlier message with the same value) or "unexplained"
+        claim = acc.mistimed(claims, item.t, lambda c: id(c) not in taken and values_equal(value_of(c), value))
+        if claim is not None:
+            taken[id(claim)] = item
+            _mistimed(acc, rows, links[claim.key], claim, "sent", f"was received at t={item.t:.6g}", item.t)
+            continue
+        # the same value again, after a delivery of it: a duplicate (else nobody sent it)
+        twins = [c for c in claims if id(c) in taken and taken[id(c)] is not None
+                 and c.t <= item.t + acc.tolerance and values_equal(value_of(c), value)]
+        twin = max(twins, key=lambda c: c.t) if twins else None
+        link = links[twin.key] if twin else next(iter(links.values()))
+        if twin is not None:
+            link.duplicated += 1
+            rows.finding(link, "duplicated", twin.t, f"{short(item.value)} received again at t={item.t:.6g}")
+        elif acc.virtual and target in acc.system.external:
+            # bound and declared external: an input script's, posted into it from outside
+            rows.note("external", f"(outside) -> {target}", item.t, f"{target.node} took {short(item.value)} at "
+                      f"t={item.t:.6g} from outside ({target} is external)", (target.node,))
+        else:
+            link.unexplained += 1
+            rows.finding(link, "unexplained", item.t, f"{target.node} took {short(item.value)} at "
+                         f"t={item.t:.6g}, and no sender bound to {target} sent it")
+
+
+def _refused(acc: Accounts, bound: _Target, rejections: list[dict]) -> None:
+    """The messages the receiver saw and refused (a recorded rejection): no loss."""
+    claims, taken = bound.claims, bound.taken
+    for event in rejections:
         t = float(event["t"])
         value = event.get("value") or {}
         if value.get("violation") == OVERFLOW:
-            _overflowed(acc, links, claims, taken, t, value)
+            _overflowed(acc, bound.links, claims, taken, t, value)
             continue
         # a node host names the message it refused (key, seq, send_ns): that claim exactly;
         # else the latest untaken claim sent by then
         ident, key = ident_of(event), event.get("key")
-        exact = by_ident.get((key, ident)) if ident is not None and key else None
+        exact = bound.by_ident.get((key, ident)) if ident is not None and key else None
         candidates = [exact] if exact is not None and id(exact) not in taken else \
             [c for c in claims if id(c) not in taken and t - acc.tolerance - acc.grace <= c.t <= t + acc.tolerance]
         if not candidates:
             continue
         claim = max(candidates, key=lambda c: c.t)
         taken[id(claim)] = None
-        links[claim.key].rejected += 1
-    for claim in claims:
-        if id(claim) in taken:
+        bound.links[claim.key].rejected += 1
+
+
+def _untaken(acc: Accounts, rows: Rows, bound: _Target) -> None:
+    """Every claim the receiver never took: lost, or not judged (it was not running)."""
+    target = bound.target
+    for claim in bound.claims:
+        if id(claim) in bound.taken:
             continue
-        link = links[claim.key]
+        link = bound.links[claim.key]
         verdict, reason = acc.life[target.node].judge(claim.t, acc.grace, target.node) \
             if target.node in acc.life else ("unjudged", f"{target.node} is not in this recording")
         if verdict == "lost":
             link.lost += 1
             rows.finding(link, "lost", claim.t, f"{claim.label} ({short(claim.value)}) sent at t={claim.t:.6g} "
-                          f"never reached {target}; {reason}")
+                         f"never reached {target}; {reason}")
         else:
             link.unjudged += 1
             rows.finding(link, "not judged", claim.t, f"{claim.label}: {reason}", False)
-    return rows
 
 
 def _overflowed(acc: Accounts, links: dict[str, Link], claims: list[Sent], taken: dict, t: float, value: dict) -> None:
