@@ -18,8 +18,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from iotad.launcher.declaration import LOGGER_LAG as LAG  # noqa: F401 - where a reader of this module looks
-from iotad.launcher.declaration import LOGGER_REF
+from iotad.launcher.declaration import LOGGER_REF  # noqa: F401 - the logger's class, as this module names it
 
 # The logger nodes themselves are added where the system file is parsed (a parse step:
 # `declaration._Parser.add_bus_loggers`), so every reader of a declaration sees them.
@@ -28,7 +27,7 @@ from iotad.launcher.declaration import LOGGER_REF
 def is_bus_logger(system: Any, node: str) -> bool:
     """Whether `node` is the implicit logger of a bus (not a node of the system file)."""
     spec = system.nodes.get(node)
-    return node in system.buses and spec is not None and spec.source.get("ref") == LOGGER_REF
+    return spec is not None and spec.bus_logger
 
 
 def logger_port_config(bus: Any) -> dict[str, Any]:

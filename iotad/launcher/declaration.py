@@ -74,10 +74,7 @@ class NodeDecl:
     seed: int | None = None
     required: bool = False           # when it ends for good, the launcher stops the whole system
     input_queue: int | None = None   # None: the [system] value
-
-    @property
-    def is_bus_logger(self) -> bool:
-        return self.source.get("ref") == LOGGER_REF and self.entry.endswith("'s bus logger")
+    bus_logger: bool = False         # an implicit node: the logger of the bus it is named after
 
 
 @dataclass(frozen=True)
@@ -169,7 +166,7 @@ class Declaration:
     @property
     def file_nodes(self) -> list[str]:
         """The names of the nodes the file lists (not the implicit bus loggers)."""
-        return [name for name, node in self.nodes.items() if not node.is_bus_logger]
+        return [name for name, node in self.nodes.items() if not node.bus_logger]
 
     def bus_of(self, node: str) -> CanBusSpec | None:
         """The CAN bus `node` is a station of, if any."""
@@ -548,7 +545,7 @@ class _Parser:
             self.nodes[bus.name] = NodeDecl(
                 name=bus.name, entry=f"{bus.entry}'s bus logger", source={"kind": "python", "ref": LOGGER_REF},
                 params={"bitrate": bus.bitrate, "lag": LOGGER_LAG / unit},  # lag: in the system's time unit
-                host=next((h for h in hosts if h is not None), None))
+                host=next((h for h in hosts if h is not None), None), bus_logger=True)
 
 
 def _positive(value: Any) -> bool:
