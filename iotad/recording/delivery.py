@@ -33,7 +33,7 @@ from __future__ import annotations
 from typing import Iterable
 
 from iotad.kernel.ports import Port
-from iotad.recording.delivery_accounts import GRACE, read_accounts
+from iotad.recording.delivery_accounts import GRACE, Accounts, read_accounts
 from iotad.recording.delivery_can import check_bus, check_bus_log, sent_frames
 from iotad.recording.delivery_messages import check_outside, check_target, check_wire, output_keys
 from iotad.recording.delivery_report import (WITNESS, DeliveryFinding, DeliveryReport, Link, Rows,  # noqa: F401
@@ -68,7 +68,7 @@ def check_delivery(recording: Recording, *, tolerance: float = 1e-9, node: str |
     return report
 
 
-def _checks(accounts) -> Iterable[Rows]:
+def _checks(accounts: Accounts) -> Iterable[Rows]:
     """Every check's rows, in the report's order: the wire, bindings, outside inputs, buses."""
     system = accounts.system
     sources_of: dict[Port, list[Port]] = {}
