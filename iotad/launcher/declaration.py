@@ -251,10 +251,7 @@ class _Parser:
         for key in sorted(set(raw) - _SYSTEM_KEYS):
             self.error(entry, f"unknown key {key!r} (expected one of {sorted(_SYSTEM_KEYS)})")
         if "name" in raw:
-            if isinstance(raw["name"], str) and _SYSTEM_NAME.match(raw["name"]):
-                system["name"] = raw["name"]
-            else:
-                self.error(entry, f"name must be one key chunk (letters, digits, _ and -), got {raw['name']!r}")
+            self.take(raw, "name", system, entry, _chunk, "one key chunk (letters, digits, _ and -)")
         elif not _SYSTEM_NAME.match(system["name"]):
             self.error(entry, f"no name given and the file name {system['name']!r} is not a valid one")
         for key in ("time_unit", "heartbeat_period", "heartbeat_timeout", "start_timeout",
@@ -294,11 +291,7 @@ class _Parser:
                         system[key] = value
             if not system.get("listen", True):
                 self.error(entry, "endpoints.listen is empty: the hub must listen somewhere")
-        if "hub_host" in raw:
-            if isinstance(raw["hub_host"], str):
-                system["hub_host"] = raw["hub_host"]
-            else:
-                self.error(entry, f"hub_host must be a host name, got {raw['hub_host']!r}")
+        self.take(raw, "hub_host", system, entry, lambda v: isinstance(v, str), "a host name")
 
     def parse_hosts(self) -> None:
         raw = self.data.get("hosts", {})
@@ -398,22 +391,13 @@ class _Parser:
         if restart not in RESTART_MODES:
             self.error(entry, f"restart must be one of {', '.join(RESTART_MODES)}, got {restart!r}")
         node["restart"] = restart
-        if "max_restarts" in raw:
-            value = raw["max_restarts"]
-            if isinstance(value, int) and not isinstance(value, bool) and value >= 0:
-                node["max_restarts"] = value
-            else:
-                self.error(entry, f"max_restarts must be a whole number >= 0, got {value!r}")
+        self.take(raw, "max_restarts", node, entry, lambda v: _whole(v) and v >= 0, "a whole number >= 0")
         if "backoff" in raw:
             if _positive(raw["backoff"]) or raw["backoff"] == 0:
                 node["backoff"] = float(raw["backoff"])
             else:
                 self.error(entry, f"backoff must be a number of seconds >= 0, got {raw['backoff']!r}")
-        if "host" in raw:
-            if isinstance(raw["host"], str) and _SYSTEM_NAME.match(raw["host"]):
-                node["host"] = raw["host"]
-            else:
-                self.error(entry, f"host must be a host name, got {raw['host']!r}")
+        self.take(raw, "host", node, entry, _chunk, "a host name")
         after = raw.get("after", [])
         if isinstance(after, str):
             after = [after]
@@ -421,16 +405,8 @@ class _Parser:
             self.error(entry, f"after must be a list of node names, got {raw.get('after')!r}")
         else:
             node["after"] = after
-        if "policy" in raw:
-            if raw["policy"] in ("eager", "random"):
-                node["policy"] = raw["policy"]
-            else:
-                self.error(entry, f"policy must be \"eager\" or \"random\", got {raw['policy']!r}")
-        if "seed" in raw:
-            if isinstance(raw["seed"], int) and not isinstance(raw["seed"], bool) and 0 <= raw["seed"] < 2**64:
-                node["seed"] = raw["seed"]
-            else:
-                self.error(entry, f"seed must be a whole number from 0 to 2**64 - 1, got {raw['seed']!r}")
+        self.take(raw, "policy", node, entry, lambda v: v in ("eager", "random"), "\"eager\" or \"random\"")
+        self.take(raw, "seed", node, entry, lambda v: _whole(v) and 0 <= v < 2**64, "a whole number from 0 to 2**64 - 1")
         self.take(raw, "required", node, entry, _flag, "true or false")
         self.take(raw, "input_queue", node, entry, _queue_size, "a whole number of inputs >= 1")
         return NodeDecl(**node)
@@ -552,12 +528,21 @@ def _positive(value: Any) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool) and value > 0 and not math.isinf(value)
 
 
+def _whole(value: Any) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
+def _chunk(value: Any) -> bool:
+    """One chunk of a key (a system, bus or host name): letters, digits, _ and -."""
+    return isinstance(value, str) and _SYSTEM_NAME.match(value) is not None
+
+
 def _flag(value: Any) -> bool:
     return isinstance(value, bool)
 
 
 def _queue_size(value: Any) -> bool:
-    return isinstance(value, int) and not isinstance(value, bool) and value >= 1
+    return _whole(value) and value >= 1
 
 
 def _endpoint_list_problem(value: Any) -> str:
