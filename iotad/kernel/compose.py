@@ -54,17 +54,14 @@ class Composite:
         return f"<Composite {self.instance_name}: {', '.join(self.components)}>"
 
 
-@dataclass(frozen=True)
-class Endpoint:
-    """A concrete channel of a leaf: its path, channel name and index (None: the whole family)."""
+class Endpoint(Port):
+    """A concrete channel of a leaf: its path (`node`), channel name and index (None: the whole family)."""
 
-    path: str
-    channel: str
-    index: int | None = None
+    __slots__ = ()
 
-    def __str__(self) -> str:
-        suffix = "" if self.index is None else f"[{self.index}]"
-        return f"{self.path}.{self.channel}{suffix}"
+    @property
+    def path(self) -> str:
+        return self.node
 
 
 @dataclass
