@@ -38,7 +38,7 @@ from iotad.recording.delivery_can import check_bus, check_bus_log, sent_frames
 from iotad.recording.delivery_messages import check_outside, check_target, check_wire, output_keys
 from iotad.recording.delivery_report import (WITNESS, DeliveryFinding, DeliveryReport, Link, Rows,  # noqa: F401
                                              problem_marks)
-from iotad.recording.mcap_io import Recording
+from iotad.recording.mcap_reader import Recording
 from iotad.recording.recorded_system import recorded_system
 
 PROBLEMS = ("lost", "altered", "duplicated", "unexplained", "reordered", "causality")

@@ -19,7 +19,8 @@ from dataclasses import dataclass
 from typing import Any, Callable
 
 from iotad.host import wire
-from iotad.recording.mcap_io import RecordedMessage, Recording, packb, unpackb
+from iotad.recording.mcap_format import packb, unpackb
+from iotad.recording.mcap_reader import RecordedMessage, Recording
 from iotad.recording.recorded_system import RecordedSystem
 from iotad.recording.values import values_equal
 

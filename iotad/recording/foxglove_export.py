@@ -9,7 +9,9 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from iotad.recording.mcap_io import EXPORTED, McapSink, Recording
+from iotad.recording.mcap_format import EXPORTED
+from iotad.recording.mcap_reader import Recording
+from iotad.recording.mcap_sink import McapSink
 
 
 def _is_object_schema(schema: dict) -> bool:

@@ -11,7 +11,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from iotad.recording.mcap_io import Recording, RecordingError
+from iotad.recording.mcap_format import RecordingError
+from iotad.recording.mcap_reader import Recording
 from iotad.recording.recorded_system import recorded_bindings
 
 ACK_STYLE = {"COMMIT": ("o", "#2a9d3f"), "ABORT": ("v", "#e08a00"), "REJECT": ("X", "#c62828")}

@@ -12,7 +12,8 @@ import pytest
 
 from iotad.cli import main
 from iotad.kernel.compose import Composite
-from iotad.recording.mcap_io import EngineRecorder, McapSink, record_run
+from iotad.recording.engine_sink import EngineRecorder, record_run
+from iotad.recording.mcap_sink import McapSink
 from requesters import Requester
 from scheduler import Scheduler
 

@@ -5,7 +5,8 @@ input that all hold `[1.0, nan]` or `{"x": nan}` are one delivery, not an 'alter
 import pytest
 
 from iotad.recording.delivery import check_delivery
-from iotad.recording.mcap_io import read_recording, record_run
+from iotad.recording.engine_sink import record_run
+from iotad.recording.mcap_reader import read_recording
 from recorded_systems import figure2
 from wire_tamper import rewrite, with_value
 
