@@ -14,11 +14,12 @@ from dataclasses import dataclass, field
 from typing import Any, Callable
 
 from iotad.host.wire import START_KIND
-from iotad.recording.conformance import _same, align_paths, describe, first_difference, split_runs
+from iotad.recording.conformance import align_paths, describe, first_difference, split_runs
 from iotad.kernel.clock import VirtualClock
 from iotad.kernel.engine import Engine
 from iotad.recording.mcap_format import RecordingError
 from iotad.recording.mcap_reader import Recording, start_time
+from iotad.recording.values import values_close
 
 
 @dataclass
@@ -198,7 +199,7 @@ def replay_node(recording: Recording, node: str, tolerance: float = 0.01,
 
 def _agree(a: dict, b: dict) -> bool:
     return (a["action"], a.get("index"), a.get("kind")) == (b["action"], b.get("index"), b.get("kind")) \
-        and _same(a.get("value"), b.get("value"))
+        and values_close(a.get("value"), b.get("value"))
 
 
 def _moved_forward(wanted: dict, replayed: list[dict], k: int, tolerance: float) -> bool:

@@ -252,11 +252,11 @@ def _check_system_file(path: str, whole: bool = True) -> None:
 def _hub_of(system_file: str | None) -> list[str]:
     """Where to connect a recorder given a system file and no --connect: the hub its `iotad run`
     opens, to record that system. None given: [] (listen only)."""
-    from iotad.recording.recorder import read_system_file, system_hub
+    from iotad.recording.recorder import read_system_file
 
     if system_file is None:
         return []
     try:
-        return system_hub(read_system_file(system_file)[1])
-    except (OSError, UnicodeDecodeError, ValueError):
+        return read_system_file(system_file).hub()
+    except ValueError:
         return []  # the Recorder says what is wrong with the file
