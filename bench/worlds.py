@@ -33,7 +33,9 @@ from collections import defaultdict
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
+# bench/ last, not first as for any script: its can.py would hide python-can from the libraries
+# that import it as `can` (the systems' CAN nodes do); `kernel` below is still found there
+sys.path[:] = [str(ROOT)] + [p for p in sys.path if Path(p or ".").resolve() != ROOT / "bench"] + [str(ROOT / "bench")]
 
 from iotad.kernel.clock import VirtualClock  # noqa: E402
 from iotad.kernel.compose import flatten  # noqa: E402
