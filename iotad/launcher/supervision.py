@@ -33,6 +33,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 from iotad.host import wire
+from iotad.host.node_config import CONFIGURATION_ERROR
 from iotad.launcher.processes import FAILED_TO_START, Child, RestartPolicy, describe_exit, stop_all
 from iotad.launcher.system_file import NodeSpec, Port, System, with_port
 
@@ -507,7 +508,7 @@ class Launcher:
         if uptime >= run.policy.healthy_after:
             run.consecutive = 0
         policy = run.policy
-        if policy.wants_restart(code, run.restarts):
+        if code != CONFIGURATION_ERROR and policy.wants_restart(code, run.restarts):
             delay = policy.delay(run.consecutive)
             run.consecutive += 1
             run.state, run.restart_at, run.down_since = "backoff", now + delay, now
@@ -515,7 +516,13 @@ class Launcher:
                                      f"in {delay:.2f} s{tail}", code=code)
             return
         self._event("exit", run, what, code=code)
-        if policy.mode == "never" or (code == 0 and policy.mode == "on-failure"):
+        if code == CONFIGURATION_ERROR:
+            # the node host could not start with what it was given (its spec, its CAN bus...):
+            # the same start fails the same way, so the node ends and its reason is said once
+            run.state = "failed"
+            self._event("giveup", run, f"failed for good: {describe_exit(code)} is a configuration error, "
+                                       f"which no restart mends{tail}", code=code)
+        elif policy.mode == "never" or (code == 0 and policy.mode == "on-failure"):
             run.state = "exited" if code == 0 else "failed"
             if code != 0:
                 self._event("giveup", run, f"failed for good: {describe_exit(code)}, and restart = "
