@@ -6,6 +6,7 @@ import sys
 from pathlib import Path
 
 from iotad.host.node_config import CONFIGURATION_ERROR
+from iotad.launcher.options import LaunchOptions
 from iotad.launcher.supervision import Launcher
 from iotad.launcher.system_file import load_system
 from launcher_helpers import IOTAS, free_port
@@ -19,8 +20,8 @@ def run_system(tmp_path, text: str, **options) -> tuple[Launcher, list[str]]:
     path = tmp_path / "system.toml"
     path.write_text(text)
     lines: list[str] = []
-    run = Launcher(load_system(path), record=False, until=60, live_table=False, log_dir=str(tmp_path / "logs"),
-                   port=free_port(), **options)
+    run = Launcher(load_system(path), LaunchOptions(until=60, live_table=False, log_dir=str(tmp_path / "logs"),
+                                                    port=free_port(), **options))
     run.view.line = lines.append
     assert run.run() == 1, lines  # every node ended for good: the run ends by itself, well before --until
     assert run._stop_reason == "all nodes ended", lines

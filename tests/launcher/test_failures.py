@@ -14,6 +14,8 @@ from pathlib import Path
 import pytest
 
 from iotad.cli import main
+from iotad.launcher.options import LaunchOptions, RecordingOptions
+from iotad.launcher.recorder_supervision import RECORDER_MODULE
 from iotad.launcher.supervision import Launcher
 from iotad.recording.mcap_io import read_recording
 from iotad.launcher.system_file import load_system
@@ -33,11 +35,12 @@ def stub_argv(*stubbed: str):
     return argv
 
 
-def in_process(tmp_path, system_file: Path, **options) -> tuple[Launcher, list]:
+def in_process(tmp_path, system_file: Path, recording: RecordingOptions | None = None,
+               **options) -> tuple[Launcher, list]:
     """A launcher in this process whose lines are kept with their time of arrival."""
-    options.setdefault("record", False)
     options.setdefault("until", 30)
-    run = Launcher(load_system(system_file), live_table=False, log_dir=str(tmp_path / "logs"), **options)
+    run = Launcher(load_system(system_file), LaunchOptions(live_table=False, log_dir=str(tmp_path / "logs"), **options),
+                   recording)
     lines: list[tuple[float, str]] = []
     run.view.line = lambda text: lines.append((time.monotonic(), text))
     return run, lines
@@ -208,7 +211,7 @@ from = "rogue.out"
 to = "dst.inp"
 """)
     output = tmp_path / "flood.mcap"
-    run, lines = in_process(tmp_path, path, record=True, record_path=str(output), node_argv=stub_argv("rogue"))
+    run, lines = in_process(tmp_path, path, RecordingOptions(str(output)), node_argv=stub_argv("rogue"))
     waiter = threading.Thread(target=lambda: wait_until(lambda: run.tally.violations["dst"] >= 300, 30)
                               and run.request_stop("test: enough violations"), daemon=True)
     waiter.start()
@@ -246,7 +249,7 @@ def test_hub_port_in_use_is_one_clear_line_and_exit_2(tmp_path):
 
 def signal_the_recorder(proc, observer, signum: int, timeout: float):
     """Send `signum` to the run's recorder; the launcher event saying a new one took over, or None."""
-    recorder = next(pid for pid, cmd in children_of(proc.pid).items() if " record " in cmd)
+    recorder = next(pid for pid, cmd in children_of(proc.pid).items() if RECORDER_MODULE in cmd)
     os.kill(recorder, signum)
     return observer.wait_event(lambda e: e["event"] == "recorder" and "restarted" in e["message"], timeout)
 
