@@ -351,13 +351,14 @@ class Launcher:
 
     def _exited(self, run: NodeRun, code: int) -> None:
         now = time.monotonic()
-        run.last_code = code
         self.alive_paths.discard(run.name)
         uptime = now - run.child.started_at
         if run.state == NodeState.STOPPING:
+            # the stop's exit status is not the node's last failure, which the summary reports
             run.state = NodeState.STOPPED
             self._event("exit", run, f"stopped ({describe_exit(code)}){self._stop_escalation(run, code)}", code=code)
             return
+        run.last_code = code
         reason = f" ({run.killed_for})" if run.killed_for else ""
         run.killed_for = None
         run.failures += code != 0

@@ -67,7 +67,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                              "[system.endpoints] listen, else 7447)")
     parser.add_argument("--host", metavar="NAME",
                         help="run only the nodes with host = NAME (multi-host systems; one launcher per host)")
-    parser.add_argument("--no-record", action="store_true", help="do not start 'iotad record'")
+    parser.add_argument("--no-record", action="store_true", help="run without a recorder (no recording)")
     parser.add_argument("--insecure", action="store_true",
                         help="no access control: any process reaching the hub may publish on any key "
                              "(default: each node authenticated, writing only its outputs; docs/access-control.md)")
