@@ -10,9 +10,9 @@ import argparse
 import gc
 import signal
 import sys
-import threading
 
 from iotad.host.node_config import CONFIGURATION_ERROR, ConfigError, load, parse
+from iotad.host.stop_signals import StopSignals
 
 
 def _fail(message: str, code: int = CONFIGURATION_ERROR) -> int:
@@ -32,15 +32,10 @@ def main(argv: list[str] | None = None) -> int:
     # SIGINT is how a launcher stops its nodes (and Ctrl-C): a clean stop, exit 0. SIGTERM from
     # anyone else (kill, a service manager) ends the node as a kill does, 128 + 15 as a shell
     # reports it: under restart = "on-failure" its launcher starts it again.
-    stop = threading.Event()
-    received: list[int] = []
-
-    def on_signal(signum, frame):
-        received.append(signum)
-        stop.set()
-
-    signal.signal(signal.SIGTERM, on_signal)
-    signal.signal(signal.SIGINT, on_signal)
+    # (No threading.Event set in the handler: it deadlocks when the signal lands while this
+    # thread waits on that Event; iotad.host.stop_signals.)
+    stop = StopSignals((signal.SIGTERM, signal.SIGINT))
+    received = stop.received
 
     try:
         config = load(args.config) if args.config else parse(args.config_json, "--config-json")

@@ -145,7 +145,8 @@ class Child:
 def stop_all(children: Sequence[Child], interrupt_timeout: float = 3.0, terminate_timeout: float = 2.0,
              hurry: threading.Event | None = None) -> None:
     """Stop children together: SIGINT to all, wait; SIGTERM to the rest, wait; SIGKILL, reap.
-    Once `hurry` is set (a second Ctrl-C), what is left of the SIGINT and SIGTERM waits is skipped."""
+    Once `hurry` is set (a second Ctrl-C), what is left of the SIGINT and SIGTERM waits is skipped
+    (`hurry`: anything with `is_set()`, a threading.Event or a signal handler's Flag)."""
     steps = ((signal.SIGINT, interrupt_timeout), (signal.SIGTERM, terminate_timeout), (signal.SIGKILL, 5.0))
     for signum, timeout in steps:
         alive = [c for c in children if c.running()]

@@ -37,6 +37,7 @@ from typing import Any
 
 from iotad.host import wire
 from iotad.host.node_config import CONFIGURATION_ERROR
+from iotad.host.stop_signals import Flag
 from iotad.launcher.access_control import AccessControl
 from iotad.launcher.node_run import NodeRun, NodeState
 from iotad.launcher.options import AccessOptions, LaunchOptions, RecordingOptions
@@ -110,8 +111,11 @@ class Launcher:
         self._declared: list[Any] = []
         self._stop_reason: str | None = None
         self._interrupts = 0
-        self._stop_asked = threading.Event()  # a stop was asked for (signal or request_stop)
-        self._hurry = threading.Event()       # a second signal: skip the waiting of the stop
+        # Set by signal handlers, hence lock-free flags, not threading.Events (iotad.host.stop_signals)
+        self._stop_asked = Flag()  # a stop was asked for (signal or request_stop)
+        self._hurry = Flag()       # a second signal: skip the waiting of the stop
+        self._signals: list[int] = []  # the stop signals received, in order; the loop takes them
+        self._signals_taken = 0
         self._started = 0.0
         # The start gate: nodes started before it opens go live and wait; once every node is
         # live (or has ended for good) the launcher declares its token and their engines start
@@ -170,12 +174,14 @@ class Launcher:
             return {}
 
         def on_signal(signum, frame):
-            # SIGTERM and SIGHUP stop exactly like Ctrl-C (a second one: no more patience)
+            # SIGTERM and SIGHUP stop exactly like Ctrl-C (a second one: no more patience). Only
+            # noted here: a handler that took a lock (the event queue's put) could wait for ever
+            # on the main thread it interrupted; the loop takes the signal within 50 ms.
             self._interrupts += 1
+            self._signals.append(signum)
             self._stop_asked.set()
             if self._interrupts > 1:
                 self._hurry.set()  # also cuts short a stop already under way
-            self.events.put(("stop", "interrupted" if signum == signal.SIGINT else signal.Signals(signum).name))
 
         previous = {}
         for signum in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
@@ -296,6 +302,7 @@ class Launcher:
                     item = self.events.get_nowait()
                 except queue.Empty:
                     item = None
+            self._take_signals()
             if self._stop_reason is not None:
                 return
             now = time.monotonic()
@@ -313,6 +320,13 @@ class Launcher:
             if now - last_view >= 0.25:
                 last_view = now
                 self.view.update(self._rows(now))
+
+    def _take_signals(self) -> None:
+        """The stop signals the handler noted since the last turn, as stop requests."""
+        while self._signals_taken < len(self._signals):
+            signum = self._signals[self._signals_taken]
+            self._signals_taken += 1
+            self._handle(("stop", "interrupted" if signum == signal.SIGINT else signal.Signals(signum).name))
 
     def _next_wake(self, now: float) -> float:
         """At most 50 ms, less when a restart is due sooner: the backoff is all a restart waits."""

@@ -14,12 +14,12 @@ import argparse
 import os
 import signal
 import sys
-import threading
 import time
 from pathlib import Path
 from typing import Callable
 
 from iotad.host import wire
+from iotad.host.stop_signals import StopSignals
 from iotad.recording.recorder import Recorder
 
 BEAT = 0.5  # s between stamps of the ready file
@@ -34,15 +34,14 @@ def stamp(path: str | os.PathLike) -> None:
         pass
 
 
-def stop_on_signals() -> threading.Event:
-    """An event set by SIGINT or SIGTERM: the clean stop of a recorder process."""
-    stop = threading.Event()
-    for signum in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(signum, lambda *_: stop.set())
-    return stop
+def stop_on_signals() -> StopSignals:
+    """SIGINT or SIGTERM: the clean stop of a recorder process. Not a threading.Event set in the
+    handler: that deadlocked a recorder whose SIGINT came while it waited on the Event
+    (iotad.host.stop_signals), and its file was never finished."""
+    return StopSignals((signal.SIGINT, signal.SIGTERM))
 
 
-def record_until_stopped(recorder: Recorder, stop: threading.Event, *, ready_file: str | None = None,
+def record_until_stopped(recorder: Recorder, stop: StopSignals, *, ready_file: str | None = None,
                          deadline: float | None = None, said: Callable[[str], None] | None = None) -> dict:
     """Record with a started `recorder` until `stop` is set, `deadline` (time.monotonic()) passes
     or a write fails; then stop it (its file finished) and return its stats. `ready_file` is
@@ -88,8 +87,11 @@ def main(argv: list[str] | None = None) -> int:
     except Exception as exc:  # noqa: BLE001 - zenoh said no
         print(f"recorder: error: cannot start recording: {str(exc).split(' at /', 1)[0]}", file=sys.stderr, flush=True)
         return 2
-    stats = record_until_stopped(recorder, stop, ready_file=args.ready_file,
-                                 said=lambda line: print(line, file=sys.stderr, flush=True))
+    try:
+        stats = record_until_stopped(recorder, stop, ready_file=args.ready_file,
+                                     said=lambda line: print(line, file=sys.stderr, flush=True))
+    finally:
+        stop.close()
     print(f"recorded {stats['written']} messages to {recorder.output}; {stats['gaps']} sequence gaps "
           f"({stats['missing']} missing)", file=sys.stderr, flush=True)
     return 0

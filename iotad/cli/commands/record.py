@@ -142,31 +142,34 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as exc:
         raise CliError(str(exc)) from None
     stop = stop_on_signals()
-    # --duration counts from the start, waiting for a hub included
-    deadline = None if args.duration is None else time.monotonic() + args.duration
-
-    def keep_waiting() -> bool:
-        # a recorder may be started before the system it records: wait for its hub, say so once
-        if not args.quiet and not waited:
-            print(f"waiting for a hub at {', '.join(connect)} (Ctrl-C to stop)", file=sys.stderr)
-        waited.append(True)
-        return not stop.is_set() and (deadline is None or time.monotonic() < deadline)
-
-    waited: list[bool] = []
     try:
-        recorder.start(keep_waiting)
-    except OSError as exc:
-        raise CliError(f"cannot start recording: {exc.filename or args.output}: {exc.strerror or exc}") from None
-    except Exception as exc:  # noqa: BLE001 - zenoh said no
-        if waited:  # stopped, or --duration over, before any hub answered: the file holds nothing
-            _remove_empty(recorder)
-            why = "stopped" if stop.is_set() else f"--duration {args.duration:g} s over"
-            raise CliError(f"{why} while waiting for a hub at {', '.join(connect)}: nothing recorded, "
-                           f"no file written") from None
-        reason = str(exc).split(" at /", 1)[0]  # zenoh appends its Rust source location
-        raise CliError(f"cannot start recording: {reason}") from None
-    stats = record_until_stopped(recorder, stop, ready_file=args.ready_file, deadline=deadline,
-                                 said=None if args.quiet else lambda line: print(line, file=sys.stderr))
+        # --duration counts from the start, waiting for a hub included
+        deadline = None if args.duration is None else time.monotonic() + args.duration
+
+        def keep_waiting() -> bool:
+            # a recorder may be started before the system it records: wait for its hub, say so once
+            if not args.quiet and not waited:
+                print(f"waiting for a hub at {', '.join(connect)} (Ctrl-C to stop)", file=sys.stderr)
+            waited.append(True)
+            return not stop.is_set() and (deadline is None or time.monotonic() < deadline)
+
+        waited: list[bool] = []
+        try:
+            recorder.start(keep_waiting)
+        except OSError as exc:
+            raise CliError(f"cannot start recording: {exc.filename or args.output}: {exc.strerror or exc}") from None
+        except Exception as exc:  # noqa: BLE001 - zenoh said no
+            if waited:  # stopped, or --duration over, before any hub answered: the file holds nothing
+                _remove_empty(recorder)
+                why = "stopped" if stop.is_set() else f"--duration {args.duration:g} s over"
+                raise CliError(f"{why} while waiting for a hub at {', '.join(connect)}: nothing recorded, "
+                               f"no file written") from None
+            reason = str(exc).split(" at /", 1)[0]  # zenoh appends its Rust source location
+            raise CliError(f"cannot start recording: {reason}") from None
+        stats = record_until_stopped(recorder, stop, ready_file=args.ready_file, deadline=deadline,
+                                     said=None if args.quiet else lambda line: print(line, file=sys.stderr))
+    finally:
+        stop.close()
     if not args.quiet:
         where = str(recorder.output)
         if recorder.split:
