@@ -13,7 +13,6 @@ its `heartbeat_timeout` (at least RECORDER_STALL s), as a node is judged by its 
 from __future__ import annotations
 
 import queue
-import shutil
 import signal
 import sys
 import time
@@ -22,6 +21,7 @@ from typing import Callable
 
 from iotad.launcher.options import RecordingOptions
 from iotad.launcher.processes import Child, describe_exit, log_tail, stop_all
+from iotad.launcher.recording_paths import next_continuation, unwritable
 from iotad.launcher.system_file import System
 
 MIN_FREE_BYTES = 16 * 2**20   # refuse to start a recording on a file system with less free space
@@ -58,6 +58,7 @@ class RecorderSupervisor:
         self._life = 0.0                          # time.monotonic() of its last sign of life (or its start)
         self._frozen = 0.0                        # s of silence of a recorder killed as frozen
         self._stopping = False
+        self._since = 0.0                         # time.time() as the recording began
 
     # ------------------------------------------------------------------ allowances
     def start_allowance(self) -> float:
@@ -72,7 +73,8 @@ class RecorderSupervisor:
     def start(self) -> None:
         """Start the recorder and wait until it has subscribed; `RecordingError` if it cannot."""
         output = Path(self.options.path)
-        problem = unwritable(output)
+        self._since = time.time()  # files older than this are an earlier run's (--force replaces them)
+        problem = unwritable(output, make_folder=True, min_free_bytes=MIN_FREE_BYTES)
         if problem:
             raise RecordingError(f"cannot record to {output}: {problem}; choose another file with -o, "
                                  "or run without a recording (--no-record)")
@@ -165,12 +167,9 @@ class RecorderSupervisor:
             self._lose(f"the recorder died {self.restarts + 1} times")
             return
         self.restarts += 1
-        output = segment(self.recordings[0], self.restarts)
-        number = self.restarts
-        while output.exists() and not self.options.force:  # an earlier run's: kept, as `-o` keeps one
-            number += 1
-            output = segment(self.recordings[0], number)
-        problem = unwritable(output)
+        # an earlier run's file is kept, as `-o` keeps one (--force: replaced); this run's never
+        output = next_continuation(self.recordings[0], self.restarts, self._since if self.options.force else None)
+        problem = unwritable(output, make_folder=True, min_free_bytes=MIN_FREE_BYTES)
         if problem:
             self._lose(f"cannot record to {output}: {problem}")
             return
@@ -225,38 +224,4 @@ class RecorderSupervisor:
         return lines
 
 
-def unwritable(output: Path) -> str | None:
-    """Why a recording cannot be written at `output` (checked before anything starts), or None."""
-    blocking = next((p for p in output.parents if p.exists() and not p.is_dir()), None)
-    if blocking is not None:
-        return f"{blocking} is a file, not a folder"
-    try:
-        output.parent.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        return f"cannot create its folder {output.parent}: {exc.strerror or exc}"
-    if output.is_dir():
-        return "it is a folder"
-    try:
-        free = shutil.disk_usage(output.parent).free
-    except OSError as exc:
-        return f"cannot see the free space of {output.parent}: {exc.strerror or exc}"
-    if free < MIN_FREE_BYTES:
-        return (f"only {free / 2**20:.1f} MiB free on its file system "
-                f"(at least {MIN_FREE_BYTES // 2**20} MiB wanted)")
-    existed = output.exists()
-    try:
-        with open(output, "ab"):
-            pass
-    except OSError as exc:
-        return exc.strerror or str(exc)
-    if not existed:
-        output.unlink(missing_ok=True)
-    return None
-
-
-def segment(first: Path, number: int) -> Path:
-    """Where the recording goes on after its recorder died: `name.1.mcap`, `name.2.mcap`..."""
-    return first.with_name(f"{first.stem}.{number}{first.suffix}")
-
-
-__all__ = ["RECORDER_MODULE", "RECORDER_STALL", "RecorderSupervisor", "RecordingError", "segment", "unwritable"]
+__all__ = ["RECORDER_MODULE", "RECORDER_STALL", "RecorderSupervisor", "RecordingError"]

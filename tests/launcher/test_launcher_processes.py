@@ -15,7 +15,7 @@ from iotad.launcher.options import LaunchOptions
 from iotad.launcher.recorder_supervision import RECORDER_MODULE
 from iotad.launcher.supervision import Launcher
 from iotad.launcher.system_file import load_system
-from iotad.recording.mcap_io import read_recording
+from iotad.recording.mcap_reader import read_recording
 from launcher_helpers import IOTAS, Observer, children_of, free_port, gone, launcher, pair_system, wait_until
 
 STUB = Path(__file__).resolve().parents[1] / "launcher_stub_node.py"

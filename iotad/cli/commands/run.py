@@ -196,7 +196,7 @@ def launch(system, args: argparse.Namespace, summary_hook=None) -> int:
     elif not args.no_record:  # a new name: recordings/<system>-<date>-<time>.mcap, -2 in the same second
         import time
 
-        from iotad.recording.mcap_io import unused_recording_path
+        from iotad.launcher.recording_paths import unused_recording_path
 
         stamp = time.strftime("%Y%m%d-%H%M%S", time.localtime(args.origin or time.time()))
         try:
@@ -229,7 +229,7 @@ def _launch(system, args: argparse.Namespace, record_to: str | None, summary_hoo
         if args.view is not None and system.opens_hub(args.host):
             import os
 
-            from iotad.cli.commands.view import ViewerProcess
+            from iotad.cli.viewer_process import ViewerProcess
             from iotad.host.credentials import ENV
 
             if launcher.access is not None and launcher.access.tools_file():
