@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 
 from iotad.can.tiers import TierBus, TierUnavailable
-from iotad.recording.mcap_io import read_recording
+from iotad.recording.mcap_reader import read_recording
 from system_iotas import pingpong_system
 
 pytestmark = pytest.mark.timeout(400)  # user-mode Linux: tens of seconds to start the nodes
