@@ -100,6 +100,8 @@ class RecorderSupervisor:
         ready.unlink(missing_ok=True)
         argv = [sys.executable, "-m", RECORDER_MODULE, system.name, "-o", str(output),
                 "--system-file", str(system.path), "--ready-file", str(ready)]
+        if options.force:  # split members over an earlier run's files too (the first file the CLI checked)
+            argv.append("--force")
         if options.max_size is not None:
             argv += ["--max-size", str(options.max_size)]
         if options.max_duration is not None:

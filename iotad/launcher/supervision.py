@@ -44,6 +44,7 @@ from iotad.launcher.options import AccessOptions, LaunchOptions, RecordingOption
 from iotad.launcher.processes import FAILED_TO_START, Child, RestartPolicy, describe_exit, log_tail, stop_all
 from iotad.launcher.recorder_supervision import RECORDER_STALL, RecorderSupervisor, RecordingError
 from iotad.launcher.system_file import Port, System, with_port
+from iotad.launcher.violation_examples import ViolationExamples
 
 VALUE_LABELS = 32             # distinct values counted per channel for the summary; then "*"
 # Exit status of `run()` by stop reason: 128 + the signal, like a shell.
@@ -56,7 +57,7 @@ class Tally:
 
     values: dict[str, Counter] = field(default_factory=dict)      # channel key -> Counter of values
     violations: Counter = field(default_factory=Counter)           # node path -> count
-    examples: list[str] = field(default_factory=list)              # first violation messages
+    examples: ViolationExamples = field(default_factory=ViolationExamples)  # first distinct violation lines
     lock: threading.Lock = field(default_factory=threading.Lock)
 
     def channel(self, key: str, value: Any) -> None:
@@ -71,10 +72,9 @@ class Tally:
         if isinstance(event, dict) and event.get("kind") == "violation":
             with self.lock:
                 self.violations[path] += 1
-                if len(self.examples) < 5:
-                    value = event.get("value") or {}
-                    message = value.get("message") if isinstance(value, dict) else value
-                    self.examples.append(f"{path} t={event.get('t', 0):.3f}: {message}")
+                value = event.get("value") or {}
+                message = value.get("message") if isinstance(value, dict) else value
+                self.examples.add(f"{path} t={event.get('t', 0):.3f}: {message}", event.get("index"))
 
 
 class Launcher:
@@ -600,7 +600,7 @@ class Launcher:
         system, lines = self.system, []
         with self.tally.lock:
             values = {k: Counter(v) for k, v in self.tally.values.items()}
-            violations, examples = Counter(self.tally.violations), list(self.tally.examples)
+            violations, examples = Counter(self.tally.violations), self.tally.examples.lines()
         for node in system.nodes.values():
             for channel in node.channels.values():
                 if channel.direction != "output":

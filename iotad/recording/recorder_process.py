@@ -71,6 +71,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--system-file", help="the system file stored in the recording")
     parser.add_argument("--connect", action="append", default=[], help="the hub's endpoint (repeatable)")
     parser.add_argument("--ready-file", required=True, help="created once subscribed, then stamped as it lives")
+    parser.add_argument("--force", action="store_true", help="split: numbered files may replace an earlier run's")
     parser.add_argument("--max-size", type=int, default=None, help="split: bytes per file")
     parser.add_argument("--max-duration", type=float, default=None, help="split: seconds per file")
     args = parser.parse_args(argv)
@@ -79,7 +80,7 @@ def main(argv: list[str] | None = None) -> int:
         recorder = Recorder([f"{wire.PREFIX}/{args.system}/**"], args.output, system_file=args.system_file,
                             connect=args.connect, background=True,  # yield the CPU to the nodes
                             from_traces=True,  # one wake-up per trace burst, not per message
-                            max_size=args.max_size, max_duration=args.max_duration)
+                            max_size=args.max_size, max_duration=args.max_duration, replace=args.force)
         recorder.start(lambda: not stop.is_set())  # its hub is up: this waits only for credentials
     except (OSError, ValueError, UnicodeDecodeError) as exc:
         print(f"recorder: error: {exc}", file=sys.stderr, flush=True)
