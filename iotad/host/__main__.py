@@ -1,7 +1,8 @@
 """`python -m iotad.host CONFIG.json`: run one IOTA as one process on zenoh until SIGINT/SIGTERM.
 
-Prints nothing on stdout. A bad config or a spec that fails to load is reported on stderr and
-exits with code 2; a clean stop exits 0; an engine that dies or halts exits 1.
+Prints nothing on stdout. A bad config, a spec that fails to load or a port that cannot open (a
+CAN bus, a zenoh endpoint) is reported on stderr and exits with CONFIGURATION_ERROR (2), which
+its launcher does not restart; a clean stop exits 0; an engine that dies or halts exits 1.
 """
 from __future__ import annotations
 
@@ -11,10 +12,10 @@ import signal
 import sys
 import threading
 
-from iotad.host.node_config import ConfigError, load, parse
+from iotad.host.node_config import CONFIGURATION_ERROR, ConfigError, load, parse
 
 
-def _fail(message: str, code: int = 2) -> int:
+def _fail(message: str, code: int = CONFIGURATION_ERROR) -> int:
     print(f"iotad.host: error: {message}", file=sys.stderr, flush=True)
     return code
 

@@ -202,6 +202,22 @@ class RestartPolicy:
         return min(self.backoff_max, self.backoff * (2 ** consecutive))
 
 
+def log_tail(child: Child | None, lines: int = 4) -> str:
+    """The last lines of a child's output since it last started (its stderr, where errors go;
+    the log holds every start's, one after the other), for a report: one indented line each."""
+    log = None if child is None else child.log
+    if log is None:
+        return ""
+    try:
+        with open(log, "rb") as stream:
+            # a chatty log may be huge; an earlier start's lines are not this one's
+            stream.seek(max(child.log_start, stream.seek(0, os.SEEK_END) - 4096))
+            text = stream.read().decode(errors="replace").strip().splitlines()[-lines:]
+    except OSError:
+        return ""
+    return "".join(f"\n    | {line}" for line in text)
+
+
 def describe_exit(code: int | None) -> str:
     if code is None:
         return "running"

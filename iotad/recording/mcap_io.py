@@ -525,14 +525,14 @@ def schema_for_topic(topic: str, specs: dict[str, dict], cache: dict[str, dict])
         return "iotad.gap", GAP_SCHEMA
     if topic == MALFORMED_TOPIC:
         return "iotad.malformed", MALFORMED_SCHEMA
-    if topic.endswith("/@launcher"):
+    if topic.endswith("/" + wire.LAUNCHER):
         return "iotad.launcher_event", LAUNCHER_SCHEMA
     if parsed is None:
         return "any", PERMISSIVE_SCHEMA
     _, path, channel, _ = parsed
-    if channel == "@trace":
+    if channel == wire.TRACE:
         return "iotad.trace_event", TRACE_SCHEMA
-    if channel == "@heartbeat":
+    if channel == wire.HEARTBEAT:
         return "iotad.heartbeat", HEARTBEAT_SCHEMA
     if path in specs:
         if path not in cache:
@@ -844,7 +844,7 @@ class Recording:
         marker = packb(wire.START_KIND)
         for message in self.messages:
             # cheap test first: only a start record holds the packed string "start"
-            if not message.topic.endswith("/@trace") or marker not in message.data:
+            if not message.topic.endswith("/" + wire.TRACE) or marker not in message.data:
                 continue
             parsed = wire.parse_key(message.topic)
             event = message.value
@@ -895,7 +895,7 @@ class Recording:
         found = set(self.specs)
         for topic in self.topics():
             parsed = wire.parse_key(topic)
-            if parsed and parsed[1] and not parsed[2].startswith("@launcher"):
+            if parsed and parsed[1] and not parsed[2].startswith(wire.LAUNCHER):
                 found.add(parsed[1])
         return sorted(found)
 
@@ -904,7 +904,7 @@ class Recording:
         engine-start records (kind `start`) only with `starts`."""
         out = []
         for message in self.messages:
-            if not message.topic.endswith("/@trace"):
+            if not message.topic.endswith("/" + wire.TRACE):
                 continue
             parsed = wire.parse_key(message.topic)
             if parsed is None or (node is not None and parsed[1] != node):
@@ -982,7 +982,7 @@ class Recording:
         recorder set those aside) is left out, not an error: no reading depends on all of them."""
         out = []
         for message in self.messages:
-            if message.topic.endswith("/@launcher"):
+            if message.topic.endswith("/" + wire.LAUNCHER):
                 try:
                     value = unpackb(message.data)
                 except Exception:  # noqa: BLE001 - msgpack raises several kinds for bad bytes

@@ -232,7 +232,7 @@ def _never_ran(recording, specs: dict, unchecked: list[str]) -> list[str]:
     import tomllib
 
     from iotad.host import wire
-    from iotad.recording.delivery import _keyexpr_matches
+    from iotad.host.wire import keyexpr_matches
 
     text = next((a.data for a in recording.attachments if a.name == "system.toml"), None)
     if text is None:
@@ -247,7 +247,7 @@ def _never_ran(recording, specs: dict, unchecked: list[str]) -> list[str]:
 
     def covered(node: str) -> bool:
         trace = wire.trace_key(system, node)
-        return not isinstance(keys, list) or any(isinstance(k, str) and _keyexpr_matches(k, trace) for k in keys)
+        return not isinstance(keys, list) or any(isinstance(k, str) and keyexpr_matches(k, trace) for k in keys)
 
     seen = set(specs) | set(unchecked) | set(recording.nodes())
     return sorted(n for n in names if isinstance(n, str) and n not in seen and covered(n))

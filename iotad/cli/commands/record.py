@@ -2,10 +2,7 @@
 from __future__ import annotations
 
 import argparse
-import os
-import signal
 import sys
-import threading
 import time
 from pathlib import Path
 
@@ -111,6 +108,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from iotad.cli import CliError, new_recording, output_file
     from iotad.recording.recorder import Recorder
+    from iotad.recording.recorder_process import record_until_stopped, stop_on_signals
 
     if args.flush_period <= 0 or args.flush_period > 10:
         raise CliError("--flush-period must be in (0, 10] seconds")
@@ -143,9 +141,7 @@ def run(args: argparse.Namespace) -> int:
         raise CliError(f"{exc.filename or args.output}: {exc.strerror or exc}") from None
     except ValueError as exc:
         raise CliError(str(exc)) from None
-    stop = threading.Event()
-    for signum in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(signum, lambda *_: stop.set())
+    stop = stop_on_signals()
     # --duration counts from the start, waiting for a hub included
     deadline = None if args.duration is None else time.monotonic() + args.duration
 
@@ -169,23 +165,8 @@ def run(args: argparse.Namespace) -> int:
                            f"no file written") from None
         reason = str(exc).split(" at /", 1)[0]  # zenoh appends its Rust source location
         raise CliError(f"cannot start recording: {reason}") from None
-    try:
-        if args.ready_file:
-            Path(args.ready_file).write_text(str(recorder.output))
-        if not args.quiet:
-            print(f"recording {' '.join(recorder.keys)} -> {recorder.output} (Ctrl-C to stop)", file=sys.stderr)
-        while not stop.is_set() and recorder.failed is None:  # a write error ends the recording: exit, say why
-            timeout = 0.5 if deadline is None else min(0.5, max(0.0, deadline - time.monotonic()))
-            stop.wait(timeout)
-            if args.ready_file:  # a sign of life for the launcher, which restarts a frozen recorder
-                try:
-                    os.utime(args.ready_file)
-                except OSError:
-                    pass
-            if deadline is not None and time.monotonic() >= deadline:
-                break
-    finally:
-        stats = recorder.stop()
+    stats = record_until_stopped(recorder, stop, ready_file=args.ready_file, deadline=deadline,
+                                 said=None if args.quiet else lambda line: print(line, file=sys.stderr))
     if not args.quiet:
         where = str(recorder.output)
         if recorder.split:
