@@ -79,7 +79,6 @@ class Agent:
         self._lock = threading.Lock()
         self._stopping = threading.Event()
         self.session = None
-        self._publishers: dict[str, object] = {}
 
     # ------------------------------------------------------------- serving
     def serve(self) -> int:
@@ -99,7 +98,6 @@ class Agent:
         declared = [self.session.liveliness().declare_token(key),
                     self.session.declare_queryable(f"{key}/run", self._on_run),
                     self.session.declare_queryable(f"{key}/stop", self._on_stop)]
-        self._publishers = {part: self.session.declare_publisher(f"{key}/{part}") for part in ("log", "exit")}
         self.say(f"agent {self.name}: ready at the hub")
         try:
             self._stopping.wait()
@@ -157,12 +155,12 @@ class Agent:
         self.say(f"agent {self.name}: the run exited with {code}")
 
     def _publish(self, part: str, payload: dict) -> None:
-        publisher = self._publishers.get(part)
-        if publisher is not None:
-            try:
-                publisher.put(json.dumps(payload).encode())
-            except Exception:  # noqa: BLE001 - the session is closing: the hub is gone anyway
-                pass
+        # session.put, not a publisher declared once: after the hub of an earlier run closed and
+        # the next one's opened, a publisher declared before did not reach the new subscribers
+        try:
+            self.session.put(f"{agent_key(self.name)}/{part}", json.dumps(payload).encode())
+        except Exception:  # noqa: BLE001 - the session is closing: the hub is gone anyway
+            pass
 
     def _stop_child(self, why: str, grace: float = 15.0) -> int | None:
         """SIGINT (the launcher stops its nodes in order), then SIGKILL to the group past `grace`."""

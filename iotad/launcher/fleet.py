@@ -32,6 +32,7 @@ class Fleet:
         self.session = None
         self.exits: dict[str, int] = {}
         self.lost: list[str] = []
+        self._asked_to_stop: set[str] = set()  # a host that exits after this was stopped, not failed
         self._present: set[str] = set()
         self._started: set[str] = set()
         self._changed = threading.Condition()
@@ -94,7 +95,7 @@ class Fleet:
                 self._present.add(host)
             else:
                 self._present.discard(host)
-                if host in self._started and host not in self.exits:
+                if host in self._started and host not in self.exits and host not in self._asked_to_stop:
                     self.lost.append(host)
                     self.say(f"host {host} LOST: its agent is gone (network or machine); its nodes are down "
                              "until it comes back")
@@ -124,11 +125,28 @@ class Fleet:
     def stop(self, grace: float = 20.0) -> dict[str, int]:
         """Ask every host still running to stop (as Ctrl-C would there) and wait for them."""
         for host in sorted(self._started - set(self.exits) - set(self.lost)):
+            self._asked_to_stop.add(host)
             answer = self._ask(f"{agent_key(host)}/stop", timeout=grace)
             if answer.get("ok") and answer.get("code") is not None:
                 with self._changed:
                     self.exits.setdefault(host, int(answer["code"]))
         return self.wait(2.0)
+
+    def failures(self) -> list[str]:
+        """Hosts whose part ended badly: lost, or exited non-zero before it was asked to stop."""
+        failed = [f"{host}: lost" for host in self.lost]
+        failed += [f"{host}: exit {code}" for host, code in sorted(self.exits.items())
+                   if code != 0 and host not in self._asked_to_stop]
+        return failed
+
+    def outcome(self, host: str) -> str:
+        """How `host`'s part ended, in words, for the run's summary."""
+        code = self.exits.get(host)
+        if host in self.lost:
+            return "LOST (its agent disappeared)"
+        if code is None:
+            return "no exit status (its agent did not answer)"
+        return f"exit {code}" + (" (stopped by this run)" if host in self._asked_to_stop else "")
 
     def close(self) -> None:
         for item in self._declared:

@@ -41,13 +41,13 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from iotad.cli import CliError
-    from iotad.host.certificates import CertificateError, host_files
+    from iotad.host.certificates import CertificateError, use
     from iotad.launcher.agent import main
 
     tls = None
     if args.certs:
         try:
-            tls = host_files(args.certs, args.name)
+            tls = use(args.certs, args.name)  # the runs it starts (launcher, nodes) use them too
         except CertificateError as exc:
             raise CliError(str(exc)) from None
     elif any(endpoint.startswith(("tls/", "quic/")) for endpoint in args.connect):
