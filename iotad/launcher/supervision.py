@@ -83,8 +83,12 @@ class Launcher:
     zenoh's defaults, no authentication). `launch.console` receives every line it prints."""
 
     def __init__(self, system: System, launch: LaunchOptions = LaunchOptions(),
-                 recording: RecordingOptions | None = None, access: AccessOptions | None = None):
+                 recording: RecordingOptions | None = None, access: AccessOptions | None = None,
+                 fleet: Any = None):
         self.system, self.options = system, launch
+        # the agents of the other hosts (iotad/launcher/fleet.py), for a hub launcher that starts
+        # the whole of a system spread over hosts; asked to stop before this host's own nodes
+        self.fleet = fleet
         self.host, self.until = launch.host, launch.until
         self._live_at: float | None = None  # with after_live: when every node was first live
         self.hub = with_port(system.listen, launch.port) if launch.port is not None else list(system.listen)
@@ -152,6 +156,7 @@ class Launcher:
         try:
             self._open_session()
             self._start_recorder()
+            self._start_fleet()
             self.view.start()
             self._loop()
         finally:
@@ -159,7 +164,8 @@ class Launcher:
             self._restore_signals(previous)
         if self._stop_reason in _SIGNAL_STATUS:
             return _SIGNAL_STATUS[self._stop_reason]
-        failed = any(r.state in (NodeState.FAILED, NodeState.DOWN) for r in self.runs.values()) or self.never_live()
+        failed = any(r.state in (NodeState.FAILED, NodeState.DOWN) for r in self.runs.values()) or self.never_live() \
+            or (self.fleet is not None and self.fleet.failures())
         # a recorder that died mid-run left a gap between its files: what happened then is lost
         return 1 if failed or (self.recorder is not None and self.recorder.incomplete) else 0
 
@@ -258,6 +264,19 @@ class Launcher:
                 self.recorder.start()
             except RecordingError as exc:
                 raise LauncherError(str(exc)) from None
+
+    def _start_fleet(self) -> None:
+        """Give every other host its part through its agent, before this host's nodes start (the
+        start gate then waits for all of them together)."""
+        if self.fleet is None:
+            return
+        from iotad.launcher.fleet import FleetError
+
+        self.fleet.say = self.view.line
+        try:
+            self.fleet.start()
+        except FleetError as exc:
+            raise LauncherError(str(exc)) from None
 
     # ------------------------------------------------------------------ zenoh callbacks (their threads)
     def _on_liveliness(self, sample: Any) -> None:
@@ -548,7 +567,11 @@ class Launcher:
 
     # ------------------------------------------------------------------ shutdown
     def _shutdown(self) -> None:
-        """Nodes first (the recorder sees them go), then the recorder, then the session."""
+        """Other hosts' parts and this host's nodes first (the recorder sees them go), then the
+        recorder, then the session."""
+        if self.fleet is not None:
+            self.fleet.stop()
+            self.fleet.close()
         if self.recorder is not None:
             self.recorder.stopping()  # its silence and its exit are the stop's now
         interrupt, terminate = self.options.stop_timeouts
@@ -637,6 +660,8 @@ class Launcher:
             lines += self.access.summary_lines()
         if not self._own_dir or any(r.state in (NodeState.FAILED, NodeState.DOWN) for r in self.runs.values()):
             lines.append(f"  configs and logs: {self.run_dir}")
+        if self.fleet is not None:
+            lines += [f"  host {host}: {self.fleet.outcome(host)}" for host in self.fleet.hosts]
         return lines
 
 

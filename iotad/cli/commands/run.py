@@ -66,7 +66,16 @@ def register(sub: argparse._SubParsersAction) -> None:
                         help="hub port instead of the system file's (0: any free port; default: the file's "
                              "[system.endpoints] listen, else 7447)")
     parser.add_argument("--host", metavar="NAME",
-                        help="run only the nodes with host = NAME (multi-host systems; one launcher per host)")
+                        help="run only the nodes with host = NAME, by hand (multi-host systems: one launcher per "
+                             "host); without it, a system spread over hosts runs this machine as the hub host and "
+                             "every other host through its 'iotad agent' (docs/hosts.md)")
+    parser.add_argument("--local", action="store_true",
+                        help="a system spread over hosts: run every host's nodes on this machine (no agents)")
+    parser.add_argument("--certs", metavar="DIR",
+                        help="a system spread over hosts linked by TLS: the folder with ca.pem and this host's "
+                             "HOST.pem, HOST.key ('iotad certs'); its nodes, recorder and agents' sessions use them")
+    parser.add_argument("--agent-timeout", type=positive_float, default=None, metavar="SECONDS",
+                        help="how long to wait for the other hosts' agents (default: the system's start_timeout)")
     parser.add_argument("--no-record", action="store_true", help="run without a recorder (no recording)")
     parser.add_argument("--insecure", action="store_true",
                         help="no access control: any process reaching the hub may publish on any key "
@@ -219,11 +228,13 @@ def _launch(system, args: argparse.Namespace, record_to: str | None, summary_hoo
     port = args.port
     if port == 0:
         port = free_port()
-    launch = LaunchOptions(host=args.host, port=port, until=args.until, after_live=args.after_live,
+    _use_certificates(system, args)
+    fleet, host = _fleet_for(system, args, port)
+    launch = LaunchOptions(host=host, port=port, until=args.until, after_live=args.after_live,
                            origin=args.origin, log_dir=args.log_dir, live_table=False if args.plain else None)
     recording = None if args.no_record else RecordingOptions(
         record_to, force=args.force, max_size=args.max_size, max_duration=args.max_duration)
-    launcher = Launcher(system, launch, recording, access_for(system, args))
+    launcher = Launcher(system, launch, recording, access_for(system, args), fleet=fleet)
     viewer = None
     try:
         if args.view is not None and system.opens_hub(args.host):
@@ -247,7 +258,8 @@ def _launch(system, args: argparse.Namespace, record_to: str | None, summary_hoo
             viewer.stop()
         if launcher.access is not None:
             launcher.access.close()
-    print(f"summary of {system.name}" + (f" (host {args.host})" if args.host else "") + ":")
+    where = f" (host {launcher.host}" + (f"; hosts {', '.join(fleet.hosts)} through their agents" if fleet else "") + ")"
+    print(f"summary of {system.name}" + (where if launcher.host else "") + ":")
     for line in launcher.summary():
         print(line)
     if summary_hook is not None:
@@ -255,6 +267,41 @@ def _launch(system, args: argparse.Namespace, record_to: str | None, summary_hoo
     if sys.stdout is not None:  # None when the shell closed it (>&-)
         sys.stdout.flush()
     return code
+
+
+def _use_certificates(system, args: argparse.Namespace) -> None:
+    """--certs: this host's certificates, checked now and handed to every process of the run."""
+    if not args.certs:
+        return
+    from iotad.cli import CliError
+    from iotad.host.certificates import CertificateError, use
+
+    host = args.host or system.hub_host
+    if host is None:
+        raise CliError("--certs links the hosts of a system spread over hosts; this system names no host")
+    try:
+        use(args.certs, host)
+    except CertificateError as exc:
+        raise CliError(str(exc)) from None
+
+
+def _fleet_for(system, args: argparse.Namespace, port: int | None):
+    """(the agents of the other hosts or None, the host this launcher runs). A system spread over
+    hosts, started without --host or --local, runs here as its hub host and everywhere else
+    through each host's agent."""
+    hosts = [n.host for n in system.nodes.values() if n.host]
+    if args.host is not None or args.local or not hosts:
+        return None, args.host
+    from iotad.host.transport import reachable
+    from iotad.launcher.fleet import Fleet
+    from iotad.launcher.system_file import with_port
+
+    hub = [reachable(e) for e in (with_port(system.listen, port) if port is not None else system.listen)]
+    others = sorted(set(hosts) - {system.hub_host}, key=hosts.index)
+    agent_args = ["--no-record"] + (["--port", str(port)] if port is not None else [])
+    fleet = Fleet(system.path, others, hub, agent_args,
+                  start_timeout=args.agent_timeout or system.start_timeout)
+    return fleet, system.hub_host
 
 
 def _view_port_free(port: int) -> None:
