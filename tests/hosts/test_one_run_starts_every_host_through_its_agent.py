@@ -165,3 +165,42 @@ def test_hosts_linked_by_tls_admit_no_process_without_a_certificate(tmp_path):
             rogue.stdout + rogue.stderr
         assert "host arm: its agent runs its nodes" in output and "COMMIT" in output
         assert_checked(tmp_path / "tls.mcap")
+
+
+def test_a_host_whose_clock_is_50_ms_ahead_is_measured_and_corrected(tmp_path):
+    """The arm's agent (and so its launcher and nodes) runs on a clock 50 ms ahead of the hub's.
+    Its launcher measures the offset at start, records it, and moves its nodes' origin by it:
+    messages between the hosts then arrive a fraction of a millisecond after they were sent on
+    the one timeline, not 50 ms before or after."""
+    from iotad.kernel.clock import CLOCK_SKEW_ENV
+    from iotad.recording.delivery import check_delivery
+    from iotad.recording.mcap_reader import read_recording
+
+    with hosts("brain", "arm", net=205) as net:
+        hub = net.addresses[("brain", "arm")]
+        path = tmp_path / "split.toml"
+        path.write_text(system_text(hub).replace("0.0.0.0", net.addresses["arm"]))
+        agent = subprocess.Popen(net.exec("arm", "env", f"{CLOCK_SKEW_ENV}=0.05", sys.executable, "-m", "iotad",
+                                          "agent", "--name", "arm", "--connect", f"tcp/{hub}:7615"),
+                                 stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=ROOT,
+                                 start_new_session=True)
+        try:
+            done = iotad(lambda *c: net.exec("brain", *c), "run", str(path), "--until", "8", "--plain",
+                         "-o", str(tmp_path / "skew.mcap"))
+        finally:
+            interrupt_then_kill(agent)
+        assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-2000:]
+        assert re.search(r"host arm: clock offset to the hub -(49|50)\.\d+ ms", done.stdout), done.stdout[-3000:]
+        recording = read_recording(tmp_path / "skew.mcap")
+        measured = [m.value for m in recording.messages if m.topic.endswith("/@launcher")
+                    and isinstance(m.value, dict) and m.value.get("event") in ("clock", "clock_violation")]
+        assert len(measured) == 1 and measured[0]["host"] == "arm", measured
+        assert abs(measured[0]["offset"] - (-0.05)) <= measured[0]["bound"] + 1e-6, measured
+        report = check_delivery(recording, tolerance=0.01)
+        links = {link.label: link for link in report.links}
+        for label in ("vision.req -> scheduler.req[0]", "scheduler.ack[0] -> vision.ack"):
+            link = links[label]
+            assert link.sent >= 1 and link.delivered == link.sent, link
+            p50, p99, most = link.latency()
+            # on one timeline: received after it was sent, and far sooner than the skew
+            assert 0 <= p50 <= most < 0.02, (label, p50, most)
