@@ -67,7 +67,8 @@ _SYSTEM_KEYS = {"name", "time_unit", "endpoints", "hub_host", "heartbeat_period"
 _TABLE_HINT = {"external": " (a top-level key must come before the first table; or put it in [system])"}
 _NODE_KEYS = {"name", "spec", "iota", "python", "params", "restart", "max_restarts", "backoff", "host",
               "after", "policy", "seed", "required", "input_queue"}
-_TOP_KEYS = {"system", "node", "bind", "external", "hosts", "can"}
+_TOP_KEYS = {"system", "node", "bind", "external", "hosts", "can", "sweep"}
+_SWEEP_KEYS = {"metrics"}
 _CAN_KEYS = {"name", "interface", "channel", "bitrate", "stations", "options", "log"}
 CAN_TX, CAN_RX = "can_tx", "can_rx"  # the two channels of a node on a CAN bus
 PEER_RESTART = "peer_restart"  # an input the node host feeds when a peer restarts (iotad.host.peer_restart)
@@ -184,6 +185,8 @@ class System:
     buses: dict[str, CanBusSpec] = field(default_factory=dict)
     # [system.debug] allow_pub: inputs `iotad pub` may write into under access control
     allow_pub: set[Port] = field(default_factory=set)
+    # [sweep] metrics: "file.py:function" (absolute) or "module:function", read by `iotad sweep`
+    sweep_metrics: str | None = None
 
     def bus_of(self, node: str) -> CanBusSpec | None:
         """The CAN bus `node` is a station of, if any."""
@@ -298,6 +301,7 @@ class _Parser:
         self.parse_hosts(system)
         self.parse_nodes(system)
         self.parse_buses(system)
+        self.parse_sweep(system)
         from iotad.launcher.bus_logger import add_bus_loggers
         add_bus_loggers(system)  # one implicit node per logged bus, named after it
         self.check_after(system)  # after the loggers: a node may start after a bus's logger
@@ -676,6 +680,29 @@ class _Parser:
                 system.allow_pub.update(Port(port.node, port.channel, k) for k in members)
 
     # ------------------------------------------------------------ [[can]]
+    def parse_sweep(self, system: System) -> None:
+        """`[sweep]`: what `iotad sweep` reads from a run of this system (docs/sweeps.md)."""
+        raw = self.data.get("sweep", {})
+        if not isinstance(raw, dict):
+            self.error("[sweep]", "must be a table: [sweep] metrics = \"file.py:function\"")
+            return
+        for key in sorted(set(raw) - _SWEEP_KEYS):
+            self.error("[sweep]", f"unknown key {key!r} (expected one of {sorted(_SWEEP_KEYS)})")
+        if "metrics" not in raw:
+            return
+        ref = raw["metrics"]
+        if not isinstance(ref, str) or ":" not in ref or not all(ref.rsplit(":", 1)):
+            self.error("[sweep]", f"metrics must be \"file.py:function\" or \"module:function\", got {ref!r}")
+            return
+        where, function = ref.rsplit(":", 1)
+        if where.endswith(".py"):  # as python = "file.py:Class": relative to this file
+            file = (self.base / where).resolve()
+            if not file.is_file():
+                self.error("[sweep]", f"metrics file {where!r} not found (looked at {file})")
+                return
+            ref = f"{file}:{function}"
+        system.sweep_metrics = ref
+
     def check_after(self, system: System) -> None:
         for node in system.nodes.values():
             for other in node.after:
