@@ -24,6 +24,6 @@ def buggy_metrics(recording) -> dict:
         fear += m.get("fear", 0.0) * (t1 - t0)
     span = mood[-1][0] - mood[0][0] if len(mood) > 1 else 0.0
     return {"food_eaten": len(data["arena"]["eaten"]), "wall_bumps": bumps + last,
-            **{f"s_{doing.lower()}": round(s, 6) for doing, s in seconds.items()},
+            **{f"{doing.lower()}_s": round(s, 6) for doing, s in seconds.items()},
             "mean_hunger": round(hunger / span, 6) if span else 0.0,
             "mean_fear": round(fear / span, 6) if span else 0.0}

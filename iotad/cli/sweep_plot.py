@@ -36,12 +36,14 @@ def plot_summary(rows: list[dict], params: list[str], output: str | Path, title:
     if not params or not ok or not metrics:
         return None
     failed = len(rows) - len(ok)
-    fig, axes = plt.subplots(len(metrics), len(params), squeeze=False,
-                             figsize=(4.2 * len(params) + 1.2, 2.6 * len(metrics) + 0.8))
+    height = 2.1 * len(metrics) + 1.0
+    fig, axes = plt.subplots(len(metrics), len(params), squeeze=False, figsize=(4.2 * len(params) + 1.2, height),
+                             sharex="col")
     for column, param in enumerate(params):
         xs = sorted({row[param] for row in ok}, key=lambda v: (not _number(v), v if _number(v) else str(v)))
         numeric = all(_number(x) for x in xs)
         position = {x: (x if numeric else k) for k, x in enumerate(xs)}
+        span = (max(xs) - min(xs) if numeric and len(xs) > 1 else 1.0) or 1.0
         others = [p for p in params if p != param]
         groups = sorted({tuple(row[p] for p in others) for row in ok}, key=str)
         if len(groups) > MOST_LINES:
@@ -51,6 +53,7 @@ def plot_summary(rows: list[dict], params: list[str], output: str | Path, title:
             label = "all runs" if group is None or not others else \
                 ", ".join(f"{p.split('.')[-1]}={_short(v)}" for p, v in zip(others, group))
             colour = COLOURS[line % len(COLOURS)]
+            shift = (line - (len(groups) - 1) / 2) * 0.012 * span  # lines side by side, their bars apart
             for row_index, metric in enumerate(metrics):
                 ax = axes[row_index][column]
                 at, means, low, high = [], [], [], []
@@ -59,11 +62,12 @@ def plot_summary(rows: list[dict], params: list[str], output: str | Path, title:
                     if not values:
                         continue
                     mean = fmean(values)
-                    at.append(position[x])
+                    at.append(position[x] + shift)
                     means.append(mean)
                     low.append(mean - min(values))
                     high.append(max(values) - mean)
-                    ax.scatter([position[x]] * len(values), values, color=colour, alpha=0.25, s=10, linewidths=0)
+                    ax.scatter([position[x] + shift] * len(values), values, color=colour, alpha=0.4, s=14,
+                               linewidths=0)
                 if at:
                     ax.errorbar(at, means, yerr=[low, high], color=colour, marker="o", markersize=4, capsize=3,
                                 linewidth=1.4, label=label if row_index == 0 else None)
@@ -72,21 +76,29 @@ def plot_summary(rows: list[dict], params: list[str], output: str | Path, title:
             ax.grid(alpha=0.3)
             if not numeric:
                 ax.set_xticks(range(len(xs)), [_short(x) for x in xs])
+            elif len(xs) <= 8:  # a few values: a tick at each, none between
+                ax.set_xticks(xs, [_short(x) for x in xs])
             if row_index == len(metrics) - 1:
                 ax.set_xlabel(param)
             if column == 0:
-                ax.set_ylabel(metric.replace("_", " "), fontsize=9)
+                ax.set_ylabel(_label(metric), fontsize=9)
         if len(groups) > 1 or (groups and groups[0] is not None and others):
             axes[0][column].legend(fontsize=7, loc="best")
     seeds = len({row.get("seed") for row in ok})
     note = f"{len(ok)} runs, {seeds} seeds each point (bar: lowest to highest; dots: each run)" + \
         (f"; {failed} failed runs left out" if failed else "")
     fig.suptitle(f"{title}\n{note}", fontsize=11, parse_math=False)
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0, 1, 1 - 0.55 / height))  # room for the two lines of the title
     path = Path(output)
     fig.savefig(path, dpi=90)
     plt.close(fig)
     return path
+
+
+def _label(metric: str) -> str:
+    """`wander_s` -> "wander (s)": a metric's unit is its name's last word."""
+    name, _, unit = metric.rpartition("_")
+    return f"{name.replace('_', ' ')} ({unit})" if name and unit in ("s", "m", "ms", "rad") else metric.replace("_", " ")
 
 
 def _short(value) -> str:
