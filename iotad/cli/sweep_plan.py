@@ -17,6 +17,9 @@ from typing import Any
 from iotad.cli import CliError
 
 SWEEP_FILE_KEYS = {"system", "set", "seeds", "until", "sample", "sample_seed", "timeout", "metrics"}
+_FILE_NUMBERS = {"seeds": (int, "a whole number > 0"), "sample": (int, "a whole number > 0"),
+                 "sample_seed": (int, "a whole number >= 0"), "until": ((int, float), "a number of seconds > 0"),
+                 "timeout": ((int, float), "a number of seconds > 0")}
 
 
 @dataclass(frozen=True)
@@ -111,10 +114,19 @@ def read_sweep_file(path: Path) -> dict | None:
     table = data.get("sweep")
     if "node" in data or not isinstance(table, dict) or "system" not in table:
         return None
-    for key in sorted(set(data) - {"sweep"}):
-        raise CliError(f"{path.name}: unknown top-level key {key!r} in a sweep file (it holds one [sweep] table)")
-    for key in sorted(set(table) - SWEEP_FILE_KEYS):
-        raise CliError(f"{path.name}: [sweep]: unknown key {key!r} (expected one of {sorted(SWEEP_FILE_KEYS)})")
+    other = sorted(set(data) - {"sweep"})
+    if other:
+        raise CliError(f"{path.name}: unknown top-level key {other[0]!r} in a sweep file (it holds one [sweep] table)")
+    unknown = sorted(set(table) - SWEEP_FILE_KEYS)
+    if unknown:
+        raise CliError(f"{path.name}: [sweep]: unknown key {unknown[0]!r} (expected one of {sorted(SWEEP_FILE_KEYS)})")
+    for key, (kind, what) in _FILE_NUMBERS.items():
+        value = table.get(key)
+        if key not in table:
+            continue
+        number = isinstance(value, kind) and not isinstance(value, bool) and math.isfinite(value)
+        if not number or not (value >= 0 if key == "sample_seed" else value > 0):
+            raise CliError(f"{path.name}: [sweep] {key} must be {what}, got {value!r}")
     if not isinstance(table["system"], str):
         raise CliError(f"{path.name}: [sweep] system must be the system file's name, got {table['system']!r}")
     table = dict(table, system=str((path.parent / table["system"]).resolve()))
@@ -174,20 +186,23 @@ def check_against(plan: Plan, system) -> None:
             params = params[key]
 
 
-def apply(system, values: dict[str, Any]) -> None:
-    """Set each "node.param[.key...]" of `values` in the system's node parameters (copies, so the
-    system file's tables are not changed under another run)."""
+def apply(system, values: dict[str, Any]):
+    """The system with each "node.param[.key...]" of `values` set in its nodes' parameters: a copy,
+    the checked system it came from unchanged (a worker keeps it for its next run)."""
     import copy
+    import dataclasses
 
+    nodes = dict(system.nodes)
     for name, value in values.items():
         node, _, path = name.partition(".")
-        spec = system.nodes[node]
-        spec.params = copy.deepcopy(spec.params)
-        table = spec.params
+        if nodes[node] is system.nodes[node]:
+            nodes[node] = dataclasses.replace(nodes[node], params=copy.deepcopy(nodes[node].params))
+        table = nodes[node].params
         *parents, leaf = path.split(".")
         for key in parents:
             table = table[key]
         table[leaf] = value
+    return dataclasses.replace(system, nodes=nodes)
 
 
 def same_plan(plan: Plan, described: dict) -> bool:

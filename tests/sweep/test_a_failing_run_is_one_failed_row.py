@@ -7,7 +7,7 @@ from iotad.cli import main
 
 def test_a_run_that_raises_or_hangs_fails_alone(system, tmp_path, capsys):
     out = tmp_path / "sweep"
-    code = main(["sweep", str(system), "--set", "ticker.mode=ok,explode,spin", "--until", "5", "--timeout", "2",
+    code = main(["sweep", str(system), "--set", "ticker.mode=ok,explode,spin", "--until", "5", "--timeout", "4",
                  "-o", str(out), "--plain"])
     assert code == 1  # a run failed
     rows = {r["ticker.mode"]: r for r in csv.DictReader((out / "results.csv").open())}
@@ -16,7 +16,7 @@ def test_a_run_that_raises_or_hangs_fails_alone(system, tmp_path, capsys):
     assert "this ticker explodes as it is built" in rows["explode"]["error"]
     assert rows["explode"]["ticks"] == ""
     assert rows["spin"]["status"] == "failed"
-    assert rows["spin"]["error"] == "timed out after 2 s of wall time"
+    assert rows["spin"]["error"] == "timed out after 4 s of wall time"
     # the failure's traceback is in the run's log, and the summary names the failed runs
     assert "ValueError" in (out / "runs" / f"{rows['explode']['run']}.log").read_text()
     said = capsys.readouterr().out
