@@ -8,6 +8,7 @@ from typing import Iterable
 
 import zenoh
 
+from iotad.host.certificates import TlsFiles
 from iotad.host.credentials import Credentials, for_endpoints, from_env
 
 DEFAULT_LISTEN = ("tcp/127.0.0.1:0",)  # port 0: the OS picks a free loopback port
@@ -38,15 +39,19 @@ def endpoint_problem(text: object) -> str:
 
 
 def make_config(listen: Iterable[str] = DEFAULT_LISTEN, connect: Iterable[str] = (), mode: str = "peer",
-                extra: dict | None = None, credentials: Credentials | None = None) -> zenoh.Config:
+                extra: dict | None = None, credentials: Credentials | None = None,
+                tls: TlsFiles | None = None) -> zenoh.Config:
     """`extra` maps zenoh config paths (e.g. "transport/link/tx/queue/size/data") to JSON values;
     it cannot turn multicast scouting back on. `credentials`: authenticate with zenoh's
-    user-password scheme (and, with a dictionary, check the peers that connect here)."""
+    user-password scheme (and, with a dictionary, check the peers that connect here). `tls`: the
+    certificates for `tls/` endpoints, with mutual authentication (iotad/host/certificates.py)."""
     config = zenoh.Config()
     for path, value in (extra or {}).items():
         config.insert_json5(path, json.dumps(value))
     if credentials is not None:
         config.insert_json5("transport/auth/usrpwd", json.dumps(credentials.zenoh_usrpwd()))
+    if tls is not None:
+        config.insert_json5("transport/link/tls", json.dumps(tls.zenoh_tls()))
     config.insert_json5("mode", json.dumps(mode))
     config.insert_json5("scouting/multicast/enabled", "false")
     config.insert_json5("listen/endpoints", json.dumps(list(listen)))
@@ -56,7 +61,7 @@ def make_config(listen: Iterable[str] = DEFAULT_LISTEN, connect: Iterable[str] =
 
 def open_session(listen: Iterable[str] = DEFAULT_LISTEN, connect: Iterable[str] = (), mode: str = "peer",
                  connect_timeout: float | None = None, extra: dict | None = None,
-                 credentials: Credentials | None | bool = None) -> zenoh.Session:
+                 credentials: Credentials | None | bool = None, tls: TlsFiles | None = None) -> zenoh.Session:
     """A zenoh session; close it (or use `with`) or the interpreter hangs at exit.
 
     With `connect_timeout` (seconds), opening fails with `zenoh.ZError` when no `connect`
@@ -74,7 +79,7 @@ def open_session(listen: Iterable[str] = DEFAULT_LISTEN, connect: Iterable[str] 
         elif connect:
             # a hub that this user's `iotad run` guards lets in its tools' user (read only)
             credentials = for_endpoints(connect)
-    config = make_config(listen, connect, mode, extra, credentials or None)
+    config = make_config(listen, connect, mode, extra, credentials or None, tls)
     if connect_timeout is not None and list(connect):
         config.insert_json5("connect/timeout_ms", json.dumps(max(1, int(connect_timeout * 1000))))
         config.insert_json5("connect/exit_on_failure", "true")
