@@ -22,8 +22,16 @@ Done = Callable[[dict, dict], None]
 
 def _worker_start() -> None:
     """A pool worker leaves Ctrl-C to its run (which stops cleanly at the first) and to the
-    parent, which stops the sweep: idle, it ignores it, with no traceback."""
+    parent, which stops the sweep: idle, it ignores it, with no traceback. It dies with the
+    sweep (a sweep killed outright must leave no worker running on), where Linux allows."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    with contextlib.suppress(OSError, AttributeError):
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(1, signal.SIGTERM, 0, 0, 0)  # 1 = PR_SET_PDEATHSIG: when the sweep's process ends
+        if os.getppid() == 1:  # the sweep died before the line above: do not run as an orphan
+            os._exit(1)
 
 
 def _died(task: dict, why: str) -> dict:

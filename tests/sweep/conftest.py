@@ -2,16 +2,7 @@
 virtual time each, and its table, swept once (locally) for every test that compares with it."""
 import pytest
 
-from sweep_iotas import write_system
-
-GRID = ["--set", "ticker.period=0.1,0.25", "--set", "ticker.step=1,3", "--seeds", "2", "--until", "5"]
-
-
-def sweep(system, out, *more):
-    """`iotad sweep` in this process (its runs in spawned workers); returns the exit status."""
-    from iotad.cli import main
-
-    return main(["sweep", str(system), *GRID, "-o", str(out), "--plain", *more])
+from sweep_iotas import sweep, write_system
 
 
 @pytest.fixture(scope="session")

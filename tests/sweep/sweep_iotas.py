@@ -1,9 +1,20 @@
 """A tiny system for the sweep tests: a ticker whose period is swept and whose random firing
 times (within [period, 2 * period]) depend on the seed, with a mode that makes a run fail by
-raising as it is built, or hang, and the metrics hook that counts its ticks."""
+raising as it is built, or hang, and the metrics hook that counts its ticks; and the tests'
+shared grid: 2 x 2 parameters, 2 seeds, 5 s of virtual time each."""
 from pathlib import Path
 
 from iotad import Input, Int, Iota, Output, Param
+
+ROOT = Path(__file__).resolve().parents[2]
+GRID = ["--set", "ticker.period=0.1,0.25", "--set", "ticker.step=1,3", "--seeds", "2", "--until", "5"]
+
+
+def sweep(system, out, *more):
+    """`iotad sweep` of the grid in this process (its runs in spawned workers); the exit status."""
+    from iotad.cli import main
+
+    return main(["sweep", str(system), *GRID, "-o", str(out), "--plain", *more])
 
 
 class Ticker(Iota):

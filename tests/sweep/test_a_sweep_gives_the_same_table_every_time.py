@@ -7,7 +7,7 @@ import json
 
 from iotad.recording.mcap_io import read_recording
 
-from conftest import sweep
+from sweep_iotas import sweep
 from sweep_iotas import tick_metrics
 
 

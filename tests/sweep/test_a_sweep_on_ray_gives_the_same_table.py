@@ -2,7 +2,7 @@
 run's recording and log come back into the sweep's folder."""
 import pytest
 
-from conftest import sweep
+from sweep_iotas import sweep
 
 
 def test_ray_tasks_give_the_local_table(system, first_table, tmp_path):

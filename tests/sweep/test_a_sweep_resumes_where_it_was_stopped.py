@@ -7,7 +7,7 @@ import subprocess
 import sys
 import time
 
-from conftest import GRID
+from sweep_iotas import GRID
 
 
 def test_an_interrupted_sweep_resumes(system, first_table, tmp_path):

@@ -47,13 +47,17 @@ def test_a_bad_sweep_file(tmp_path, capsys, system):
     assert "expected a list of values" in refused(capsys, file, "-o", tmp_path / "a")
 
 
-def test_a_system_files_sweep_table_is_checked(tmp_path, system):
+def test_a_system_files_sweep_table_is_checked(tmp_path, system, capsys):
     text = system.read_text()
     bad = tmp_path / "bad.toml"
     bad.write_text(text.replace('metrics = "', 'metric = "'))
     with pytest.raises(SystemFileError, match=r"\[sweep\]: unknown key 'metric'"):
         load_system(bad, check=False)
-    bad.write_text(text.split("[sweep]")[0] + '[sweep]\nmetrics = "nowhere.py:f"\n')
-    with pytest.raises(SystemFileError, match="metrics file 'nowhere.py' not found"):
+    bad.write_text(text.replace(':tick_metrics"', '"'))  # no function named
+    with pytest.raises(SystemFileError, match="metrics must be"):
         load_system(bad, check=False)
+    gone = tmp_path / "gone.toml"  # `iotad run` needs no hook; `iotad sweep` refuses a missing one
+    gone.write_text(text.split("[sweep]")[0] + '[sweep]\nmetrics = "nowhere.py:f"\n')
+    assert load_system(gone, check=False).sweep_metrics == f"{tmp_path / 'nowhere.py'}:f"
+    assert "nowhere.py:f: no such file" in refused(capsys, gone, "--until", "1", "-o", tmp_path / "a")
     assert load_system(system, check=False).sweep_metrics.endswith("sweep_iotas.py:tick_metrics")

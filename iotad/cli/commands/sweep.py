@@ -79,6 +79,9 @@ def plan_from(args: argparse.Namespace):
                 timeout=args.timeout if args.timeout is not None else table.get("timeout"),
                 metrics=table.get("metrics") or system.sweep_metrics)
     check_against(plan, system)
+    where = (plan.metrics or "").rpartition(":")[0]
+    if where.endswith(".py") and not Path(where).is_file():
+        raise CliError(f"metrics {plan.metrics}: no such file (the [sweep] metrics of {system.file})")
     plan.runs = make_runs(plan)
     return plan, system
 
