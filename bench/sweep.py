@@ -21,6 +21,8 @@ same table on every executor. Figures only; on a shared machine they vary, so sa
 from __future__ import annotations
 
 import argparse
+import os
+import resource
 import sys
 import tempfile
 import time
@@ -34,17 +36,21 @@ from iotad.cli.sweep_results import SweepFolder  # noqa: E402
 from iotad.cli.virtual_run import cores  # noqa: E402
 
 
-def one(plan, jobs: int, ray: str | None = None) -> tuple[float, str]:
-    """Wall seconds of the whole sweep into a fresh folder, and its table."""
+def one(plan, jobs: int, ray: str | None = None) -> tuple[float, float, str]:
+    """Wall seconds of the whole sweep into a fresh folder, the CPU seconds of the local pool's
+    workers (its children, reaped when the pool closes; none for Ray's), and its table."""
     with tempfile.TemporaryDirectory(prefix="iotad-bench-sweep-") as folder:
         into = SweepFolder(Path(folder) / "sweep")
         into.open(plan)
+        before = resource.getrusage(resource.RUSAGE_CHILDREN)
         started = time.perf_counter()
         how = sweep(plan, into, jobs, ray)
         wall = time.perf_counter() - started
+        after = resource.getrusage(resource.RUSAGE_CHILDREN)
         if how["failed"]:
             raise SystemExit(f"{how['failed']} runs failed: see a run's row in {into.runs}")
-        return wall, into.write_table(plan).read_text()
+        cpu = (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime)
+        return wall, cpu, into.write_table(plan).read_text()
 
 
 def main() -> int:
@@ -59,11 +65,19 @@ def main() -> int:
                                                 sample=None, sample_seed=None, timeout=None))
     print(f"sweep of {system.name}: {args.runs} runs of {args.until:g} s virtual, recorded and measured; "
           f"{cores()} cores here, shared with whatever else runs")
-    serial, table = one(plan, 1)
-    print(f"  local pool, 1 worker:   {serial:7.2f} s wall, {args.runs / serial * 60:6.1f} runs/min")
-    parallel, again = one(plan, args.jobs)
+    load = os.getloadavg()[0]
+    serial, serial_cpu, table = one(plan, 1)
+    print(f"  local pool, 1 worker:   {serial:7.2f} s wall, {args.runs / serial * 60:6.1f} runs/min, "
+          f"{serial_cpu / args.runs:.2f} CPU s per run (worker start included)")
+    parallel, parallel_cpu, again = one(plan, args.jobs)
     print(f"  local pool, {args.jobs} workers:  {parallel:7.2f} s wall, {args.runs / parallel * 60:6.1f} runs/min, "
-          f"speed-up {serial / parallel:.2f}x (goal >= 1.8x on 2 cores)")
+          f"{parallel_cpu / args.runs:.2f} CPU s per run; speed-up {serial / parallel:.2f}x (goal >= 1.8x on 2 cores)")
+    print(f"  load average at the start: {load:.1f} on {cores()} cores (above the cores: other work shares them, "
+          f"and the wall-clock figures say more about it than about the sweep)")
+    # the work itself, whatever else runs: one worker's CPU seconds against the busiest of N
+    # workers' share, the speed-up N idle cores would give (no wait between runs, none for I/O)
+    print(f"  speed-up on idle cores, from CPU seconds: {serial_cpu / (parallel_cpu / args.jobs):.2f}x "
+          f"(the pool's extra CPU: {parallel_cpu / serial_cpu - 1:+.0%}, its workers' start)")
     assert again == table, "the table differs with the number of workers"
     if args.no_ray:
         return 0
@@ -76,7 +90,7 @@ def main() -> int:
     ray.init(num_cpus=args.jobs, include_dashboard=False, log_to_driver=False)
     start = time.perf_counter() - started
     try:
-        on_ray, table_ray = one(plan, args.jobs, "")
+        on_ray, _, table_ray = one(plan, args.jobs, "")
     finally:
         ray.shutdown()
     assert table_ray == table, "the table differs on Ray"
