@@ -11,6 +11,7 @@ from pathlib import Path
 from iotad.cli import CliError, positive_float, positive_int, nonnegative_int
 
 ORDER = 22
+TABLE_EVERY = 10.0  # wall seconds between rewrites of results.csv while a sweep runs (it reads every row)
 
 EPILOG = """\
 examples:
@@ -103,10 +104,14 @@ def sweep(plan, folder, jobs: int, ray: str | None = None, progress=None) -> dic
     counts = {"runs": len(plan.runs), "skipped": len(plan.runs) - len(todo), "ok": 0, "failed": 0}
     started = time.perf_counter()
 
+    written = [started]
+
     def done(task: dict, row: dict) -> None:
         folder.keep(row)
         counts["ok" if row["status"] == "ok" else "failed"] += 1
-        folder.write_table(plan)
+        if time.perf_counter() - written[0] > TABLE_EVERY:  # the table so far, to look at; each row
+            folder.write_table(plan)                         # is kept at once in its own file
+            written[0] = time.perf_counter()
         if progress is not None:
             progress(counts, len(todo), time.perf_counter() - started)
 
@@ -114,6 +119,7 @@ def sweep(plan, folder, jobs: int, ray: str | None = None, progress=None) -> dic
         run_ray(todo, ray or None, jobs, done)
     else:
         run_local(todo, jobs, done)
+    folder.write_table(plan)
     counts["wall_s"] = round(time.perf_counter() - started, 3)
     counts["executor"] = "ray" if ray is not None else f"local pool of {min(jobs, max(len(todo), 1))}"
     return counts
