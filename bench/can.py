@@ -8,7 +8,11 @@
    at 500 Hz per axis. Setpoint published -> its Set_Input_Pos frame on the bus: p50/p99; control
    cycles missed (a setpoint whose six frames did not all reach the bus within one cycle, 2 ms,
    or never); bus load (bits of every frame over the run's bus time, of 1 Mbit/s).
-3. examples/arm_can.toml in virtual time, in this process: its speed as a multiple of real time.
+3. The same with six CiA 402 drives (protocol = "cia402"): this process plays them with the
+   simulated drive's model (sim/cia402_drive.py: NMT, SDO start-up, TPDOs at SYNC, heartbeats);
+   setpoint published -> its RPDO on the bus: p50/p99; SYNC cycles missed (a gap between two of
+   the node's SYNCs longer than 1.5 cycles counts each cycle it skipped); bus load.
+4. examples/arm_can.toml in virtual time, in this process: its speed as a multiple of real time.
 
     .venv/bin/python bench/can.py [--count 2000] [--seconds 10] [--tier uml]
 
@@ -139,7 +143,7 @@ listen = ["tcp/127.0.0.1:{port}"]
 [[node]]
 name = "motor"
 python = "nodes.can_motor:CanMotor"
-params = {{ encoder_period = {period}, state_period = 0.01, polls = {{ Get_Error = 0.1 }}, joints = [{joints}] }}
+params = {{ encoder_period = {period}, state_period = {state_period}, polls = {polls},{extra} joints = [{joints}] }}
 
 [[can]]
 name = "bench_bus"
@@ -169,8 +173,9 @@ def cpu_seconds(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
-def motor_loop(seconds: float, rate: float = RATE, port: int = 7447) -> dict:
-    """Part 2: the motor node fed at `rate`, this process as its six ODrives."""
+def motor_loop(seconds: float, rate: float = RATE, port: int = 7447, protocol: str = "odrive") -> dict:
+    """Part 2 (protocol odrive): the motor node fed at `rate`, this process as its six ODrives;
+    part 3 (cia402): the same with six CiA 402 drives, the node's tick (a SYNC) at `rate`."""
     import math
     import tempfile
     import threading
@@ -182,12 +187,16 @@ def motor_loop(seconds: float, rate: float = RATE, port: int = 7447) -> dict:
     from iotad.launcher.processes import interrupt_then_kill
 
     interface, channel = os.environ["IOTAD_CAN_INTERFACE"], os.environ["IOTAD_CAN_CHANNEL"]
-    joints = ", ".join(f'{{ name = "j{k}", node_id = {k + 1}, position_min = -6.3, position_max = 6.3 }}'
-                       for k in range(JOINTS))
+    cia402 = protocol == "cia402"
+    joints = ", ".join(f'{{ name = "j{k}", node_id = {k + 1}, position_min = -6.3, position_max = 6.3, '
+                       f'protocol = "{protocol}" }}' for k in range(JOINTS))
     folder = Path(tempfile.mkdtemp(prefix="canbench-"))
     system = folder / "canbench.toml"
     system.write_text(MOTOR_SYSTEM.format(port=port, period=1.0 / rate, joints=joints, interface=interface,
-                                          channel=channel))
+                                          channel=channel, state_period=1.0 / rate if cia402 else 0.01,
+                                          polls="{}" if cia402 else "{ Get_Error = 0.1 }",
+                                          # velocity every 5th SYNC: 19 frames a cycle would not fit 1 Mbit/s at 500 Hz
+                                          extra=" velocity_every = 5," if cia402 else ""))
     # --insecure: this process publishes the setpoints from outside the system, which access
     # control (on by default) would refuse; bench/access_control.py measures what it costs
     # the launcher's own words go to a log, shown if the node does not come up (the bench's
@@ -202,7 +211,15 @@ def motor_loop(seconds: float, rate: float = RATE, port: int = 7447) -> dict:
     stop = threading.Event()
     frames_seen: list[tuple[float, int, bytes, bool]] = []   # (time, id, data, rtr) of every frame on the bus
     arrivals: dict[tuple[int, int], float] = {}              # (setpoint k, node id) -> Set_Input_Pos time
+    syncs: list[float] = []                                  # CiA 402: the node's SYNC times
     lock = threading.Lock()
+    models = {}
+    if cia402:
+        from iotad.can import canopen as co
+        from iotad.can.frame import Frame
+        from sim.cia402_drive import Cia402Drive
+        models = {node: Cia402Drive(node) for node in range(1, JOINTS + 1)}
+    t0 = time.perf_counter()
 
     # python-can's udp_multicast hands every frame back to its sender, so listen() already sees
     # this process's own frames there; counting them here too would count them twice
@@ -213,10 +230,23 @@ def motor_loop(seconds: float, rate: float = RATE, port: int = 7447) -> dict:
         if not own_frames_come_back:
             frames_seen.append((time.time(), message.arbitration_id, bytes(message.data), message.is_remote_frame))
 
+    def drain():
+        for model in models.values():
+            for frame in model.outbox:
+                send(frame.to_can_message())
+            model.outbox.clear()
+
     def odrives():
-        """Six axes, always in closed loop: heartbeats at 10 Hz, encoder estimates at rate each."""
+        """Six axes, always in closed loop: heartbeats at 10 Hz, encoder estimates at rate each;
+        or six CiA 402 drives' control steps at 100 Hz (their heartbeats; their TPDOs go at SYNC)."""
         beat = odrive.AXIS_STATE["CLOSED_LOOP_CONTROL"]
         start, n = time.perf_counter(), 0
+        while cia402 and not stop.is_set():
+            with lock:
+                for model in models.values():
+                    model.update(0.0, 0.0, time.perf_counter() - t0, 0.01)
+                drain()
+            time.sleep(0.01)
         while not stop.is_set():
             for node in range(1, JOINTS + 1):
                 frame = odrive.encode(node, "Get_Encoder_Estimates", Pos_Estimate=0.0, Vel_Estimate=0.0)
@@ -236,6 +266,23 @@ def motor_loop(seconds: float, rate: float = RATE, port: int = 7447) -> dict:
                 continue
             frames_seen.append((message.timestamp, message.arbitration_id, bytes(message.data),
                                 message.is_remote_frame))
+            if cia402:
+                ident = message.arbitration_id
+                if ident == co.SYNC:
+                    syncs.append(message.timestamp)
+                elif ident & 0x780 == co.RPDO[0] and len(message.data) == 6:
+                    counts = int.from_bytes(bytes(message.data[2:6]), "little", signed=True)
+                    k = round(counts / 65536 * 2 * math.pi / SCALE)
+                    with lock:
+                        arrivals.setdefault((k, ident & 0x7F), message.timestamp)
+                if own_frames_come_back and ident & 0x780 in (co.TPDO[0], co.TPDO[1], co.HEARTBEAT, co.EMCY, co.TSDO) \
+                        and ident & 0x7F in models:
+                    continue  # our own drives' frames, handed back
+                with lock:
+                    for model in models.values():
+                        model.handle(Frame.from_can_message(message), time.perf_counter() - t0)
+                    drain()
+                continue
             if message.arbitration_id & 0x1F == odrive.MESSAGES["Set_Input_Pos"].cmd_id and not message.is_remote_frame:
                 turns = odrive.decode(odrive.Frame.from_can_message(message)).signals["Input_Pos"]
                 k = round(turns * 2 * math.pi / SCALE)
@@ -275,6 +322,7 @@ def motor_loop(seconds: float, rate: float = RATE, port: int = 7447) -> dict:
         with lock:
             arrivals.clear()
         first, begin = k, time.time()
+        syncs.clear()
         node_cpu = cpu_seconds(motor_pid())
         frames_seen.clear()
         start = time.perf_counter()
@@ -322,13 +370,17 @@ def motor_loop(seconds: float, rate: float = RATE, port: int = 7447) -> dict:
             missed += 1
     bits = sum(frame_bits(i, False, rtr, data) for t, i, data, rtr in frames_seen if begin <= t <= end)
     span = end - begin
+    ticks = [t for t in syncs if begin <= t <= end]
+    sync_missed = sum(max(0, round((b - a) / period) - 1) for a, b in zip(ticks, ticks[1:]) if b - a > 1.5 * period)
     return {"setpoint_to_frame": percentiles(latencies) if latencies else None,
             "setpoint_to_last_frame": percentiles(last_frames) if last_frames else None,
             "first_to_last_frame": percentiles(spreads) if spreads else None, "setpoints": len(published),
             "missed": missed, "missed_pct": 100.0 * missed / max(1, len(published)),
             "lost": sum(1 for k in published if arrivals.get((k, 1)) is None), "late_publish": late_publish,
             "frames": sum(1 for t, *_ in frames_seen if begin <= t <= end), "seconds": span,
-            "bus_load_pct": 100.0 * bits / (span * 1e6), "node_cpu_pct": 100.0 * node_cpu / span}
+            "bus_load_pct": 100.0 * bits / (span * 1e6), "node_cpu_pct": 100.0 * node_cpu / span,
+            "syncs": len(ticks), "sync_missed": sync_missed,
+            "sync_missed_pct": 100.0 * sync_missed / max(1, len(ticks) + sync_missed)}
 
 
 def virtual_arm(seconds: float = 5.0) -> dict:
@@ -367,7 +419,8 @@ def inside(count: int, seconds: float, rate: float = RATE) -> None:
             peer.kill()
             peer.wait()
     motor = motor_loop(seconds, rate) if seconds > 0 else None
-    print("RESULT " + json.dumps({"raw": raw, "iotad": wrapped, "motor": motor,
+    cia402 = motor_loop(seconds, rate, protocol="cia402") if seconds > 0 else None
+    print("RESULT " + json.dumps({"raw": raw, "iotad": wrapped, "motor": motor, "cia402": cia402,
                                   "tier": os.environ.get("IOTAD_CAN_TIER")}))
 
 
@@ -424,6 +477,20 @@ def main() -> int:
         print(f"  bus load: {motor['bus_load_pct']:.1f} % of 1 Mbit/s ({motor['frames']} frames, "
               f"{motor['frames'] / motor['seconds']:.0f} frames/s)")
         print(f"  motor node CPU: {motor['node_cpu_pct']:.0f} % of one core (every thread of its process)")
+    co = report.get("cia402")
+    if co:
+        print(f"\nmotor node, {JOINTS} CiA 402 joints, SYNC and setpoints at {args.rate:g} Hz for {co['seconds']:.1f} s "
+              f"(this process as the drives), tier {bus.name}:")
+        hop = co["setpoint_to_frame"]
+        if hop:
+            print(f"  setpoint published -> RPDO on the bus: p50 {hop['p50_us'] / 1000:.3f} ms, "
+                  f"p99 {hop['p99_us'] / 1000:.3f} ms, max {hop['max_us'] / 1000:.1f} ms "
+                  f"(beside the ODrive's Set_Input_Pos above)")
+        print(f"  SYNC cycles missed: {co['sync_missed']} of {co['syncs'] + co['sync_missed']} = "
+              f"{co['sync_missed_pct']:.2f} %; control cycles missed: {co['missed']} of {co['setpoints']} = "
+              f"{co['missed_pct']:.2f} % ({co['lost']} never came)")
+        print(f"  bus load: {co['bus_load_pct']:.1f} % of 1 Mbit/s ({co['frames']} frames, "
+              f"{co['frames'] / co['seconds']:.0f} frames/s); motor node CPU: {co['node_cpu_pct']:.0f} % of one core")
     arm = virtual_arm()
     print(f"\nexamples/arm_can.toml in virtual time, one process (this host, no tier): {arm['virtual_s']:.0f} s "
           f"in {arm['wall_s']:.2f} s wall = {arm['speed']:.1f}x real time ({arm['events']} trace events)")

@@ -194,7 +194,7 @@ def realtime(kind: str, seconds: float) -> dict:
 
 
 def process(seconds: float) -> dict | str:
-    from iotad.recording.mcap_io import read_recording
+    from iotad.recording.mcap_reader import read_recording
     with tempfile.TemporaryDirectory() as folder:
         out = Path(folder) / "rt.mcap"
         done = subprocess.run([sys.executable, "-m", "iotad", "run", str(ROOT / "examples/mdl_arm_realtime.toml"),

@@ -3,7 +3,10 @@
     .venv/bin/python bench/record.py [--publishers 4] [--messages 100000] [--samples 2000]
 
 1. raw: the `mcap` Writer alone, in this process, writing messages like the recorder's (zstd
-   chunks, a flush every 50 ms): the ceiling of any Python recorder.
+   chunks, a flush every 50 ms): the ceiling of any Python recorder. Then `McapSink` the same
+   way, through its batch writer (the recorder's hot path, which uses the mcap Writer's private
+   fields: iotad/recording/mcap_batch_writer.py) and through the Writer's public API, in turn:
+   what the private access is worth.
 2. record: an `iotad record` process and --publishers publisher processes (subprocess, never
    fork), each publishing --messages events as fast as it can with BLOCK congestion control.
    --mode traces (default; what `iotad run` uses): each event is an output event on the
@@ -153,6 +156,29 @@ def raw_writer(count: int) -> float:
         return count / (time.perf_counter() - start)
 
 
+def sink_writes(count: int, fast: bool) -> float:
+    """Messages per second through `McapSink`: its batch writer (`fast`, committed every 4096
+    messages as the recorder does) or its public-API `write`; 50 ms flushes as in `raw_writer`."""
+    from iotad.recording.mcap_sink import McapSink
+    payload = wire.encode({"t": 0.0, "iota": "p", "action": "out", "index": None, "kind": "output", "value": 1.5})
+    with tempfile.TemporaryDirectory() as folder:
+        sink = McapSink(Path(folder) / "sink.mcap")
+        channels = [sink.channel(f"iota/bench/p{k}/out", "x", {}) for k in range(4)]
+        write = sink.fast_writer() if fast else sink.write
+        start = time.perf_counter()
+        next_flush = time.monotonic() + 0.05
+        for seq in range(count):
+            now = time.time_ns()
+            write(channels[seq & 3], now, now, seq, payload)
+            if seq & 4095 == 4095:
+                sink.commit()
+                if time.monotonic() >= next_flush:
+                    sink.flush()
+                    next_flush = time.monotonic() + 0.05
+        sink.finish()
+        return count / (time.perf_counter() - start)
+
+
 class Recorder:
     def __init__(self, output: Path, keys: list[str], connect: str | None = None, mode: str = "traces"):
         self.port = free_port()
@@ -185,7 +211,7 @@ def spawn(script: str, *args: str) -> subprocess.Popen:
 
 
 def throughput(publishers: int, messages: int, folder: Path, mode: str) -> dict:
-    from iotad.recording.mcap_io import read_recording
+    from iotad.recording.mcap_reader import read_recording
     output = folder / "throughput.mcap"
     recorder = Recorder(output, ["iota/bench/**"], mode=mode)
     procs = []
@@ -290,6 +316,11 @@ def main() -> int:
         folder = Path(tmp)
         raw = raw_writer(200_000)
         print(f"raw mcap Writer:   {raw:>10,.0f} msgs/s (in-process, zstd, 50 ms flushes)")
+        # alternated, best of three each: the machine's load drifts between runs
+        rates = [(sink_writes(200_000, True), sink_writes(200_000, False)) for _ in range(3)]
+        fast, public = max(r[0] for r in rates), max(r[1] for r in rates)
+        print(f"McapSink writes:   {fast:>10,.0f} msgs/s batch writer (private fields), {public:,.0f} msgs/s "
+              f"public API: {fast / public:.1f}x (mcap {version('mcap')})")
         result = throughput(args.publishers, args.messages, folder, args.mode)
         print(f"iotad record:      {result['rate']:>10,.0f} events/s from {args.publishers} publisher processes; "
               f"{result['events']:,}/{result['expected']:,} recorded, lost {result['lost']}, "

@@ -156,7 +156,7 @@ def slope_per_min(points: list[tuple[float, float]]) -> float:
 
 def analyse(recording: Path) -> dict:
     """Stream the recording once (it may not fit in memory): counts and round trips."""
-    from iotad.recording.mcap_io import iter_messages
+    from iotad.recording.mcap_reader import iter_messages
     recorded: dict[str, int] = {}
     top: dict[str, int] = {}
     sent_at: dict[int, float] = {}

@@ -41,7 +41,8 @@ from iotad.kernel.policy import Eager  # noqa: E402
 from iotad.launcher.in_process import compose  # noqa: E402
 from iotad.launcher.system_file import load_system  # noqa: E402
 from iotad.cli.virtual_run import close_nodes, cores  # noqa: E402
-from iotad.recording.mcap_io import EngineRecorder, McapSink, recording_header  # noqa: E402
+from iotad.recording.engine_sink import EngineRecorder, recording_header  # noqa: E402
+from iotad.recording.mcap_sink import McapSink  # noqa: E402
 from iotad.recording.writer_process import RecordingProcess  # noqa: E402
 
 from kernel import ping_pong  # noqa: E402  (bench/kernel.py: the same trivial system)

@@ -41,11 +41,14 @@ JOINT_EVENT = Enum("jointEvent",
                    "SETPOINT_CLAMPED",   # a setpoint outside the limits, clamped (out_of_range = clamp)
                    "SETPOINT_REJECTED",  # a setpoint outside the limits (or not finite), not sent
                    "ESTOP",              # Estop sent to the axis
-                   "RESET")              # estop = false: a FAULT or ESTOPPED axis will re-arm
+                   "RESET",              # estop = false: a FAULT or ESTOPPED axis will re-arm
+                   "EMCY",               # CiA 402: the drive sent an emergency message (axis_error: its code)
+                   "SDO_ABORT",          # CiA 402: the drive refused a configuration write (disarm_reason: the code)
+                   "BOOT_UP")            # CiA 402: the drive (re)booted; it is configured again
 
 JOINT_STATUS = Struct(
     "jointStatus",
-    joint=Int(0, None), node_id=Int(0, 63), event=JOINT_EVENT, phase=MOTOR_PHASE, lost=Bool,
+    joint=Int(0, None), node_id=Int(0, 127), event=JOINT_EVENT, phase=MOTOR_PHASE, lost=Bool,
     # Heartbeat
     axis_state=U8, axis_error=U32, procedure_result=U8, trajectory_done=Bool,
     # Get_Error

@@ -102,13 +102,16 @@ class SimulatedOdrives(Iota):
     def answered(self):
         self.outbox.popleft()
 
+    # (`when`: a subclass may drive no ODrive axis at all, sim/cia402_sim.py)
     @can_tx.action(value=lambda self: self.axes[self.next_heartbeat].heartbeat().to_value(),
+                   when=lambda self: len(self.axes) > 0,
                    within=(lambda self: self.heartbeat_period / len(self.axes),
                            lambda self: self.heartbeat_period / len(self.axes) + self.timing_slack))
     def heartbeat(self):
         self.next_heartbeat = (self.next_heartbeat + 1) % len(self.axes)
 
     @can_tx.action(value=lambda self: self.axes[self.next_encoder].encoder_estimates().to_value(),
+                   when=lambda self: len(self.axes) > 0,
                    within=(lambda self: self.encoder_period / len(self.axes),
                            lambda self: self.encoder_period / len(self.axes) + self.timing_slack))
     def encoder_estimates(self):
@@ -246,26 +249,28 @@ def _check_params(iota: SimulatedOdrives) -> None:
         raise ValueError(f"node_ids must be a list (joint order) or a table {{joint = id}}, got {iota.node_ids!r}")
 
 
-def _node_ids(node_ids: list | dict, names: list[str]) -> dict[str, int]:
+def _node_ids(node_ids: list | dict, names: list[str], what: str = "node_ids", first: int = 0,
+              last: int = 0x3F) -> dict[str, int]:
+    """{joint: id} from a list in joint order or a table; [] numbers every joint from `first`."""
     if isinstance(node_ids, dict):
         unknown = set(node_ids) - set(names)
         if unknown:
-            raise ValueError(f"node_ids names joints the world does not have: {sorted(unknown)}; it has {names}")
+            raise ValueError(f"{what} names joints the world does not have: {sorted(unknown)}; it has {names}")
         mapping = dict(node_ids)
     elif not node_ids:
-        mapping = {name: k for k, name in enumerate(names)}
+        mapping = {name: first + k for k, name in enumerate(names)}
     elif len(node_ids) != len(names):
-        raise ValueError(f"node_ids has {len(node_ids)} ids for {len(names)} joints {names}")
+        raise ValueError(f"{what} has {len(node_ids)} ids for {len(names)} joints {names}")
     else:
         mapping = dict(zip(names, node_ids))
     ids = list(mapping.values())
     for node in ids:
-        if isinstance(node, bool) or not isinstance(node, int) or not 0 <= node <= 0x3F:
-            raise ValueError(f"node id {node!r} is not 0..63")
+        if isinstance(node, bool) or not isinstance(node, int) or not first <= node <= last:
+            raise ValueError(f"node id {node!r} is not {first}..{last}")
     if len(set(ids)) != len(ids):
         raise ValueError(f"node ids must be distinct, got {mapping}")
     if not mapping:
-        raise ValueError("node_ids leaves no joint with an axis")
+        raise ValueError(f"{what} leaves no joint with an axis")
     return mapping
 
 

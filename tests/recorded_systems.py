@@ -1,7 +1,9 @@
 """Systems and recording helpers several test folders share: the Figure 2 demo system, an ESPRIT
 composite, and a way to tamper with a recorded trace."""
 from iotad.kernel.compose import Composite
-from iotad.recording.mcap_io import McapSink, RecordedMessage, packb, read_recording
+from iotad.recording.mcap_format import packb
+from iotad.recording.mcap_reader import read_recording, RecordedMessage
+from iotad.recording.mcap_sink import McapSink
 from requesters import Requester
 from scheduler import Scheduler
 

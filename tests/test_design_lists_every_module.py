@@ -6,7 +6,7 @@ import re
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-FOLDERS = ["iotad/kernel", "iotad/esprit", "iotad/can", "iotad/host", "iotad/launcher", "iotad/recording",
+FOLDERS = ["iotad/kernel", "iotad/esprit", "iotad/can", "iotad/ros2", "iotad/host", "iotad/launcher", "iotad/recording",
            "iotad/cli", "channels"]
 
 

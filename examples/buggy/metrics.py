@@ -2,7 +2,7 @@
 seconds in each basic behaviour, and mean hunger and fear, from one run's recording."""
 from __future__ import annotations
 
-from iotad.recording.buggy_plot import buggy_data
+from sim.worlds.buggy_plot import buggy_data
 
 
 def buggy_metrics(recording) -> dict:

@@ -3,7 +3,7 @@ in the bin, missed and dropped, as the world counted them, and how often the sch
 arm from one requester for another (preemptions)."""
 from __future__ import annotations
 
-from iotad.recording.conveyor_plot import conveyor_data
+from sim.worlds.conveyor_plot import conveyor_data
 from iotad.recording.timeline_plot import timeline
 
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 import sys
 from dataclasses import dataclass, field
 
-from iotad.recording.mcap_io import iter_messages
+from iotad.recording.mcap_reader import iter_messages
 
 
 @dataclass

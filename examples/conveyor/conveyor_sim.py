@@ -6,6 +6,7 @@ process of its own could not see them:
 
     camera (output, cameraFrame)   every `camera_period`: the end-effector camera's image and pose
     tally  (output, conveyorTally) whenever an object appears, is grasped, placed, missed or dropped
+    scene  (output, conveyorScene) with every camera frame: the belt, the bin and the cubes, to draw
 
 The tally is ground truth from the simulation: for the record, the plot and the tests; no
 controller reads it (planning works from what vision sees).
@@ -17,7 +18,7 @@ import pybullet
 from iotad import Internal, Output, Param
 from sim.odrive_sim import SimulatedOdrives
 
-from conveyor_types import CAMERA_FRAME, IMAGE_SIZE, TALLY
+from conveyor_types import CAMERA_FRAME, COLOUR_NAMES, CONVEYOR_SCENE, IMAGE_SIZE, MAX_SHOWN, TALLY
 
 CAMERA_FOV = 60.0
 CAMERA_AHEAD = 0.05  # m from the end-effector link along its z axis (as ConveyorWorld.camera_image)
@@ -30,6 +31,7 @@ class ConveyorSim(SimulatedOdrives):
     camera = Output(CAMERA_FRAME)
     snap = Internal()
     tally = Output(TALLY)
+    scene = Output(CONVEYOR_SCENE)
 
     def init(self):
         # checked before the world opens, so that a bad parameter leaves no world behind
@@ -40,6 +42,7 @@ class ConveyorSim(SimulatedOdrives):
             raise ValueError(f"camera_period must be seconds > 0, got {self.camera_period!r}")
         super().init()
         self.frame = None
+        self.drawn = None  # the scene of the last camera frame, until it is out
         self.counted = self._count()
         self.reported = None
 
@@ -52,6 +55,12 @@ class ConveyorSim(SimulatedOdrives):
     @snap.action(within=(lambda self: self.camera_period, lambda self: self.camera_period + self.timing_slack))
     def shot(self):
         self.frame = self._shot()
+        self.drawn = self._scene()
+
+    @scene.action(value=lambda self: self.drawn, when=lambda self: self.drawn is not None,
+                  within=(0, "camera_period"))
+    def sent_scene(self):
+        self.drawn = None
 
     @tally.action(value=lambda self: self.counted, when=lambda self: self.counted_key() != self.reported,
                   within=(0, "timing_slack"))
@@ -85,3 +94,15 @@ class ConveyorSim(SimulatedOdrives):
         eye = [p + CAMERA_AHEAD * f for p, f in zip(position, forward)]
         image = world.camera_image(IMAGE_SIZE, IMAGE_SIZE, fov=CAMERA_FOV)
         return CAMERA_FRAME(t=self.sim_time, rgb=image.tobytes(), fov=CAMERA_FOV, eye=eye, forward=forward, up=up)
+
+    def _scene(self):
+        """The belt, the bin and the cubes now (the newest MAX_SHOWN of those in the world)."""
+        world = self.plant
+        shown = [c for c in world.cubes if c.body >= 0][-MAX_SHOWN:]
+        centres = [pybullet.getBasePositionAndOrientation(c.body, physicsClientId=world.client)[0] for c in shown]
+        pad = [0.0] * (MAX_SHOWN - len(shown))
+        return CONVEYOR_SCENE(
+            t=self.sim_time, belt=[world.belt_x, world.belt_length, world.belt_width, world.belt_height],
+            bin=[*world.bin_position, world.bin_size, world.bin_height], cube_size=world.cube_size,
+            count=len(shown), x=[c[0] for c in centres] + pad, y=[c[1] for c in centres] + pad,
+            z=[c[2] for c in centres] + pad, colour=[COLOUR_NAMES.index(c.colour) for c in shown] + [0] * len(pad))

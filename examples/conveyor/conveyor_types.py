@@ -84,3 +84,12 @@ TALLY = Struct("conveyorTally", t=Float(0, None), spawned=Int(0, None), held=Int
                placed=Int(0, None), missed=Int(0, None), dropped=Int(0, None))
 
 COLOUR_NAMES = ("red", "green", "blue", "yellow")
+# The world as Foxglove draws it (iotad/recording/foxglove_scene.py), with every camera frame:
+# belt [x, length, width, height] (centred at y = 0, carrying toward -y), bin [x, y, size, height],
+# and the cubes in the world (on the belt, held, falling or in the bin), the newest MAX_SHOWN,
+# their centres and colours (indices into COLOUR_NAMES).
+MAX_SHOWN = 8
+CONVEYOR_SCENE = Struct("conveyorScene", t=Float(0, None), belt=Array(Float, 4), bin=Array(Float, 4),
+                        cube_size=Float(0, None), count=Int(0, MAX_SHOWN), x=Array(Float, MAX_SHOWN),
+                        y=Array(Float, MAX_SHOWN), z=Array(Float, MAX_SHOWN),
+                        colour=Array(Int(0, len(COLOUR_NAMES) - 1), MAX_SHOWN))

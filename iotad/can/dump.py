@@ -1,10 +1,12 @@
-"""candump-like lines for CAN frames, with the ODrive CAN Simple message and signals by name.
+"""candump-like lines for CAN frames, with the ODrive CAN Simple message and signals by name, or the CANopen service.
 
     format_frame(1.25, frame, "rx")
     '    1.250000  rx  06C  [8]  00 00 C0 3F C8 00 00 00  Set_Input_Pos node=3 Input_Pos=1.5 Vel_FF=0.2 Torque_FF=0'
 
 A remote frame shows `R` for its data; a frame CAN Simple does not know ends in `unknown`, a
-known command of the wrong shape in `malformed: ...`. On a live bus an error frame is a line
+known command of the wrong shape in `malformed: ...`. Given `canopen`, a `canopen.PdoTracker` of
+the bus's CiA 402 node ids, the frames it claims (NMT, SYNC, heartbeats, those drives' EMCY, SDO
+and PDOs) are decoded as CANopen instead: PDOs by their mapping, as the SDO writes on the bus set it. On a live bus an error frame is a line
 `ERROR  bus off; ...` in words (`error_frames.py`). `python -m iotad.can.dump` prints a live bus
 (the tier's bus by default: run it under `python -m iotad.can.tiers run -- ...`).
 """
@@ -19,7 +21,7 @@ from .error_frames import describe_error_frame
 from .frame import Frame, FrameError
 
 
-def format_frame(t: float, frame, direction: str = "") -> str:
+def format_frame(t: float, frame, direction: str = "", canopen=None) -> str:
     """One line: time (s), direction, id in hex, [dlc], data bytes, the decoded message."""
     try:
         frame = frame if isinstance(frame, Frame) else Frame.from_value(frame)
@@ -27,11 +29,11 @@ def format_frame(t: float, frame, direction: str = "") -> str:
         return f"{t:12.6f}  {direction:>3}  not a CAN frame: {exc}"
     ident = f"{frame.id:08X}" if frame.extended else f"{frame.id:03X}"
     data = "R" if frame.rtr else frame.data.hex(" ").upper()
-    return f"{t:12.6f}  {direction:>3}  {ident:>8}  [{frame.dlc}]  {data:<23}  {decoded(frame)}".rstrip()
+    return f"{t:12.6f}  {direction:>3}  {ident:>8}  [{frame.dlc}]  {data:<23}  {decoded(frame, canopen)}".rstrip()
 
 
 def live_lines(bus, timeout: float | None = None, count: int = 0,
-               keep: Callable[[Frame], bool] = lambda frame: True) -> Iterator[str]:
+               keep: Callable[[Frame], bool] = lambda frame: True, canopen=None) -> Iterator[str]:
     """The lines of what a live bus (`bus.open_bus`) carries, as it comes, until `count` lines
     (0: never) or `timeout` quiet seconds (None: never). Its frames that `keep` takes, and, whatever
     `keep` says (they concern the whole bus), what no IOTA can take: an error frame in words
@@ -52,12 +54,18 @@ def live_lines(bus, timeout: float | None = None, count: int = 0,
             else:
                 if not keep(frame):
                     continue
-                yield format_frame(t, frame, "rx")
+                yield format_frame(t, frame, "rx", canopen)
         shown += 1
 
 
-def decoded(frame: Frame) -> str:
-    """The ODrive message a frame carries, in words; `unknown` or `malformed: why` otherwise."""
+def decoded(frame: Frame, canopen=None) -> str:
+    """The ODrive message a frame carries, in words; `unknown` or `malformed: why` otherwise. With
+    `canopen` (a PdoTracker), the CANopen service of a frame it claims."""
+    if canopen is not None and canopen.claims(frame):
+        try:
+            return canopen.describe(frame)
+        except FrameError as exc:
+            return f"malformed: {exc}"
     if frame.extended:
         return "unknown"  # CAN Simple uses 11-bit ids: another protocol shares the bus
     try:

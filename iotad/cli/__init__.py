@@ -25,6 +25,7 @@ GROUPS = (
     ("record and examine a recording (MCAP)", ("record", "info", "replay", "check", "plot", "export", "recover",
                                                "candump")),
     ("watch a running system", ("top", "view", "ls", "echo", "pub", "hz")),
+    ("bring up a CAN bus", ("can",)),
 )
 
 EPILOG = """\
@@ -117,24 +118,17 @@ def endpoint(text: str) -> str:
 
 def output_file(path: str, option: str = "-o") -> None:
     """Refuse, with one line, an output path that cannot be written: a folder, or one under a file."""
-    from pathlib import Path
+    from iotad.launcher.recording_paths import unwritable
 
-    target = Path(path)
-    if target.is_dir():
-        raise CliError(f"{option} {path}: is a directory; name the file to write")
-    for parent in target.parents:
-        if parent.exists():
-            if not parent.is_dir():
-                raise CliError(f"{option} {path}: {parent} is not a directory")
-            if not os.access(parent, os.W_OK):
-                raise CliError(f"{option} {path}: cannot write in {parent}")
-            break
+    problem = unwritable(path)
+    if problem:
+        raise CliError(f"{option} {path}: {problem}")
 
 
 def new_recording(path: str, force: bool, option: str = "-o") -> None:
     """Refuse, with one line, to write a recording over one that is already there, unless `force`."""
     import time
-    from iotad.recording.mcap_io import existing_recording
+    from iotad.launcher.recording_paths import existing_recording
 
     found = None if force else existing_recording(path)
     if found is not None:
@@ -148,7 +142,7 @@ def claim_recording(path: str, force: bool, option: str = "-o") -> bool:
     """`new_recording`'s check, then the name claimed (`claim_file`): of two runs started together
     with the same `-o`, one writes it and the other is refused here. True if this call created
     the (empty) file, which its caller removes should nothing be written to it."""
-    from iotad.recording.mcap_io import claim_file
+    from iotad.launcher.recording_paths import claim_file
 
     new_recording(path, force, option)
     if force:
@@ -282,7 +276,7 @@ def _main(argv: list[str] | None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 0
-    from iotad.recording.mcap_io import RecordingError
+    from iotad.recording.mcap_format import RecordingError
     try:
         return int(args.func(args) or 0)
     except (CliError, RecordingError) as exc:  # bad input, a damaged recording among it

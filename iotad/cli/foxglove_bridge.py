@@ -12,6 +12,10 @@ that the 3D and plot panels work without configuration:
 - CAN frames (`canFrame`): the JSON message also carries `decoded`, the ODrive CAN Simple message
   by name (`Heartbeat node=3 ...`), or why it is not one.
 
+- the robot in 3D (`iotad.recording.foxglove_scene`): the arm's URDF on `/robot_description`,
+  its link meshes, frames and named joint states, Buggy's arena, path and pose, on `/scene/...`;
+  the meshes' `package://` URLs are answered as assets from pybullet_data (`asset`).
+
 `/log` (`foxglove.Log`) carries the schedulers' acks and `mdl_command` as info lines and every
 violation as a warning, from the nodes' `@trace`. The mapping is pure (`views`), so it is tested
 without a server.
@@ -123,6 +127,10 @@ class Bridge:
         self._poses: dict[str, Any] = {}
         self._kinds = {"joints": (self._joints, JointStatesChannel), "pose": (self._poses, PoseInFrameChannel)}
         self.log_channel = LogChannel(LOG_TOPIC)
+        from iotad.recording.foxglove_scene import SceneTracker
+
+        self.scene = SceneTracker(embed=False)  # meshes by URL: the server answers them (asset)
+        self._scene: dict[str, Any] = {}
         self.schemas: dict[str, dict] = {}   # topic -> JSON schema (from @spec)
         self.types: dict[str, str] = {}      # key -> type name
         self.sent = 0
@@ -157,6 +165,29 @@ class Bridge:
                         orientation=Quaternion(x=0.0, y=0.0, z=message["qz"], w=message["qw"])))
                 channel.log(typed, log_time=stamp_ns)
             self.sent += 1
+        for topic, message in self.scene.feed(key, value, stamp_ns):
+            channel = self._scene.get(topic)
+            if channel is None:
+                channel = self._scene[topic] = self._scene_channel(topic, message)
+            channel.log(message, log_time=stamp_ns)
+            self.sent += 1
+
+    def _scene_channel(self, topic: str, message: Any) -> Any:
+        import foxglove.channels
+
+        from iotad.recording.foxglove_scene import URDF_SCHEMA
+
+        if isinstance(message, dict):  # the URDF, as ROS's std_msgs/msg/String: Foxglove's URDF layer reads it
+            return self._foxglove.Channel(topic, schema=URDF_SCHEMA)
+        return getattr(foxglove.channels, f"{type(message).__name__}Channel")(topic)
+
+    @staticmethod
+    def asset(uri: str) -> bytes | None:
+        """A mesh of the arm's URDF (`package://xarm_description/...`), for Foxglove's fetchAsset."""
+        from iotad.recording.robot_model import mesh_path
+
+        path = mesh_path(uri)
+        return None if path is None else path.read_bytes()
 
     def trace(self, path: str, events: list, stamp_ns: int) -> None:
         from foxglove.messages import Log, LogLevel, Timestamp

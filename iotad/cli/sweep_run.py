@@ -74,7 +74,7 @@ def _run_virtual(task: dict, checked) -> int:
 def measure(task: dict, code: int) -> dict[str, Any]:
     """The run's metrics by the hook, once the recording shows a whole run."""
     from iotad.kernel.python_loader import load_object
-    from iotad.recording.mcap_io import read_recording
+    from iotad.recording.mcap_reader import read_recording
 
     recording = read_recording(task["recording"])
     if recording.run_error:

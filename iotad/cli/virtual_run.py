@@ -21,7 +21,7 @@ PROGRESS_EVERY = 1.0  # wall-clock seconds between progress lines
 def run_virtual(system, args: argparse.Namespace, second_process: bool = True) -> int:
     """Run `system` as `iotad run --virtual` with `args`; `second_process=False`: the recording is
     written in this process even with cores to spare (a sweep's runs already use every core)."""
-    from iotad.recording.mcap_io import MAX_RECORDED_SECONDS
+    from iotad.recording.mcap_format import MAX_RECORDED_SECONDS
     from iotad.recording.writer_process import RecordingProcess
 
     if args.until is None:
@@ -89,8 +89,10 @@ def _run_composed(system, args: argparse.Namespace, writer, root, leaves: dict, 
     from iotad.kernel.clock import VirtualClock
     from iotad.kernel.engine import Engine
     from iotad.kernel.policy import Eager, Random
-    from iotad.recording.mcap_io import (RUN_END, RUN_ERROR, EngineRecorder, McapSink, recording_header,
-                                         unused_recording_path)
+    from iotad.launcher.recording_paths import unused_recording_path
+    from iotad.recording.engine_sink import EngineRecorder, recording_header
+    from iotad.recording.mcap_format import RUN_END, RUN_ERROR
+    from iotad.recording.mcap_sink import McapSink
     from iotad.recording.writer_process import WriterFailed
 
     inputs = [_external_entry(entry, system, args.inputs) for entry in inputs]

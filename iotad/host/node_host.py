@@ -120,6 +120,14 @@ class NodeHost:
                 raise ConfigError(f"{config.path}: sits on CAN bus {config.can['bus']!r} but has no "
                                   f"can_tx output and can_rx input")
             self.can = CanPort(config.can, self.clock.post, self.clock.now)
+        # the ROS 2 bridge (iotad/ros2/bridge.py) says what its port speaks; no other IOTA has one
+        self.ros2 = None
+        ros2_config = getattr(root, "ros2_port", None)
+        if ros2_config is not None:
+            from iotad.ros2.port import Ros2Port
+            self.ros2 = Ros2Port(ros2_config, self.clock.post, RawInput, wire.encode, wire.encode_attachment,
+                                 self.clock.now)
+            self.engine.sinks.append(self.ros2.on_event)
 
     # ------------------------------------------------------------------ start and stop
     def start(self, settle: Any = None) -> None:
@@ -147,6 +155,8 @@ class NodeHost:
         self._declared += [self._trace_pub, self._beat_pub]
         if self.can is not None:
             self.can.open()  # CanPortError: the caller reports it, the node does not start
+        if self.ros2 is not None:
+            self._declared += self.ros2.open(session)  # undeclared with the node's own entities
         post = self.clock.post
         for port in self.table.inputs:
             for key in port.keys:
@@ -309,6 +319,9 @@ class NodeHost:
     def _heartbeat(self, t: float, backlog: int) -> None:
         if self.can is not None:
             self._can_problems(t)
+        if self.ros2 is not None:
+            for channel, violation, message, count in self.ros2.take_problems():
+                self._report(t, channel, None, violation, message, count=count)
         self._beat(t, backlog)
 
     def _beat(self, t: float, backlog: int) -> None:

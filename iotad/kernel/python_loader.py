@@ -1,9 +1,11 @@
-"""Loading a Python IOTA class named as "path/to/file.py:Class" or "package.module:Class"."""
+"""Loading a Python IOTA class named as "path/to/file.py:Class" or "package.module:Class", or from
+the source text a recording stored (`module_from_text`)."""
 from __future__ import annotations
 
 import hashlib
 import importlib
 import importlib.util
+import linecache
 import os
 import sys
 from contextlib import contextmanager
@@ -136,3 +138,53 @@ def _builds_an_iota(function: Any) -> bool:
 def _shown(found: Any) -> str:
     text = repr(found)
     return text if len(text) <= 80 else text[:77] + "..."
+
+
+def package_of(module: str | None, where: str) -> str | None:
+    """The package a stored module's relative imports (`from .joint_map import ...`) resolve
+    in: from the recorded module name, or from a `package.module` reference (`where`); None for
+    a file that is no package's module."""
+    if not module and where and not where.endswith(".py"):
+        module = where  # a "package.module:Class" reference
+    if not module or module == "__main__":
+        return None
+    try:
+        found = importlib.util.find_spec(module)
+    except (ImportError, ValueError):
+        found = None
+    if found is not None and found.submodule_search_locations is not None:
+        return module  # the text is the package's __init__
+    return module.rpartition(".")[0] or None
+
+
+def module_from_text(text: str, file: str, package: str | None = None) -> Any:
+    """Import a Python source stored in a recording as a module (a LoadError if it does not run);
+    its text goes to linecache so that the
+    dependency analysis (iotad.kernel.dependencies) can still read the functions' source.
+    In `package` (imported first), so that its relative imports find the package's modules."""
+    digest = hashlib.sha1(text.encode()).hexdigest()[:12]
+    name = f"_iotad_recorded_{digest}"
+    if package:
+        try:
+            importlib.import_module(package)
+            name = f"{package}.{name}"
+        except ImportError:
+            pass  # not installed here: relative imports will say so
+    module = sys.modules.get(name)
+    if module is not None:
+        return module
+    filename = f"<recorded {Path(file).name or 'spec'} {digest}>"
+    linecache.cache[filename] = (len(text), None, text.splitlines(True), filename)
+    folder = str(Path(file).parent) if file else ""
+    if folder and Path(folder).is_dir() and folder not in sys.path:
+        sys.path.append(folder)  # neighbours it imports, if they are still there
+    spec = importlib.util.spec_from_loader(name, loader=None)
+    module = importlib.util.module_from_spec(spec)
+    module.__file__ = filename
+    sys.modules[name] = module
+    try:
+        exec(compile(text, filename, "exec"), module.__dict__)
+    except Exception as exc:
+        del sys.modules[name]
+        raise LoadError(f"stored source of {file}: {type(exc).__name__}: {exc}") from None
+    return module

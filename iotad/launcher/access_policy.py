@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from iotad.host import wire
+from iotad.launcher.ros2_tables import widen_grant
 from iotad.launcher.system_file import System
 
 RECORDER_USER = "iotad-recorder"
@@ -118,6 +119,7 @@ def derive(system: System) -> Policy:
         grant.tokens = [f"{base}/@alive"]
         # peer_restart inputs watch the others' tokens; every node waits for its launcher's start gate
         grant.watch = [f"{wire.PREFIX}/{name}/**/@alive", wire.gate_key(name, "*")]
+        widen_grant(system, node.name, grant)  # the ROS 2 bridge's topics and tokens, if it is this node
         grants.append(grant)
     reader = dict(subscribe=list(READ_KEYS), ask=list(QUERY_KEYS), watch=list(ALIVE_KEYS))
     grants.append(Grant(RECORDER_USER, "recorder", **reader))

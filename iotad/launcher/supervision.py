@@ -34,6 +34,7 @@ from typing import Any, Callable
 
 from iotad.host import wire
 from iotad.launcher.processes import FAILED_TO_START, Child, RestartPolicy, describe_exit, stop_all
+from iotad.launcher.recording_paths import next_continuation, unwritable
 from iotad.launcher.system_file import NodeSpec, Port, System, with_port
 
 ALIVE = "@alive"
@@ -299,7 +300,8 @@ class Launcher:
         if not self.record_path:  # the CLI names it (run.launch): the launcher does not know the file names
             raise LauncherError("a recorded run needs record_path (the .mcap file to write)")
         output = Path(self.record_path)
-        problem = _unwritable(output)
+        self._recording_since = time.time()  # files older than this are an earlier run's (--force replaces them)
+        problem = unwritable(output, make_folder=True, min_free_bytes=MIN_FREE_BYTES)
         if problem:
             raise LauncherError(f"cannot record to {output}: {problem}; choose another file with -o, "
                                 "or run without a recording (--no-record)")
@@ -365,12 +367,9 @@ class Launcher:
             self._lose_recording(f"the recorder died {self._recorder_restarts + 1} times")
             return
         self._recorder_restarts += 1
-        output = _segment(self.recordings[0], self._recorder_restarts)
-        number = self._recorder_restarts
-        while output.exists() and not self.record_force:  # an earlier run's: kept, as `-o` keeps one
-            number += 1
-            output = _segment(self.recordings[0], number)
-        problem = _unwritable(output)
+        output = next_continuation(self.recordings[0], self._recorder_restarts,
+                                   self._recording_since if self.record_force else None)
+        problem = unwritable(output, make_folder=True, min_free_bytes=MIN_FREE_BYTES)
         if problem:
             self._lose_recording(f"cannot record to {output}: {problem}")
             return
@@ -815,40 +814,6 @@ def _log_tail(child: Child | None, lines: int = 4) -> str:
 
 def _label_order(item: tuple) -> tuple:
     return (type(item[0]).__name__, item[0])
-
-
-def _unwritable(output: Path) -> str | None:
-    """Why a recording cannot be written at `output` (checked before anything starts), or None."""
-    blocking = next((p for p in output.parents if p.exists() and not p.is_dir()), None)
-    if blocking is not None:
-        return f"{blocking} is a file, not a folder"
-    try:
-        output.parent.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        return f"cannot create its folder {output.parent}: {exc.strerror or exc}"
-    if output.is_dir():
-        return "it is a folder"
-    try:
-        free = shutil.disk_usage(output.parent).free
-    except OSError as exc:
-        return f"cannot see the free space of {output.parent}: {exc.strerror or exc}"
-    if free < MIN_FREE_BYTES:
-        return (f"only {free / 2**20:.1f} MiB free on its file system "
-                f"(at least {MIN_FREE_BYTES // 2**20} MiB wanted)")
-    existed = output.exists()
-    try:
-        with open(output, "ab"):
-            pass
-    except OSError as exc:
-        return exc.strerror or str(exc)
-    if not existed:
-        output.unlink(missing_ok=True)
-    return None
-
-
-def _segment(first: Path, number: int) -> Path:
-    """Where the recording goes on after its recorder died: `name.1.mcap`, `name.2.mcap`..."""
-    return first.with_name(f"{first.stem}.{number}{first.suffix}")
 
 
 __all__ = ["Launcher", "LauncherError", "NodeRun", "Tally"]

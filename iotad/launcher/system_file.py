@@ -67,7 +67,7 @@ _SYSTEM_KEYS = {"name", "time_unit", "endpoints", "hub_host", "heartbeat_period"
 _TABLE_HINT = {"external": " (a top-level key must come before the first table; or put it in [system])"}
 _NODE_KEYS = {"name", "spec", "iota", "python", "params", "restart", "max_restarts", "backoff", "host",
               "after", "policy", "seed", "required", "input_queue"}
-_TOP_KEYS = {"system", "node", "bind", "external", "hosts", "can", "sweep"}
+_TOP_KEYS = {"system", "node", "bind", "external", "hosts", "can", "ros2", "sweep"}
 _SWEEP_KEYS = {"metrics"}
 _CAN_KEYS = {"name", "interface", "channel", "bitrate", "stations", "options", "log"}
 CAN_TX, CAN_RX = "can_tx", "can_rx"  # the two channels of a node on a CAN bus
@@ -317,6 +317,9 @@ class _Parser:
             if in_system:
                 self.check_external(system, in_system, "[system] external")
             self.check_allow_pub(system)
+            if not self.errors:  # [[ros2]]: the ROS 2 bridge node and its bindings (docs/ros2.md)
+                from iotad.launcher.ros2_tables import add_ros2_bridge
+                add_ros2_bridge(self, system, self.table_list("ros2"))
             if not self.errors:  # an input whose binding failed is not also "unbound"
                 self.check_inputs_covered(system)
         if self.errors:

@@ -39,7 +39,8 @@ from iotad.host import wire
 from iotad.host.can_port import KEY_PREFIX as CAN_KEY_PREFIX
 from iotad.kernel.engine import INPUT_REFUSALS
 from iotad.launcher.system_file import Port  # one concrete channel, as the system file names it
-from iotad.recording.mcap_io import RecordedMessage, Recording, packb, unpackb
+from iotad.recording.mcap_format import packb, unpackb
+from iotad.recording.mcap_reader import RecordedMessage, Recording
 
 GRACE = 0.1  # seconds: longer than any delivery seen here (~1 ms, tens under load) by far
 MASK = 0xFFFFFFFF  # MCAP keeps 32 bits of a sequence number

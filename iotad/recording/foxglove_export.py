@@ -2,14 +2,20 @@
 
 Every message becomes a JSON object: trace events and struct values already are; a bare value
 (an enum name such as "COMMIT", a number, nothing) is wrapped as `{"value": ...}` and its JSON
-Schema wrapped the same way, because Foxglove shows fields of objects.
+Schema wrapped the same way, because Foxglove shows fields of objects. Beside them, the robot in
+3D (`iotad.recording.foxglove_scene`): the arm's model, frames and joint states, Buggy's arena,
+path and pose, in Foxglove's own schemas.
 """
 from __future__ import annotations
 
 import json
 from pathlib import Path
 
-from iotad.recording.mcap_io import EXPORTED, McapSink, Recording
+from iotad.host import wire
+from iotad.recording.foxglove_scene import SceneWriter
+from iotad.recording.mcap_format import EXPORTED
+from iotad.recording.mcap_reader import Recording
+from iotad.recording.mcap_sink import McapSink
 
 
 def _is_object_schema(schema: dict) -> bool:
@@ -32,6 +38,7 @@ def export_json(recording: Recording, output: str | Path, extra_metadata: dict[s
         by_topic = {c.topic: c for c in recording.channels.values()}
         ids: dict[str, tuple[int, bool]] = {}
         schema_ids: dict[tuple, int] = {}
+        scene = SceneWriter(sink.writer)
         count = 0
         for message in recording.messages:
             entry = ids.get(message.topic)
@@ -61,6 +68,10 @@ def export_json(recording: Recording, output: str | Path, extra_metadata: dict[s
             data = json.dumps(value, separators=(",", ":"), default=repr).encode()
             sink.writer.add_message(channel_id, message.log_time, data, message.publish_time, message.sequence)
             count += 1
+            parsed = wire.parse_key(message.topic)
+            if parsed is not None and not parsed[2].startswith("@"):
+                scene.feed(message.topic, message.value, message.log_time)
+        count += scene.count
     finally:
         sink.finish()
     return count

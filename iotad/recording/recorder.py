@@ -21,7 +21,7 @@ Split recordings (`max_size`, `max_duration`, like rosbag2's): at the first flus
 has reached either bound, the file is finished (summary, footer) and the next one begins, each
 a whole recording on its own (metadata, system file, every spec known so far). `output` is then
 the set file: no messages, only the list of members `NAME_0.mcap`, `NAME_1.mcap`... in the same
-folder, rewritten before each member is created; `mcap_io.read_recording(output)` reads the set
+folder, rewritten before each member is created; `mcap_reader.read_recording(output)` reads the set
 as one recording. Sequence gaps are tracked across the files, as in one.
 
 Memory stays flat over a long run: the writer keeps one chunk and the chunk indexes go to a temp
@@ -45,8 +45,9 @@ import zenoh
 from iotad.host import wire
 from iotad.host.can_port import KEY_PREFIX as CAN_KEY_PREFIX
 from iotad.host.credentials import for_endpoints
-from iotad.recording.mcap_io import (FORMAT, GAP_TOPIC, MALFORMED_TOPIC, McapSink, trace_event_problem,
-                                     channel_schemas, member_path, packb, schema_for_topic, write_set_file)
+from iotad.launcher.recording_paths import continuation_path
+from iotad.recording.mcap_format import FORMAT, GAP_TOPIC, MALFORMED_TOPIC, packb, trace_event_problem
+from iotad.recording.mcap_sink import channel_schemas, McapSink, schema_for_topic, write_set_file
 from iotad.host.transport import DEFAULT_LISTEN, open_session
 
 _MAPS = ("/@launcher", "/@heartbeat")  # keys whose payload every reader takes for a msgpack map
@@ -271,7 +272,7 @@ class Recorder:
         info = self._info()
         path = self.output
         if self.split:
-            path = member_path(self.output, len(self.files))
+            path = continuation_path(self.output, len(self.files))
             write_set_file(self.output, self._set_id, [p.name for p in self.files] + [path.name],
                            dict(info, split={"set": self._set_id, "set_file": self.output.name}))
         self.sink = McapSink(path)

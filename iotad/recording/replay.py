@@ -17,7 +17,8 @@ from iotad.host.wire import START_KIND
 from iotad.recording.conformance import _same, align_paths, describe, first_difference, split_runs
 from iotad.kernel.clock import VirtualClock
 from iotad.kernel.engine import Engine
-from iotad.recording.mcap_io import Recording, RecordingError, build_node, start_time
+from iotad.recording.mcap_format import RecordingError
+from iotad.recording.mcap_reader import Recording, start_time
 
 
 @dataclass
@@ -68,14 +69,16 @@ class ReplayResult:
 
 
 def node_root(recording: Recording, node: str) -> Any:
+    from iotad.esprit.stored_spec import StoredSpecError, build_node  # the ESPRIT compiler: only when replaying
+
     specs = recording.specs
     if node not in specs:
         known = ", ".join(sorted(specs)) or "none"
         raise RecordingError(f"no spec of node {node!r} in {recording.path} (nodes with specs: {known})")
     try:
         return build_node(specs[node], node)
-    except RecordingError:
-        raise
+    except StoredSpecError as exc:
+        raise RecordingError(str(exc)) from None
     except Exception as exc:  # noqa: BLE001 - a stored spec that no longer builds: ESPRIT, Python, params
         first = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
         raise RecordingError(f"the spec of node {node!r} stored in {recording.path} does not build: "

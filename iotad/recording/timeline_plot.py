@@ -14,7 +14,8 @@ import re
 import tomllib
 from pathlib import Path
 
-from iotad.recording.mcap_io import Recording, RecordingError
+from iotad.recording.mcap_format import RecordingError
+from iotad.recording.mcap_reader import Recording
 
 ACK_STYLE = {"COMMIT": ("o", "#2a9d3f"), "ABORT": ("v", "#e08a00"), "REJECT": ("X", "#c62828")}
 _TARGET = re.compile(r"^(?P<node>[\w/]+)\.(?P<channel>\w+)\[(?P<index>\d+)\]$")

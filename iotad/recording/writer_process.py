@@ -38,7 +38,9 @@ from typing import Any, Iterator
 
 import msgpack
 
-from iotad.recording.mcap_io import RUN_ERROR, EngineRecorder, McapSink, RecordingError
+from iotad.recording.engine_sink import EngineRecorder
+from iotad.recording.mcap_format import RUN_ERROR, RecordingError
+from iotad.recording.mcap_sink import McapSink
 
 BATCH = 256          # events per write to the pipe (~40 KB): well under what the pipe holds
 PIPE_SIZE = 1 << 20  # bytes the pipe holds (Linux's default most, /proc/sys/fs/pipe-max-size)

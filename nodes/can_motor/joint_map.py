@@ -16,16 +16,20 @@ message names the joint and the key.
 """
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from dataclasses import dataclass, fields
 from typing import Any
 
+from iotad.can.canopen import NODE_ID_MAX as CANOPEN_NODE_ID_MAX
 from iotad.can.odrive import INPUT_MODE, NODE_ID_MAX
 
 TAU = 2.0 * math.pi
 MODES = ("position", "velocity", "torque")
 OUT_OF_RANGE = ("reject", "clamp")
+PROTOCOLS = ("odrive", "cia402")
+OPERATION_MODES = {"position": ("csp", "pp"), "velocity": ("csv",), "torque": ()}  # CiA 402, by the joint's mode
 
 
 class JointMapError(ValueError):
@@ -55,6 +59,24 @@ class JointConfig:
     traj_accel_limit: float | None = None     # turns/s^2, Set_Traj_Accel_Limits (with the decel limit)
     traj_decel_limit: float | None = None     # turns/s^2
     traj_inertia: float | None = None         # Nm/(turns/s^2), Set_Traj_Inertia
+    # CiA 402 drives (protocol = "cia402"): docs/can_motor.md, "CiA 402 drives"
+    protocol: str = "odrive"                  # odrive (CAN Simple) | cia402 (CANopen)
+    operation_mode: str = ""                  # csp | pp (position), csv (velocity); "": csp or csv
+    counts_per_turn: float = 65536.0          # the drive's increments per motor turn (its 0x608F)
+    acceleration_limit: float = 10.0          # rad/s^2 at the joint: Profile Position's acceleration
+
+    # --- CiA 402: joint units -> drive increments, and back ------------------------------------
+    def counts(self, position: float) -> float:
+        return self.turns(position) * self.counts_per_turn
+
+    def counts_per_second(self, velocity: float) -> float:
+        return self.turns_per_second(velocity) * self.counts_per_turn
+
+    def position_of_counts(self, counts: float) -> float:
+        return self.position(counts / self.counts_per_turn)
+
+    def velocity_of_counts(self, counts_per_second: float) -> float:
+        return self.velocity(counts_per_second / self.counts_per_turn)
 
     # --- joint units -> motor units -------------------------------------------------------------
     def turns(self, position: float) -> float:
@@ -138,17 +160,26 @@ def _joint(k: int, entry: Any) -> JointConfig:
     unknown = sorted(set(entry) - set(_FIELDS))
     if unknown:
         raise JointMapError(f"{where}: unknown key(s) {unknown}; known: {sorted(_FIELDS)}")
+    protocol = entry.get("protocol", "odrive")
+    if protocol not in PROTOCOLS:
+        raise JointMapError(f"{where}: protocol must be odrive or cia402, got {protocol!r}")
+    low, high = (1, CANOPEN_NODE_ID_MAX) if protocol == "cia402" else (0, NODE_ID_MAX)
     if "node_id" not in entry:
-        raise JointMapError(f"{where}: needs a node_id (0..{NODE_ID_MAX})")
+        raise JointMapError(f"{where}: needs a node_id ({low}..{high})")
     node_id = entry["node_id"]
-    if isinstance(node_id, bool) or not isinstance(node_id, int) or not 0 <= node_id <= NODE_ID_MAX:
-        raise JointMapError(f"{where}: node_id must be a whole number 0..{NODE_ID_MAX}, got {node_id!r}")
+    if isinstance(node_id, bool) or not isinstance(node_id, int) or not low <= node_id <= high:
+        kind = " (a cia402 axis: CANopen)" if protocol == "cia402" else ""
+        raise JointMapError(f"{where}: node_id must be a whole number {low}..{high}, got {node_id!r}{kind}")
     settings: dict[str, Any] = {"name": name, "node_id": node_id}
     for key, raw in entry.items():
         if key in ("name", "node_id"):
             continue
         settings[key] = _setting(where, key, raw)
     joint = JointConfig(**settings)
+    if joint.protocol == "cia402":
+        joint = _cia402(where, joint)
+    elif joint.operation_mode:
+        raise JointMapError(f"{where}: operation_mode is for a cia402 axis; an ODrive's is mode and input_mode")
     if not joint.position_min < joint.position_max:
         raise JointMapError(f"{where}: position_min ({joint.position_min}) must be below position_max "
                             f"({joint.position_max})")
@@ -158,6 +189,18 @@ def _joint(k: int, entry: Any) -> JointConfig:
         raise JointMapError(f"{where}: give traj_accel_limit and traj_decel_limit together "
                             "(one Set_Traj_Accel_Limits frame)")
     return joint
+
+
+def _cia402(where: str, joint: JointConfig) -> JointConfig:
+    """A CiA 402 joint with its operation mode resolved: csp for position, csv for velocity."""
+    allowed = OPERATION_MODES[joint.mode]
+    if not allowed:
+        raise JointMapError(f"{where}: a cia402 axis runs position (csp, pp) or velocity (csv), not torque")
+    mode = joint.operation_mode or allowed[0]
+    if mode not in allowed:
+        raise JointMapError(f"{where}: operation_mode {mode!r} does not drive a {joint.mode} joint; "
+                            f"one of {', '.join(allowed)}")
+    return dataclasses.replace(joint, operation_mode=mode)
 
 
 def _number(where: str, key: str, raw: Any, *, positive: bool = False, infinite: bool = False) -> float:
@@ -183,6 +226,14 @@ def _setting(where: str, key: str, raw: Any) -> Any:
         if raw not in OUT_OF_RANGE:
             raise JointMapError(f"{where}: out_of_range must be reject or clamp, got {raw!r}")
         return raw
+    if key == "protocol":
+        return raw
+    if key == "operation_mode":
+        if raw not in ("csp", "pp", "csv"):
+            raise JointMapError(f"{where}: operation_mode must be csp, pp or csv, got {raw!r}")
+        return raw
+    if key in ("counts_per_turn", "acceleration_limit"):
+        return _number(where, key, raw, positive=True)
     if key == "input_mode":
         if raw not in INPUT_MODE:
             raise JointMapError(f"{where}: input_mode must be an ODrive input mode "

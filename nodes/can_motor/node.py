@@ -17,6 +17,10 @@ One IOTA drives one CAN bus of ODrive axes (firmware 0.6), one axis per joint of
 - Feedback: Heartbeat, Get_Encoder_Estimates (cyclic), Get_Error and the other axis messages
   (polled with remote frames as `polls` says); `joint_states` every `state_period` once every
   joint has reported a position; `joint_status[i]` at every heartbeat and every event.
+- CiA 402 drives (a joint with protocol = "cia402", nodes/can_motor/cia402_link.py): NMT and
+  SDO start-up, the controlword toward OPERATION ENABLED (a fault reset first), RPDO setpoints
+  taken at the SYNC this node sends every tick, TPDO state, and this node's heartbeat, which the
+  drives watch: a silent master is their fault reaction.
 - A heartbeat missing for `lost_after` heartbeat periods: LOST. Frames it cannot use go to
   `bad_frame`. `estop = true` (and `final_can_frames`, the node host's shutdown hook) sends
   Estop to every axis; `estop = false` resets ESTOPPED and FAULT axes, which then re-arm.
@@ -31,12 +35,14 @@ from typing import Any
 
 from channels.joints import joint_setpoints, joint_states
 from channels.motor import BAD_FRAME, JOINT_STATUS
+from iotad.can import canopen as co
 from iotad.can.frame import CAN_FRAME, Frame, FrameError
 from iotad.can.odrive import (AXIS_STATE, CONTROL_MODE, INPUT_MODE, MESSAGES, EncodeError, MalformedFrame,
                               UnknownFrame, decode, encode, node_id_of, request, undefined_values)
 from iotad.kernel.api import Input, Internal, Iota, Output, Param
 from iotad.kernel.types import Bool
 
+from .cia402_link import Cia402Link
 from .joint_map import JointConfig, JointMapError, parse_joints
 
 CLOSED_LOOP = AXIS_STATE["CLOSED_LOOP_CONTROL"]
@@ -98,6 +104,9 @@ class CanMotor(Iota):
     skip_unchanged = Param(False)   # a setpoint whose frame is the axis's last is not sent; keepalive repeats it
     arm_hold = Param(0.05)          # s between hold commands to an ARMING axis (feeds its watchdog); 0: off
     reaction_time = Param(0.003)    # s: outputs go out within this of what caused them
+    master_node_id = Param(127)     # CiA 402: this node's CANopen node id (its heartbeat's COB-ID 0x700 + id)
+    master_heartbeat = Param(0.05)  # CiA 402: s between this node's heartbeats; drives fault after lost_after of them
+    velocity_every = Param(1)       # CiA 402: SYNCs between a drive's TPDO2 (velocity actual); 1..240
 
     # Sized per joint map (see `_sized`); the declarations here are for six joints.
     setpoints = Input(joint_setpoints(6), switching=0)
@@ -120,7 +129,7 @@ class CanMotor(Iota):
     def init(self):
         self.joint_map = _joint_map(self.joints)
         _encodable(self.joint_map)
-        self.by_node = {joint.node_id: k for k, joint in enumerate(self.joint_map)}
+        self.by_node = {joint.node_id: k for k, joint in enumerate(self.joint_map) if joint.protocol == "odrive"}
         self.period = _check_period("state_period", self.state_period or self.encoder_period)
         self.lost_timeout = _check_period("heartbeat_period", self.heartbeat_period) * _count(self.lost_after)
         self.poll_plan = _poll_plan(self.polls, self.period)
@@ -130,6 +139,14 @@ class CanMotor(Iota):
                              "get no frame and its watchdog would stop it")
         self.arm_hold_ticks = _ticks("arm_hold", self.arm_hold, self.period)
         self.axes = [Axis(joint.node_id) for joint in self.joint_map]
+        if isinstance(self.velocity_every, bool) or not isinstance(self.velocity_every, int) \
+                or not 1 <= self.velocity_every <= 240:
+            raise ValueError(f"CanMotor: velocity_every must be a whole number of SYNCs 1..240, got {self.velocity_every!r}")
+        self.links = {k: Cia402Link(joint, self.master_node_id, self.master_heartbeat, self.lost_after,
+                                    self.heartbeat_period, self.velocity_every)
+                      for k, joint in enumerate(self.joint_map) if joint.protocol == "cia402"}
+        self.co_rx, self.co_host = _canopen_ids(self.joint_map, self.master_node_id) if self.links else ({}, frozenset())
+        self.master_ticks = _ticks("master_heartbeat", self.master_heartbeat, self.period) if self.links else 0
         self.reports: list[list[tuple]] = [[] for _ in self.joint_map]  # (event, requested, applied)
         self.tx: deque[Frame] = deque()
         self.bad: list = []
@@ -163,7 +180,10 @@ class CanMotor(Iota):
     def final_can_frames(self) -> list:
         """The shutdown hook of the node host (iotad/host/node_host.py): the frames it sends on the
         bus after the engine stopped, before the bus closes: Estop to every axis."""
-        return [encode(axis.node_id, "Estop").to_value() for axis in self.axes]
+        frames = [encode(axis.node_id, "Estop") for k, axis in enumerate(self.axes) if k not in self.links]
+        if self.links:  # a quick stop, taken at once by the SYNC after it
+            frames += [link.quick_stop(self.axes[k].command) for k, link in self.links.items()] + [co.sync()]
+        return [frame.to_value() for frame in frames]
 
     # ------------------------------------------------------------------ arming and timers
     @arm.action(when=lambda self, i: self.axes[i].phase == UNARMED and not self.axes[i].lost,
@@ -173,6 +193,8 @@ class CanMotor(Iota):
 
     @arm_timeout_expired.action(when=lambda self, i: self.axes[i].phase == ARMING, after="arm_timeout")
     def on_arm_timeout(self, i):
+        if i in self.links:
+            self.links[i].abandon()
         self.axes[i].phase = UNARMED
         self.reports[i].append(("ARM_TIMEOUT", 0.0, 0.0))
 
@@ -214,6 +236,11 @@ class CanMotor(Iota):
     def _send_arming(self, i: int) -> None:
         joint, axis = self.joint_map[i], self.axes[i]
         axis.command = axis.position if joint.mode == "position" else 0.0
+        if i in self.links:  # CiA 402: start-up if needed; the controlword follows at every tick
+            self.tx.extend(self.links[i].arming())
+            axis.phase, axis.retry, axis.last_sent = ARMING, True, self.ticks
+            self.reports[i].append(("ARM_SENT", 0.0, 0.0))
+            return
         frames = _arming_frames(joint)
         # The hold command before closed loop: the firmware keeps the input velocity and torque it
         # was last given across IDLE (only a position input is reset to where the axis is), so an
@@ -253,7 +280,10 @@ class CanMotor(Iota):
                     continue
                 applied = min(max(wanted, low), high)
             try:
-                frame = _setpoint_frame(joint, applied, value.velocity_ff[i], value.torque_ff[i])
+                if i in self.links:
+                    frame = tuple(self.links[i].setpoint(applied))
+                else:
+                    frame = _setpoint_frame(joint, applied, value.velocity_ff[i], value.torque_ff[i])
             except EncodeError:  # e.g. a position of 1e300 turns with no limits: no float32 holds it
                 self._report(i, "SETPOINT_REJECTED", wanted, axis.command)
                 continue
@@ -264,7 +294,10 @@ class CanMotor(Iota):
                 # the axis follows this already; `keepalive` feeds its watchdog (not a LOST
                 # axis's: it may still be running, and only the setpoints reach it then)
                 continue
-            self.tx.append(frame)
+            if isinstance(frame, tuple):
+                self.tx.extend(frame)
+            else:
+                self.tx.append(frame)
             axis.last_frame = frame
             axis.last_sent = self.ticks
 
@@ -277,6 +310,14 @@ class CanMotor(Iota):
         if frame.extended:
             self._bad("EXTENDED_ID", value)
             return
+        if self.links:
+            k = self.co_rx.get(frame.id)
+            if k is not None:
+                self._receive_canopen(k, frame, value)
+                return
+            if frame.id in self.co_host:  # NMT, SYNC or a master's heartbeat: another master
+                self._bad("UNEXPECTED", value)
+                return
         i = self.by_node.get(node_id_of(frame.id))
         if i is None:
             self._bad("UNKNOWN_NODE", value)
@@ -332,6 +373,97 @@ class CanMotor(Iota):
         for event in events or ["HEARTBEAT"]:
             self.reports[i].append((event, 0.0, 0.0))
 
+    # ------------------------------------------------------------------ CiA 402
+    def _receive_canopen(self, i: int, frame: Frame, value) -> None:
+        try:
+            message = co.decode(frame)
+        except co.MalformedFrame:
+            self._bad("WRONG_DLC", value)
+            return
+        except FrameError:
+            self._bad("UNKNOWN_COMMAND", value)
+            return
+        kind, link, axis = message.kind, self.links[i], self.axes[i]
+        if kind == "HEARTBEAT":
+            self._on_co_heartbeat(i, message.fields["state"])
+        elif kind == "EMCY":
+            link.error_code = axis.axis_error = message.fields["code"]
+            self.reports[i].append(("EMCY", 0.0, 0.0))
+        elif kind == "SDO_RESPONSE":
+            frames, event = link.on_sdo(message.fields)
+            self.tx.extend(frames)
+            if event:
+                axis.disarm_reason = link.abort_code
+                self.reports[i].append((event, 0.0, 0.0))
+                if axis.phase == ARMING:  # the start-up failed: another try after arm_retry
+                    axis.phase = UNARMED
+        elif frame.id in link.tpdo_maps:
+            try:
+                values = link.unpack(frame)
+            except co.MalformedFrame:
+                self._bad("WRONG_DLC", value)
+                return
+            self._on_tpdo(i, values)
+        elif kind.startswith("RPDO") or kind == "SDO_REQUEST":
+            self._bad("UNEXPECTED", value)  # a master's frame to our drive: another master
+        else:
+            self._bad("UNKNOWN_COMMAND", value)  # a TPDO this node did not map
+
+    def _on_co_heartbeat(self, i: int, state: str) -> None:
+        axis, link = self.axes[i], self.links[i]
+        axis.procedure_result = co.NMT_STATE.get(state, 0)
+        axis.heard = axis.beat = True
+        events = []
+        if axis.lost:
+            axis.lost = False
+            events.append("FOUND")
+        if link.on_heartbeat(state):
+            events.append("BOOT_UP")
+            if axis.phase == ARMED:
+                axis.phase = UNARMED if self.auto_rearm else FAULT
+                events.append("DISARMED")
+            elif axis.phase == ARMING:  # its power-on, or a restart mid-way: start again at once
+                axis.phase, axis.retry = UNARMED, False
+        for event in events or ["HEARTBEAT"]:
+            self.reports[i].append((event, 0.0, 0.0))
+
+    def _on_tpdo(self, i: int, values: dict) -> None:
+        joint, axis, link = self.joint_map[i], self.axes[i], self.links[i]
+        if 0x6064 in values:
+            axis.position = joint.position_of_counts(values[0x6064])
+            axis.has_position = True
+        if 0x606C in values:
+            axis.velocity = joint.velocity_of_counts(values[0x606C])
+        if 0x6077 in values:
+            axis.torque_estimate = link.torque(values[0x6077])
+            axis.effort = joint.torque(axis.torque_estimate)
+        if 0x6041 not in values:
+            return
+        link.statusword = axis.active_errors = values[0x6041]
+        axis.axis_state = co.STATE_NUMBER[link.state]
+        enabled = link.enabled
+        if axis.phase == ARMING and enabled:
+            axis.phase = ARMED
+            axis.command = axis.position if joint.mode == "position" else 0.0
+            axis.last_frame = None
+            self.reports[i].append(("ARM_DONE", 0.0, 0.0))
+        elif axis.phase == ARMED and not enabled:
+            axis.phase = UNARMED if self.auto_rearm else FAULT
+            self.reports[i].append(("DISARMED", 0.0, 0.0))
+        elif axis.phase == ESTOPPED and enabled:
+            self.tx.extend((link.quick_stop(axis.command), co.sync()))  # it missed the quick stop: again
+
+    def _canopen_tick(self) -> None:
+        """Each tick: the controlword to every arming drive, this node's heartbeat when due, SYNC."""
+        for i, link in self.links.items():
+            axis = self.axes[i]
+            if axis.phase == ARMING and link.configured and link.statusword >= 0 and not axis.lost:
+                hold = axis.position if self.joint_map[i].mode == "position" and axis.has_position else 0.0
+                self.tx.append(link.rpdo(link.next_controlword(), hold))
+        if self.ticks % self.master_ticks == 0:
+            self.tx.append(co.heartbeat(self.master_node_id, "OPERATIONAL"))
+        self.tx.append(co.sync())
+
     def _on_encoder_estimates(self, i: int, signals: dict) -> None:
         joint, axis = self.joint_map[i], self.axes[i]
         axis.position = joint.position(signals["Pos_Estimate"])
@@ -364,9 +496,14 @@ class CanMotor(Iota):
     def _estop(self) -> None:
         self.estopped = True
         for i, axis in enumerate(self.axes):
-            self.tx.append(encode(axis.node_id, "Estop"))
+            if i in self.links:
+                self.tx.append(self.links[i].quick_stop(axis.command))
+            else:
+                self.tx.append(encode(axis.node_id, "Estop"))
             axis.phase = ESTOPPED
             self.reports[i].append(("ESTOP", 0.0, 0.0))
+        if self.links:
+            self.tx.append(co.sync())  # the quick stops are taken now, not at the next tick
 
     def _reset(self) -> None:
         self.estopped = False
@@ -382,7 +519,10 @@ class CanMotor(Iota):
             self._keep_alive()
         for name, every in self.poll_plan:
             if self.ticks % every == 0:
-                self.tx.extend(request(axis.node_id, name) for axis in self.axes if not axis.lost)
+                self.tx.extend(request(axis.node_id, name) for k, axis in enumerate(self.axes)
+                               if not axis.lost and k not in self.links)
+        if self.links:
+            self._canopen_tick()
         if all(axis.has_position for axis in self.axes):
             self.states_due = True
 
@@ -394,6 +534,8 @@ class CanMotor(Iota):
         position, or 0 velocity or torque) every `arm_hold`: the firmware is in closed loop, its
         watchdog running, up to a heartbeat period before its heartbeat says so."""
         for joint, axis in zip(self.joint_map, self.axes):
+            if joint.protocol == "cia402":
+                continue  # its watchdog is the heartbeat consumer
             every = self.keepalive_ticks if axis.phase == ARMED else self.arm_hold_ticks if axis.phase == ARMING else 0
             if not every or axis.lost or self.ticks - axis.last_sent < every:
                 continue
@@ -470,6 +612,8 @@ def _encodable(joints: tuple[JointConfig, ...]) -> None:
     """Every joint's arming frames can be built: a limit or gain no float32 holds (1e39) is a
     JointMapError when the node is built, not a runtime error at every arming attempt."""
     for joint in joints:
+        if joint.protocol == "cia402":
+            continue
         try:
             _arming_frames(joint)
         except EncodeError as exc:
@@ -502,6 +646,32 @@ def _joint_map(value: Any) -> tuple[JointConfig, ...]:
         raise JointMapError("CanMotor needs a joint map: joints = [{ name = \"joint1\", node_id = 1 }, ...] "
                             "(docs/can_motor.md)")
     return parse_joints(value)
+
+
+def _canopen_ids(joints: tuple[JointConfig, ...], master: int) -> tuple[dict[int, int], frozenset]:
+    """({COB-ID: joint index} of every CiA 402 drive's services, the host-side ids: NMT, SYNC, the
+    master's heartbeat). An ODrive whose ids (node_id << 5 .. + 31) meet one of them is refused."""
+    if isinstance(master, bool) or not isinstance(master, int) or not 1 <= master <= co.NODE_ID_MAX:
+        raise ValueError(f"CanMotor: master_node_id must be 1..{co.NODE_ID_MAX}, got {master!r}")
+    rx: dict[int, int] = {}
+    for k, joint in enumerate(joints):
+        if joint.protocol != "cia402":
+            continue
+        if joint.node_id == master:
+            raise JointMapError(f"joint {joint.name}: node_id {master} is this node's own CANopen id "
+                                "(master_node_id)")
+        rx.update({function + joint.node_id: k for function in co.SERVICES})
+    host = frozenset((co.NMT, co.SYNC, co.HEARTBEAT + master))
+    for joint in joints:
+        if joint.protocol == "odrive":
+            ids = set(range(joint.node_id << 5, (joint.node_id << 5) + 32))
+            clash = sorted(ids & (set(rx) | host))
+            if clash:
+                raise JointMapError(f"joint {joint.name}: ODrive node_id {joint.node_id} uses CAN ids "
+                                    f"0x{joint.node_id << 5:03X}-0x{(joint.node_id << 5) + 31:03X}, which meet the "
+                                    f"CANopen id(s) {', '.join(f'0x{c:03X}' for c in clash[:4])} of this bus's "
+                                    "CiA 402 drives (NMT, SYNC, heartbeats, PDOs, SDOs); choose another")
+    return rx, host
 
 
 MIN_PERIOD = 1e-5  # s: 100 kHz, past any CAN bus's frame rate (about 8,000 frames/s at 1 Mbit/s)

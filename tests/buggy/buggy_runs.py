@@ -6,7 +6,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from iotad.recording.mcap_io import read_recording
+from iotad.recording.mcap_reader import read_recording
 
 ROOT = Path(__file__).resolve().parents[2]
 IOTAD = str(Path(sys.executable).parent / "iotad")

@@ -7,8 +7,8 @@ import math
 from buggy_runs import outputs, run_virtual
 
 from iotad.can.odrive import AXIS_STATE
-from iotad.recording.buggy_plot import buggy_data
-from iotad.recording.mcap_io import read_recording
+from sim.worlds.buggy_plot import buggy_data
+from iotad.recording.mcap_reader import read_recording
 
 ESTOP_AT = 8.0
 

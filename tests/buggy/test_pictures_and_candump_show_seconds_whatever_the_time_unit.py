@@ -4,8 +4,8 @@ import pytest
 
 from buggy_runs import ROOT, run_virtual
 from iotad.cli.commands.candump import frame_events
-from iotad.recording.buggy_plot import buggy_data
-from iotad.recording.mcap_io import read_recording
+from sim.worlds.buggy_plot import buggy_data
+from iotad.recording.mcap_reader import read_recording
 
 
 @pytest.fixture(scope="module")

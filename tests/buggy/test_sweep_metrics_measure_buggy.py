@@ -4,7 +4,7 @@ hunger and fear within the range the moods took; the hungrier, bolder Buggy is h
 from buggy_runs import ROOT
 from iotad.kernel.python_loader import load_object
 from iotad.launcher.system_file import load_system
-from iotad.recording.mcap_io import read_recording
+from iotad.recording.mcap_reader import read_recording
 
 
 def test_metrics_of_the_timid_and_the_bold_buggy(buggy_run, hungry_run):

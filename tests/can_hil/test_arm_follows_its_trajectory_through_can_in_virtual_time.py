@@ -8,7 +8,7 @@ pytest.importorskip("pybullet")
 
 from arm_hil import EXAMPLE, FINAL, final_positions, frames  # noqa: E402
 from iotad.cli import main  # noqa: E402
-from iotad.recording.mcap_io import read_recording  # noqa: E402
+from iotad.recording.mcap_reader import read_recording  # noqa: E402
 
 
 @pytest.fixture(scope="module")

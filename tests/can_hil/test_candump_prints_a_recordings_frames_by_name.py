@@ -10,7 +10,7 @@ from arm_hil import EXAMPLE  # noqa: E402
 from iotad.can import odrive  # noqa: E402
 from iotad.cli import main  # noqa: E402
 from iotad.cli.commands.candump import frame_events  # noqa: E402
-from iotad.recording.mcap_io import read_recording  # noqa: E402
+from iotad.recording.mcap_reader import read_recording  # noqa: E402
 
 LINE = re.compile(r"^(\w+)\s+(\d+\.\d{6})\s+(\S+)\s+([0-9A-F]{3})\s+\[(\d)\]\s+((?:[0-9A-F]{2} ?)*|R)\s+(\S+)(.*)$")
 

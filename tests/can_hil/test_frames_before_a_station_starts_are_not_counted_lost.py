@@ -6,7 +6,7 @@ start must not be taken for the first ones received (each reception then paired 
 sent periods before it: false 'reordered', then 'lost', findings)."""
 from pingpong import run_pingpong
 from iotad.recording.delivery import check_delivery
-from iotad.recording.mcap_io import read_recording
+from iotad.recording.mcap_reader import read_recording
 
 
 def test_frames_sent_before_the_echo_started_are_not_judged_and_the_rest_delivered(system_can_tier, tmp_path):

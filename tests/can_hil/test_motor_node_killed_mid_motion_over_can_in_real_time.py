@@ -22,7 +22,7 @@ pytestmark = pytest.mark.timeout(300)  # the run's start-up alone can take a min
 
 from arm_hil import (CLOSED_LOOP, FINAL, ROOT, after_the_kill, motor_starts, settled_positions,  # noqa: E402
                      system_variant)
-from iotad.recording.mcap_io import read_recording  # noqa: E402
+from iotad.recording.mcap_reader import read_recording  # noqa: E402
 
 STEP = 0.005            # the example's simulated step_period
 KILL_AFTER = 3.0        # s after the motor node is live (the first leg runs 0.5-4.5 s after its first state)

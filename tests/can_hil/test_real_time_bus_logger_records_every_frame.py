@@ -14,7 +14,8 @@ from pingpong import run_pingpong
 from iotad.can.frame import Frame
 from iotad.cli import main
 from iotad.recording.delivery import check_delivery
-from iotad.recording.mcap_io import packb, read_recording
+from iotad.recording.mcap_format import packb
+from iotad.recording.mcap_reader import read_recording
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "recording"))
 from wire_tamper import rewrite  # noqa: E402

@@ -14,7 +14,7 @@ import pytest
 pytest.importorskip("pybullet")
 
 from arm_system import system_toml  # noqa: E402
-from iotad.recording.mcap_io import read_recording  # noqa: E402
+from iotad.recording.mcap_reader import read_recording  # noqa: E402
 from iotad.recording.replay import replay_node  # noqa: E402
 
 IOTAD = [sys.executable, "-m", "iotad.cli"]

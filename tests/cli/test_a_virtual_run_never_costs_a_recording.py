@@ -8,7 +8,8 @@ from pathlib import Path
 import pytest
 
 from iotad.cli import main, virtual_run
-from iotad.recording.mcap_io import EngineRecorder, read_recording
+from iotad.recording.engine_sink import EngineRecorder
+from iotad.recording.mcap_reader import read_recording
 from iotad.recording.writer_process import RecordingProcess
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -12,7 +12,8 @@ import pytest
 
 from iotad.cli import main
 from iotad.kernel.compose import Composite
-from iotad.recording.mcap_io import EngineRecorder, McapSink, record_run
+from iotad.recording.engine_sink import EngineRecorder, record_run
+from iotad.recording.mcap_sink import McapSink
 from requesters import Requester
 from scheduler import Scheduler
 
@@ -173,7 +174,7 @@ CASES = [
      "vision never fired 'schedule': it is no motion scheduler (here: scheduler)"),
     (["export", "{d}/good.mcap", "-o", "{d}/folder", "--json"], "is a directory"),
     (["export", "{d}/good.mcap", "-o", "{d}/good.mcap", "--json"], "another file than the recording"),
-    (["export", "{d}/good.mcap", "-o", "{d}/x.mcap"], "required: --json"),
+    (["export", "{d}/good.mcap", "-o", "{d}/x.mcap"], "one of the arguments --json --ros2 is required"),
     (["recover", "{d}/good.mcap", "-o", "{d}/empty.toml/x.mcap"], "is not a directory"),
     # iotad record (fails before subscribing)
     (["record", "-o", "{d}/r.mcap"], "nothing to record"),
@@ -195,7 +196,7 @@ CASES = [
     (["ls", *FAST], "no zenoh peer at tcp/127.0.0.1:9"),
     (["ls", "--connect", "garbage"], "expected a zenoh endpoint"),
     (["ls", "--timeout", "0"], "--timeout: expected a number > 0"),
-    (["export", "{d}/good.mcap", "-o", "{d}/x.mcap"], "iotad: error: export: the following arguments are required: --json (see 'iotad export --help')"),
+    (["export", "{d}/good.mcap", "-o", "{d}/x.mcap"], "iotad: error: export: one of the arguments --json --ros2 is required (see 'iotad export --help')"),
     (["echo", "iota/**", *FAST], "is a system running?"),
     (["echo", "bad//key"], "not a key expression"),
     (["echo", "iota/**", "--count", "-1"], "--count: expected a whole number > 0"),

@@ -3,7 +3,7 @@ the one every trace event, violation and `iotad check` line is in: seconds from 
 origin, not from the recording's first message (which came a fraction of a second later)."""
 from iotad.cli import main
 from iotad.host import wire
-from iotad.recording.mcap_io import McapSink
+from iotad.recording.mcap_sink import McapSink
 
 
 def test_a_launcher_event_is_timed_as_the_nodes_events_are(tmp_path, capsys):

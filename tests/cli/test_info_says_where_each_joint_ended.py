@@ -3,7 +3,7 @@ axes went to FAULT and stayed there (its controllers restarted) stops with no vi
 so, and the line names the joints, since when, and the event that put them there."""
 from iotad.cli import main
 from iotad.host import wire
-from iotad.recording.mcap_io import McapSink
+from iotad.recording.mcap_sink import McapSink
 
 
 def status(joint, phase, event, lost=False):

@@ -7,7 +7,8 @@ import sys
 from pathlib import Path
 
 from iotad.cli import main
-from iotad.recording.mcap_io import read_recording, unused_recording_path
+from iotad.launcher.recording_paths import unused_recording_path
+from iotad.recording.mcap_reader import read_recording
 
 ROOT = Path(__file__).resolve().parents[2]
 FIGURE2 = str(ROOT / "examples" / "figure2.toml")

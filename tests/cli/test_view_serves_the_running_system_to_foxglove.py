@@ -13,7 +13,7 @@ import pytest
 from launcher_helpers import free_port, launcher, wait_until
 
 from iotad.cli.foxglove_bridge import can_decoded, joint_states, log_lines, planar_pose, topic_of, views
-from iotad.recording.mcap_io import read_recording
+from iotad.recording.mcap_reader import read_recording
 
 ROOT = Path(__file__).resolve().parents[2]
 websockets_client = pytest.importorskip("websockets.sync.client")

@@ -12,7 +12,7 @@ import pytest
 pytest.importorskip("pybullet")
 
 from conveyor_variant import IOTAD, system_variant  # noqa: E402
-from iotad.recording.mcap_io import read_recording  # noqa: E402
+from iotad.recording.mcap_reader import read_recording  # noqa: E402
 
 UNTIL = 18.6  # s: the second object is placed at ~17.6 s and manipulation's request commits at ~18.5 s
 
@@ -85,7 +85,7 @@ def test_no_violation_and_iotad_check_passes(run):
 
 
 def test_iotad_plot_draws_the_picks_and_who_held_the_arm(run, tmp_path):
-    from iotad.recording.conveyor_plot import conveyor_data, matches
+    from sim.worlds.conveyor_plot import conveyor_data, matches
     recording = read_recording(run["path"])
     assert matches(recording)
     data = conveyor_data(recording)

@@ -14,7 +14,7 @@ pytest.importorskip("pybullet")
 
 from conveyor_variant import IOTAD, ROOT, system_variant  # noqa: E402
 from iotad.can.tiers import TierBus, TierUnavailable  # noqa: E402
-from iotad.recording.mcap_io import read_recording  # noqa: E402
+from iotad.recording.mcap_reader import read_recording  # noqa: E402
 
 NODES = {"sim", "motor", "interpreter", "scheduler", "planning", "vision", "manipulation"}
 

@@ -6,7 +6,8 @@ from iotad.host import wire
 from iotad.recording.conformance import check_trace, split_start
 from iotad.host.host_clock import HostClock
 from iotad.recording.recorder import yield_cpu
-from iotad.recording.mcap_io import McapSink, read_recording, start_time
+from iotad.recording.mcap_reader import read_recording, start_time
+from iotad.recording.mcap_sink import McapSink
 from scheduler import Scheduler
 
 

@@ -20,7 +20,7 @@ from iotad.cli import main
 from iotad.host import credentials as creds
 from iotad.host import wire
 from iotad.host.transport import open_session
-from iotad.recording.mcap_io import read_recording
+from iotad.recording.mcap_reader import read_recording
 
 ROOT = Path(__file__).resolve().parents[2]
 ROGUE = "ROGUE"

@@ -12,7 +12,7 @@ import pytest
 from iotad.can.frame import Frame
 from iotad.cli import main
 from iotad.launcher.system_file import SystemFileError, load_system
-from iotad.recording.mcap_io import read_recording
+from iotad.recording.mcap_reader import read_recording
 from system_iotas import PINGPONG_BUS, pingpong_system
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -11,7 +11,7 @@ from iotad.launcher.access_policy import derive
 from iotad.launcher.bus_logger import LOGGER_REF, is_bus_logger
 from iotad.launcher.in_process import compose
 from iotad.launcher.system_file import SystemFileError, load_system
-from iotad.recording.mcap_io import read_recording
+from iotad.recording.mcap_reader import read_recording
 from system_iotas import PINGPONG_BUS, pingpong_system
 
 SYSTEM = pingpong_system(10, system="time_unit = 0.001", bus=PINGPONG_BUS + "\nbitrate = 500000")

@@ -15,7 +15,7 @@ import pytest
 
 from iotad.cli import main
 from iotad.launcher.supervision import Launcher
-from iotad.recording.mcap_io import read_recording
+from iotad.recording.mcap_reader import read_recording
 from iotad.launcher.system_file import load_system
 from launcher_helpers import (IOTAS, ROOT, Observer, children_of, free_port, gone, launcher, pair_system,
                               wait_until)
@@ -255,7 +255,7 @@ def test_recorder_killed_mid_run_is_reported_restarted_and_recoverable(tmp_path)
     port = free_port()
     system_file = pair_system(tmp_path, port)
     first = tmp_path / "rec.mcap"
-    earlier = tmp_path / "rec.1.mcap"  # an earlier run's second file: kept, the new one goes on in rec.2
+    earlier = tmp_path / "rec_1.mcap"  # an earlier run's second file: kept, the new one goes on in rec_2
     earlier.write_bytes(b"an earlier run")
     observer = Observer("pair", f"tcp/127.0.0.1:{port}")
     try:
@@ -264,7 +264,7 @@ def test_recorder_killed_mid_run_is_reported_restarted_and_recoverable(tmp_path)
             event = signal_the_recorder(proc, observer, signal.SIGKILL, 20)
             assert event is not None, proc.output.read_text()
             second = Path(event["file"])
-            assert second == tmp_path / "rec.2.mcap"
+            assert second == tmp_path / "rec_2.mcap"
             assert earlier.read_bytes() == b"an earlier run"
             # the new recorder hears the nodes: wait for their traffic in the growing file
             assert wait_until(lambda: second.exists() and any(
@@ -300,14 +300,14 @@ def test_a_frozen_recorder_is_killed_and_replaced(tmp_path):
             assert observer.wait_all_alive(("src", "dst"), 20), proc.output.read_text()
             event = signal_the_recorder(proc, observer, signal.SIGSTOP, RECORDER_STALL + 2 * 3.0 + 20)  # heartbeat 3 s
             assert event is not None, proc.output.read_text()
-            assert Path(event["file"]) == tmp_path / "rec.1.mcap"
+            assert Path(event["file"]) == tmp_path / "rec_1.mcap"
             proc.send_signal(signal.SIGINT)
             assert proc.wait(20) == 130
         output = proc.output.read_text()
     finally:
         observer.close()
     assert "recorder: killed by SIGKILL (frozen: no sign of life for" in output, output
-    assert read_recording(tmp_path / "rec.1.mcap").complete
+    assert read_recording(tmp_path / "rec_1.mcap").complete
 
 
 def test_a_real_time_run_with_force_replaces_the_recording(tmp_path):
@@ -335,7 +335,7 @@ def test_unwritable_recording_path_is_an_error_before_any_node_starts(tmp_path, 
     # said by the launcher's check, or earlier by the command line's own check of -o
     assert str(target) in result.stderr and ("cannot record to" in result.stderr or "is a directory" in result.stderr)
     if where == "under-a-file":
-        assert f"{tmp_path / 'plain'} is a file, not a folder" in result.stderr, result.stderr
+        assert f"{tmp_path / 'plain'} is not a directory" in result.stderr, result.stderr
     assert len(result.stderr.strip().splitlines()) == 1, result.stderr
     assert "Traceback" not in result.stderr and "started" not in result.stdout
 

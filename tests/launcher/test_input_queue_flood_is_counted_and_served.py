@@ -8,7 +8,7 @@ import time
 import zenoh
 
 from iotad.host import wire
-from iotad.recording.mcap_io import read_recording
+from iotad.recording.mcap_reader import read_recording
 from launcher_helpers import Observer, free_port, launcher, wait_until
 
 FLOOD, QUEUE, LAST = 400, 5, 1_000_000

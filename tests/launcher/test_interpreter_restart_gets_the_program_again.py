@@ -10,7 +10,7 @@ import threading
 from pathlib import Path
 
 from iotad.host import wire
-from iotad.recording.mcap_io import read_recording
+from iotad.recording.mcap_reader import read_recording
 from launcher_helpers import ROOT, Observer, children_of, free_port, launcher
 
 EPOCH = 6.0

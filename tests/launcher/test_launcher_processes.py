@@ -13,7 +13,7 @@ import zenoh
 from iotad.host import wire
 from iotad.launcher.supervision import Launcher
 from iotad.launcher.system_file import load_system
-from iotad.recording.mcap_io import read_recording
+from iotad.recording.mcap_reader import read_recording
 from launcher_helpers import IOTAS, Observer, children_of, free_port, gone, launcher, pair_system, wait_until
 
 STUB = Path(__file__).resolve().parents[1] / "launcher_stub_node.py"

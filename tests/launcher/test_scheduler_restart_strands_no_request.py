@@ -11,7 +11,7 @@ import time
 from pathlib import Path
 
 from iotad.host import wire
-from iotad.recording.mcap_io import read_recording
+from iotad.recording.mcap_reader import read_recording
 from launcher_helpers import ROOT, Observer, children_of, free_port, launcher
 
 SLACK = 1.0  # seconds for liveliness to travel and a loaded machine to schedule the requester

@@ -5,7 +5,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from iotad.recording.mcap_io import read_recording
+from iotad.recording.mcap_reader import read_recording
 
 TESTS = Path(__file__).resolve().parents[1]
 # tests/system_iotas.py's Source, going live about 3 s after it is started (a slow start-up)

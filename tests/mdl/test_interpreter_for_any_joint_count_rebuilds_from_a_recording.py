@@ -2,7 +2,7 @@
 it, and `iotad check` / `iotad replay` rebuild it by that name from the stored module source."""
 import pytest
 
-from iotad.recording.mcap_io import build_node, spec_record
+from iotad.esprit.stored_spec import build_node, spec_record
 from nodes.mdl_interp import interpreter
 
 

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from iotad.recording.mcap_io import read_recording
+from iotad.recording.mcap_reader import read_recording
 from launcher_helpers import ROOT, free_port
 
 SYSTEM = ROOT / "examples" / "mdl_arm_realtime.toml"

@@ -9,7 +9,7 @@ import pytest
 pytest.importorskip("pybullet")
 
 from iotad.cli import main  # noqa: E402
-from iotad.recording.mcap_io import read_recording  # noqa: E402
+from iotad.recording.mcap_reader import read_recording  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
 SYSTEM = ROOT / "examples" / "mdl_arm.toml"

@@ -3,7 +3,8 @@ of 64 bits at most: a larger one is sent and recorded as the float it stands for
 the largest float is a bad_value, never a recorder that dies with the run."""
 from iotad.kernel.api import Internal, Iota, Output
 from iotad.kernel.types import Array, Float, Struct
-from iotad.recording.mcap_io import read_recording, record_run
+from iotad.recording.engine_sink import record_run
+from iotad.recording.mcap_reader import read_recording
 
 POINT = Struct("point", x=Float, y=Float(0, None))
 

@@ -4,7 +4,7 @@ re-running the node at the eager policy's times, which would diverge at once."""
 from pathlib import Path
 
 from iotad.cli import main
-from iotad.recording.mcap_io import read_recording
+from iotad.recording.mcap_reader import read_recording
 from iotad.recording.replay import replay_node
 
 ROOT = Path(__file__).resolve().parents[2]

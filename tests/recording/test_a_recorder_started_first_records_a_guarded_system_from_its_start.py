@@ -12,7 +12,7 @@ from pathlib import Path
 
 from iotad.cli import main
 from iotad.host.wire import START_KIND
-from iotad.recording.mcap_io import read_recording
+from iotad.recording.mcap_reader import read_recording
 from launcher_helpers import free_port
 from node_harness import wait_for
 

@@ -6,7 +6,8 @@ from iotad.cli import main
 from iotad.host import wire
 from iotad.kernel.clock import VirtualClock
 from iotad.kernel.engine import Engine
-from iotad.recording.mcap_io import read_recording, record_run
+from iotad.recording.engine_sink import record_run
+from iotad.recording.mcap_reader import read_recording
 from iotad.recording.replay import replay_node
 from recorded_systems import figure2, mutate
 
@@ -58,7 +59,7 @@ def test_a_real_time_recording_without_a_node_s_start_is_not_checked(tmp_path, c
     # as `iotad record` attached to a running system writes it: a real clock, no start records
     info = dict(recording.metadata["iotad.recording"], clock='"real"')
     rewritten = tmp_path / "late-real.mcap"
-    from iotad.recording.mcap_io import McapSink
+    from iotad.recording.mcap_sink import McapSink
     sink = McapSink(rewritten)
     for item in recording.attachments:
         sink.attach(item.name, item.media_type, item.data)
@@ -81,7 +82,8 @@ def without_second_start(tmp_path, launcher: bool):
     lost = mutate(path, tmp_path / "lost.mcap", "scheduler",
                   lambda events: [e for e in events if not (e["kind"] == wire.START_KIND and e["t"] > 0)])
     recording = read_recording(lost)
-    from iotad.recording.mcap_io import McapSink, packb
+    from iotad.recording.mcap_format import packb
+    from iotad.recording.mcap_sink import McapSink
     out = tmp_path / f"lost-{launcher}.mcap"
     sink = McapSink(out)
     for item in recording.attachments:

@@ -11,7 +11,8 @@ from pathlib import Path
 import pytest
 
 from iotad.cli import main, virtual_run
-from iotad.recording.mcap_io import read_recording, recording_header
+from iotad.recording.engine_sink import recording_header
+from iotad.recording.mcap_reader import read_recording
 from iotad.recording.writer_process import CUT_SHORT, RecordingProcess, WriterFailed
 
 ROOT = Path(__file__).resolve().parents[2]

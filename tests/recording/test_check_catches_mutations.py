@@ -6,7 +6,10 @@ import pytest
 
 from iotad.recording.conformance import check_implements, check_trace
 from iotad.cli import main
-from iotad.recording.mcap_io import McapSink, RecordedMessage, packb, read_recording, record_run
+from iotad.recording.engine_sink import record_run
+from iotad.recording.mcap_format import packb
+from iotad.recording.mcap_reader import read_recording, RecordedMessage
+from iotad.recording.mcap_sink import McapSink
 from requesters import Requester
 from scheduler import Scheduler
 from recorded_systems import find, mutate

@@ -5,7 +5,8 @@ missing a node's final firings passed."""
 from pathlib import Path
 
 from iotad.cli import main
-from iotad.recording.mcap_io import McapSink, read_recording
+from iotad.recording.mcap_reader import read_recording
+from iotad.recording.mcap_sink import McapSink
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -8,7 +8,10 @@ import pytest
 
 from iotad.cli import main
 from iotad.kernel.trace_jsonl import dumps, read
-from iotad.recording.mcap_io import McapSink, packb, read_recording, record_run
+from iotad.recording.engine_sink import record_run
+from iotad.recording.mcap_format import packb
+from iotad.recording.mcap_reader import read_recording
+from iotad.recording.mcap_sink import McapSink
 from recorded_systems import COMPOSITE, figure2
 
 READERS = [["info"], ["check"], ["replay", "--node", "scheduler"], ["export", "--json", "-o", "{out}"]]
@@ -203,7 +206,7 @@ def test_a_recovered_copy_of_a_cut_recording_says_so_and_is_no_pass(recorded, tm
     missing, so info says RECOVERED and check's verdict is PROBLEMS, naming why."""
     from iotad.kernel.clock import VirtualClock
     from iotad.kernel.engine import Engine
-    from iotad.recording.mcap_io import EngineRecorder
+    from iotad.recording.engine_sink import EngineRecorder
 
     chunked = tmp_path / "chunked.mcap"  # a chunk a second, as a recorder flushes: a cut keeps some
     sink = McapSink(chunked)
@@ -234,9 +237,9 @@ def test_long_reads_and_checks_say_what_they_are_doing(recorded, tmp_path, capsy
     """Reading a long recording reports how far it is every PROGRESS_EVERY s; check names each
     node as it goes when the recording is long (here: the thresholds made small)."""
     from iotad.cli.commands import check
-    from iotad.recording import mcap_io
+    from iotad.recording import mcap_reader
 
-    monkeypatch.setattr(mcap_io, "PROGRESS_EVERY", 0.0)
+    monkeypatch.setattr(mcap_reader, "PROGRESS_EVERY", 0.0)
     monkeypatch.setattr(check, "LONG", 10)
     capsys.readouterr()
     assert main(["check", str(recorded)]) == 0

@@ -8,7 +8,7 @@ from pathlib import Path
 
 from iotad.cli import main
 from iotad.recording.delivery import check_delivery
-from iotad.recording.mcap_io import read_recording
+from iotad.recording.mcap_reader import read_recording
 
 ROOT = Path(__file__).resolve().parents[2]
 

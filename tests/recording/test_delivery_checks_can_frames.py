@@ -9,7 +9,8 @@ import pytest
 
 from iotad.cli import main
 from iotad.recording.delivery import check_delivery
-from iotad.recording.mcap_io import packb, read_recording
+from iotad.recording.mcap_format import packb
+from iotad.recording.mcap_reader import read_recording
 from system_iotas import pingpong_system
 from wire_tamper import index_of, rewrite, with_value
 

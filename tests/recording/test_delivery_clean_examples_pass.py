@@ -8,7 +8,7 @@ import pytest
 
 from iotad.cli import main
 from iotad.recording.delivery import check_delivery
-from iotad.recording.mcap_io import read_recording
+from iotad.recording.mcap_reader import read_recording
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 SYSTEMS = sorted(EXAMPLES.glob("*.toml"))

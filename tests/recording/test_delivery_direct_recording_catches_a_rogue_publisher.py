@@ -11,7 +11,7 @@ import pytest
 
 from iotad.cli import main
 from iotad.recording.delivery import check_delivery
-from iotad.recording.mcap_io import read_recording
+from iotad.recording.mcap_reader import read_recording
 from launcher_helpers import free_port, stop_launcher, wait_until
 
 ROOT = Path(__file__).resolve().parents[2]

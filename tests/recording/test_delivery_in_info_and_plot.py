@@ -5,7 +5,7 @@ from pathlib import Path
 import pytest
 
 from iotad.cli import main
-from iotad.recording.mcap_io import read_recording
+from iotad.recording.mcap_reader import read_recording
 from iotad.recording.timeline_plot import delivery_marks
 from wire_tamper import index_of, rewrite
 

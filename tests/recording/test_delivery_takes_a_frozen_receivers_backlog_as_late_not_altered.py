@@ -5,7 +5,8 @@ all alike (an ODrive's heartbeat is), it used to take an older twin that waited 
 for lost, pair the backlog with the newest twins, and call the frames left over 'altered'."""
 from iotad.host import wire
 from iotad.recording.delivery import check_delivery
-from iotad.recording.mcap_io import McapSink, read_recording
+from iotad.recording.mcap_reader import read_recording
+from iotad.recording.mcap_sink import McapSink
 
 SYSTEM = """[system]
 name = "pp"

@@ -7,7 +7,7 @@ import json
 from pathlib import Path
 
 from iotad.cli import main
-from iotad.recording.mcap_io import read_recording
+from iotad.recording.mcap_reader import read_recording
 
 FIGURE2 = Path(__file__).resolve().parents[2] / "nodes" / "scheduler" / "scheduler.iota"
 HUGE = 10**30

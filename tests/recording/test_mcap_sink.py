@@ -1,13 +1,19 @@
 """McapSink's fast writer (the recorder's hot path): batched messages, pairs and plain writes in
-order, with chunk indexes, message indexes and statistics the mcap readers accept."""
+order, with chunk indexes, message indexes and statistics the mcap readers accept; the same bytes
+as the mcap Writer's public API, and that API where the Writer's private fields are not there."""
 import struct
+
 
 import zstandard
 from mcap.reader import make_reader
 from mcap.records import Chunk, MessageIndex
 from mcap.stream_reader import StreamReader
 
-from iotad.recording.mcap_io import McapSink, packb, read_recording
+from iotad.recording import mcap_sink
+from iotad.recording.mcap_batch_writer import BatchWriter
+from iotad.recording.mcap_format import packb
+from iotad.recording.mcap_reader import read_recording
+from iotad.recording.mcap_sink import McapSink
 
 
 def test_fast_writer_batches_pairs_and_plain_writes_into_a_valid_indexed_file(tmp_path):
@@ -60,3 +66,39 @@ def test_fast_writer_batches_pairs_and_plain_writes_into_a_valid_indexed_file(tm
                     assert (opcode, channel_id, log_time) == (5, record.channel_id, log)
                     checked += 1
     assert checked == len(expected)
+
+
+def write_messages(path, fast: bool) -> None:
+    """600 messages on three channels, pairs among them, flushed every 100, through the batch
+    writer or through the mcap Writer's public `add_message`."""
+    sink = McapSink(path)
+    channels = [sink.channel(f"iota/s/n{k}/out", f"t{k}", {"type": "integer"}) for k in range(3)]
+    write = sink.fast_writer() if fast else sink.write
+    write_pair = sink.write_pair
+    for k in range(600):
+        log = 5_000 + 10 * k
+        if k % 5 == 0:
+            write_pair(channels[0], log, log - 3, k, packb({"k": k}), channels[2], log - 4, k, packb(-k))
+        else:
+            write(channels[k % 3], log, log - 1, k, packb(k))
+        if k % 100 == 99:
+            sink.flush()
+    sink.finish()
+
+
+def test_the_batch_writer_writes_the_bytes_of_the_public_api(tmp_path):
+    write_messages(tmp_path / "fast.mcap", fast=True)
+    write_messages(tmp_path / "public.mcap", fast=False)
+    assert (tmp_path / "fast.mcap").read_bytes() == (tmp_path / "public.mcap").read_bytes()
+    assert len(read_recording(tmp_path / "fast.mcap").messages) == 720
+
+
+def test_without_the_writers_private_fields_the_sink_writes_through_the_public_api(tmp_path, monkeypatch):
+    assert BatchWriter.of(object()) is None  # a Writer without them (another mcap version)
+    write_messages(tmp_path / "public.mcap", fast=False)
+    monkeypatch.setattr(mcap_sink.BatchWriter, "of", classmethod(lambda cls, writer: None))
+    sink = McapSink(tmp_path / "x.mcap")
+    assert sink.fast_writer() == sink.write and sink.write_pair == sink._write_pair
+    sink.finish()
+    write_messages(tmp_path / "fallback.mcap", fast=True)
+    assert (tmp_path / "fallback.mcap").read_bytes() == (tmp_path / "public.mcap").read_bytes()

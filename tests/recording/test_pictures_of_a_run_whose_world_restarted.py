@@ -3,9 +3,10 @@ the launcher): the restarted world begins from a new world, so the Buggy path is
 across the restart and its landmarks are not drawn twice, and the conveyor's counts go on from
 where the first world's ended instead of dropping back to 0; the restart is marked."""
 from iotad.host import wire
-from iotad.recording.buggy_plot import _runs, buggy_data, plot
-from iotad.recording.conveyor_plot import _across_restarts
-from iotad.recording.mcap_io import McapSink, read_recording
+from sim.worlds.buggy_plot import _runs, buggy_data, plot
+from sim.worlds.conveyor_plot import _across_restarts
+from iotad.recording.mcap_reader import read_recording
+from iotad.recording.mcap_sink import McapSink
 
 CRACK = {"kind": "CRACK", "id": 0, "x1": -1.0, "y1": 0.0, "x2": 1.0, "y2": 0.5}
 WALL = {"kind": "WALL", "id": 0, "x1": -2.0, "y1": -2.0, "x2": 2.0, "y2": 2.0}

@@ -6,7 +6,9 @@ from mcap.reader import make_reader
 
 from iotad.cli import main
 from iotad.kernel.compose import Composite
-from iotad.recording.mcap_io import SCHEMA_ENCODING, read_recording, record_run
+from iotad.recording.engine_sink import record_run
+from iotad.recording.mcap_format import SCHEMA_ENCODING
+from iotad.recording.mcap_reader import read_recording
 from requesters import Requester
 from scheduler import Scheduler
 from recorded_systems import figure2

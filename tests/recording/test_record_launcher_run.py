@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from iotad.cli import main
-from iotad.recording.mcap_io import read_recording
+from iotad.recording.mcap_reader import read_recording
 from iotad.recording.replay import replay_node
 from launcher_helpers import free_port
 

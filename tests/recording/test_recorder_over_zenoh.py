@@ -14,7 +14,7 @@ import zenoh
 
 from iotad.host import wire
 from iotad.cli import main
-from iotad.recording.mcap_io import read_recording
+from iotad.recording.mcap_reader import read_recording
 from iotad.host.transport import open_session
 from launcher_helpers import free_port
 from node_harness import wait_for

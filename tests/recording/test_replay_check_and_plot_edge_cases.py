@@ -9,7 +9,10 @@ from iotad.recording.conformance import check_trace
 from iotad.kernel.clock import VirtualClock
 from iotad.kernel.engine import Eager, Engine
 from iotad.esprit import load_iota
-from iotad.recording.mcap_io import TRACE_SCHEMA, McapSink, packb, read_recording, record_run
+from iotad.recording.engine_sink import record_run
+from iotad.recording.mcap_format import TRACE_SCHEMA, packb
+from iotad.recording.mcap_reader import read_recording
+from iotad.recording.mcap_sink import McapSink
 from iotad.recording.replay import node_root, replay_node
 from recorded_systems import COMPOSITE  # the clocked counter/doubler composite
 from recorded_systems import figure2

@@ -13,7 +13,8 @@ import dataclasses
 
 import pytest
 
-from iotad.recording.mcap_io import read_recording, record_run
+from iotad.recording.engine_sink import record_run
+from iotad.recording.mcap_reader import read_recording
 from iotad.recording.replay import replay_node
 from system_iotas import Ticker
 

@@ -3,7 +3,8 @@ import threading
 import time
 
 from iotad.host import wire
-from iotad.recording.mcap_io import read_recording, record_run
+from iotad.recording.engine_sink import record_run
+from iotad.recording.mcap_reader import read_recording
 from iotad.recording.replay import republish
 from iotad.host.transport import free_port, open_session
 from recorded_systems import figure2

@@ -3,7 +3,8 @@ a changed recording diverges, and the first divergence is shown with the events 
 import pytest
 
 from iotad.cli import main
-from iotad.recording.mcap_io import read_recording, record_run
+from iotad.recording.engine_sink import record_run
+from iotad.recording.mcap_reader import read_recording
 from iotad.recording.replay import replay_node
 from recorded_systems import find, mutate
 from recorded_systems import figure2

@@ -12,7 +12,8 @@ import pytest
 from iotad.kernel.api import Iota, Output
 from iotad.kernel.compose import Composite, flatten
 from iotad.kernel.types import Int
-from iotad.recording.mcap_io import read_recording, record_run
+from iotad.recording.engine_sink import record_run
+from iotad.recording.mcap_reader import read_recording
 from iotad.recording.replay import replay_node
 from system_iotas import Ticker
 

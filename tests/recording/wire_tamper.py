@@ -6,7 +6,9 @@ from __future__ import annotations
 import json
 from dataclasses import replace
 
-from iotad.recording.mcap_io import McapSink, RecordedMessage, packb, read_recording
+from iotad.recording.mcap_format import packb
+from iotad.recording.mcap_reader import read_recording, RecordedMessage
+from iotad.recording.mcap_sink import McapSink
 
 
 def rewrite(source, target, change):

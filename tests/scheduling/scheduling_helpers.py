@@ -8,7 +8,7 @@ from iotad import Eager, Random, run_script
 from iotad.cli import main
 from iotad.esprit import load_iota
 from iotad.recording.conformance import check_trace
-from iotad.recording.mcap_io import record_run
+from iotad.recording.engine_sink import record_run
 
 ROOT = Path(__file__).resolve().parents[2]
 SCHEDULERS = ROOT / "nodes" / "scheduler"

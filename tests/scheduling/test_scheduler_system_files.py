@@ -9,7 +9,7 @@ import sys
 import pytest
 
 from iotad.cli import main
-from iotad.recording.mcap_io import read_recording
+from iotad.recording.mcap_reader import read_recording
 
 from scheduling_helpers import EXAMPLES
 from launcher_helpers import free_port

@@ -5,7 +5,7 @@ import csv
 import io
 import json
 
-from iotad.recording.mcap_io import read_recording
+from iotad.recording.mcap_reader import read_recording
 
 from sweep_iotas import sweep
 from sweep_iotas import tick_metrics

@@ -1,5 +1,5 @@
-"""`iotad candump`: CAN frames decoded by name (ODrive CAN Simple), like can-utils' candump, from a
-recording or from a live bus.
+"""`iotad candump`: CAN frames decoded by name (ODrive CAN Simple, and CANopen for CiA 402 drives), like
+can-utils' candump, from a recording or from a live bus.
 
 A recording holds every frame as a trace event of the node that sent it (`can_tx`) and of each
 node that received it (`can_rx`; with `iotad run --virtual`, the modelled bus's `tx[i]`/`rx[i]` too).
@@ -23,6 +23,11 @@ examples:
   iotad candump --live examples/arm_can.toml            a running system's bus ([[can]], python-can)
   python -m iotad.can.tiers run -- .venv/bin/iotad candump --live --count 20    the tier's bus
   iotad candump --live --interface socketcan --channel can0
+
+CANopen frames (NMT, SYNC, EMCY by name, SDO, PDOs by mapping, heartbeats) are decoded for the
+CiA 402 node ids that a recording's or system file's motor node (joints with protocol = "cia402")
+or simulated drives name, or that --canopen gives; the PDO mappings are the EDS's, changed by the
+SDO writes seen on the bus.
 
 Times are the recording's seconds (the receive time stamp on a live bus). Frames CAN Simple does
 not know end in 'unknown', known ones of the wrong shape in 'malformed: ...'. On a live bus, error
@@ -60,10 +65,52 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--axis", type=int, action="append", metavar="N", help="only frames of ODrive node id N")
     parser.add_argument("--start", type=nonnegative_float, metavar="T", help="recording: from time T (s)")
     parser.add_argument("--end", type=nonnegative_float, metavar="T", help="recording: up to time T (s)")
+    parser.add_argument("--canopen", metavar="N,N...", type=_node_list, default=None,
+                        help="decode frames of these CiA 402 node ids (1..127) as CANopen (default: those the "
+                             "recording or system file names)")
+    parser.add_argument("--eds", metavar="FILE", help="the CiA 402 drives' EDS (default: iotad's simulated drive's)")
     parser.add_argument("--count", type=positive_int, metavar="N", help="stop after N frames")
     parser.add_argument("--timeout", type=nonnegative_float, default=0.0, metavar="S",
                         help="--live: stop after S quiet seconds (default: never)")
     parser.set_defaults(func=run)
+
+
+def _node_list(text: str) -> frozenset:
+    try:
+        nodes = frozenset(int(part, 0) for part in text.split(",") if part.strip())
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected node ids like 1,2,3, got {text!r}") from None
+    if not nodes or not all(1 <= n <= 127 for n in nodes):
+        raise argparse.ArgumentTypeError(f"CANopen node ids are 1..127, got {text!r}")
+    return nodes
+
+
+def canopen_nodes(node_params) -> frozenset:
+    """The CiA 402 node ids that nodes' params name: a motor node's joints with protocol = "cia402",
+    simulated drives' `cia402` ids."""
+    nodes = set()
+    for params in node_params:
+        if not isinstance(params, dict):
+            continue
+        joints = params.get("joints")
+        entries = joints.values() if isinstance(joints, dict) else joints if isinstance(joints, list) else ()
+        nodes |= {j.get("node_id") for j in entries if isinstance(j, dict) and j.get("protocol") == "cia402"}
+        drives = params.get("cia402")
+        nodes |= set(drives.values() if isinstance(drives, dict) else drives if isinstance(drives, list) else ())
+    return frozenset(n for n in nodes if isinstance(n, int) and not isinstance(n, bool) and 1 <= n <= 127)
+
+
+def _tracker(args: argparse.Namespace, named: frozenset):
+    from iotad.can.canopen import DRIVE_EDS, PdoTracker
+    from iotad.cli import CliError
+
+    nodes = args.canopen if args.canopen is not None else named
+    if not nodes:
+        return None
+    try:
+        return PdoTracker(nodes, args.eds or DRIVE_EDS)
+    except ValueError as exc:
+        raise CliError(str(exc)) from None
 
 
 class _Filter:
@@ -150,6 +197,8 @@ def recorded(args: argparse.Namespace, keep: _Filter) -> int:
     from .info import load
 
     recording = load(args.source)
+    canopen = _tracker(args, canopen_nodes(spec.get("params") for spec in recording.specs.values()
+                                           if isinstance(spec, dict)))
     events = frame_events(recording, args.direction, set(args.node or ()), args.start, args.end)
     if not events:
         nodes = f" of node(s) {', '.join(args.node)}" if args.node else ""
@@ -167,7 +216,7 @@ def recorded(args: argparse.Namespace, keep: _Filter) -> int:
         if not keep(frame):
             continue
         direction = action if index is None else f"{action}[{index}]"
-        out.write(f"{node:<{width}}  {format_frame(t, frame, direction).lstrip()}\n")
+        out.write(f"{node:<{width}}  {format_frame(t, frame, direction, canopen).lstrip()}\n")
         shown += 1
         if args.count and shown >= args.count:
             break
@@ -196,6 +245,7 @@ def _live_bus(args: argparse.Namespace):
         spec = buses.get(args.bus) if args.bus else next(iter(buses.values()))
         if spec is None:
             raise CliError(f"{args.source}: no [[can]] bus named {args.bus!r} (it has {', '.join(buses)})")
+        args.named_canopen = canopen_nodes(node.params for node in system.nodes.values())
         return open_bus(spec.interface, spec.channel, **spec.options)
     if args.bus:
         raise CliError("--bus names a [[can]] bus of a system file: give the file")
@@ -217,6 +267,7 @@ def live(args: argparse.Namespace, keep: _Filter) -> int:
         raise CliError(str(exc)) from None
     with bus:
         print(f"candump: {bus.describe()}", file=sys.stderr, flush=True)
-        for line in live_lines(bus, args.timeout or None, args.count, keep):
+        canopen = _tracker(args, getattr(args, "named_canopen", frozenset()))
+        for line in live_lines(bus, args.timeout or None, args.count, keep, canopen):
             print(line, flush=True)
     return 0

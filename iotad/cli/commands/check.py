@@ -106,7 +106,7 @@ def run(args: argparse.Namespace) -> int:
     from iotad.recording.conformance import check_implements
     from iotad.cli import CliError
     from iotad.cli.commands.info import load
-    from iotad.recording.mcap_io import start_time
+    from iotad.recording.mcap_reader import start_time
     from iotad.recording.replay import default_tolerance
 
     recording = load(args.file)
@@ -205,7 +205,7 @@ def _check_node(recording, node: str, args: argparse.Namespace, tolerance: float
     from iotad.cli import CliError
     from iotad.host.wire import START_KIND
     from iotad.recording.conformance import check_runs
-    from iotad.recording.mcap_io import start_time
+    from iotad.recording.mcap_reader import start_time
     from iotad.recording.replay import node_root
 
     real_time = recording.info.get("clock") != "virtual"

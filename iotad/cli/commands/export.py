@@ -1,4 +1,4 @@
-"""`iotad export`: a JSON-encoded copy of a recording that Foxglove displays."""
+"""`iotad export`: a JSON-encoded copy of a recording that Foxglove displays, or a rosbag2 bag (`--ros2`)."""
 from __future__ import annotations
 
 import argparse
@@ -11,13 +11,15 @@ ORDER = 35
 EPILOG = """\
 example:
   iotad export recordings/fig2.mcap -o fig2-json.mcap --json     then open it in Foxglove Studio
+  iotad export --ros2 recordings/arm.mcap -o arm_bag              then: ros2 bag info arm_bag (docs/ros2.md)
 
 See also: 'iotad plot FILE -o OUT.png' (the motor arbitration timeline), 'iotad info FILE'."""
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    parser = sub.add_parser("export", help="write a JSON-encoded MCAP copy of a recording (for Foxglove)",
-                            usage="iotad export FILE -o OUT.mcap --json [--force]",
+    parser = sub.add_parser("export", help="write a JSON-encoded MCAP copy of a recording (for Foxglove), "
+                                           "or a rosbag2 bag (--ros2)",
+                            usage="iotad export FILE -o OUT.mcap --json [--force]\n       iotad export --ros2 FILE -o BAG",
                             description="Re-encode every message of a recording as JSON (message encoding "
                                         "'json', JSON Schema kept), so that Foxglove Studio shows and plots "
                                         "it; attachments (specs, system file) and metadata are copied.",
@@ -26,8 +28,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("-o", "--output", required=True, metavar="OUT.mcap", help="file to write")
     parser.add_argument("--force", action="store_true",
                         help="replace a recording already at OUT (default: refuse, so that none is lost)")
-    parser.add_argument("--json", action="store_true", required=True,
-                        help="encode messages as JSON (the only export format, required to say so)")
+    how = parser.add_mutually_exclusive_group(required=True)
+    how.add_argument("--json", action="store_true", help="encode messages as JSON (an MCAP file for Foxglove)")
+    how.add_argument("--ros2", action="store_true",
+                     help="a rosbag2 bag (a new folder; MCAP storage, CDR): the [[ros2]]-mapped channels on their "
+                          "topics, joint states and poses on /iotad/<node>/<channel> (docs/ros2.md)")
     parser.set_defaults(func=run)
 
 
@@ -38,6 +43,8 @@ def run(args: argparse.Namespace) -> int:
 
     if Path(args.output).resolve() == Path(args.file).resolve():
         raise CliError("-o must name another file than the recording")
+    if args.ros2:
+        return _ros2(args)
     output_file(args.output)
     new_recording(args.output, args.force)
     recording = load(args.file)
@@ -53,4 +60,31 @@ def run(args: argparse.Namespace) -> int:
     if extra is not None:
         print(f"{args.file} is cut short ({recording.damaged or recording.truncated_reason or 'no footer'}): the copy "
               f"holds what it holds, and its metadata says so (iotad.recovered)")
+    return 0
+
+
+def _ros2(args: argparse.Namespace) -> int:
+    import shutil
+
+    from iotad.cli import CliError
+    from iotad.cli.commands.info import load
+    from iotad.recording.rosbag_export import RosbagExportError, export_rosbag
+
+    output = Path(args.output)
+    if output.exists():
+        if not args.force or not (output / "metadata.yaml").is_file():
+            raise CliError(f"{output} exists" + ("" if args.force else "; --force replaces a bag")
+                           + (" (and is not a rosbag2 bag: not removed)" if args.force else ""))
+        shutil.rmtree(output)
+    recording = load(args.file)
+    try:
+        counts = export_rosbag(recording, output)
+    except RosbagExportError as exc:
+        raise CliError(str(exc)) from None
+    total = sum(counts.values())
+    print(f"wrote a rosbag2 bag of {total} messages to {output}/ (MCAP storage, cdr):")
+    for topic, count in sorted(counts.items()):
+        print(f"  {topic}: {count}")
+    if not counts:
+        print("  (nothing to export: no [[ros2]] mappings, joint states or poses in the recording)")
     return 0

@@ -42,7 +42,8 @@ def load(path: str, salvage: bool = False):
     import os
 
     from iotad.cli import CliError
-    from iotad.recording.mcap_io import RecordingError, read_recording
+    from iotad.recording.mcap_format import RecordingError
+    from iotad.recording.mcap_reader import read_recording
     if os.path.isdir(path):
         raise CliError(f"{path}: is a directory, not an MCAP recording")
     if not os.path.exists(path):

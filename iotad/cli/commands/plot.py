@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 from iotad.cli import nonnegative_float, output_file
@@ -17,7 +18,9 @@ examples:
 
 The image format follows the extension of -o: .png, .pdf, .svg or .jpg. The time axis is the
 nodes' clock, the t of their events: spec time units (seconds unless the system file's time_unit
-says otherwise) from the system's start. See also: 'iotad info FILE', 'iotad export FILE
+says otherwise) from the system's start. A recording of a robot with a picture of its own is
+drawn as that picture: pictures are plug-ins in the entry-point group 'iotad.pictures' (Buggy's
+and the conveyor arm's come with iotad). See also: 'iotad info FILE', 'iotad export FILE
 -o OUT.mcap --json' (every channel in Foxglove)."""
 
 
@@ -40,7 +43,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from iotad.cli import CliError
     from iotad.cli.commands.info import load
-    from iotad.recording.mcap_io import RecordingError
+    from iotad.recording.mcap_format import RecordingError
 
     if Path(args.output).suffix.lower() not in FORMATS:
         raise CliError(f"-o {args.output}: the image format follows the extension; use one of "
@@ -48,11 +51,14 @@ def run(args: argparse.Namespace) -> int:
     output_file(args.output)
     recording = load(args.file)
     # A robot's own picture when the recording is of one (Buggy: Figures 4 and 5; the conveyor
-    # arm: its picks and who held it); else the scheduler's timeline.
-    import importlib
+    # arm: its picks and who held it: registered pictures, iotad.recording.pictures); else the
+    # scheduler's timeline.
+    from iotad.recording.pictures import pictures
 
-    for module in ("iotad.recording.buggy_plot", "iotad.recording.conveyor_plot"):
-        picture = importlib.import_module(module)
+    found, problems = pictures()
+    for problem in problems:
+        print(f"warning: {problem}", file=sys.stderr)
+    for _, picture in found:
         if picture.matches(recording) and not args.node:  # --node: that scheduler's timeline instead
             try:
                 print(f"wrote {picture.plot(recording, args.output, args.title)}")

@@ -36,7 +36,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from iotad.cli import CliError
     from iotad.cli.commands.info import load
-    from iotad.recording.mcap_io import copy_recording
+    from iotad.recording.mcap_sink import copy_recording
 
     source = Path(args.file)
     output = Path(args.output) if args.output else source.with_suffix(".recovered.mcap")

@@ -63,7 +63,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from iotad.cli import CliError
     from iotad.cli.commands.info import load
-    from iotad.recording.mcap_io import RecordingError
+    from iotad.recording.mcap_format import RecordingError
     from iotad.recording.replay import default_tolerance, replay_node
 
     if args.live and (args.internal or args.free or args.tolerance is not None):

@@ -182,7 +182,7 @@ def launch(system, args: argparse.Namespace, summary_hook=None) -> int:
     elif not args.no_record:  # a new name: recordings/<system>-<date>-<time>.mcap, -2 in the same second
         import time
 
-        from iotad.recording.mcap_io import unused_recording_path
+        from iotad.launcher.recording_paths import unused_recording_path
 
         stamp = time.strftime("%Y%m%d-%H%M%S", time.localtime(args.origin or time.time()))
         try:
@@ -215,7 +215,7 @@ def _launch(system, args: argparse.Namespace, record_to: str | None, summary_hoo
     try:
         launcher.access = access_for(system, args)
         if getattr(args, "view", None) is not None and system.opens_hub(args.host):
-            from iotad.cli.commands.view import ViewerProcess
+            from iotad.cli.viewer_process import ViewerProcess
 
             hub = system.listen[0] if port is None else f"tcp/127.0.0.1:{port}"
             viewer = ViewerProcess(reachable(hub), system.name, args.view)

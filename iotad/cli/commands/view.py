@@ -67,7 +67,8 @@ def run(args: argparse.Namespace) -> int:
     server = None
     try:
         try:
-            server = foxglove.start_server(name=f"iotad {args.system or ''}".strip(), host=args.host, port=args.port)
+            server = foxglove.start_server(name=f"iotad {args.system or ''}".strip(), host=args.host, port=args.port,
+                                           asset_handler=Bridge.asset)  # the arm's meshes (package:// URLs)
         except Exception as exc:  # noqa: BLE001 - port taken, bad address: one line
             raise CliError(f"cannot serve on {args.host}:{args.port}: {exc}") from None
         bridge = Bridge()
@@ -128,49 +129,3 @@ def _handle(bridge, session, item, asked, wire) -> None:
         bridge.trace("/".join(key.split("/")[2:-1]), events, stamp)
     elif "/@" not in key:
         bridge.message(key, value, stamp)
-
-
-class ViewerProcess:
-    """`iotad view` beside `iotad run --view`: started once the hub accepts connections (the
-    launcher opens it first), stopped with the run. Its lines go to the run's output."""
-
-    def __init__(self, endpoint: str, system: str, port: int):
-        import threading
-
-        self.endpoint, self.system, self.port = endpoint, system, port
-        self.proc = None
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._start, name="viewer", daemon=True)
-        self._thread.start()
-
-    def _start(self) -> None:
-        import socket
-        import subprocess
-
-        host, _, port = self.endpoint.removeprefix("tcp/").rpartition(":")
-        deadline = time.monotonic() + 60
-        while not self._stop.is_set() and time.monotonic() < deadline:
-            try:
-                socket.create_connection((host, int(port)), timeout=0.5).close()
-                break
-            except OSError:
-                self._stop.wait(0.2)
-        else:
-            return
-        self.proc = subprocess.Popen([sys.executable, "-m", "iotad", "view", "--connect", self.endpoint,
-                                      "--system", self.system, "--port", str(self.port)])
-
-    def stop(self) -> None:
-        import subprocess
-
-        self._stop.set()
-        self._thread.join(5)
-        if self.proc is not None and self.proc.poll() is None:
-            import signal
-
-            self.proc.send_signal(signal.SIGINT)  # a clean stop: it prints what it bridged
-            try:
-                self.proc.wait(5)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait(5)

@@ -12,7 +12,8 @@ from __future__ import annotations
 from bisect import bisect_right
 from pathlib import Path
 
-from iotad.recording.mcap_io import Recording, RecordingError
+from iotad.recording.mcap_format import RecordingError
+from iotad.recording.mcap_reader import Recording
 
 COLOURS = {"WANDER": "#3a6ea5", "FOLLOW": "#e08a00", "EAT": "#2a9d3f", "AVOID": "#c62828"}
 LABELS = {"WANDER": "wander", "FOLLOW": "follow crack", "EAT": "eat", "AVOID": "avoid wall (subconscious)"}

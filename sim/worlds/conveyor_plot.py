@@ -11,7 +11,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from iotad.recording.mcap_io import Recording, RecordingError
+from iotad.recording.mcap_format import RecordingError
+from iotad.recording.mcap_reader import Recording
 from iotad.recording.timeline_plot import ACK_STYLE, requester_names
 
 COUNTS = (("spawned", "on the belt so far", "#777777"), ("placed", "placed in the bin", "#2a9d3f"),

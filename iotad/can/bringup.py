@@ -1,0 +1,321 @@
+"""Bring-up of drives on a real bus: find every drive that answers (ODrive and CiA 402), read its state, and command it, each command read back.
+
+These are synchronous tools over a real-time bus (`iotad.can.bus`), for `iotad can`: nothing here
+runs inside an engine. Units at the interface are SI (rad/s at the motor shaft, N.m, A); turns
+appear only on the wire (ODrive CAN Simple), increments only in CANopen objects.
+
+- ODrive: Get_Version to every node id 0..63 (a remote frame: harmless to anyone), then
+  Heartbeat, Get_Error, Get_Bus_Voltage_Current and Get_Temperature of those that answered.
+- CiA 402: an SDO upload of the identity object 0x1018 to every node id 1..127 whose SDO id
+  (0x600 + id) is no found ODrive's command id (0x600-0x67F are ODrive nodes 48-51: an SDO
+  request there would be an ODrive command), then 0x1018's other entries, 0x1009/0x100A
+  (versions), the statusword 0x6041, the error code 0x603F, 0x6079 (DC link voltage) and 0x2001
+  (temperature, iotad's drive) where the drive has them. Only expedited SDO: a string longer than
+  4 bytes reads as '?'.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Callable, Iterable
+
+from . import canopen as co
+from . import odrive
+from .frame import Frame, FrameError
+
+TAU = 2.0 * math.pi
+TIMEOUT = 0.2  # s: how long a scan waits for answers; a command waits `--timeout`
+
+
+@dataclass
+class Drive:
+    protocol: str                      # odrive | cia402
+    node_id: int
+    firmware: str = "?"
+    hardware: str = "?"
+    state: str = "?"                   # ODrive axis state, or CiA 402 state
+    errors: list[str] = field(default_factory=list)
+    bus_voltage: float | None = None   # V
+    temperature: float | None = None   # deg C
+    detail: dict = field(default_factory=dict)
+
+
+class CommandFailed(Exception):
+    """A command's result, read back, is not what it asked for (or nothing answered in time); the
+    message says what the drive reported."""
+
+
+class Link:
+    """Frames out, answers in: `ask` sends and collects the answers `match` picks, until each
+    expected key has one or the time is up."""
+
+    def __init__(self, bus, timeout: float = TIMEOUT, clock: Callable[[], float] = time.monotonic):
+        self.bus, self.timeout, self.clock = bus, timeout, clock
+
+    def ask(self, frames: Iterable[Frame], match: Callable[[Frame], object], expected: set | None = None,
+            timeout: float | None = None) -> dict:
+        for frame in frames:
+            self.bus.send_frame(frame)
+        return self.collect(match, expected, timeout)
+
+    def collect(self, match: Callable[[Frame], object], expected: set | None = None, timeout: float | None = None) -> dict:
+        end = self.clock() + (self.timeout if timeout is None else timeout)
+        answers: dict = {}
+        while True:
+            left = end - self.clock()
+            if left <= 0 or (expected is not None and expected <= set(answers)):
+                return answers
+            got = self.bus.recv_frame(timeout=left)
+            if got is None:
+                continue
+            key = match(got[1])
+            if key is not None:
+                answers[key] = got[1]
+
+
+# ---------------------------------------------------------------------- ODrive
+def _odrive_answer(name: str) -> Callable[[Frame], int | None]:
+    cmd = odrive.COMMANDS[name]
+
+    def match(frame: Frame) -> int | None:
+        if frame.extended or frame.rtr or frame.id & 0x1F != cmd:
+            return None
+        return frame.id >> 5
+    return match
+
+
+def _odrive_signals(frame: Frame) -> dict:
+    try:
+        return odrive.decode(frame).signals
+    except FrameError:
+        return {}
+
+
+def scan_odrives(link: Link, nodes: Iterable[int] = range(64)) -> list[Drive]:
+    nodes = list(nodes)
+    found = link.ask((odrive.request(n, "Get_Version") for n in nodes), _odrive_answer("Get_Version"), set(nodes))
+    return [odrive_status(link, n, found[n]) for n in sorted(found)]
+
+
+def odrive_status(link: Link, node: int, version: Frame | None = None) -> Drive:
+    drive = Drive("odrive", node)
+    if version is None:
+        version = link.ask([odrive.request(node, "Get_Version")], _odrive_answer("Get_Version"), {node}).get(node)
+    v = _odrive_signals(version) if version is not None else {}
+    if v:
+        drive.firmware = f"{v['Fw_Version_Major']}.{v['Fw_Version_Minor']}.{v['Fw_Version_Revision']}"
+        drive.hardware = f"{v['Hw_Version_Major']}.{v['Hw_Version_Minor']}.{v['Hw_Version_Variant']}"
+    beat = _ask_one(link, node, "Heartbeat")
+    if beat:
+        drive.state = _name(odrive.AXIS_STATE, beat["Axis_State"])
+        drive.detail.update(axis_error=beat["Axis_Error"], procedure_result=beat["Procedure_Result"])
+    errors = _ask_one(link, node, "Get_Error")
+    flags = (errors.get("Active_Errors", 0) | errors.get("Disarm_Reason", 0)) if errors else beat.get("Axis_Error", 0) if beat else 0
+    drive.errors = odrive.error_names(flags) if flags else []
+    bus = _ask_one(link, node, "Get_Bus_Voltage_Current")
+    if bus:
+        drive.bus_voltage = bus["Bus_Voltage"]
+    temperature = _ask_one(link, node, "Get_Temperature")
+    if temperature:
+        drive.temperature = temperature["FET_Temperature"]
+    return drive
+
+
+def _ask_one(link: Link, node: int, name: str) -> dict:
+    frame = link.ask([odrive.request(node, name)], _odrive_answer(name), {node}).get(node)
+    return _odrive_signals(frame) if frame is not None else {}
+
+
+def _name(table: dict[str, int], value: int) -> str:
+    return next((name for name, number in table.items() if number == value), str(value))
+
+
+# ---------------------------------------------------------------------- CiA 402
+def _sdo_answer(index: int, subindex: int) -> Callable[[Frame], int | None]:
+    def match(frame: Frame) -> int | None:
+        if frame.extended or frame.rtr or frame.id & 0x780 != co.TSDO or frame.dlc != 8:
+            return None
+        try:
+            fields = co.decode(frame).fields
+        except FrameError:
+            return None
+        return frame.id & 0x7F if (fields["index"], fields["subindex"]) == (index, subindex) else None
+    return match
+
+
+def sdo_read(link: Link, nodes: Iterable[int], index: int, subindex: int = 0, timeout: float | None = None) -> dict:
+    """{node: fields of its answer} to an upload of index.subindex (an abort's fields say so)."""
+    nodes = list(nodes)
+    answers = link.ask((co.sdo_upload(n, index, subindex) for n in nodes), _sdo_answer(index, subindex), set(nodes),
+                       timeout)
+    return {n: co.decode(frame).fields for n, frame in answers.items()}
+
+
+def sdo_write(link: Link, node: int, index: int, subindex: int, data: bytes, timeout: float | None = None) -> None:
+    """Write one object; CommandFailed with the abort's reason, or when nothing answered."""
+    answer = link.ask([co.sdo_download(node, index, subindex, data)], _sdo_answer(index, subindex), {node},
+                      timeout).get(node)
+    if answer is None:
+        raise CommandFailed(f"node {node}: no answer to the SDO write of 0x{index:04X}.{subindex:02X} within "
+                            f"{link.timeout if timeout is None else timeout:g} s")
+    fields = co.decode(answer).fields
+    if fields["service"] == "abort":
+        raise CommandFailed(f"node {node}: the drive refused 0x{index:04X}.{subindex:02X}: {fields['reason']} "
+                            f"(SDO abort 0x{fields['code']:08X})")
+
+
+def _value(fields: dict | None, od, index: int, subindex: int = 0):
+    if not fields or "data" not in fields:
+        return None
+    try:
+        return co.decode_value(od, index, subindex, fields["data"])
+    except Exception:  # noqa: BLE001 - an odd length or a type the EDS lacks: not shown
+        return None
+
+
+def scan_cia402(link: Link, nodes: Iterable[int] = range(1, 128), avoid: Iterable[int] = ()) -> list[Drive]:
+    """The CiA 402 drives among `nodes`; `avoid` are ODrive node ids found on the bus (whose
+    command ids an SDO request must not hit)."""
+    busy = {frame_id for n in avoid for frame_id in range(n << 5, (n << 5) + 32)}
+    nodes = [n for n in nodes if co.RSDO + n not in busy]
+    vendors = sdo_read(link, nodes, 0x1018, 1)
+    return [cia402_status(link, n) for n in sorted(vendors) if vendors[n]["service"] == "upload"]
+
+
+def cia402_status(link: Link, node: int) -> Drive:
+    od = co.object_dictionary(co.DRIVE_EDS, node)
+    drive = Drive("cia402", node)
+    read = {key: sdo_read(link, [node], *key).get(node) for key in
+            ((0x1018, 1), (0x1018, 2), (0x1018, 3), (0x1009, 0), (0x100A, 0), (0x6041, 0), (0x603F, 0),
+             (0x6079, 0), (0x2001, 0), (0x6061, 0))}
+    strings = {key: (bytes(read[key]["data"]).rstrip(b"\0").decode("ascii", "replace") if read[key] and "data" in read[key]
+                     else "?") for key in ((0x1009, 0), (0x100A, 0))}
+    revision = _value(read[(0x1018, 3)], od, 0x1018, 3)
+    drive.firmware = strings[(0x100A, 0)] + (f" (rev 0x{revision:08X})" if revision is not None else "")
+    drive.hardware = strings[(0x1009, 0)]
+    drive.detail["vendor"] = _value(read[(0x1018, 1)], od, 0x1018, 1)
+    drive.detail["product"] = _value(read[(0x1018, 2)], od, 0x1018, 2)
+    status = _value(read[(0x6041, 0)], od, 0x6041)
+    if status is not None:
+        drive.state = co.state_of(status)
+        drive.detail["statusword"] = status
+    code = _value(read[(0x603F, 0)], od, 0x603F)
+    if code:
+        drive.errors = [f"0x{code:04X} {co.emcy_name(code)}"]
+    voltage = _value(read[(0x6079, 0)], od, 0x6079)
+    drive.bus_voltage = voltage / 1000.0 if voltage is not None else None
+    drive.temperature = _value(read[(0x2001, 0)], od, 0x2001)
+    mode = _value(read[(0x6061, 0)], od, 0x6061)
+    if mode is not None:
+        drive.detail["mode"] = co.MODE_NAMES.get(mode, mode)
+    return drive
+
+
+def scan(link: Link, protocols: Iterable[str] = ("odrive", "cia402")) -> list[Drive]:
+    odrives = scan_odrives(link) if "odrive" in protocols else []
+    drives = scan_cia402(link, avoid=[d.node_id for d in odrives]) if "cia402" in protocols else []
+    return odrives + drives
+
+
+def status(link: Link, protocol: str, node: int) -> Drive:
+    return odrive_status(link, node) if protocol == "odrive" else cia402_status(link, node)
+
+
+# ---------------------------------------------------------------------- commands, read back
+def _wait_for(link: Link, read: Callable[[], Drive], done: Callable[[Drive], bool], timeout: float) -> Drive:
+    end = link.clock() + timeout
+    drive = read()
+    while not done(drive) and link.clock() < end:
+        drive = read()
+    return drive
+
+
+def _controlword(link: Link, node: int, word: int) -> None:
+    sdo_write(link, node, 0x6040, 0, word.to_bytes(2, "little"))
+
+
+def clear_errors(link: Link, protocol: str, node: int, timeout: float = 1.0) -> Drive:
+    if protocol == "odrive":
+        link.bus.send_frame(odrive.encode(node, "Clear_Errors", Identify=0))
+    else:
+        _controlword(link, node, 0x00)              # bit 7 low, then its rising edge: fault reset
+        _controlword(link, node, co.CW_FAULT_RESET)
+    drive = _wait_for(link, lambda: status(link, protocol, node), lambda d: not d.errors and d.state != "FAULT", timeout)
+    if drive.errors or drive.state == "FAULT":
+        raise CommandFailed(f"node {node}: still in error after clear-errors: {', '.join(drive.errors) or drive.state}")
+    return drive
+
+
+def arm(link: Link, protocol: str, node: int, timeout: float = 1.0) -> Drive:
+    if protocol == "odrive":
+        link.bus.send_frame(odrive.encode(node, "Set_Axis_State", Axis_Requested_State=odrive.AXIS_STATE["CLOSED_LOOP_CONTROL"]))
+        want = "CLOSED_LOOP_CONTROL"
+    else:
+        drive = cia402_status(link, node)
+        if drive.state == "FAULT":
+            raise CommandFailed(f"node {node}: in FAULT ({', '.join(drive.errors) or 'no error code'}); "
+                                "run clear-errors first")
+        for word in (co.CW_SHUTDOWN, co.CW_SWITCH_ON, co.CW_ENABLE_OPERATION):
+            _controlword(link, node, word)
+        want = "OPERATION ENABLED"
+    drive = _wait_for(link, lambda: status(link, protocol, node), lambda d: d.state == want, timeout)
+    if drive.state != want:
+        why = ", ".join(drive.errors) or drive.detail.get("procedure_result", "")
+        raise CommandFailed(f"node {node}: did not arm within {timeout:g} s: it reports {drive.state}"
+                            + (f" ({why})" if why != "" else ""))
+    return drive
+
+
+def idle(link: Link, protocol: str, node: int, timeout: float = 1.0) -> Drive:
+    if protocol == "odrive":
+        link.bus.send_frame(odrive.encode(node, "Set_Axis_State", Axis_Requested_State=odrive.AXIS_STATE["IDLE"]))
+        wanted = ("IDLE",)
+    else:
+        _controlword(link, node, co.CW_SHUTDOWN)  # the power stage off, ready to switch on again
+        wanted = ("READY TO SWITCH ON", "SWITCH ON DISABLED")
+    drive = _wait_for(link, lambda: status(link, protocol, node), lambda d: d.state in wanted, timeout)
+    if drive.state not in wanted:
+        raise CommandFailed(f"node {node}: still {drive.state} after idle")
+    return drive
+
+
+def estop(link: Link, protocol: str, node: int, timeout: float = 1.0) -> Drive:
+    if protocol == "odrive":
+        link.bus.send_frame(odrive.encode(node, "Estop"))
+        wanted = ("IDLE",)
+    else:
+        _controlword(link, node, co.CW_QUICK_STOP)
+        wanted = ("QUICK STOP ACTIVE", "SWITCH ON DISABLED")
+    drive = _wait_for(link, lambda: status(link, protocol, node), lambda d: d.state in wanted, timeout)
+    if drive.state not in wanted:
+        raise CommandFailed(f"node {node}: still {drive.state} after estop")
+    return drive
+
+
+def set_limits(link: Link, protocol: str, node: int, velocity: float | None, current: float | None,
+               torque: float | None) -> dict:
+    """Velocity in rad/s at the motor shaft, current in A (ODrive), torque in N.m (CiA 402, its max
+    torque). Returns what the drive holds now, read back where the protocol can."""
+    if protocol == "odrive":
+        if velocity is None or current is None:
+            raise CommandFailed("an ODrive takes both limits in one Set_Limits frame: give --velocity and --current")
+        link.bus.send_frame(odrive.encode(node, "Set_Limits", Velocity_Limit=velocity / TAU, Current_Limit=current))
+        drive = odrive_status(link, node)  # CAN Simple cannot read the limits back: it must still answer, error-free
+        if drive.state == "?":
+            raise CommandFailed(f"node {node}: no heartbeat after Set_Limits")
+        return {"velocity_limit_turns_per_s": velocity / TAU, "current_limit_a": current, "errors": drive.errors}
+    od = co.object_dictionary(co.DRIVE_EDS, node)
+    done = {}
+    if velocity is not None:
+        counts = sdo_read(link, [node], 0x608F, 1).get(node)
+        per_turn = _value(counts, od, 0x608F, 1) or co.default(od, 0x608F, 1)
+        sdo_write(link, node, 0x607F, 0, co.encode_value(od, 0x607F, 0, round(abs(velocity) / TAU * per_turn)))
+        done["velocity_limit_rad_s"] = _value(sdo_read(link, [node], 0x607F).get(node), od, 0x607F) / per_turn * TAU
+    if torque is not None:
+        rated = _value(sdo_read(link, [node], 0x6076).get(node), od, 0x6076) or co.default(od, 0x6076)
+        sdo_write(link, node, 0x6072, 0, co.encode_value(od, 0x6072, 0, min(0xFFFF, round(1000.0 * abs(torque) * 1000.0 / rated))))
+        done["torque_limit_nm"] = _value(sdo_read(link, [node], 0x6072).get(node), od, 0x6072) / 1000.0 * rated / 1000.0
+    if current is not None:
+        raise CommandFailed("a CiA 402 drive here takes its limit as --torque (N.m), not --current")
+    return done

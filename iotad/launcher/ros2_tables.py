@@ -1,0 +1,88 @@
+"""`[[ros2]]` tables: channels mapped to ROS 2 topics, and the implicit bridge node that carries
+them (`iotad.ros2.bridge`, named `ros2`), bound to the mapped channels (docs/ros2.md)."""
+from __future__ import annotations
+
+from typing import Any
+
+from iotad.ros2.bridge import NODE_NAME, channel_names
+from iotad.ros2.mapping import MappingError, parse
+
+BRIDGE_REF = "iotad.ros2.bridge:ros2_bridge"
+LAG = 0.05  # seconds the bridge may hold a ROS 2 message before forwarding it is late (a deadline miss)
+
+
+def add_ros2_bridge(parser: Any, system: Any, raw_tables: list) -> None:
+    """Check every `[[ros2]]` table of a system whose channels are known; where all are good and
+    there is one at least, add the bridge node and its bindings. Problems go to `parser.error`."""
+    from iotad.launcher.system_file import Binding, NodeSpec, Port, channel_table, instantiate
+
+    if not raw_tables:
+        return
+    if NODE_NAME in system.nodes:
+        parser.error(system.nodes[NODE_NAME].entry, f"the name {NODE_NAME!r} is the ROS 2 bridge's when the "
+                                                    f"file has [[ros2]] tables: rename this node")
+        return
+    bound = {b.target: b for b in system.bindings}
+    mappings, switching, pairs = [], [], []
+    for number, raw in enumerate(raw_tables, 1):
+        entry = f"[[ros2]] #{number}" + (f" (topic=\"{raw['topic']}\")" if isinstance(raw, dict)
+                                         and isinstance(raw.get("topic"), str) else "")
+        direction = raw.get("direction") if isinstance(raw, dict) else None
+        want = "input" if direction == "in" else "output"
+        resolved = parser.resolve(system, raw.get("channel") if isinstance(raw, dict) else None, entry, want)
+        if resolved is None:
+            continue
+        port, channel = resolved
+        if channel.size is not None and port.index is None:
+            parser.error(entry, f"{port} is a family of {channel.size}: map one member, e.g. {port}[0]")
+            continue
+        if direction == "in" and port in bound:
+            parser.error(entry, f"{port} is already bound ({bound[port].entry}): a ROS 2 topic needs an input "
+                                f"of its own")
+            continue
+        try:
+            mapping = parse(raw, channel.type, entry)
+        except MappingError as exc:
+            parser.errors.append(f"{parser.file}: {exc}")
+            continue
+        mappings.append(mapping.plain())
+        switching.append(channel.switching_time if direction == "in" else 0.0)
+        pairs.append((port, direction, entry))
+    if len(mappings) != len(raw_tables):
+        return
+    node = NodeSpec(name=NODE_NAME, entry="the ROS 2 bridge ([[ros2]])", source={"kind": "python", "ref": BRIDGE_REF},
+                    params={"mappings": mappings, "switching": switching, "ros_node": f"iotad_{system.name}",
+                            "lag": LAG / system.time_unit})
+    node.channels = channel_table(instantiate(node))
+    system.nodes[NODE_NAME] = node
+    for number, (port, direction, entry) in enumerate(pairs):
+        if direction == "out":
+            system.bindings.append(Binding(port, Port(NODE_NAME, channel_names(number, "out")[0]), entry))
+        else:
+            inbound, forward = channel_names(number, "in")
+            system.bindings.append(Binding(Port(NODE_NAME, forward), port, entry))
+            system.external.add(Port(NODE_NAME, inbound))  # fed from outside: ROS 2, by the bridge's port
+
+
+def mappings_of(system: Any) -> list[dict]:
+    """The plain mappings of a system's bridge (none without [[ros2]] tables)."""
+    node = system.nodes.get(NODE_NAME)
+    if node is None or node.source.get("ref") != BRIDGE_REF:
+        return []
+    return list(node.params["mappings"])
+
+
+def widen_grant(system: Any, node: str, grant: Any) -> None:
+    """Under access control, the bridge also publishes its out topics, subscribes to its in
+    topics and declares its rmw_zenoh liveliness tokens (`@ros2_lv/<domain>/...`)."""
+    from iotad.ros2.mapping import Mapping
+    from iotad.ros2.rmw_zenoh import ADMIN_SPACE
+
+    if node != NODE_NAME:
+        return
+    for plain in mappings_of(system):
+        mapping = Mapping.from_plain(plain)
+        (grant.publish if mapping.direction == "out" else grant.subscribe).append(mapping.key)
+        token = f"{ADMIN_SPACE}/{mapping.domain}/**"
+        if token not in grant.tokens:
+            grant.tokens.append(token)

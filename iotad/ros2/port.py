@@ -1,0 +1,111 @@
+"""The ROS 2 port of the bridge's node host: rmw_zenoh publishers, subscriptions and liveliness
+tokens on the node's own zenoh session (docs/ros2.md).
+
+Out: every input event of an `out_k` channel (the engine's sink sees it) becomes one CDR message
+on mapping k's data key, with rmw_zenoh's attachment. In: every sample on mapping k's data key is
+decoded (CDR, then the mapping) and posted to the engine as input `ros_k`, so the engine orders,
+times and checks it like any input. What cannot be converted is counted and recorded as a
+violation once per heartbeat period (`take_problems`), never raised in zenoh's threads.
+"""
+from __future__ import annotations
+
+import threading
+import time
+from typing import Any, Callable
+
+from iotad.kernel.types import to_plain
+from iotad.ros2 import rmw_zenoh
+from iotad.ros2.mapping import Mapping
+from iotad.ros2.messages import MessageError
+
+NOT_SENT = "ros2_not_sent"           # an out value the mapping could not turn into its message
+NOT_TAKEN = "ros2_message_unusable"  # an in message that is not CDR of its type, or does not fit the input
+
+
+class Ros2Port:
+    """`post` takes each `RawInput` for the engine thread; `encode` is the wire's payload encoder,
+    `attachment` the wire's attachment encoder, `raw_input` the RawInput class (the host's)."""
+
+    def __init__(self, config: dict[str, Any], post: Callable, raw_input: Callable, encode: Callable,
+                 attachment: Callable, now: Callable[[], float]):
+        self.node_name = config["node"]
+        self.mappings = [Mapping.from_plain(m) for m in config["mappings"]]
+        self.post, self.raw_input, self.encode, self.attachment, self.now = post, raw_input, encode, attachment, now
+        self._out: dict[str, list] = {}  # out_k -> [mapping, publisher, seq, gid]
+        self._declared: list[Any] = []
+        self._problems: dict[tuple, list] = {}
+        self._lock = threading.Lock()
+        self.sent = self.received = 0
+
+    def open(self, session: Any) -> list[Any]:
+        """Declare the node, its publishers, subscriptions and their tokens on `session`; what
+        was declared, for the node host to undeclare with its own entities."""
+        session_id = str(session.zid())
+        nodes: dict[int, rmw_zenoh.Node] = {}
+        liveliness = session.liveliness()
+        for number, mapping in enumerate(self.mappings):
+            node = nodes.get(mapping.domain)
+            if node is None:
+                node = nodes[mapping.domain] = rmw_zenoh.Node(mapping.domain, session_id, self.node_name)
+                self._declared.append(liveliness.declare_token(node.token()))
+            kind = rmw_zenoh.PUBLISHER if mapping.direction == "out" else rmw_zenoh.SUBSCRIPTION
+            token = node.entity_token(number + 1, kind, mapping.topic, mapping.ros_type, mapping.type_hash)
+            if mapping.direction == "out":
+                publisher = session.declare_publisher(mapping.key)
+                self._declared.append(publisher)
+                self._out[f"out_{number}"] = [mapping, publisher, 0, rmw_zenoh.gid_of(token)]
+            else:
+                self._declared.append(session.declare_subscriber(mapping.key, self._receiver(number, mapping)))
+            self._declared.append(liveliness.declare_token(token))
+        return self._declared
+
+    def on_event(self, event: dict) -> None:
+        """The engine's sink: publish the value of each input event of an `out_k` channel."""
+        if event["kind"] != "input":
+            return
+        port = self._out.get(event["action"])
+        if port is None:
+            return
+        mapping, publisher, seq, gid = port
+        stamp = time.time_ns()
+        try:
+            data = mapping.to_cdr(to_plain(event["value"]), stamp)
+        except (MessageError, KeyError, IndexError, TypeError) as exc:
+            self._problem(event["action"], NOT_SENT, f"{mapping.channel} -> {mapping.topic}: {exc}")
+            return
+        port[2] = seq + 1
+        publisher.put(data, attachment=rmw_zenoh.encode_attachment(seq, stamp, gid))
+        self.sent += 1
+
+    def _receiver(self, number: int, mapping: Mapping):
+        name = f"ros_{number}"
+
+        def receive(sample: Any) -> None:
+            attachment = rmw_zenoh.decode_attachment(None if sample.attachment is None else sample.attachment.to_bytes())
+            try:
+                plain = mapping.from_cdr(sample.payload.to_bytes())
+            except (MessageError, KeyError, IndexError, TypeError) as exc:
+                self._problem(name, NOT_TAKEN, f"{mapping.topic} -> {mapping.channel}: {exc}")
+                return
+            self.received += 1
+            wire_attachment = None if attachment is None else self.attachment(max(attachment[0], 0), attachment[1])
+            self.post(self.raw_input(name, None, self.encode(plain), wire_attachment, str(sample.key_expr)))
+        return receive
+
+    def _problem(self, channel: str, violation: str, said: str) -> None:
+        t = self.now()
+        with self._lock:
+            entry = self._problems.get((channel, violation))
+            if entry is None:
+                self._problems[(channel, violation)] = [1, t, t, said]
+            else:
+                entry[0] += 1
+                entry[2] = t
+
+    def take_problems(self) -> list[tuple[str, str, str, int]]:
+        """(channel, violation, message, count) of each kind of problem since the last call."""
+        with self._lock:
+            problems, self._problems = self._problems, {}
+        return [(channel, violation, f"{count} message(s) between t={first:.6f} and t={last:.6f}; the first: {said}",
+                 count) for (channel, violation), (count, first, last, said) in problems.items()]
+

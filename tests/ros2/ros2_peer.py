@@ -1,0 +1,126 @@
+"""A ROS 2 participant that is not iotad: plain zenoh and rosbags only, speaking rmw_zenoh's
+protocol for Jazzy as its design document lays it out (key expressions, CDR, attachments,
+liveliness tokens). It imports nothing of iotad on purpose: it is the independent side of the
+round trip in test_a_ros2_peer_sees_the_arm_and_drives_buggy.py.
+
+    python ros2_peer.py --connect tcp/127.0.0.1:7447 --seconds 8 \
+        --listen /joint_states=sensor_msgs/msg/JointState \
+        --publish /cmd_vel=geometry_msgs/msg/Twist='{"linear": {"x": 0.2}, "angular": {"z": 0.5}}'
+
+Prints one JSON object a line: {"ready": ...} once subscribed; {"topic", "key", "message",
+"attachment": [seq, stamp_ns, gid_hex]} per message heard, until --seconds pass or messages have
+stopped for --idle seconds; {"tokens": [...]} at the end, the
+rmw_zenoh liveliness tokens seen in domain 0.
+"""
+import argparse
+import json
+import struct
+import sys
+import threading
+import time
+
+import numpy as np
+import zenoh
+from rosbags.typesys import Stores, get_typestore
+
+STORE = get_typestore(Stores.ROS2_JAZZY)
+
+
+def key_of(topic: str, ros_type: str, domain: int = 0) -> str:
+    package, kind, name = ros_type.split("/")
+    return f"{domain}/{topic.strip('/')}/{package}::{kind}::dds_::{name}_/{STORE.hash_rihs01(ros_type)}"
+
+
+def plain(value):
+    if hasattr(value, "__dataclass_fields__"):
+        return {k: plain(getattr(value, k)) for k in value.__dataclass_fields__ if not k.startswith("__")}
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, list):
+        return [plain(v) for v in value]
+    return value
+
+
+def build(ros_type: str, fields: dict):
+    """A message of `ros_type` from nested dicts: what a ROS 2 program would fill in."""
+    cls = STORE.types[ros_type]
+    kwargs = {}
+    for name, (nodetype, detail) in STORE.fielddefs[ros_type][1]:
+        given = fields.get(name)
+        if int(nodetype) == 2:
+            kwargs[name] = build(detail, given or {})
+        elif int(nodetype) == 1:
+            kwargs[name] = given if given is not None else ("" if detail[0] == "string" else 0.0 if "float" in detail[0] else 0)
+        else:
+            kwargs[name] = np.array(given or [], dtype=np.float64) if detail[0][1][0] == "float64" else (given or [])
+    return cls(**kwargs)
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--connect", required=True)
+    parser.add_argument("--seconds", type=float, default=5.0)
+    parser.add_argument("--listen", action="append", default=[], help="TOPIC=TYPE")
+    parser.add_argument("--publish", action="append", default=[], help="TOPIC=TYPE=JSON")
+    parser.add_argument("--every", type=float, default=0.5, help="seconds between publications")
+    parser.add_argument("--idle", type=float, default=2.0,
+                        help="stop once messages stop for this long, after the first (the system ended)")
+    args = parser.parse_args()
+
+    config = zenoh.Config()
+    config.insert_json5("mode", '"peer"')
+    config.insert_json5("connect/endpoints", json.dumps([args.connect]))
+    config.insert_json5("listen/endpoints", '["tcp/127.0.0.1:0"]')
+    config.insert_json5("scouting/multicast/enabled", "false")
+    lock, last, tokens = threading.Lock(), [None], set()
+
+    def say(obj):
+        with lock:
+            print(json.dumps(obj), flush=True)
+
+    with zenoh.open(config) as session:
+        declared = []
+        for spec in args.listen:
+            topic, ros_type = spec.split("=", 1)
+
+            def on_sample(sample, topic=topic, ros_type=ros_type):
+                raw = sample.attachment.to_bytes() if sample.attachment is not None else b""
+                seq, stamp, size = struct.unpack_from("<qqB", raw)
+                gid = raw[17:17 + size]
+                message = STORE.deserialize_cdr(sample.payload.to_bytes(), ros_type)
+                say({"topic": topic, "key": str(sample.key_expr), "message": plain(message),
+                     "attachment": [seq, stamp, gid.hex()], "header": sample.payload.to_bytes()[:4].hex()})
+                with lock:
+                    last[0] = time.monotonic()
+            declared.append(session.declare_subscriber(key_of(topic, ros_type), on_sample))
+
+        def on_token(sample):
+            if sample.kind == zenoh.SampleKind.PUT:
+                with lock:
+                    tokens.add(str(sample.key_expr))
+        declared.append(session.liveliness().declare_subscriber("@ros2_lv/0/**", on_token, history=True))
+        publishers = []
+        gid = bytes(range(16))
+        for spec in args.publish:
+            topic, ros_type, fields = spec.split("=", 2)
+            publishers.append((session.declare_publisher(key_of(topic, ros_type)), ros_type, json.loads(fields)))
+        say({"ready": True})
+        deadline = time.monotonic() + args.seconds
+        seq = 0
+        while time.monotonic() < deadline:
+            with lock:
+                if last[0] is not None and time.monotonic() - last[0] > args.idle:
+                    break
+            for publisher, ros_type, fields in publishers:
+                data = bytes(STORE.serialize_cdr(build(ros_type, fields), ros_type))
+                publisher.put(data, attachment=struct.pack("<qqB", seq, time.time_ns(), 16) + gid)
+            seq += 1
+            time.sleep(args.every if publishers else 0.05)
+        say({"tokens": sorted(tokens)})
+        for entity in declared:
+            entity.undeclare()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
