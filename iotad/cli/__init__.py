@@ -138,6 +138,17 @@ def new_recording(path: str, force: bool, option: str = "-o") -> None:
                        f"written {written}); name another file, or add --force to replace it")
 
 
+def not_its_own_file(path: str, recording, option: str = "-o") -> None:
+    """Refuse an output that is one of the files `recording` was read from (the file, or a
+    member of its split set), even with --force: writing it would destroy what is being copied."""
+    from pathlib import Path
+
+    target = Path(path).resolve()
+    for source in [recording.path, *getattr(recording, "files", [])]:
+        if Path(source).resolve() == target:
+            raise CliError(f"{option} {path}: is a file of the recording being read; name another file")
+
+
 def claim_recording(path: str, force: bool, option: str = "-o") -> bool:
     """`new_recording`'s check, then the name claimed (`claim_file`): of two runs started together
     with the same `-o`, one writes it and the other is refused here. True if this call created

@@ -195,8 +195,10 @@ def apply(system, values: dict[str, Any]):
     nodes = dict(system.nodes)
     for name, value in values.items():
         node, _, path = name.partition(".")
-        if nodes[node] is system.nodes[node]:
-            nodes[node] = dataclasses.replace(nodes[node], params=copy.deepcopy(nodes[node].params))
+        if nodes[node] is system.nodes[node]:  # the node's declaration, with its own copy of params
+            spec = nodes[node]
+            nodes[node] = dataclasses.replace(spec, declared=dataclasses.replace(
+                spec.declared, params=copy.deepcopy(dict(spec.params))))
         table = nodes[node].params
         *parents, leaf = path.split(".")
         for key in parents:

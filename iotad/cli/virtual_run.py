@@ -14,6 +14,7 @@ from collections import Counter
 from pathlib import Path
 
 from iotad.cli import CliError, claim_recording, drop_empty_claim, output_file
+from iotad.launcher.violation_examples import ViolationExamples
 
 PROGRESS_EVERY = 1.0  # wall-clock seconds between progress lines
 
@@ -101,14 +102,14 @@ def _run_composed(system, args: argparse.Namespace, writer, root, leaves: dict, 
     output = None
     sinks = []
     counts: Counter = Counter()
-    examples: list[str] = []
+    examples = ViolationExamples()
 
     def count(event: dict) -> None:
         counts[event["kind"]] += 1
-        if event["kind"] == "violation" and len(examples) < 5:
+        if event["kind"] == "violation":
             value = event.get("value") or {}
-            examples.append(f"t={event['t']:.4f} {event['iota']}.{event['action']}: "
-                            f"{value.get('message', value) if isinstance(value, dict) else value}")
+            examples.add(f"t={event['t']:.4f} {event['iota']}.{event['action']}: "
+                         f"{value.get('message', value) if isinstance(value, dict) else value}", event.get("index"))
 
     sinks.append(count)
     if not args.no_record:
@@ -232,7 +233,7 @@ def _run_composed(system, args: argparse.Namespace, writer, root, leaves: dict, 
     # an input is an event, not a firing: the firings are the outputs and internal actions
     print(f"  {engine.firings} firings ({counts['output']} outputs, {counts['internal']} internal), "
           f"{counts['input']} inputs, {counts['violation']} violations")
-    for line in examples:
+    for line in examples.lines():
         print(f"  violation {line}")
     if engine.halted:
         print("  engine halted: a loop of actions enabled itself without time passing (see the zeno violation)")

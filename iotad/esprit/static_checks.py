@@ -103,6 +103,7 @@ class Checker:
         # an action), and whose actions: now() and the built-in statements depend on both.
         self._where: str | None = None
         self._info: IotaInfo | None = None
+        self._cyclic: set[str] = set()  # IOTAs that include themselves (check() finds them first)
 
     # ---------------------------------------------------------------- reporting
     def error(self, pos, message: str) -> None:
@@ -141,9 +142,11 @@ class Checker:
             info = self.out.iotas.get(decl.name)
             if info is not None and info.decl is decl:
                 self._interface(info)
+        # cycles first: an IOTA that includes itself cannot be built, and what its inclusion
+        # part says of that component (an input never bound...) would only mislead
+        self._cyclic = self._include_cycles()
         for info in self.out.iotas.values():
             self._body(info)
-        self._include_cycles()
         return self.out
 
     # ---------------------------------------------------------------- types
@@ -632,6 +635,8 @@ class Checker:
                 if chan.direction == "internal":
                     continue
                 if not any(k[:2] == (name, chan.decl.name) for k in used):
+                    if inst.iota in self._cyclic:
+                        continue  # the cycle is the error (said once, above)
                     if chan.direction == "input":
                         self.error(inst.pos, f"input {name}.{chan.decl.name} is never bound: it could never fire")
                     else:
@@ -680,18 +685,25 @@ class Checker:
                 return None
         return (ref.child, ref.channel, ref.index), chan
 
-    def _include_cycles(self) -> None:
+    def _include_cycles(self) -> set[str]:
+        """Report each IOTA that includes itself, directly or through others, naming the cycle;
+        return their names. From the declarations, before any body is checked."""
+        cyclic: set[str] = set()
+
         def visit(name: str, path: list[str]) -> None:
             info = self.out.iotas.get(name)
             if info is None:
                 return
-            for inst in info.components.values():
-                if inst.iota in path:
-                    self.error(inst.pos, f"iota {inst.iota} includes itself (through {' -> '.join(path + [inst.iota])})")
-                    continue
-                visit(inst.iota, path + [inst.iota])
+            for inst in info.decl.instances:
+                if inst.iota == path[0]:
+                    cyclic.add(path[0])
+                    self.error(inst.pos, f"iota {path[0]} includes itself (through {' -> '.join(path + [inst.iota])}): "
+                                         "an IOTA cannot be one of its own components")
+                elif inst.iota not in path:  # a cycle that does not pass path[0] is reported from its own start
+                    visit(inst.iota, path + [inst.iota])
         for name in self.out.iotas:
             visit(name, [name])
+        return cyclic
 
     # ---------------------------------------------------------------- dead actions
     def _never_enabled(self, info: IotaInfo) -> None:

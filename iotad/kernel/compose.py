@@ -12,13 +12,11 @@ Families bind element-wise when neither side names an index.
 """
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass
 from typing import Any, Iterable
 
 from iotad.kernel.model import Channel, SpecError, param_values
-
-_ENDPOINT = re.compile(r"^\s*([A-Za-z_][\w/.]*?)(?:\[(\d+)\])?\s*$")
+from iotad.kernel.ports import Port, PortSyntaxError
 
 
 class Composite:
@@ -56,17 +54,14 @@ class Composite:
         return f"<Composite {self.instance_name}: {', '.join(self.components)}>"
 
 
-@dataclass(frozen=True)
-class Endpoint:
-    """A concrete channel of a leaf: its path, channel name and index (None: the whole family)."""
+class Endpoint(Port):
+    """A concrete channel of a leaf: its path (`node`), channel name and index (None: the whole family)."""
 
-    path: str
-    channel: str
-    index: int | None = None
+    __slots__ = ()
 
-    def __str__(self) -> str:
-        suffix = "" if self.index is None else f"[{self.index}]"
-        return f"{self.path}.{self.channel}{suffix}"
+    @property
+    def path(self) -> str:
+        return self.node
 
 
 @dataclass
@@ -104,11 +99,12 @@ def flatten(root: Any) -> Flat:
     return flat
 
 
-def _parse(text: str, where: str) -> tuple[str, int | None]:
-    match = _ENDPOINT.match(text)
-    if not match:
-        raise SpecError(f"{where}: bad endpoint {text!r} (expected child.channel or child.channel[k])")
-    return match.group(1), None if match.group(2) is None else int(match.group(2))
+def _parse(text: str, where: str) -> Port:
+    """"child.channel[k]", or "channel[k]" for the composite's own (node "")."""
+    try:
+        return Port.parse(text, node_optional=True)
+    except PortSyntaxError:
+        raise SpecError(f"{where}: bad endpoint {text!r} (expected child.channel or child.channel[k])") from None
 
 
 def _flatten(node: Any, path: str, leaves: list[Leaf], bindings: list) -> dict[str, tuple[str, Endpoint]]:
@@ -127,14 +123,14 @@ def _flatten(node: Any, path: str, leaves: list[Leaf], bindings: list) -> dict[s
 
     def resolve(text: str, want: str) -> Endpoint:
         where = f"{path}: {text}"
-        name, index = _parse(text, where)
-        if "." in name:
-            child, channel = name.split(".", 1)
+        port = _parse(text, where)
+        child, channel, index = port.node, port.channel, port.index
+        if child:
             if child not in exposed:
                 raise SpecError(f"{where}: no component {child} (have {sorted(exposed)})")
             table = exposed[child]
         else:
-            channel, table = name, {**own_channels, **mapped}
+            table = {**own_channels, **mapped}
         if channel not in table:
             raise SpecError(f"{where}: no external channel {channel} (have {sorted(table)})")
         direction, endpoint = table[channel]

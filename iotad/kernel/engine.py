@@ -312,6 +312,14 @@ class Engine:
             heapq.heappop(heap)  # a dropped window
         return heap[0][0] if heap else INF
 
+    def next_due_action(self) -> tuple[str, str, int | None] | None:
+        """(leaf path, channel, index) of the action instance `next_due` is for; None: none.
+        Replay asks whether the firing a recording has next is the one the engine has due."""
+        if self.next_due() == INF:
+            return None
+        instance = self._heap[0][3]
+        return instance.leaf.path, instance.action.channel, instance.index
+
     def deliver(self, path: str | None, channel: str, value: Any = None, index: int | None = None) -> None:
         """An external input at the clock's present time, at once (`post` queues one instead)."""
         self.start()

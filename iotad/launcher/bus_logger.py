@@ -18,28 +18,16 @@ from __future__ import annotations
 
 from typing import Any
 
-LOGGER_REF = "iotad.can.frame_log:BusLogger"
-LAG = 0.1  # seconds a frame may wait in the logger before its log entry is late (a deadline miss)
+from iotad.launcher.declaration import LOGGER_REF  # noqa: F401 - the logger's class, as this module names it
 
-
-def add_bus_loggers(system: Any) -> None:
-    """Add the logger node of every bus of `system` that logs (`CanBusSpec.log`)."""
-    from iotad.launcher.system_file import NodeSpec
-
-    for bus in system.buses.values():
-        if not getattr(bus, "log", True) or bus.name in system.nodes:
-            continue
-        hosts = [system.nodes[s].host for s in bus.stations if s in system.nodes]
-        system.nodes[bus.name] = NodeSpec(
-            name=bus.name, entry=f"{bus.entry}'s bus logger", source={"kind": "python", "ref": LOGGER_REF},
-            params={"bitrate": bus.bitrate, "lag": LAG / system.time_unit},  # lag: in the system's time unit
-            host=next((h for h in hosts if h is not None), None))
+# The logger nodes themselves are added where the system file is parsed (a parse step:
+# `declaration._Parser.add_bus_loggers`), so every reader of a declaration sees them.
 
 
 def is_bus_logger(system: Any, node: str) -> bool:
     """Whether `node` is the implicit logger of a bus (not a node of the system file)."""
     spec = system.nodes.get(node)
-    return node in system.buses and spec is not None and spec.source.get("ref") == LOGGER_REF
+    return spec is not None and spec.bus_logger
 
 
 def logger_port_config(bus: Any) -> dict[str, Any]:

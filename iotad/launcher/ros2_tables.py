@@ -14,6 +14,7 @@ LAG = 0.05  # seconds the bridge may hold a ROS 2 message before forwarding it i
 def add_ros2_bridge(parser: Any, system: Any, raw_tables: list) -> None:
     """Check every `[[ros2]]` table of a system whose channels are known; where all are good and
     there is one at least, add the bridge node and its bindings. Problems go to `parser.error`."""
+    from iotad.launcher.declaration import NodeDecl
     from iotad.launcher.system_file import Binding, NodeSpec, Port, channel_table, instantiate
 
     if not raw_tables:
@@ -50,9 +51,10 @@ def add_ros2_bridge(parser: Any, system: Any, raw_tables: list) -> None:
         pairs.append((port, direction, entry))
     if len(mappings) != len(raw_tables):
         return
-    node = NodeSpec(name=NODE_NAME, entry="the ROS 2 bridge ([[ros2]])", source={"kind": "python", "ref": BRIDGE_REF},
-                    params={"mappings": mappings, "switching": switching, "ros_node": f"iotad_{system.name}",
-                            "lag": LAG / system.time_unit})
+    node = NodeSpec(NodeDecl(name=NODE_NAME, entry="the ROS 2 bridge ([[ros2]])",
+                             source={"kind": "python", "ref": BRIDGE_REF},
+                             params={"mappings": mappings, "switching": switching, "ros_node": f"iotad_{system.name}",
+                                     "lag": LAG / system.time_unit}))
     node.channels = channel_table(instantiate(node))
     system.nodes[NODE_NAME] = node
     for number, (port, direction, entry) in enumerate(pairs):

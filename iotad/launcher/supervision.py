@@ -36,6 +36,7 @@ from iotad.host import wire
 from iotad.launcher.processes import FAILED_TO_START, Child, RestartPolicy, describe_exit, stop_all
 from iotad.launcher.recording_paths import next_continuation, unwritable
 from iotad.launcher.system_file import NodeSpec, Port, System, with_port
+from iotad.launcher.violation_examples import ViolationExamples
 
 ALIVE = "@alive"
 HEARTBEAT = "@heartbeat"
@@ -85,7 +86,7 @@ class Tally:
 
     values: dict[str, Counter] = field(default_factory=dict)      # channel key -> Counter of values
     violations: Counter = field(default_factory=Counter)           # node path -> count
-    examples: list[str] = field(default_factory=list)              # first violation messages
+    examples: ViolationExamples = field(default_factory=ViolationExamples)  # first distinct violation lines
     lock: threading.Lock = field(default_factory=threading.Lock)
 
     def channel(self, key: str, value: Any) -> None:
@@ -100,10 +101,9 @@ class Tally:
         if isinstance(event, dict) and event.get("kind") == "violation":
             with self.lock:
                 self.violations[path] += 1
-                if len(self.examples) < 5:
-                    value = event.get("value") or {}
-                    message = value.get("message") if isinstance(value, dict) else value
-                    self.examples.append(f"{path} t={event.get('t', 0):.3f}: {message}")
+                value = event.get("value") or {}
+                message = value.get("message") if isinstance(value, dict) else value
+                self.examples.add(f"{path} t={event.get('t', 0):.3f}: {message}", event.get("index"))
 
 
 class Launcher:
@@ -327,7 +327,8 @@ class Launcher:
         ready.unlink(missing_ok=True)
         argv = [sys.executable, "-m", "iotad", "record", f"{wire.PREFIX}/{system.name}/**",
                 "-o", str(output), "--system-file", str(system.path), "--ready-file", str(ready),
-                "--from-traces"]  # one wake-up per trace burst, not per message: see iotad.recording.recorder
+                "--from-traces",  # one wake-up per trace burst, not per message: see iotad.recording.recorder
+                "--from-launcher"]  # the file checked and the name claimed: the recorder loads no node code
         if self.record_force:
             argv.append("--force")
         if self.record_max_size is not None:
@@ -744,7 +745,7 @@ class Launcher:
         system, lines = self.system, []
         with self.tally.lock:
             values = {k: Counter(v) for k, v in self.tally.values.items()}
-            violations, examples = Counter(self.tally.violations), list(self.tally.examples)
+            violations, examples = Counter(self.tally.violations), self.tally.examples.lines()
         for node in system.nodes.values():
             for channel in node.channels.values():
                 if channel.direction != "output":

@@ -26,6 +26,7 @@ from iotad.kernel.clock import VirtualClock
 from iotad.kernel.engine import ActionInstance, Engine, plus
 from iotad.kernel.types import to_plain
 from iotad.host.wire import START_KIND
+from iotad.recording.values import values_close
 
 INF = math.inf
 
@@ -62,6 +63,7 @@ class Finding:
     code: str       # early, late, expired, not_enabled, wrong_value, switching_time, unknown_event, ...
     message: str
     position: int   # index of the recorded event it is about (-1: the end of the recording)
+    due: float | None = None  # a late firing: when its window closed
 
     def __str__(self) -> str:
         return f"t={self.t:.6g} [{self.code}] {self.message}"
@@ -158,7 +160,7 @@ def first_difference(a: Any, b: Any, path: str = "") -> str:
         if len(a) != len(b):
             return f"{path or 'the value'}: {len(a)} elements against {len(b)}"
         return ""
-    if _same(a, b):
+    if values_close(a, b):
         return ""
     return f"{path.lstrip('.') or 'the value'}: {_short(a)} against {_short(b)}"
 
@@ -210,19 +212,6 @@ def _value_of(instance: ActionInstance) -> Any:
     # Python (an ESPRIT `extern struct`, e.g. channels.mdl:MDL_PROGRAM) that plain to_plain does not
     kind = getattr(instance.slot, "type", None)
     return to_plain(value) if kind is None else kind.to_plain(value)
-
-
-def _same(a: Any, b: Any) -> bool:
-    if isinstance(a, float) or isinstance(b, float):
-        try:
-            return math.isclose(a, b, rel_tol=1e-9, abs_tol=1e-12)
-        except TypeError:
-            return False
-    if isinstance(a, dict) and isinstance(b, dict):
-        return a.keys() == b.keys() and all(_same(a[k], b[k]) for k in a)
-    if isinstance(a, (list, tuple)) and isinstance(b, (list, tuple)):
-        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b))
-    return a == b
 
 
 def _earliest(instance: ActionInstance) -> float:
@@ -284,8 +273,8 @@ class TraceChecker:
         return report
 
     # -- steps
-    def _find(self, t: float, code: str, message: str, position: int) -> None:
-        self.report.findings.append(Finding(t, code, message, position))
+    def _find(self, t: float, code: str, message: str, position: int, due: float | None = None) -> None:
+        self.report.findings.append(Finding(t, code, message, position, due))
 
     def _engine_violations(self, t: float, position: int) -> None:
         found = self.collect.violations
@@ -355,7 +344,7 @@ class TraceChecker:
         matching = []
         for instance in enabled:
             try:
-                if _same(_value_of(instance), value):
+                if values_close(_value_of(instance), value):
                     matching.append(instance)
             except Exception:  # noqa: BLE001 - a value the spec cannot compute matches nothing
                 continue
@@ -379,7 +368,7 @@ class TraceChecker:
         elif t > instance.upper + self.tolerance:
             self._find(t, "late", f"{describe(event)} fired {t - instance.upper:.6g} after its window "
                        f"[{instance.lower:.6g}, {instance.upper:.6g}] closed ({name} enabled at "
-                       f"t={instance.te:.6g})", position)
+                       f"t={instance.te:.6g})", position, due=instance.upper)
         if t < plus(slot.last, slot.switching) - self.tolerance:
             self._find(t, "switching_time", f"{describe(event)} came {t - slot.last:.6g} after the previous "
                        f"event on {channel} at t={slot.last:.6g}, sooner than its switching time "
@@ -634,7 +623,7 @@ class ImplementsChecker:
             if not instance.enabled:
                 continue
             try:
-                if not _same(_value_of(instance), value):
+                if not values_close(_value_of(instance), value):
                     why.append(f"{describe(event)}: {label_of(instance)} would give {_short(_value_of_safe(instance))}")
                     continue
             except Exception:  # noqa: BLE001

@@ -34,7 +34,6 @@ import json
 import os
 import threading
 import time
-import tomllib
 import uuid
 from pathlib import Path
 from typing import Any, Callable, Iterable
@@ -45,10 +44,11 @@ import zenoh
 from iotad.host import wire
 from iotad.host.can_port import KEY_PREFIX as CAN_KEY_PREFIX
 from iotad.host.credentials import for_endpoints
-from iotad.launcher.recording_paths import continuation_path
+from iotad.launcher.recording_paths import continuation_path, unused_recording_path
 from iotad.recording.mcap_format import FORMAT, GAP_TOPIC, MALFORMED_TOPIC, packb, trace_event_problem
 from iotad.recording.mcap_sink import channel_schemas, McapSink, schema_for_topic, write_set_file
 from iotad.host.transport import DEFAULT_LISTEN, open_session
+from iotad.launcher.declaration import Declaration, SystemFileError, read_declaration
 
 _MAPS = ("/@launcher", "/@heartbeat")  # keys whose payload every reader takes for a msgpack map
 NICENESS = 10  # a tenth of a normal process's CPU share when both want the CPU
@@ -98,35 +98,13 @@ def trace_keys(system: str) -> list[str]:
     return [f"{wire.PREFIX}/{system}/**/@trace", wire.launcher_key(system), f"{wire.PREFIX}/{system}/**/@heartbeat"]
 
 
-def read_system_file(path: str | Path) -> tuple[str, dict]:
-    """(text, parsed table) of a system TOML file."""
-    text = Path(path).read_text()
+def read_system_file(path: str | Path) -> Declaration:
+    """The declaration of a system file, for what a recorder needs of it (its name, nodes, time
+    unit, hub, text): read whole, not checked. ValueError where it is no TOML."""
     try:
-        table = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ValueError(f"{path}: not TOML: {exc}") from None
-    return text, table
-
-
-def system_name(table: dict) -> str | None:
-    for candidate in (table.get("system"), table.get("name")):
-        if isinstance(candidate, str):
-            return candidate
-        if isinstance(candidate, dict) and isinstance(candidate.get("name"), str):
-            return candidate["name"]
-    return None
-
-
-def system_hub(table: dict) -> list[str]:
-    """Where a system file's `iotad run` opens its hub (its [system.endpoints] listen), as a
-    client reaches it (all interfaces: on loopback)."""
-    from iotad.host.transport import DEFAULT_HUB_ENDPOINT, reachable
-
-    system = table.get("system") if isinstance(table.get("system"), dict) else {}
-    endpoints = system.get("endpoints", {})
-    listen = endpoints.get("listen", [DEFAULT_HUB_ENDPOINT]) if isinstance(endpoints, dict) else []
-    listen = [listen] if isinstance(listen, str) else listen
-    return [reachable(e) for e in listen if isinstance(e, str)]
+        return read_declaration(path)
+    except SystemFileError as exc:
+        raise ValueError(str(exc)) from None
 
 
 class Recorder:
@@ -136,11 +114,10 @@ class Recorder:
                  connect: Iterable[str] = (), listen: Iterable[str] | None = None,
                  flush_period: float = 0.05, spec_timeout: float = 0.5, query_specs: bool = True,
                  fifo_capacity: int = 65536, background: bool = False, from_traces: bool = False,
-                 max_size: int | None = None, max_duration: float | None = None):
-        self.system_text, self.system_table = (None, {})
-        if system_file is not None:
-            self.system_text, self.system_table = read_system_file(system_file)
-        self.system = system_name(self.system_table)
+                 max_size: int | None = None, max_duration: float | None = None, replace: bool = False):
+        self.declaration = None if system_file is None else read_system_file(system_file)
+        self.system_text = None if self.declaration is None else self.declaration.text
+        self.system = None if self.declaration is None else self.declaration.name
         keys = list(keys)
         if not keys and self.system:
             keys = [f"{wire.PREFIX}/{self.system}/**"]
@@ -160,8 +137,7 @@ class Recorder:
             self.keys = trace_keys(self.system)
         # trace-sourced: node paths whose outputs their own traces record (the system file's
         # nodes, every node seen on @trace) and every key a node published an output on
-        self._nodes: set[str] = {n["name"] for n in self.system_table.get("node") or []
-                                 if isinstance(n, dict) and isinstance(n.get("name"), str)}
+        self._nodes: set[str] = set() if self.declaration is None else set(self.declaration.nodes)
         self._output_keys: set[str] = set()
         self._pack = msgpack.Packer(use_bin_type=True).pack  # the writer thread's alone
         self._unpack = functools.partial(msgpack.unpackb, raw=False, strict_map_key=False)
@@ -172,6 +148,9 @@ class Recorder:
             raise ValueError(f"max_duration must be a positive number of seconds, got {max_duration!r}")
         self.max_size, self.max_duration = max_size, max_duration
         self.split = max_size is not None or max_duration is not None
+        # split: a numbered file's name that is taken is skipped, unless the recording at `output`
+        # is being replaced (--force), numbered files included
+        self.replace = replace
         self.files: list[Path] = []  # the files written so far (split: the members; else output)
         self._set_id = uuid.uuid4().hex
         self.connect, self.listen = list(connect), list(listen or ())
@@ -273,6 +252,8 @@ class Recorder:
         path = self.output
         if self.split:
             path = continuation_path(self.output, len(self.files))
+            if not self.replace:  # never over another file: the set file names its members
+                path = unused_recording_path(path, claim=True)
             write_set_file(self.output, self._set_id, [p.name for p in self.files] + [path.name],
                            dict(info, split={"set": self._set_id, "set_file": self.output.name}))
         self.sink = McapSink(path)
@@ -314,10 +295,7 @@ class Recorder:
             self._session = None
 
     def _system_time_unit(self) -> float:
-        unit = self.system_table.get("time_unit")
-        if unit is None and isinstance(self.system_table.get("system"), dict):
-            unit = self.system_table["system"].get("time_unit")
-        return float(unit) if isinstance(unit, (int, float)) else 1.0
+        return 1.0 if self.declaration is None else self.declaration.time_unit
 
     # ------------------------------------------------------------------ the writer thread
     def _run(self) -> None:

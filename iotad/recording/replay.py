@@ -10,15 +10,16 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Callable
 
 from iotad.host.wire import START_KIND
-from iotad.recording.conformance import _same, align_paths, describe, first_difference, split_runs
+from iotad.recording.conformance import align_paths, describe, first_difference, split_runs
 from iotad.kernel.clock import VirtualClock
 from iotad.kernel.engine import Engine
 from iotad.recording.mcap_format import RecordingError
 from iotad.recording.mcap_reader import Recording, start_time
+from iotad.recording.values import values_close
 
 
 @dataclass
@@ -34,6 +35,9 @@ class ReplayResult:
     reordered: int = 0              # replayed events taken out of order (free replay, real time)
     real_time: bool = False         # the recording's clock was real
     guided: bool = False            # the node's firings followed the recording's times
+    # free replay of a real-time recording: firings the process made later than the tolerance
+    # after the replay had them due, each replayed at its recorded time: (recorded event, due)
+    late: list = field(default_factory=list)
 
     @property
     def ok(self) -> bool:
@@ -43,11 +47,12 @@ class ReplayResult:
         if self.ok:
             if self.guided:
                 return [f"{self.node}: replay agrees: {len(self.recorded)} {'/'.join(self.kinds)} events, every "
-                        f"value computed again, each firing at its recorded time"]
+                        f"value computed again, each firing at its recorded time"] + self._lateness()
             order = (f"; {self.reordered} in another order than the replay's, within the tolerance"
                      if self.reordered else "")
             return [f"{self.node}: replay agrees: {len(self.recorded)} {'/'.join(self.kinds)} events, "
-                    f"largest time difference {self.max_time_error:.3g} (tolerance {self.tolerance:g}){order}"]
+                    f"largest time difference {self.max_time_error:.3g} (tolerance {self.tolerance:g}){order}"] \
+                + self._lateness()
         k = self.divergence
         out = [f"{self.node}: replay diverges at {'/'.join(self.kinds)} event #{k}: {self.reason}"]
         lo = max(0, k - context)
@@ -58,6 +63,7 @@ class ReplayResult:
                 out.append(f"   {mark} #{j} {describe(events[j])}")
             if k >= len(events):
                 out.append(f"   >> #{k} (none: the {title} run ends here)")
+        out += self._lateness()
         if self.guided:
             out.append(f"  (each firing at its recorded time; 'iotad check FILE --node {self.node}' says which "
                        f"rule of the spec it breaks)")
@@ -66,6 +72,28 @@ class ReplayResult:
                        "with its clock's jitter; without --free the replay follows the recorded firing times: "
                        "docs/checking.md)")
         return out
+
+
+    def _lateness(self) -> list[str]:
+        """The firings the process made later than the tolerance (up to the divergence): guided,
+        after their windows closed; free, after the replay has them due, and replayed where the
+        recording has them."""
+        late = self.late
+        if not self.ok:
+            until = float(self.recorded[min(self.divergence, len(self.recorded) - 1)]["t"]) if self.recorded else 0.0
+            late = [(e, due) for e, due in late if float(e["t"]) <= until]
+        if not late:
+            return []
+        event, due = late[0]
+        worst, worst_due = max(late, key=lambda pair: float(pair[0]["t"]) - pair[1])
+        if self.guided:
+            what, when = "after their windows closed", "its window closed at"
+        else:
+            what, when = ("after the replay has them due, and are replayed where the recording has them, "
+                          "not on time"), "it was due at"
+        return [f"  {len(late)} firing(s) {'before that ' if not self.ok else ''}came later than the tolerance "
+                f"{what}; the first, {describe(event)} ({when} t={due:.6g}, {float(event['t']) - due:.3g} late), "
+                f"the latest {describe(worst)} ({float(worst['t']) - worst_due:.3g} late): 'iotad check' judges them"]
 
 
 def node_root(recording: Recording, node: str) -> Any:
@@ -118,15 +146,16 @@ def replay_node(recording: Recording, node: str, tolerance: float = 0.01,
     # after the node's last recorded event and by then is an event the recording lacks (a node
     # cut short). A real-time recording says no such thing of a node.
     run_end = None if real_time else recording.run_end
-    recorded, replayed = [], []
+    recorded, replayed, late = [], [], []
     for number, (begun, run) in enumerate(runs):
         last = number == len(runs) - 1
         mine = [e for e in run if e.get("kind") in kinds]
         root = node_root(recording, node)
         if guided:
-            again = _guided_run(root, begun, run, tolerance, kinds)
+            again = _guided_run(root, begun, run, tolerance, kinds, late)
         else:
-            again = _replay_run(root, begun, run, tolerance, kinds, until=run_end if last else None)
+            again = _replay_run(root, begun, run, tolerance, kinds, until=run_end if last else None,
+                                late=late if reorder else None)
         # A firing the recording may simply not have reached (it ended first, or the process was
         # killed at that instant; a real process, a little late, up to `tolerance` before) is not
         # a divergence.
@@ -140,7 +169,8 @@ def replay_node(recording: Recording, node: str, tolerance: float = 0.01,
             again.pop()
         recorded += mine
         replayed += again
-    result = ReplayResult(node, recorded, replayed, tolerance, kinds=kinds, real_time=real_time, guided=guided)
+    result = ReplayResult(node, recorded, replayed, tolerance, kinds=kinds, real_time=real_time, guided=guided,
+                          late=late)
     for k in range(max(len(recorded), len(replayed))):
         if reorder and k < min(len(recorded), len(replayed)) and _moved_forward(recorded[k], replayed, k,
                                                                                  tolerance):
@@ -169,28 +199,49 @@ def replay_node(recording: Recording, node: str, tolerance: float = 0.01,
 
 def _agree(a: dict, b: dict) -> bool:
     return (a["action"], a.get("index"), a.get("kind")) == (b["action"], b.get("index"), b.get("kind")) \
-        and _same(a.get("value"), b.get("value"))
+        and values_close(a.get("value"), b.get("value"))
 
 
 def _moved_forward(wanted: dict, replayed: list[dict], k: int, tolerance: float) -> bool:
     """If `replayed[k]` does not agree with the recorded event `wanted` but a later replayed event
-    within `tolerance` of it does (both in time), move that one to place k; True if moved."""
+    within `tolerance` of it does (both in time), move that one to place k; True if moved. None
+    agrees, but one within `tolerance` is on the same channel and index while `replayed[k]` is
+    not: that one is moved, so that the replay is compared in the recorded order and a value
+    that differs is said as such, not as another event in its place."""
     t = float(wanted["t"])
     if _agree(wanted, replayed[k]) and abs(float(replayed[k]["t"]) - t) <= tolerance:
         return False
+    same_channel = None
     for j in range(k + 1, len(replayed)):
         if float(replayed[j]["t"]) > t + tolerance:
             break
-        if _agree(wanted, replayed[j]) and abs(float(replayed[j]["t"]) - t) <= tolerance:
+        if abs(float(replayed[j]["t"]) - t) > tolerance:
+            continue
+        if _agree(wanted, replayed[j]):
             replayed.insert(k, replayed.pop(j))
             return True
+        if same_channel is None and _channel(replayed[j]) == _channel(wanted) != _channel(replayed[k]):
+            same_channel = j
+    if same_channel is not None:
+        replayed.insert(k, replayed.pop(same_channel))
+        return True
     return False
 
 
+def _channel(event: dict) -> tuple:
+    return event["action"], event.get("index"), event.get("kind")
+
+
 def _replay_run(root: Any, begun: float, events: list[dict], tolerance: float, kinds: tuple,
-                until: float | None = None) -> list[dict]:
+                until: float | None = None, late: list | None = None) -> list[dict]:
     """The events of `kinds` that `root` makes when given the inputs of one recorded run, up to
-    `until` (a virtual run's recorded end) or just past its last event."""
+    `until` (a virtual run's recorded end) or just past its last event.
+
+    `late` (a real-time recording): a firing the recording has more than `tolerance` after the
+    replay has it due, with nothing else of the node due before it, is fired at its recorded
+    time, and (it, when it was due) goes on `late`. The process was late (under load, a firing
+    comes after its deadline); fired on time, it would come before the recorded events between,
+    see another state, and what follows would be compared out of order."""
     engine = Engine(root, VirtualClock(begun))
     mapping = align_paths((e.get("iota", "") for e in events), list(engine.leaves))
     # Inputs bound to an output inside the node (a composite) are delivered by that output's
@@ -206,10 +257,33 @@ def _replay_run(root: Any, begun: float, events: list[dict], tolerance: float, k
     firings = []            # the replay's, as its engine makes them
     engine.sinks.append(lambda e: firings.append(e) if e["kind"] in ("output", "internal") else None)
     engine.start()          # its windows open at the run's start, not at the first input
+
+    def catch_up(until: float, count: int) -> None:
+        """Fire what is due up to `until`, one firing at a time, while the replay has fired fewer
+        than the recording's first `count`."""
+        while len(firings) < count and not engine.halted:
+            due = engine.next_due()
+            if due > until:
+                break
+            if engine.now() < due:
+                engine.clock.wait(due)
+            if engine.fire_due(count - len(firings)) == 0 and engine.next_due() <= engine.now():
+                break  # nothing could fire now (every due one waits out a switching time)
+
     for event in events:
         t, kind = float(event["t"]), event.get("kind")
         if kind in ("output", "internal"):
             recorded_fired += 1
+            if late is not None:
+                catch_up(t - tolerance, recorded_fired - 1)  # the firings recorded before it
+                due = engine.next_due()
+                this = (mapping[event.get("iota", "")], event["action"], event.get("index"))
+                if len(firings) == recorded_fired - 1 and due < t - tolerance and engine.next_due_action() == this:
+                    if engine.now() < t:
+                        engine.clock.wait(t)
+                    if engine.fire_due(1):
+                        late.append((event, due))
+            continue
         if kind != "input":
             continue
         slot = engine.slots.get((mapping[event.get("iota", "")], event["action"], event.get("index")))
@@ -217,14 +291,7 @@ def _replay_run(root: Any, begun: float, events: list[dict], tolerance: float, k
             continue
         # what is due up to the input's instant, one firing at a time, while the recording has
         # fired more than the replay: a firing it has after the input waits for the input
-        while len(firings) < recorded_fired and not engine.halted:
-            due = engine.next_due()
-            if due > t:
-                break
-            if engine.now() < due:
-                engine.clock.wait(due)
-            if engine.fire_due(recorded_fired - len(firings)) == 0 and engine.next_due() <= engine.now():
-                break  # nothing could fire now (every due one waits out a switching time)
+        catch_up(t, recorded_fired)
         if engine.halted:
             break
         if engine.now() < t:
@@ -235,17 +302,20 @@ def _replay_run(root: Any, begun: float, events: list[dict], tolerance: float, k
     return _as_recorded(mapping, [e for e in engine.trace if e["kind"] in kinds])
 
 
-def _guided_run(root: Any, begun: float, events: list[dict], tolerance: float, kinds: tuple) -> list[dict]:
+def _guided_run(root: Any, begun: float, events: list[dict], tolerance: float, kinds: tuple,
+                late: list) -> list[dict]:
     """The events of `kinds` that `root` makes when each of its firings is the one the recording
     has, at its time (the trace checker's way: an enabled instance of that channel and index, its
-    value computed by the spec; none enabled: no firing). When each firing came is what happened, not
-    judged here: `iotad check` says whether it was inside its window."""
+    value computed by the spec; none enabled: no firing). When each firing came is what happened,
+    not judged here (`iotad check` says whether it was inside its window), but a firing later
+    than the tolerance after its window closed goes on `late`, with when it closed."""
     from iotad.recording.conformance import TraceChecker
 
     checker = TraceChecker(root, tolerance=tolerance, start=begun)
     made: list[dict] = []
     checker.engine.sinks.append(lambda event: made.append(event) if event["kind"] in kinds else None)
-    checker.check(events)
+    report = checker.check(events)
+    late += [(events[f.position], f.due) for f in report.findings if f.code == "late" and f.due is not None]
     return _as_recorded(align_paths((e.get("iota", "") for e in events), list(checker.engine.leaves)), made)
 
 

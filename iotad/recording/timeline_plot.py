@@ -9,36 +9,21 @@ the stored system file (`vision.req -> scheduler.req[0]`), else `req[i]`.
 """
 from __future__ import annotations
 
-import json
-import re
-import tomllib
 from pathlib import Path
 
 from iotad.recording.mcap_format import RecordingError
 from iotad.recording.mcap_reader import Recording
+from iotad.recording.recorded_system import recorded_bindings
 
 ACK_STYLE = {"COMMIT": ("o", "#2a9d3f"), "ABORT": ("v", "#e08a00"), "REJECT": ("X", "#c62828")}
-_TARGET = re.compile(r"^(?P<node>[\w/]+)\.(?P<channel>\w+)\[(?P<index>\d+)\]$")
 
 
 def requester_names(recording: Recording, scheduler: str) -> dict[int, str]:
-    """index -> requester name, from `[[bind]]` tables (TOML) or `bindings` (in-process JSON)."""
-    pairs: list[tuple[str, str]] = []
-    for attachment in recording.attachments:
-        try:
-            if attachment.name == "system.toml":
-                table = tomllib.loads(attachment.data.decode())
-                pairs += [(b.get("from", ""), b.get("to", "")) for b in table.get("bind", []) if isinstance(b, dict)]
-            elif attachment.name == "system.json":
-                pairs += [tuple(p) for p in json.loads(attachment.data).get("bindings", [])]
-        except (ValueError, UnicodeDecodeError, AttributeError):
-            continue
-    names = {}
-    for source, target in pairs:
-        match = _TARGET.match(target.strip())
-        if match and match["node"].split("/")[-1] == scheduler.split("/")[-1]:
-            names[int(match["index"])] = source.split(".")[0].split("/")[-1]
-    return names
+    """index -> requester name, from the bindings of the recorded system (`[[bind]]` of its
+    system.toml, or an in-process run's system.json) into a member of the scheduler's family."""
+    leaf = scheduler.split("/")[-1]
+    return {target.index: source.node.split("/")[-1] for source, target in recorded_bindings(recording)
+            if target.index is not None and target.node.split("/")[-1] == leaf}
 
 
 def schedulers(recording: Recording) -> dict[str, int]:

@@ -2,12 +2,12 @@
 receiver's runs (a start event each, then heartbeats and trace events): before the first start
 nobody could take it, between a death and the restart it was lost because the receiver was down
 (said so, whatever else it later received), near the end of the last run it was in flight."""
-from iotad.recording.delivery import _Life
+from iotad.recording.delivery_accounts import Life
 
 
 def echo_life():
     # started at 1, last heard at 4; restarted at 6, last heard at 9
-    return _Life(starts=[1.0, 6.0], signs=[2.0, 3.0, 4.0, 7.0, 9.0], virtual_end=None)
+    return Life(starts=[1.0, 6.0], signs=[2.0, 3.0, 4.0, 7.0, 9.0], virtual_end=None)
 
 
 def test_before_the_first_start_it_is_not_judged():
@@ -34,7 +34,7 @@ def test_within_the_grace_of_the_last_sign_of_the_last_run_it_is_in_flight():
 
 
 def test_virtual_time_has_one_run_and_no_downtime():
-    life = _Life(starts=[0.0], signs=[], virtual_end=10.0)
+    life = Life(starts=[0.0], signs=[], virtual_end=10.0)
     assert life.down(5.0, 0.1, "echo") is None
     assert life.judge(5.0, 0.1, "echo")[0] == "lost"
     assert life.judge(9.95, 0.1, "echo")[0] == "unjudged"
@@ -44,11 +44,11 @@ def test_what_a_killed_node_sent_after_its_last_trace_is_untraced_not_unexplaine
     """kill -9 loses a node's last trace period: a frame the bus (or the wire) carries from then
     is the node's, though its trace does not hold it. The run that was going at that time says
     where its trace ends; the next run, after the restart, has its own."""
-    from iotad.recording.delivery import _Life
+    from iotad.recording.delivery_accounts import Life
 
-    life = _Life(starts=[0.0, 6.0], signs=[1.0, 5.39123, 6.5, 9.0], virtual_end=None)
+    life = Life(starts=[0.0, 6.0], signs=[1.0, 5.39123, 6.5, 9.0], virtual_end=None)
     assert life.untraced_at(5.4088) == 5.39123   # after run 1's trace, before run 2 started
     assert life.untraced_at(5.0) is None          # inside run 1's trace
     assert life.untraced_at(8.0) is None          # inside run 2's
     assert life.untraced_at(9.5) == 9.0           # after the last run's trace
-    assert _Life(starts=[0.0], signs=[], virtual_end=3.0).untraced_at(2.0) is None  # virtual: one engine
+    assert Life(starts=[0.0], signs=[], virtual_end=3.0).untraced_at(2.0) is None  # virtual: one engine

@@ -236,3 +236,35 @@ def test_a_set_with_another_runs_file_or_a_missing_last_file_is_never_read_as_wh
     assert read_recording(holed.parent / names[2]).complete  # the file after the hole reads alone
     assert main(["info", str(foreign)]) == 2
     assert "belongs to another split recording" in capsys.readouterr().err
+
+
+def test_a_split_recording_never_writes_over_a_file_that_is_there(tmp_path, recorders):
+    """The set's numbered files go next to -o: `keep_1.mcap` of an earlier run (or the user's
+    own) was written over in silence by the set's second file. A name that is taken is skipped
+    (the set file lists its files by name); --force, which replaces the recording at -o,
+    replaces its numbered files too."""
+    earlier = tmp_path / "keep_1.mcap"
+    earlier.write_bytes(b"an earlier run's recording")
+    forced_folder = tmp_path / "forced"
+    forced_folder.mkdir()
+    (forced_folder / "keep_1.mcap").write_bytes(b"the set --force replaces")
+    kept = recorders(tmp_path / "keep.mcap", "--max-size", "1")
+    forced = recorders(forced_folder / "keep.mcap", "--max-size", "1", "--force")
+    source = Source(kept, forced)
+    try:
+        for _ in range(3):
+            before = [len(members(r.output)) for r in (kept, forced)]
+            source.batch()
+            for r, n in zip((kept, forced), before):
+                wait_for(lambda r=r, n=n: len(members(r.output)) > n, 20, what="the next file of a set")
+        wait_for(lambda: all(received(r.output) == source.sent for r in (kept, forced)), 20, what="every message")
+    finally:
+        source.close()
+    assert kept.stop() == 0 and forced.stop() == 0
+    assert earlier.read_bytes() == b"an earlier run's recording"
+    names = [f.name for f in set_files(kept.output)]
+    assert names[:3] == ["keep_0.mcap", "keep_1-2.mcap", "keep_2.mcap"], names
+    recording = read_recording(kept.output)
+    assert recording.complete and [m.sequence for m in recording.messages if m.topic == KEY] == list(range(source.sent))
+    assert [f.name for f in set_files(forced.output)][:3] == ["keep_0.mcap", "keep_1.mcap", "keep_2.mcap"]
+    assert read_recording(forced.output).complete

@@ -229,28 +229,27 @@ def _check_node(recording, node: str, args: argparse.Namespace, tolerance: float
 def _never_ran(recording, specs: dict, unchecked: list[str]) -> list[str]:
     """Nodes of the recorded system file (a real-time run's system.toml) that the recording holds
     nothing of, where it was made to hold them (its key expressions cover their @trace)."""
-    import tomllib
-
     from iotad.host import wire
-    from iotad.recording.delivery import _keyexpr_matches
+    from iotad.launcher.declaration import SystemFileError
+    from iotad.recording.delivery_accounts import keyexpr_matches
+    from iotad.recording.recorded_system import recorded_declaration
 
-    text = next((a.data for a in recording.attachments if a.name == "system.toml"), None)
-    if text is None:
-        return []
     try:
-        table = tomllib.loads(text.decode(errors="replace"))
-    except (tomllib.TOMLDecodeError, ValueError, RecursionError):
+        declaration = recorded_declaration(recording)
+    except SystemFileError:
         return []  # the delivery check says what is wrong with it
-    names = [n.get("name") for n in table.get("node", []) if isinstance(n, dict)]
+    if declaration is None:
+        return []
+    names = declaration.file_nodes
     keys = recording.info.get("keys")
     system = recording.system or ""
 
     def covered(node: str) -> bool:
         trace = wire.trace_key(system, node)
-        return not isinstance(keys, list) or any(isinstance(k, str) and _keyexpr_matches(k, trace) for k in keys)
+        return not isinstance(keys, list) or any(isinstance(k, str) and keyexpr_matches(k, trace) for k in keys)
 
     seen = set(specs) | set(unchecked) | set(recording.nodes())
-    return sorted(n for n in names if isinstance(n, str) and n not in seen and covered(n))
+    return sorted(n for n in names if n not in seen and covered(n))
 
 
 def _unchecked(recording, specs: dict) -> list[str]:

@@ -4,7 +4,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from iotad.cli import new_recording, output_file
+from iotad.cli import new_recording, not_its_own_file, output_file
 
 ORDER = 35
 
@@ -48,6 +48,7 @@ def run(args: argparse.Namespace) -> int:
     output_file(args.output)
     new_recording(args.output, args.force)
     recording = load(args.file)
+    not_its_own_file(args.output, recording)
     extra = None
     if not recording.complete or recording.damaged:
         # the copy is a whole file, but not of a whole run: its metadata says so as `iotad
@@ -72,6 +73,9 @@ def _ros2(args: argparse.Namespace) -> int:
 
     output = Path(args.output)
     if output.exists():
+        if Path(args.file).resolve().is_relative_to(output.resolve()):
+            # --force would remove the bag, and the recording being exported with it
+            raise CliError(f"-o {output}: holds the recording being exported ({args.file}); name another folder")
         if not args.force or not (output / "metadata.yaml").is_file():
             raise CliError(f"{output} exists" + ("" if args.force else "; --force replaces a bag")
                            + (" (and is not a rosbag2 bag: not removed)" if args.force else ""))

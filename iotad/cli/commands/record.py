@@ -81,8 +81,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--force", action="store_true",
                         help="replace a recording already at FILE (default: refuse, so that none is lost)")
     parser.add_argument("--system-file", metavar="SYSTEM.toml",
-                        help="system file to store in the recording (refused if 'iotad run' would refuse "
-                             "its form; its nodes' code is not loaded)")
+                        help="system file to store in the recording (refused, before anything starts, "
+                             "where 'iotad run --check' would refuse it: its nodes' specs and code are "
+                             "loaded to check their channels and bindings)")
+    # the recorder `iotad run` starts: the launcher checked the system file (this recorder checks
+    # only its form, loads no node code and is subscribed at once, beside nodes that are
+    # starting) and claimed the output's name
+    parser.add_argument("--from-launcher", action="store_true", help=argparse.SUPPRESS)
     parser.add_argument("--connect", action="append", default=[], metavar="EP", type=endpoint,
                         help="zenoh endpoint to connect to, e.g. tcp/127.0.0.1:7447 (repeatable; default: "
                              "the hub of --system-file's [system.endpoints] listen; without --system-file none: "
@@ -109,8 +114,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from iotad.cli import CliError, new_recording, output_file
-    from iotad.recording.recorder import Recorder
+    from iotad.cli import CliError, claim_recording, drop_empty_claim, new_recording, output_file
 
     if args.flush_period <= 0 or args.flush_period > 10:
         raise CliError("--flush-period must be in (0, 10] seconds")
@@ -123,20 +127,36 @@ def run(args: argparse.Namespace) -> int:
         output.parent.mkdir(parents=True, exist_ok=True)  # as the help says, and as `run -o` does
     except OSError as exc:
         raise CliError(f"-o {args.output}: cannot create its folder: {exc.strerror or exc}") from None
+    # the name claimed (created empty, atomically), as `iotad run -o` does: of two recorders
+    # started together on one -o, one is refused here instead of both writing the file. The
+    # launcher's recorder records to a name its launcher has claimed already.
+    claimed = None
+    if not args.from_launcher and claim_recording(args.output, args.force):
+        claimed = args.output
+    try:
+        return _record(args)
+    finally:
+        drop_empty_claim(claimed)  # nothing was written: no empty file left to refuse the next run
+
+
+def _record(args: argparse.Namespace) -> int:
+    from iotad.cli import CliError
+    from iotad.recording.recorder import Recorder
+
     if args.system_file is not None:
         if Path(args.system_file).is_dir():
             raise CliError(f"--system-file {args.system_file}: is a directory")
         if not Path(args.system_file).is_file():
             what = "not a regular file" if Path(args.system_file).exists() else "no such file"
             raise CliError(f"--system-file {args.system_file}: {what}")
-        _check_system_file(args.system_file)
+        _check_system_file(args.system_file, whole=not args.from_launcher)
     connect = args.connect or _hub_of(args.system_file)
     try:
         recorder = Recorder(args.keys, args.output, system_file=args.system_file, connect=connect,
                             listen=args.listen, flush_period=args.flush_period,
                             background=True,  # a process of its own: yield the CPU to the nodes
                             from_traces=args.from_traces, max_size=args.max_size,
-                            max_duration=args.max_duration)
+                            max_duration=args.max_duration, replace=args.force)
     except UnicodeDecodeError:
         raise CliError(f"--system-file {args.system_file}: not UTF-8 text") from None
     except OSError as exc:
@@ -210,16 +230,19 @@ def _remove_empty(recorder) -> None:
                 pass
 
 
-def _check_system_file(path: str) -> None:
-    """Refuse a system file `iotad run` would refuse for its shape (nodes, keys, bindings' form),
-    before recording: a recording stores it for check and replay, which would fail on it later.
-    Its nodes' code is not loaded (check=False): the recorder must start at once, beside a
-    system that is already starting, and imports no robot code."""
+def _check_system_file(path: str, whole: bool = True) -> None:
+    """Refuse a system file `iotad run --check` would refuse, before recording: a recording stores
+    it for check and replay, which would fail on it later. `whole`: its specs are parsed and its
+    nodes instantiated, so that a TOML file that is no valid system (a binding to a channel no
+    node has, a spec with a syntax error) is refused in the parser's words. Not `whole` (the
+    recorder `iotad run` starts, on a file it checked): only its form (nodes, keys, bindings'
+    shape), so that the recorder starts at once, beside a system already starting, and imports
+    no robot code."""
     from iotad.cli import CliError
     from iotad.launcher.system_file import SystemFileError, load_system
 
     try:
-        load_system(path, check=False)
+        load_system(path, check=whole)
     except SystemFileError as exc:
         more = "" if len(exc.errors) == 1 else \
             f" (and {len(exc.errors) - 1} more: 'iotad run --check {path}' lists them)"
@@ -229,11 +252,11 @@ def _check_system_file(path: str) -> None:
 def _hub_of(system_file: str | None) -> list[str]:
     """Where to connect a recorder given a system file and no --connect: the hub its `iotad run`
     opens, to record that system. None given: [] (listen only)."""
-    from iotad.recording.recorder import read_system_file, system_hub
+    from iotad.recording.recorder import read_system_file
 
     if system_file is None:
         return []
     try:
-        return system_hub(read_system_file(system_file)[1])
-    except (OSError, UnicodeDecodeError, ValueError):
+        return read_system_file(system_file).hub()
+    except ValueError:
         return []  # the Recorder says what is wrong with the file

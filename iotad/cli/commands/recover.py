@@ -4,7 +4,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from iotad.cli import new_recording, output_file
+from iotad.cli import new_recording, not_its_own_file, output_file
 
 ORDER = 36
 
@@ -45,6 +45,7 @@ def run(args: argparse.Namespace) -> int:
     output_file(str(output))
     new_recording(str(output), args.force)
     recording = load(args.file, salvage=True)
+    not_its_own_file(str(output), recording)
     count = copy_recording(recording, output, extra_metadata={"iotad.recovered": {
         "from": str(source), "was_complete": recording.complete, "messages": len(recording.messages),
         "stopped_at": recording.truncated_reason or "footer", "damaged": recording.damaged}})
