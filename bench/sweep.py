@@ -62,7 +62,8 @@ def main() -> int:
     parser.add_argument("--no-ray", action="store_true", help="skip the Ray measurement")
     args = parser.parse_args()
     plan, system = plan_from(argparse.Namespace(file=args.system, set=[], seeds=args.runs, until=args.until,
-                                                sample=None, sample_seed=None, timeout=None))
+                                                sample=None, sample_seed=None, timeout=None,
+                                                seed_param=None))
     print(f"sweep of {system.name}: {args.runs} runs of {args.until:g} s virtual, recorded and measured; "
           f"{cores()} cores here, shared with whatever else runs")
     load = os.getloadavg()[0]

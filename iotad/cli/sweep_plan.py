@@ -16,7 +16,7 @@ from typing import Any
 
 from iotad.cli import CliError
 
-SWEEP_FILE_KEYS = {"system", "set", "seeds", "until", "sample", "sample_seed", "timeout", "metrics"}
+SWEEP_FILE_KEYS = {"system", "set", "seeds", "until", "sample", "sample_seed", "timeout", "metrics", "seed_param"}
 _FILE_NUMBERS = {"seeds": (int, "a whole number > 0"), "sample": (int, "a whole number > 0"),
                  "sample_seed": (int, "a whole number >= 0"), "until": ((int, float), "a number of seconds > 0"),
                  "timeout": ((int, float), "a number of seconds > 0")}
@@ -51,12 +51,14 @@ class Run:
 class Plan:
     system: str                                  # the system file, absolute
     until: float                                 # virtual seconds per run
-    seeds: int                                   # seeds 0 .. seeds-1, the random policy's (iotad run --seed)
+    seeds: int                                   # seeds 0 .. seeds-1: the random policy's (iotad run --seed),
+    #                                              or with seed_param that node parameter's (policy eager)
     swept: dict[str, list | Range]               # "node.param[.key...]" -> grid values, or a range
     sample: int | None = None                    # None: the grid; K: K random points
     sample_seed: int = 0                         # what draws the K points: the same plan, the same points
     timeout: float | None = None                 # wall seconds a run may take before it is a failed row
     metrics: str | None = None                   # the hook, "file.py:function" or "module:function"
+    seed_param: str | None = None                # "node.param[.key...]" the seed goes into, if not the policy
     runs: list[Run] = field(default_factory=list)
 
     def describe(self) -> dict:
@@ -64,7 +66,7 @@ class Plan:
         return {"system": self.system, "until": self.until, "seeds": self.seeds,
                 "set": {name: (str(v) if isinstance(v, Range) else v) for name, v in self.swept.items()},
                 "sample": self.sample, "sample_seed": self.sample_seed, "timeout": self.timeout,
-                "metrics": self.metrics, "runs": [asdict(run) for run in self.runs]}
+                "metrics": self.metrics, "seed_param": self.seed_param, "runs": [asdict(run) for run in self.runs]}
 
 
 def parse_value(text: str) -> Any:
@@ -127,6 +129,8 @@ def read_sweep_file(path: Path) -> dict | None:
         number = isinstance(value, kind) and not isinstance(value, bool) and math.isfinite(value)
         if not number or not (value >= 0 if key == "sample_seed" else value > 0):
             raise CliError(f"{path.name}: [sweep] {key} must be {what}, got {value!r}")
+    if "seed_param" in table and not isinstance(table["seed_param"], str):
+        raise CliError(f"{path.name}: [sweep] seed_param must be \"node.param\", got {table['seed_param']!r}")
     if not isinstance(table["system"], str):
         raise CliError(f"{path.name}: [sweep] system must be the system file's name, got {table['system']!r}")
     table = dict(table, system=str((path.parent / table["system"]).resolve()))
@@ -173,15 +177,15 @@ def make_runs(plan: Plan) -> list[Run]:
 def check_against(plan: Plan, system) -> None:
     """Each swept parameter names a node of the system and a parameter its [[node]] gives (a typo
     would sweep nothing): refused before anything runs."""
-    for name in plan.swept:
+    for name in [*plan.swept, *([plan.seed_param] if plan.seed_param else [])]:
         node, _, path = name.partition(".")
         if node not in system.nodes:
-            raise CliError(f"--set {name}: no node {node!r} in {system.file} (nodes: {', '.join(system.nodes)})")
+            raise CliError(f"{name}: no node {node!r} in {system.file} (nodes: {', '.join(system.nodes)})")
         params: Any = system.nodes[node].params
         for key in path.split("."):
             if not isinstance(params, dict) or key not in params:
                 known = ", ".join(params) if isinstance(params, dict) else "none: it is a value"
-                raise CliError(f"--set {name}: {system.file} gives node {node!r} no parameter {path!r} "
+                raise CliError(f"{name}: {system.file} gives node {node!r} no parameter {path!r} "
                                f"({key!r} is not among {known})")
             params = params[key]
 

@@ -22,8 +22,8 @@ class RunTimedOut(BaseException):
 
 
 def run_one(task: dict) -> dict:
-    """Run `task` ({"run", "system", "values", "seed", "until", "timeout", "metrics", "recording",
-    "log"}), recording to `task["recording"]` and its printed output to `task["log"]`. Returns the
+    """Run `task` ({"run", "system", "values", "seed", "seed_param", "until", "timeout", "metrics",
+    "recording", "log"}), recording to `task["recording"]` and its printed output to `task["log"]`. Returns the
     run's row: its status ("ok" or "failed"), error, metrics and wall seconds."""
     row: dict[str, Any] = {"run": task["run"], "status": "failed", "error": "", "metrics": {}}
     started = time.perf_counter()
@@ -64,8 +64,11 @@ def _run_virtual(task: dict, checked) -> int:
     from iotad.cli.sweep_plan import apply
     from iotad.cli.virtual_run import run_virtual
 
-    system = apply(checked, task["values"])
-    args = argparse.Namespace(until=task["until"], seed=task["seed"], record_to=task["recording"], force=True,
+    values, seed = task["values"], task["seed"]
+    if task.get("seed_param"):  # the seed is a node's (a world's), and the policy eager
+        values, seed = {**values, task["seed_param"]: seed}, None
+    system = apply(checked, values)
+    args = argparse.Namespace(until=task["until"], seed=seed, record_to=task["recording"], force=True,
                               no_record=False, inputs=None, plain=True)
     # every core already runs a run: the recording is written in this process, not a second one
     return run_virtual(system, args, second_process=False)

@@ -22,7 +22,8 @@ examples:
   iotad sweep examples/conveyor-sweep.toml -o sweeps/belt --ray       on a local Ray cluster
   iotad sweep examples/buggy-sweep.toml -o sweeps/buggy --ray ray://head:10001
 
-Each run is `iotad run SYSTEM --virtual --until S --seed K` with its parameter values, recorded in
+Each run is `iotad run SYSTEM --virtual --until S --seed K` with its parameter values (with
+--seed-param, K goes into that parameter and the policy is eager), recorded in
 DIR/runs/run-NNNN.mcap (its printed output beside it, .log), then measured by the function the
 system file's [sweep] metrics names. DIR/results.csv has a row per run (parameters, seed, status,
 error, metrics), DIR/summary.png each metric against each swept parameter, DIR/sweep.json the
@@ -41,6 +42,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                              "a nested parameter as NODE.TABLE.KEY; repeat for each parameter")
     parser.add_argument("--seeds", type=positive_int, metavar="N",
                         help="runs per point, seeds 0..N-1 of the random policy (iotad run --seed; default 1)")
+    parser.add_argument("--seed-param", metavar="NODE.PARAM",
+                        help="put each run's seed into this node parameter (a world's seed), the policy eager, "
+                             "instead of seeding the random firing policy")
     parser.add_argument("--until", type=positive_float, metavar="SECONDS", help="virtual seconds per run")
     parser.add_argument("--sample", type=positive_int, metavar="K", help="K random points instead of the grid")
     parser.add_argument("--sample-seed", type=nonnegative_int, metavar="N",
@@ -78,7 +82,8 @@ def plan_from(args: argparse.Namespace):
     plan = Plan(system=str(system.path), until=float(until), seeds=int(seeds), swept=swept, sample=sample,
                 sample_seed=args.sample_seed if args.sample_seed is not None else table.get("sample_seed", 0),
                 timeout=args.timeout if args.timeout is not None else table.get("timeout"),
-                metrics=table.get("metrics") or system.sweep_metrics)
+                metrics=table.get("metrics") or system.sweep_metrics,
+                seed_param=args.seed_param or table.get("seed_param"))
     check_against(plan, system)
     where = (plan.metrics or "").rpartition(":")[0]
     if where.endswith(".py") and not Path(where).is_file():
@@ -90,7 +95,8 @@ def plan_from(args: argparse.Namespace):
 def tasks_for(plan, folder) -> list[dict]:
     """The runs still to do, each as the plain task a worker runs (sweep_run.run_one)."""
     return [{"run": run.name, "system": plan.system, "values": run.values, "seed": run.seed, "until": plan.until,
-             "timeout": plan.timeout, "metrics": plan.metrics, "recording": str(folder.recording(run.name)),
+             "timeout": plan.timeout, "metrics": plan.metrics, "seed_param": plan.seed_param,
+             "recording": str(folder.recording(run.name)),
              "log": str(folder.log(run.name))}
             for run in plan.runs if not folder.finished(run.name)]
 
