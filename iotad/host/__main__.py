@@ -1,7 +1,8 @@
 """`python -m iotad.host CONFIG.json`: run one IOTA as one process on zenoh until SIGINT/SIGTERM.
 
-Prints nothing on stdout. A bad config or a spec that fails to load is reported on stderr and
-exits with code 2; a clean stop exits 0; an engine that dies or halts exits 1.
+Prints nothing on stdout. A bad config, a spec that fails to load or a port that cannot open (a
+CAN bus, a zenoh endpoint) is reported on stderr and exits with CONFIGURATION_ERROR (2), which
+its launcher does not restart; a clean stop exits 0; an engine that dies or halts exits 1.
 """
 from __future__ import annotations
 
@@ -9,12 +10,12 @@ import argparse
 import gc
 import signal
 import sys
-import threading
 
-from iotad.host.node_config import ConfigError, load, parse
+from iotad.host.node_config import CONFIGURATION_ERROR, ConfigError, load, parse
+from iotad.host.stop_signals import StopSignals
 
 
-def _fail(message: str, code: int = 2) -> int:
+def _fail(message: str, code: int = CONFIGURATION_ERROR) -> int:
     print(f"iotad.host: error: {message}", file=sys.stderr, flush=True)
     return code
 
@@ -31,15 +32,10 @@ def main(argv: list[str] | None = None) -> int:
     # SIGINT is how a launcher stops its nodes (and Ctrl-C): a clean stop, exit 0. SIGTERM from
     # anyone else (kill, a service manager) ends the node as a kill does, 128 + 15 as a shell
     # reports it: under restart = "on-failure" its launcher starts it again.
-    stop = threading.Event()
-    received: list[int] = []
-
-    def on_signal(signum, frame):
-        received.append(signum)
-        stop.set()
-
-    signal.signal(signal.SIGTERM, on_signal)
-    signal.signal(signal.SIGINT, on_signal)
+    # (No threading.Event set in the handler: it deadlocks when the signal lands while this
+    # thread waits on that Event; iotad.host.stop_signals.)
+    stop = StopSignals((signal.SIGTERM, signal.SIGINT))
+    received = stop.received
 
     try:
         config = load(args.config) if args.config else parse(args.config_json, "--config-json")

@@ -15,6 +15,10 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
+# A process of a system that links its hosts by TLS finds its certificates here: the folder and
+# the name of the host it runs on (the launcher, an agent, or the user of a tool sets them).
+ENV_DIR = "IOTAD_CERTS"
+ENV_HOST = "IOTAD_CERTS_HOST"
 AUTHORITY_CERTIFICATE = "ca.pem"
 AUTHORITY_KEY = "ca.key"
 _HOST_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,62}$")
@@ -57,6 +61,26 @@ def host_files(directory: str | Path, host: str) -> TlsFiles:
         raise CertificateError(f"no certificate for host {host!r}: missing {', '.join(missing)} "
                                f"(make them with 'iotad certs init {directory}' and "
                                f"'iotad certs host {host} --dir {directory}')")
+    return files
+
+
+def from_env() -> TlsFiles | None:
+    """This process's certificates (`IOTAD_CERTS` folder, `IOTAD_CERTS_HOST` name), or None when
+    they are not set. Raises `CertificateError` when they are set and the files are missing."""
+    directory, host = os.environ.get(ENV_DIR), os.environ.get(ENV_HOST)
+    if not directory:
+        return None
+    if not host:
+        raise CertificateError(f"{ENV_DIR} is set but {ENV_HOST} (this host's name) is not")
+    return host_files(directory, host)
+
+
+def use(directory: str | Path, host: str) -> TlsFiles:
+    """Check `host`'s certificates in `directory`, then make them this process's and its
+    children's (the node hosts, the recorder and tools a launcher starts open their sessions with
+    them)."""
+    files = host_files(directory, host)
+    os.environ[ENV_DIR], os.environ[ENV_HOST] = str(Path(directory).resolve()), host
     return files
 
 

@@ -15,6 +15,12 @@ class ConfigError(ValueError):
     """The config is not usable; `str()` is one line for the user."""
 
 
+# The node host's exit status for an error in its configuration (a bad config, a spec that does
+# not load, a CAN bus that cannot open...): starting it again cannot mend it, so the launcher
+# ends the node at once instead of restarting it (docs/failures.md).
+CONFIGURATION_ERROR = 2
+
+
 @dataclass
 class NodeConfig:
     system: str

@@ -151,7 +151,7 @@ class NodeHost:
         self._trace_pub = session.declare_publisher(wire.trace_key(config.system, config.path),
                                                     congestion_control=block, priority=zenoh.Priority.DATA_LOW)
         self._trace_seq = 0
-        self._beat_pub = session.declare_publisher(f"{base}/@heartbeat")
+        self._beat_pub = session.declare_publisher(f"{base}/{wire.HEARTBEAT}")
         self._declared += [self._trace_pub, self._beat_pub]
         if self.can is not None:
             self.can.open()  # CanPortError: the caller reports it, the node does not start
@@ -161,7 +161,7 @@ class NodeHost:
         for port in self.table.inputs:
             for key in port.keys:
                 self._declared.append(session.declare_subscriber(key, _receiver(post, port.name, port.index, key)))
-        spec_key = f"{base}/@spec"
+        spec_key = f"{base}/{wire.SPEC}"
         spec_payload = wire.encode(self.describe())
         self._declared.append(session.declare_queryable(
             spec_key, lambda query: query.reply(spec_key, spec_payload)))
@@ -177,7 +177,7 @@ class NodeHost:
             self._declared.append(session.liveliness().declare_subscriber(
                 config.start_gate, self._on_gate, history=True))  # history: a token already there counts
         # The token last: whoever sees the node alive may rely on its subscribers being declared.
-        self._declared.append(session.liveliness().declare_token(f"{base}/@alive"))
+        self._declared.append(session.liveliness().declare_token(f"{base}/{wire.ALIVE}"))
         self._settle = settle
         self._thread = threading.Thread(target=self._run, name=f"engine {config.path}", daemon=True)
         self._thread.start()

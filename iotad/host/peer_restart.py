@@ -85,16 +85,12 @@ class PeerWatch:
         self._present: set[str] = set()
         self._lost: set[str] = set()
         self.restarts: dict[str, int] = {}
-        self._prefix = f"{wire.PREFIX}/{system}/"
         self.subscriber = session.liveliness().declare_subscriber(
-            f"{wire.PREFIX}/{system}/**/@alive", self._on_sample, history=True)
+            wire.every_node(system, wire.ALIVE), self._on_sample, history=True)
 
     def _on_sample(self, sample: Any) -> None:
         import zenoh
-        key = str(sample.key_expr)
-        if not (key.startswith(self._prefix) and key.endswith("/@alive")):
-            return
-        path = key[len(self._prefix):-len("/@alive")]
+        path = wire.node_path(sample.key_expr, self.system, wire.ALIVE)
         if path not in self.peers:
             return
         with self._lock:

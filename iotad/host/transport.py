@@ -8,7 +8,7 @@ from typing import Iterable
 
 import zenoh
 
-from iotad.host.certificates import TlsFiles
+from iotad.host.certificates import TlsFiles, from_env as tls_from_env
 from iotad.host.credentials import Credentials, for_endpoints, from_env
 
 DEFAULT_LISTEN = ("tcp/127.0.0.1:0",)  # port 0: the OS picks a free loopback port
@@ -71,7 +71,12 @@ def open_session(listen: Iterable[str] = DEFAULT_LISTEN, connect: Iterable[str] 
     `credentials` None: those the launcher gave this process in `IOTAD_CREDENTIALS`, if any; a
     process given credentials is a client of the hub that listens nowhere, so that everything
     it sends passes the hub's access control (a listening peer could be reached around it).
-    False: none, whatever the environment says."""
+    False: none, whatever the environment says.
+
+    `tls` None: the certificates this process was given in `IOTAD_CERTS`/`IOTAD_CERTS_HOST`, if
+    any (iotad/host/certificates.py): used on `tls/` endpoints."""
+    if tls is None:
+        tls = tls_from_env()
     if credentials is None:
         credentials = from_env()
         if credentials is not None:

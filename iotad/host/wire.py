@@ -31,6 +31,16 @@ import msgpack
 
 PREFIX = "iota"
 
+# The last chunk of a node's (or the system's) keys that are not channels. zenoh matches a chunk
+# starting with '@' only verbatim: spell them from here, never by hand.
+TRACE = "@trace"          # a node's events, in bursts
+ALIVE = "@alive"          # a node's liveliness token
+HEARTBEAT = "@heartbeat"  # a node's heartbeats
+SPEC = "@spec"            # a node's queryable: its spec, params, start time
+LAUNCHER = "@launcher"    # the launchers' events (iota/<system>/@launcher)
+ORIGIN = "@origin"        # the hub launcher's queryable: the run's clock origin
+GATE = "@go"              # a launcher's start gate (liveliness, iota/<system>/@go/<host>)
+
 
 class WireError(ValueError):
     """A payload or attachment that cannot be decoded."""
@@ -41,8 +51,51 @@ def channel_key(system: str, path: str, channel: str, index: int | None = None) 
     return key if index is None else f"{key}/{index}"
 
 
+def node_key(system: str, path: str, suffix: str) -> str:
+    """`iota/<system>/<path>/<suffix>`: one of a node's `@` keys (`TRACE`, `ALIVE`...)."""
+    return f"{PREFIX}/{system}/{path}/{suffix}"
+
+
 def trace_key(system: str, path: str) -> str:
-    return f"{PREFIX}/{system}/{path}/@trace"
+    return node_key(system, path, TRACE)
+
+
+def every_node(system: str, suffix: str) -> str:
+    """The key expression of that `@` key of every node of `system` (`iota/<system>/**/<suffix>`)."""
+    return f"{PREFIX}/{system}/**/{suffix}"
+
+
+def origin_key(system: str) -> str:
+    return f"{PREFIX}/{system}/{ORIGIN}"
+
+
+def node_path(key: str, system: str, suffix: str) -> str | None:
+    """The node path of `key` when it is `iota/<system>/<path>/<suffix>`, else None."""
+    prefix, end = f"{PREFIX}/{system}/", f"/{suffix}"
+    key = str(key)
+    if key.startswith(prefix) and key.endswith(end) and len(key) > len(prefix) + len(end):
+        return key[len(prefix):-len(end)]
+    return None
+
+
+def keyexpr_matches(expression: str, key: str) -> bool:
+    """zenoh key-expression matching for `*` (one chunk) and `**` (any chunks); a chunk starting
+    with '@' is matched only verbatim, as zenoh does."""
+    pattern, chunks = expression.split("/"), key.split("/")
+
+    def match(i: int, j: int) -> bool:
+        if i == len(pattern):
+            return j == len(chunks)
+        if pattern[i] == "**":
+            return any(match(i + 1, k) for k in range(j, len(chunks) + 1)
+                       if not any(c.startswith("@") for c in chunks[j:k]))
+        if j == len(chunks):
+            return False
+        if pattern[i] == "*":
+            return not chunks[j].startswith("@") and match(i + 1, j + 1)
+        return pattern[i] == chunks[j] and match(i + 1, j + 1)
+
+    return match(0, 0)
 
 
 START_KIND = "start"
@@ -57,17 +110,16 @@ def start_event(t: float, iota: str, wall: float, pid: int) -> dict:
 def gate_key(system: str, host: str | None = None) -> str:
     """The liveliness key of a launcher's start gate: its token says "every node of mine is
     live: start your engines" (docs/internals.md, "Start gate")."""
-    return f"{PREFIX}/{system}/@go/{host or 'hub'}"
+    return f"{PREFIX}/{system}/{GATE}/{host or 'hub'}"
 
 
 def launcher_key(system: str) -> str:
-    return f"{PREFIX}/{system}/@launcher"
+    return f"{PREFIX}/{system}/{LAUNCHER}"
 
 
 def subscription_keys(system: str) -> list[str]:
     """Key expressions that together match every key of `system`."""
-    return [f"{PREFIX}/{system}/**", f"{PREFIX}/{system}/**/@trace", f"{PREFIX}/{system}/@launcher",
-            f"{PREFIX}/{system}/**/@heartbeat"]
+    return [f"{PREFIX}/{system}/**", every_node(system, TRACE), launcher_key(system), every_node(system, HEARTBEAT)]
 
 
 def parse_key(key: str) -> tuple[str, str, str, int | None] | None:

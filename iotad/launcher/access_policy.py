@@ -18,9 +18,9 @@ RECORDER_USER = "iotad-recorder"
 TOOLS_USER = "iotad-tools"
 # What readers (recorder, ls/echo/hz/top/view) may subscribe to and ask: every key of the hub.
 # `**` does not match `@` chunks in zenoh, so each `@` key of iotad is named.
-READ_KEYS = ["**", f"{wire.PREFIX}/**/@trace", f"{wire.PREFIX}/**/@heartbeat", f"{wire.PREFIX}/*/@launcher"]
-QUERY_KEYS = [f"{wire.PREFIX}/**/@spec", f"{wire.PREFIX}/*/@origin", "**"]
-ALIVE_KEYS = [f"{wire.PREFIX}/**/@alive"]
+READ_KEYS = ["**", f"{wire.PREFIX}/**/{wire.TRACE}", f"{wire.PREFIX}/**/{wire.HEARTBEAT}", f"{wire.PREFIX}/*/{wire.LAUNCHER}"]
+QUERY_KEYS = [f"{wire.PREFIX}/**/{wire.SPEC}", f"{wire.PREFIX}/*/{wire.ORIGIN}", "**"]
+ALIVE_KEYS = [f"{wire.PREFIX}/**/{wire.ALIVE}"]
 # Which subscribers and queryables exist is told to every user: a client's publisher sends only
 # when it knows of a matching subscriber (zenoh's interests), and a declaration carries no data.
 DECLARATION_KEYS = [*READ_KEYS, *QUERY_KEYS[:2], *ALIVE_KEYS]
@@ -73,7 +73,7 @@ class Policy:
             rule("recv", "egress", ["put"], grant.subscribe)
             rule("serve", "ingress", ["declare_queryable", "reply"], grant.serve)
             # a query reaches a queryable with the asker's key expression (`iota/S/**/@spec`)
-            rule("query-in", "egress", ["query"], grant.serve and [*grant.serve, f"{wire.PREFIX}/**/@spec"])
+            rule("query-in", "egress", ["query"], grant.serve and [*grant.serve, f"{wire.PREFIX}/**/{wire.SPEC}"])
             rule("ask", "ingress", ["query"], grant.ask)
             rule("answers", "egress", ["reply"], grant.ask)
             rule("token", "ingress", ["liveliness_token"], grant.tokens)
@@ -112,13 +112,13 @@ def derive(system: System) -> Policy:
         for channel in node.channels.values():
             keys = [wire.channel_key(name, node.name, channel.name, index) for index in channel.members()]
             (grant.publish if channel.direction == "output" else own_inputs).extend(keys)
-        grant.publish += [f"{base}/@trace", f"{base}/@heartbeat"]
+        grant.publish += [f"{base}/{wire.TRACE}", f"{base}/{wire.HEARTBEAT}"]
         bound = [key for keys in system.inputs_of(node.name).values() for key in keys]
         grant.subscribe = _unique(bound + own_inputs)
-        grant.serve = [f"{base}/@spec"]
-        grant.tokens = [f"{base}/@alive"]
+        grant.serve = [f"{base}/{wire.SPEC}"]
+        grant.tokens = [f"{base}/{wire.ALIVE}"]
         # peer_restart inputs watch the others' tokens; every node waits for its launcher's start gate
-        grant.watch = [f"{wire.PREFIX}/{name}/**/@alive", wire.gate_key(name, "*")]
+        grant.watch = [wire.every_node(name, wire.ALIVE), wire.gate_key(name, "*")]
         widen_grant(system, node.name, grant)  # the ROS 2 bridge's topics and tokens, if it is this node
         grants.append(grant)
     reader = dict(subscribe=list(READ_KEYS), ask=list(QUERY_KEYS), watch=list(ALIVE_KEYS))

@@ -145,7 +145,8 @@ class Child:
 def stop_all(children: Sequence[Child], interrupt_timeout: float = 3.0, terminate_timeout: float = 2.0,
              hurry: threading.Event | None = None) -> None:
     """Stop children together: SIGINT to all, wait; SIGTERM to the rest, wait; SIGKILL, reap.
-    Once `hurry` is set (a second Ctrl-C), what is left of the SIGINT and SIGTERM waits is skipped."""
+    Once `hurry` is set (a second Ctrl-C), what is left of the SIGINT and SIGTERM waits is skipped
+    (`hurry`: anything with `is_set()`, a threading.Event or a signal handler's Flag)."""
     steps = ((signal.SIGINT, interrupt_timeout), (signal.SIGTERM, terminate_timeout), (signal.SIGKILL, 5.0))
     for signum, timeout in steps:
         alive = [c for c in children if c.running()]
@@ -200,6 +201,22 @@ class RestartPolicy:
 
     def delay(self, consecutive: int) -> float:
         return min(self.backoff_max, self.backoff * (2 ** consecutive))
+
+
+def log_tail(child: Child | None, lines: int = 4) -> str:
+    """The last lines of a child's output since it last started (its stderr, where errors go;
+    the log holds every start's, one after the other), for a report: one indented line each."""
+    log = None if child is None else child.log
+    if log is None:
+        return ""
+    try:
+        with open(log, "rb") as stream:
+            # a chatty log may be huge; an earlier start's lines are not this one's
+            stream.seek(max(child.log_start, stream.seek(0, os.SEEK_END) - 4096))
+            text = stream.read().decode(errors="replace").strip().splitlines()[-lines:]
+    except OSError:
+        return ""
+    return "".join(f"\n    | {line}" for line in text)
 
 
 def describe_exit(code: int | None) -> str:

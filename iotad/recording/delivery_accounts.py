@@ -272,7 +272,7 @@ class Accounts:
             return True
         keys = self.recording.info.get("keys")
         if isinstance(keys, list) and keys:
-            return any(isinstance(k, str) and keyexpr_matches(k, key) for k in keys)
+            return any(isinstance(k, str) and wire.keyexpr_matches(k, key) for k in keys)
         return key in self.wire
 
     def in_gap(self, key: str, seq: int) -> bool:
@@ -348,7 +348,7 @@ class _Reading:
             if parsed is None or (system.name and parsed[0] != system.name):
                 continue
             channel = parsed[2]
-            if channel == "@trace" or channel == "@heartbeat":
+            if channel == wire.TRACE or channel == wire.HEARTBEAT:
                 try:
                     value = message.value
                 except Exception:  # noqa: BLE001 - an undecodable message is no account of anything
@@ -358,7 +358,7 @@ class _Reading:
                 node = parsed[1]
                 t = float(value["t"])
                 self.signs.setdefault(node, array("d")).append(t)
-                if channel == "@trace":
+                if channel == wire.TRACE:
                     index = value.get("index")
                     if not isinstance(value.get("action"), str) or not (index is None or type(index) is int):
                         continue  # no event of any channel: conformance reports what it is
@@ -411,23 +411,3 @@ class _Reading:
                 claims.sort(key=lambda claim: rank[claim.node])  # stable: each node's keep their order
             for ordinal, claim in enumerate(claims):
                 claim.ordinal = ordinal
-
-
-def keyexpr_matches(expression: str, key: str) -> bool:
-    """zenoh key-expression matching for `*` (one chunk) and `**` (any chunks); a chunk starting
-    with '@' is matched only verbatim, as zenoh does."""
-    pattern, chunks = expression.split("/"), key.split("/")
-
-    def match(i: int, j: int) -> bool:
-        if i == len(pattern):
-            return j == len(chunks)
-        if pattern[i] == "**":
-            return any(match(i + 1, k) for k in range(j, len(chunks) + 1)
-                       if not any(c.startswith("@") for c in chunks[j:k]))
-        if j == len(chunks):
-            return False
-        if pattern[i] == "*":
-            return not chunks[j].startswith("@") and match(i + 1, j + 1)
-        return pattern[i] == chunks[j] and match(i + 1, j + 1)
-
-    return match(0, 0)

@@ -137,7 +137,7 @@ class Recording:
         marker = packb(wire.START_KIND)
         for message in self.messages:
             # cheap test first: only a start record holds the packed string "start"
-            if not message.topic.endswith("/@trace") or marker not in message.data:
+            if not message.topic.endswith("/" + wire.TRACE) or marker not in message.data:
                 continue
             parsed = wire.parse_key(message.topic)
             event = message.value
@@ -188,7 +188,7 @@ class Recording:
         found = set(self.specs)
         for topic in self.topics():
             parsed = wire.parse_key(topic)
-            if parsed and parsed[1] and not parsed[2].startswith("@launcher"):
+            if parsed and parsed[1] and not parsed[2].startswith(wire.LAUNCHER):
                 found.add(parsed[1])
         return sorted(found)
 
@@ -197,7 +197,7 @@ class Recording:
         engine-start records (kind `start`) only with `starts`."""
         out = []
         for message in self.messages:
-            if not message.topic.endswith("/@trace"):
+            if not message.topic.endswith("/" + wire.TRACE):
                 continue
             parsed = wire.parse_key(message.topic)
             if parsed is None or (node is not None and parsed[1] != node):
@@ -275,7 +275,7 @@ class Recording:
         recorder set those aside) is left out, not an error: no reading depends on all of them."""
         out = []
         for message in self.messages:
-            if message.topic.endswith("/@launcher"):
+            if message.topic.endswith("/" + wire.LAUNCHER):
                 try:
                     value = unpackb(message.data)
                 except Exception:  # noqa: BLE001 - msgpack raises several kinds for bad bytes

@@ -161,14 +161,14 @@ def schema_for_topic(topic: str, specs: dict[str, dict], cache: dict[str, dict])
         return "iotad.gap", GAP_SCHEMA
     if topic == MALFORMED_TOPIC:
         return "iotad.malformed", MALFORMED_SCHEMA
-    if topic.endswith("/@launcher"):
+    if topic.endswith("/" + wire.LAUNCHER):
         return "iotad.launcher_event", LAUNCHER_SCHEMA
     if parsed is None:
         return "any", PERMISSIVE_SCHEMA
     _, path, channel, _ = parsed
-    if channel == "@trace":
+    if channel == wire.TRACE:
         return "iotad.trace_event", TRACE_SCHEMA
-    if channel == "@heartbeat":
+    if channel == wire.HEARTBEAT:
         return "iotad.heartbeat", HEARTBEAT_SCHEMA
     if path in specs:
         if path not in cache:

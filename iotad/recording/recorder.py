@@ -50,7 +50,8 @@ from iotad.recording.mcap_sink import channel_schemas, McapSink, schema_for_topi
 from iotad.host.transport import DEFAULT_LISTEN, open_session
 from iotad.launcher.declaration import Declaration, SystemFileError, read_declaration
 
-_MAPS = ("/@launcher", "/@heartbeat")  # keys whose payload every reader takes for a msgpack map
+_MAPS = ("/" + wire.LAUNCHER, "/" + wire.HEARTBEAT)
+_TRACE = "/" + wire.TRACE  # the end of every node's @trace key  # keys whose payload every reader takes for a msgpack map
 NICENESS = 10  # a tenth of a normal process's CPU share when both want the CPU
 _UNDECODABLE = object()  # what `_decoded` gives for a payload that is no msgpack
 _NEVER = 1 << 62  # the next `seq` of a stream whose last burst could not be counted: no gap is seen
@@ -95,7 +96,7 @@ def expand_keys(keys: Iterable[str]) -> list[str]:
 
 def trace_keys(system: str) -> list[str]:
     """What a trace-sourced recorder subscribes to: no channel key, so no wake-up per message."""
-    return [f"{wire.PREFIX}/{system}/**/@trace", wire.launcher_key(system), f"{wire.PREFIX}/{system}/**/@heartbeat"]
+    return [wire.every_node(system, wire.TRACE), wire.launcher_key(system), wire.every_node(system, wire.HEARTBEAT)]
 
 
 def read_system_file(path: str | Path) -> Declaration:
@@ -351,7 +352,7 @@ class Recorder:
                                 self._gap(key, expected, sequence, receipt_ns)
                         last[key] = (sequence, publish_ns)
                     data = sample.payload.to_bytes()
-                    if key.endswith("/@trace"):
+                    if key.endswith(_TRACE):
                         # a burst of events (or one event, the old form): one message per event
                         count, n = burst(key, channel_id, data, receipt_ns, publish_ns, sequence, ids, last)
                         following[key] = sequence + n if attachment is not None else _NEVER
@@ -542,7 +543,7 @@ class Recorder:
         parsed = wire.parse_key(key)
         if parsed is None:
             return True
-        receiver = trace_key[:-len("/@trace")].split("/", 2)[2]
+        receiver = trace_key[:-len(_TRACE)].split("/", 2)[2]
         if parsed[1] == receiver:
             return key not in self._output_keys
         return parsed[1] not in self._nodes
@@ -557,7 +558,7 @@ class Recorder:
 
     def _new_channel(self, key: str) -> int:
         parsed = wire.parse_key(key)
-        if parsed is not None and parsed[2] == "@trace":
+        if parsed is not None and parsed[2] == wire.TRACE:
             self._nodes.add(parsed[1])
         if parsed is not None and parsed[1] and self.query_specs:
             self._ask_spec(parsed[0], parsed[1])
@@ -571,7 +572,7 @@ class Recorder:
             return
         self._asked.add((system, path))
         try:
-            replies = self._session.get(f"{wire.PREFIX}/{system}/{path}/@spec", timeout=self.spec_timeout)
+            replies = self._session.get(wire.node_key(system, path, wire.SPEC), timeout=self.spec_timeout)
             for reply in replies:
                 sample = reply.ok
                 if sample is None:
@@ -592,7 +593,7 @@ class Recorder:
         seen = set()
         for topic in self.sink.channels:
             parsed = wire.parse_key(topic)
-            if parsed and parsed[1] and topic.endswith("/@trace"):
+            if parsed and parsed[1] and topic.endswith(_TRACE):
                 seen.add((parsed[0], parsed[1]))
         for system, path in sorted(seen):
             if path not in self.specs:

@@ -14,6 +14,8 @@ from pathlib import Path
 import pytest
 
 from iotad.cli import main
+from iotad.launcher.options import LaunchOptions, RecordingOptions
+from iotad.launcher.recorder_supervision import RECORDER_MODULE
 from iotad.launcher.supervision import Launcher
 from iotad.recording.mcap_reader import read_recording
 from iotad.launcher.system_file import load_system
@@ -33,11 +35,12 @@ def stub_argv(*stubbed: str):
     return argv
 
 
-def in_process(tmp_path, system_file: Path, **options) -> tuple[Launcher, list]:
+def in_process(tmp_path, system_file: Path, recording: RecordingOptions | None = None,
+               **options) -> tuple[Launcher, list]:
     """A launcher in this process whose lines are kept with their time of arrival."""
-    options.setdefault("record", False)
     options.setdefault("until", 30)
-    run = Launcher(load_system(system_file), live_table=False, log_dir=str(tmp_path / "logs"), **options)
+    run = Launcher(load_system(system_file), LaunchOptions(live_table=False, log_dir=str(tmp_path / "logs"), **options),
+                   recording)
     lines: list[tuple[float, str]] = []
     run.view.line = lambda text: lines.append((time.monotonic(), text))
     return run, lines
@@ -67,9 +70,9 @@ class Fine(Iota):
 @pytest.mark.parametrize("required", [False, True], ids=["others-keep-running", "required-stops-all"])
 def test_spec_that_fails_to_load_in_its_node_gives_up_with_its_stderr(tmp_path, required):
     """The file checked fine when the launcher read it, then broke (edited, or a module missing in
-    the node's environment): the node host exits 2 with the reason on stderr. Its restart policy
-    runs; then one 'gave up' line shows that stderr. A healthy node keeps running, unless the
-    broken one is `required`, in which case everything stops with status 1."""
+    the node's environment): the node host exits 2 (a configuration error) with the reason on
+    stderr. No restart would mend it: one 'failed for good' line shows that stderr. A healthy node
+    keeps running, unless the broken one is `required`, in which case everything stops with status 1."""
     spec = tmp_path / "flaky_spec.py"
     spec.write_text(BROKEN_AFTER_CHECK)
     path = write_system(tmp_path, "broken", f"""
@@ -90,15 +93,15 @@ required = {str(required).lower()}
 
     def line(text):
         lines.append((time.monotonic(), text))
-        if "gave up" in text and not required:
+        if "failed for good" in text and not required:
             seen["good"] = run.runs["good"].state
             run.request_stop("test: seen the give-up")
     run.view.line = line
     assert run.run() == 1, texts(lines)
-    giveup = next(text for text in texts(lines) if text.startswith("bad: gave up after 2 restarts"))
+    giveup = next(text for text in texts(lines) if text.startswith("bad: failed for good: exit 2"))
     assert "cannot load its IOTA" in giveup and "undefined_name" in giveup, giveup
-    assert "max_restarts = 2" in giveup
-    assert run.runs["bad"].state == "failed" and run.runs["bad"].restarts == 2
+    assert "configuration error" in giveup
+    assert run.runs["bad"].state == "failed" and run.runs["bad"].restarts == 0
     if required:
         assert "bad is required and has ended for good: stopping every node" in texts(lines)
         assert run.runs["good"].state == "stopped"
@@ -156,11 +159,11 @@ def test_a_run_that_ends_while_a_node_never_went_live_exits_1(tmp_path):
     """The run's --until comes while the restart policy still retries a node that fails at every
     start: the system never ran whole, and the exit status says so (it was 0)."""
     run, summary = run_n_beside_a_good_node(tmp_path, "neverlive", """
-params = { exit_code = 2, exit_after = 0.0, stderr = "n: no CAN bus" }
+params = { exit_code = 3, exit_after = 0.0, stderr = "n: no motor driver yet" }
 max_restarts = 100
 backoff = 0.2""")
     assert run.runs["n"].state != "failed"  # not given up: still being retried when the run ended
-    assert f"n: NEVER LIVE: it failed {run.runs['n'].failures} time(s), last with exit 2" in summary
+    assert f"n: NEVER LIVE: it failed {run.runs['n'].failures} time(s), last with exit 3" in summary
     assert run.runs["n"].failures >= 2 and "good: NEVER LIVE" not in summary
 
 
@@ -208,7 +211,7 @@ from = "rogue.out"
 to = "dst.inp"
 """)
     output = tmp_path / "flood.mcap"
-    run, lines = in_process(tmp_path, path, record=True, record_path=str(output), node_argv=stub_argv("rogue"))
+    run, lines = in_process(tmp_path, path, RecordingOptions(str(output)), node_argv=stub_argv("rogue"))
     waiter = threading.Thread(target=lambda: wait_until(lambda: run.tally.violations["dst"] >= 300, 30)
                               and run.request_stop("test: enough violations"), daemon=True)
     waiter.start()
@@ -246,7 +249,7 @@ def test_hub_port_in_use_is_one_clear_line_and_exit_2(tmp_path):
 
 def signal_the_recorder(proc, observer, signum: int, timeout: float):
     """Send `signum` to the run's recorder; the launcher event saying a new one took over, or None."""
-    recorder = next(pid for pid, cmd in children_of(proc.pid).items() if " record " in cmd)
+    recorder = next(pid for pid, cmd in children_of(proc.pid).items() if RECORDER_MODULE in cmd)
     os.kill(recorder, signum)
     return observer.wait_event(lambda e: e["event"] == "recorder" and "restarted" in e["message"], timeout)
 

@@ -11,6 +11,8 @@ import pytest
 import zenoh
 
 from iotad.host import wire
+from iotad.launcher.options import LaunchOptions
+from iotad.launcher.recorder_supervision import RECORDER_MODULE
 from iotad.launcher.supervision import Launcher
 from iotad.launcher.system_file import load_system
 from iotad.recording.mcap_reader import read_recording
@@ -146,8 +148,8 @@ max_restarts = 1
 backoff = 0.01
 """)
     lines = []
-    run = Launcher(load_system(path), record=False, until=30, live_table=False, log_dir=str(tmp_path / "logs"),
-                   node_argv=lambda config: [sys.executable, str(STUB), config])
+    run = Launcher(load_system(path), LaunchOptions(until=30, live_table=False, log_dir=str(tmp_path / "logs"),
+                                                    node_argv=lambda config: [sys.executable, str(STUB), config]))
     run.view.line = lines.append
     assert run.run() == 1, lines
     kills = [line for line in lines if "none since it went live" in line and "killing" in line]
@@ -166,7 +168,7 @@ def test_sigkilled_launcher_leaves_no_orphans(tmp_path):
             assert observer.wait_alive("dst", True, 15) is not None, proc.output.read_text()
             kids = children_of(proc.pid)
             assert len(kids) == 3, kids  # two nodes and the recorder
-            assert any(" record " in cmd for cmd in kids.values())
+            assert any(RECORDER_MODULE in cmd for cmd in kids.values())  # the recording layer's module, not the CLI
             proc.kill()
             proc.wait(5)
             assert wait_until(lambda: all(gone(pid) for pid in kids), 10), \
@@ -205,8 +207,8 @@ def test_restart_policies(tmp_path, restart, exit_code, restarts, state, code):
     """With a stand-in node host that exits on cue: the launcher ends once nothing will run again."""
     system = load_system(stub_system(tmp_path, restart, exit_code))
     lines = []
-    run = Launcher(system, record=False, until=20, live_table=False, log_dir=str(tmp_path / "logs"),
-                   node_argv=lambda config: [sys.executable, str(STUB), config])
+    run = Launcher(system, LaunchOptions(until=20, live_table=False, log_dir=str(tmp_path / "logs"),
+                                         node_argv=lambda config: [sys.executable, str(STUB), config]))
     run.view.line = lines.append
     started = time.monotonic()
     assert run.run() == code, lines
@@ -223,8 +225,8 @@ def test_node_without_liveliness_is_killed_after_start_timeout(tmp_path):
     path.write_text(path.read_text().replace("exit_after = 0.05", "exit_after = 30")
                     .replace('name = "stub"', 'name = "stub"\nstart_timeout = 0.5'))
     lines = []
-    run = Launcher(load_system(path), record=False, until=20, live_table=False, log_dir=str(tmp_path / "logs"),
-                   node_argv=lambda config: [sys.executable, str(STUB), config])
+    run = Launcher(load_system(path), LaunchOptions(until=20, live_table=False, log_dir=str(tmp_path / "logs"),
+                                                    node_argv=lambda config: [sys.executable, str(STUB), config]))
     run.view.line = lines.append
     started = time.monotonic()
     assert run.run() == 1, lines
@@ -236,8 +238,8 @@ def test_node_without_liveliness_is_killed_after_start_timeout(tmp_path):
 def test_summary_counters_stay_bounded(tmp_path):
     """A counter output carries a new value each time: the launcher counts a bounded set of
     labels per channel over a long run, and the summary still reads."""
-    run = Launcher(load_system(pair_system(tmp_path, free_port())), record=False, log_dir=str(tmp_path / "logs"),
-                   live_table=False)
+    run = Launcher(load_system(pair_system(tmp_path, free_port())),
+                   LaunchOptions(log_dir=str(tmp_path / "logs"), live_table=False))
     for n in range(10_000):
         run.tally.channel("iota/pair/src/out", n)
     run.tally.channel("iota/pair/src/out", "<malformed>")
@@ -252,8 +254,8 @@ def test_summary_reads_trace_bursts_and_single_events(tmp_path):
     outputs and violations of both, and skips what is malformed (a bad element, a bad payload)."""
     from types import SimpleNamespace
 
-    run = Launcher(load_system(pair_system(tmp_path, free_port())), record=False, log_dir=str(tmp_path / "logs"),
-                   live_table=False)
+    run = Launcher(load_system(pair_system(tmp_path, free_port())),
+                   LaunchOptions(log_dir=str(tmp_path / "logs"), live_table=False))
 
     def sample(payload):
         return SimpleNamespace(key_expr="iota/pair/src/@trace", payload=SimpleNamespace(to_bytes=lambda: payload))

@@ -7,6 +7,7 @@ import threading
 import time
 from pathlib import Path
 
+from iotad.launcher.options import LaunchOptions
 from iotad.launcher.supervision import Launcher
 from iotad.launcher.system_file import load_system
 from launcher_helpers import IOTAS, ROOT, free_port, gone, wait_until
@@ -73,8 +74,9 @@ name = "n"
 python = "{IOTAS}:Rogue"
 params = {{ ignore_signals = true, exit_after = 60 }}
 """)
-    run = Launcher(load_system(path), live_table=False, log_dir=str(tmp_path / "logs"), record=False, until=30,
-                   node_argv=lambda config: [sys.executable, str(STUB), config], stop_timeouts=(4.0, 4.0))
+    run = Launcher(load_system(path), LaunchOptions(live_table=False, log_dir=str(tmp_path / "logs"), until=30,
+                                                    node_argv=lambda config: [sys.executable, str(STUB), config],
+                                                    stop_timeouts=(4.0, 4.0)))
     lines: list[tuple[float, str]] = []
     run.view.line = lambda text: lines.append((time.monotonic(), text))
     log = tmp_path / "logs" / "n.log"
@@ -146,8 +148,8 @@ name = "c"
 python = "{IOTAS}:Stub"
 after = ["b"]
 """)
-    run = Launcher(load_system(path), live_table=False, log_dir=str(tmp_path / "logs"), record=False, until=20,
-                   node_argv=lambda config: [sys.executable, str(STUB), config])
+    run = Launcher(load_system(path), LaunchOptions(live_table=False, log_dir=str(tmp_path / "logs"), until=20,
+                                                    node_argv=lambda config: [sys.executable, str(STUB), config]))
     lines: list[str] = []
     run.view.line = lines.append
     started = time.monotonic()

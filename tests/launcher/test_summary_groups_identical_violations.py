@@ -4,6 +4,7 @@ launcher's summary) and in one process (`iotad run --virtual`)."""
 import sys
 
 from iotad.cli import main
+from iotad.launcher.options import LaunchOptions
 from iotad.launcher.supervision import Launcher
 from iotad.launcher.system_file import load_system
 from launcher_helpers import IOTAS, free_port
@@ -16,7 +17,7 @@ def a_launcher(tmp_path) -> Launcher:
     path = tmp_path / "s.toml"
     path.write_text(f'[system]\nname = "s"\n[system.endpoints]\nlisten = ["tcp/127.0.0.1:{free_port()}"]\n'
                     f'[[node]]\nname = "motor"\npython = "{IOTAS}:Rogue"\n')
-    return Launcher(load_system(path), record=False, log_dir=str(tmp_path / "logs"), live_table=False)
+    return Launcher(load_system(path), LaunchOptions(log_dir=str(tmp_path / "logs"), live_table=False))
 
 
 def test_the_launchers_summary_groups_one_line_missed_by_six_axes(tmp_path):

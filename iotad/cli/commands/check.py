@@ -231,7 +231,7 @@ def _never_ran(recording, specs: dict, unchecked: list[str]) -> list[str]:
     nothing of, where it was made to hold them (its key expressions cover their @trace)."""
     from iotad.host import wire
     from iotad.launcher.declaration import SystemFileError
-    from iotad.recording.delivery_accounts import keyexpr_matches
+    from iotad.host.wire import keyexpr_matches
     from iotad.recording.recorded_system import recorded_declaration
 
     try:

@@ -44,7 +44,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def run_processes(args: argparse.Namespace) -> int:
-    from iotad.cli.commands.run import launch, load_checked
+    from iotad.cli.commands.run import defaults, launch, load_checked
     from iotad.host.transport import DEFAULT_HUB_ENDPOINT
 
     system = load_checked(str(EXAMPLES / "figure2.toml"))
@@ -52,8 +52,7 @@ def run_processes(args: argparse.Namespace) -> int:
     if port is None:
         default = int(DEFAULT_HUB_ENDPOINT.rsplit(":", 1)[1])
         port = default if _port_free(default) else 0
-    options = argparse.Namespace(host=None, until=args.until or 20.0, port=port, no_record=args.no_record,
-                                 record_to=None, origin=None, log_dir=None, plain=args.plain)
+    options = defaults(until=args.until or 20.0, port=port, no_record=args.no_record, plain=args.plain)
     return launch(system, options, summary_hook=_answers)
 
 

@@ -102,7 +102,7 @@ def run(args: argparse.Namespace) -> int:
             except wire.WireError as exc:
                 value, malformed = None, str(exc)
             values = [value]
-            if key.endswith("/@trace") and isinstance(value, list):
+            if key.endswith("/" + wire.TRACE) and isinstance(value, list):
                 values = value  # a burst: one line per event, numbered from the burst's seq
             gap = gaps.see(key, sequence, len(values))
             for position, value in enumerate(values):

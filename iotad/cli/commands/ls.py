@@ -53,16 +53,16 @@ def list_nodes(session, system: str | None, timeout: float) -> list[dict]:
     """Every live node of `system` (or of all systems), with its `@spec` answer when it gave one."""
     from iotad.host import wire
 
-    pattern = f"{wire.PREFIX}/{system or '*'}/**/@alive"
+    pattern = f"{wire.PREFIX}/{system or '*'}/**/{wire.ALIVE}"
     nodes = []
     for reply in session.liveliness().get(pattern, timeout=timeout):
         if reply.ok is None:
             continue
         key = str(reply.ok.key_expr)
-        base = key[:-len("/@alive")]
+        base = key[:-len(wire.ALIVE) - 1]
         parts = base.split("/")
         node = {"system": parts[1], "path": "/".join(parts[2:]), "alive": key, "spec": None}
-        for answer in session.get(f"{base}/@spec", timeout=timeout):
+        for answer in session.get(f"{base}/{wire.SPEC}", timeout=timeout):
             if answer.ok is not None:
                 try:
                     node["spec"] = wire.decode(answer.ok.payload.to_bytes())

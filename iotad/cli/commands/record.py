@@ -2,10 +2,7 @@
 from __future__ import annotations
 
 import argparse
-import os
-import signal
 import sys
-import threading
 import time
 from pathlib import Path
 
@@ -142,6 +139,7 @@ def run(args: argparse.Namespace) -> int:
 def _record(args: argparse.Namespace) -> int:
     from iotad.cli import CliError
     from iotad.recording.recorder import Recorder
+    from iotad.recording.recorder_process import record_until_stopped, stop_on_signals
 
     if args.system_file is not None:
         if Path(args.system_file).is_dir():
@@ -163,49 +161,35 @@ def _record(args: argparse.Namespace) -> int:
         raise CliError(f"{exc.filename or args.output}: {exc.strerror or exc}") from None
     except ValueError as exc:
         raise CliError(str(exc)) from None
-    stop = threading.Event()
-    for signum in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(signum, lambda *_: stop.set())
-    # --duration counts from the start, waiting for a hub included
-    deadline = None if args.duration is None else time.monotonic() + args.duration
-
-    def keep_waiting() -> bool:
-        # a recorder may be started before the system it records: wait for its hub, say so once
-        if not args.quiet and not waited:
-            print(f"waiting for a hub at {', '.join(connect)} (Ctrl-C to stop)", file=sys.stderr)
-        waited.append(True)
-        return not stop.is_set() and (deadline is None or time.monotonic() < deadline)
-
-    waited: list[bool] = []
+    stop = stop_on_signals()
     try:
-        recorder.start(keep_waiting)
-    except OSError as exc:
-        raise CliError(f"cannot start recording: {exc.filename or args.output}: {exc.strerror or exc}") from None
-    except Exception as exc:  # noqa: BLE001 - zenoh said no
-        if waited:  # stopped, or --duration over, before any hub answered: the file holds nothing
-            _remove_empty(recorder)
-            why = "stopped" if stop.is_set() else f"--duration {args.duration:g} s over"
-            raise CliError(f"{why} while waiting for a hub at {', '.join(connect)}: nothing recorded, "
-                           f"no file written") from None
-        reason = str(exc).split(" at /", 1)[0]  # zenoh appends its Rust source location
-        raise CliError(f"cannot start recording: {reason}") from None
-    try:
-        if args.ready_file:
-            Path(args.ready_file).write_text(str(recorder.output))
-        if not args.quiet:
-            print(f"recording {' '.join(recorder.keys)} -> {recorder.output} (Ctrl-C to stop)", file=sys.stderr)
-        while not stop.is_set() and recorder.failed is None:  # a write error ends the recording: exit, say why
-            timeout = 0.5 if deadline is None else min(0.5, max(0.0, deadline - time.monotonic()))
-            stop.wait(timeout)
-            if args.ready_file:  # a sign of life for the launcher, which restarts a frozen recorder
-                try:
-                    os.utime(args.ready_file)
-                except OSError:
-                    pass
-            if deadline is not None and time.monotonic() >= deadline:
-                break
+        # --duration counts from the start, waiting for a hub included
+        deadline = None if args.duration is None else time.monotonic() + args.duration
+
+        def keep_waiting() -> bool:
+            # a recorder may be started before the system it records: wait for its hub, say so once
+            if not args.quiet and not waited:
+                print(f"waiting for a hub at {', '.join(connect)} (Ctrl-C to stop)", file=sys.stderr)
+            waited.append(True)
+            return not stop.is_set() and (deadline is None or time.monotonic() < deadline)
+
+        waited: list[bool] = []
+        try:
+            recorder.start(keep_waiting)
+        except OSError as exc:
+            raise CliError(f"cannot start recording: {exc.filename or args.output}: {exc.strerror or exc}") from None
+        except Exception as exc:  # noqa: BLE001 - zenoh said no
+            if waited:  # stopped, or --duration over, before any hub answered: the file holds nothing
+                _remove_empty(recorder)
+                why = "stopped" if stop.is_set() else f"--duration {args.duration:g} s over"
+                raise CliError(f"{why} while waiting for a hub at {', '.join(connect)}: nothing recorded, "
+                               f"no file written") from None
+            reason = str(exc).split(" at /", 1)[0]  # zenoh appends its Rust source location
+            raise CliError(f"cannot start recording: {reason}") from None
+        stats = record_until_stopped(recorder, stop, ready_file=args.ready_file, deadline=deadline,
+                                     said=None if args.quiet else lambda line: print(line, file=sys.stderr))
     finally:
-        stats = recorder.stop()
+        stop.close()
     if not args.quiet:
         where = str(recorder.output)
         if recorder.split:

@@ -66,8 +66,17 @@ def register(sub: argparse._SubParsersAction) -> None:
                         help="hub port instead of the system file's (0: any free port; default: the file's "
                              "[system.endpoints] listen, else 7447)")
     parser.add_argument("--host", metavar="NAME",
-                        help="run only the nodes with host = NAME (multi-host systems; one launcher per host)")
-    parser.add_argument("--no-record", action="store_true", help="do not start 'iotad record'")
+                        help="run only the nodes with host = NAME, by hand (multi-host systems: one launcher per "
+                             "host); without it, a system spread over hosts runs this machine as the hub host and "
+                             "every other host through its 'iotad agent' (docs/hosts.md)")
+    parser.add_argument("--local", action="store_true",
+                        help="a system spread over hosts: run every host's nodes on this machine (no agents)")
+    parser.add_argument("--certs", metavar="DIR",
+                        help="a system spread over hosts linked by TLS: the folder with ca.pem and this host's "
+                             "HOST.pem, HOST.key ('iotad certs'); its nodes, recorder and agents' sessions use them")
+    parser.add_argument("--agent-timeout", type=positive_float, default=None, metavar="SECONDS",
+                        help="how long to wait for the other hosts' agents (default: the system's start_timeout)")
+    parser.add_argument("--no-record", action="store_true", help="run without a recorder (no recording)")
     parser.add_argument("--insecure", action="store_true",
                         help="no access control: any process reaching the hub may publish on any key "
                              "(default: each node authenticated, writing only its outputs; docs/access-control.md)")
@@ -127,7 +136,7 @@ def run(args: argparse.Namespace) -> int:
         else:
             print("\n".join(derive(system).lines()))
         return 0
-    if args.no_record and getattr(args, "record_to", None):
+    if args.no_record and args.record_to:
         from iotad.cli import CliError
 
         # one of the two is a mistake: a run the user expects recorded would leave no file
@@ -141,12 +150,26 @@ def run(args: argparse.Namespace) -> int:
             raise CliError("--max-size and --max-duration split a real-time run's recording, not a --virtual one")
 
         return run_virtual(system, args)
-    for option in ("inputs", "seed"):
-        if getattr(args, option) is not None:
+    for option, value in (("inputs", args.inputs), ("seed", args.seed)):
+        if value is not None:
             from iotad.cli import CliError
 
             raise CliError(f"--{option} goes with --virtual")
     return launch(system, args)
+
+
+def defaults(**given) -> argparse.Namespace:
+    """`iotad run`'s options as its command line leaves them by default, `given` ones replaced:
+    for a command that launches a system of its own (`iotad demo`), so that `launch` reads every
+    option it knows without guessing which ones a caller set."""
+    parser = argparse.ArgumentParser(add_help=False)
+    register(parser.add_subparsers())
+    args = parser.parse_args(["run", "SYSTEM.toml"])
+    unknown = set(given) - set(vars(args))
+    if unknown:
+        raise TypeError(f"no such option of 'iotad run': {', '.join(sorted(unknown))}")
+    vars(args).update(given)
+    return args
 
 
 def launch(system, args: argparse.Namespace, summary_hook=None) -> int:
@@ -160,7 +183,7 @@ def launch(system, args: argparse.Namespace, summary_hook=None) -> int:
         raise CliError(f"{system.file}: no node has host = {args.host!r} (hosts: {', '.join(hosts)})")
     if args.until is not None and args.until <= 0:
         raise CliError("--until must be a positive number of seconds")
-    if getattr(args, "log_dir", None):
+    if args.log_dir:
         log_dir = Path(args.log_dir)
         try:
             log_dir.mkdir(parents=True, exist_ok=True)
@@ -168,16 +191,16 @@ def launch(system, args: argparse.Namespace, summary_hook=None) -> int:
             raise CliError(f"--log-dir {args.log_dir}: cannot create it: {exc.strerror or exc}") from None
         if not os.access(log_dir, os.W_OK):
             raise CliError(f"--log-dir {args.log_dir}: not writable")
-    if args.no_record and (getattr(args, "max_size", None) or getattr(args, "max_duration", None)):
+    if args.no_record and (args.max_size or args.max_duration):
         raise CliError("--max-size and --max-duration split the recording: not with --no-record")
-    if getattr(args, "record_to", None) and Path(args.record_to).is_dir():
+    if args.record_to and Path(args.record_to).is_dir():
         raise CliError(f"-o {args.record_to}: is a directory; name the .mcap file to write")
-    if getattr(args, "view", None) is not None:
+    if args.view is not None:
         _view_port_free(args.view)
-    record_to = getattr(args, "record_to", None)
+    record_to = args.record_to
     claimed = None  # the recording's name, created empty here so that no other run takes it
     if record_to and not args.no_record:
-        if claim_recording(record_to, getattr(args, "force", False)):
+        if claim_recording(record_to, args.force):
             claimed = record_to
     elif not args.no_record:  # a new name: recordings/<system>-<date>-<time>.mcap, -2 in the same second
         import time
@@ -198,25 +221,30 @@ def launch(system, args: argparse.Namespace, summary_hook=None) -> int:
 
 def _launch(system, args: argparse.Namespace, record_to: str | None, summary_hook=None) -> int:
     from iotad.cli import CliError
-    from iotad.launcher.supervision import Launcher, LauncherError
     from iotad.host.transport import free_port, reachable
+    from iotad.launcher.options import LaunchOptions, RecordingOptions
+    from iotad.launcher.supervision import Launcher, LauncherError
 
     port = args.port
     if port == 0:
         port = free_port()
-    launcher = Launcher(system, host=args.host, port=port, until=args.until, record=not args.no_record,
-                        record_path=record_to, origin=args.origin, log_dir=args.log_dir,
-                        live_table=False if args.plain else None,
-                        record_force=bool(getattr(args, "force", False)),
-                        record_max_size=getattr(args, "max_size", None),
-                        record_max_duration=getattr(args, "max_duration", None),
-                        after_live=getattr(args, "after_live", False))
+    _use_certificates(system, args)
+    fleet, host = _fleet_for(system, args, port)
+    launch = LaunchOptions(host=host, port=port, until=args.until, after_live=args.after_live,
+                           origin=args.origin, log_dir=args.log_dir, live_table=False if args.plain else None)
+    recording = None if args.no_record else RecordingOptions(
+        record_to, force=args.force, max_size=args.max_size, max_duration=args.max_duration)
+    launcher = Launcher(system, launch, recording, access_for(system, args), fleet=fleet)
     viewer = None
     try:
-        launcher.access = access_for(system, args)
-        if getattr(args, "view", None) is not None and system.opens_hub(args.host):
-            from iotad.cli.viewer_process import ViewerProcess
+        if args.view is not None and system.opens_hub(args.host):
+            import os
 
+            from iotad.cli.viewer_process import ViewerProcess
+            from iotad.host.credentials import ENV
+
+            if launcher.access is not None and launcher.access.tools_file():
+                os.environ[ENV] = launcher.access.tools_file()  # the viewer reads with the tools' credentials
             hub = system.listen[0] if port is None else f"tcp/127.0.0.1:{port}"
             viewer = ViewerProcess(reachable(hub), system.name, args.view)
         code = launcher.run()
@@ -230,7 +258,8 @@ def _launch(system, args: argparse.Namespace, record_to: str | None, summary_hoo
             viewer.stop()
         if launcher.access is not None:
             launcher.access.close()
-    print(f"summary of {system.name}" + (f" (host {args.host})" if args.host else "") + ":")
+    where = f" (host {launcher.host}" + (f"; hosts {', '.join(fleet.hosts)} through their agents" if fleet else "") + ")"
+    print(f"summary of {system.name}" + (where if launcher.host else "") + ":")
     for line in launcher.summary():
         print(line)
     if summary_hook is not None:
@@ -238,6 +267,41 @@ def _launch(system, args: argparse.Namespace, record_to: str | None, summary_hoo
     if sys.stdout is not None:  # None when the shell closed it (>&-)
         sys.stdout.flush()
     return code
+
+
+def _use_certificates(system, args: argparse.Namespace) -> None:
+    """--certs: this host's certificates, checked now and handed to every process of the run."""
+    if not args.certs:
+        return
+    from iotad.cli import CliError
+    from iotad.host.certificates import CertificateError, use
+
+    host = args.host or system.hub_host
+    if host is None:
+        raise CliError("--certs links the hosts of a system spread over hosts; this system names no host")
+    try:
+        use(args.certs, host)
+    except CertificateError as exc:
+        raise CliError(str(exc)) from None
+
+
+def _fleet_for(system, args: argparse.Namespace, port: int | None):
+    """(the agents of the other hosts or None, the host this launcher runs). A system spread over
+    hosts, started without --host or --local, runs here as its hub host and everywhere else
+    through each host's agent."""
+    hosts = [n.host for n in system.nodes.values() if n.host]
+    if args.host is not None or args.local or not hosts:
+        return None, args.host
+    from iotad.host.transport import reachable
+    from iotad.launcher.fleet import Fleet
+    from iotad.launcher.system_file import with_port
+
+    hub = [reachable(e) for e in (with_port(system.listen, port) if port is not None else system.listen)]
+    others = sorted(set(hosts) - {system.hub_host}, key=hosts.index)
+    agent_args = ["--no-record"] + (["--port", str(port)] if port is not None else [])
+    fleet = Fleet(system.path, others, hub, agent_args,
+                  start_timeout=args.agent_timeout or system.start_timeout)
+    return fleet, system.hub_host
 
 
 def _view_port_free(port: int) -> None:
@@ -259,16 +323,10 @@ def _view_port_free(port: int) -> None:
 def access_for(system, args: argparse.Namespace):
     """Access control for this run (docs/access-control.md): on unless --insecure; off, with a
     warning, for a system spread over hosts, whose other launchers could not get credentials."""
-    import os
+    from iotad.launcher.options import AccessOptions
 
-    from iotad.host.credentials import ENV
-    from iotad.launcher.access_control import AccessControl
-
-    if getattr(args, "insecure", False):
-        return AccessControl.off(system, "--insecure")
+    if args.insecure:
+        return AccessOptions.off("--insecure")
     if args.host is not None or any(node.host for node in system.nodes.values()):
-        return AccessControl.off(system, "not yet for systems spread over hosts")
-    access = AccessControl(system)
-    if getattr(args, "view", None) is not None:
-        os.environ[ENV] = access.tools_file()  # the `iotad view` child reads with the tools' credentials
-    return access
+        return AccessOptions.off("not yet for systems spread over hosts")
+    return AccessOptions()

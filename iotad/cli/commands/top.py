@@ -65,8 +65,8 @@ def run(args: argparse.Namespace) -> int:
             attachment = None if sample.attachment is None else sample.attachment.to_bytes()
             inbox.put(("data", str(sample.key_expr), sample.payload.to_bytes(), attachment))
 
-        session.liveliness().declare_subscriber(f"{scope}/**/@alive", on_alive, history=True)
-        for key in (f"{scope}/**/@heartbeat", f"{scope}/**/@trace", f"{scope}/**"):
+        session.liveliness().declare_subscriber(f"{scope}/**/{wire.ALIVE}", on_alive, history=True)
+        for key in (f"{scope}/**/{wire.HEARTBEAT}", f"{scope}/**/{wire.TRACE}", f"{scope}/**"):
             session.declare_subscriber(key, on_sample)
         asked: set[str] = set()
         end = None if args.once is None else time.monotonic() + args.once
@@ -108,13 +108,13 @@ def run(args: argparse.Namespace) -> int:
 def _handle(board, item, system, session, asked, wire) -> None:
     if item[0] == "alive":
         _, key, present = item
-        path, _ = _path(key, system, "@alive")
+        path, _ = _path(key, system, wire.ALIVE)
         board.alive(path, present)
         if present and key not in asked:
             asked.add(key)
-            base = key[:-len("/@alive")]
+            base = key[:-len(wire.ALIVE) - 1]
             try:
-                for answer in session.get(f"{base}/@spec", timeout=1.0):
+                for answer in session.get(f"{base}/{wire.SPEC}", timeout=1.0):
                     if answer.ok is not None:
                         board.spec(path, wire.decode(answer.ok.payload.to_bytes()))
             except Exception:  # noqa: BLE001 - a node gone meanwhile, an odd answer: no requester names
@@ -126,10 +126,10 @@ def _handle(board, item, system, session, asked, wire) -> None:
     except wire.WireError:
         board.ignored += 1
         return
-    if key.endswith("/@heartbeat"):
-        board.heartbeat(_path(key, system, "@heartbeat")[0], value)
-    elif key.endswith("/@trace"):
-        board.trace(_path(key, system, "@trace")[0], wire.trace_events(value))
+    if key.endswith("/" + wire.HEARTBEAT):
+        board.heartbeat(_path(key, system, wire.HEARTBEAT)[0], value)
+    elif key.endswith("/" + wire.TRACE):
+        board.trace(_path(key, system, wire.TRACE)[0], wire.trace_events(value))
     elif "/@" not in key:
         try:
             meta = wire.decode_attachment(attachment)

@@ -75,9 +75,9 @@ def run(args: argparse.Namespace) -> int:
         scope = f"{wire.PREFIX}/{args.system or '*'}"
         inbox: queue.SimpleQueue = queue.SimpleQueue()
         session.liveliness().declare_subscriber(
-            f"{scope}/**/@alive", lambda s: inbox.put(("alive", str(s.key_expr), s.kind == zenoh.SampleKind.PUT)),
+            f"{scope}/**/{wire.ALIVE}", lambda s: inbox.put(("alive", str(s.key_expr), s.kind == zenoh.SampleKind.PUT)),
             history=True)
-        for key in (f"{scope}/**/@trace", f"{scope}/**"):
+        for key in (f"{scope}/**/{wire.TRACE}", f"{scope}/**"):
             session.declare_subscriber(key, lambda s: inbox.put(
                 ("data", str(s.key_expr), s.payload.to_bytes(),
                  None if s.attachment is None else s.attachment.to_bytes())))
@@ -108,7 +108,7 @@ def _handle(bridge, session, item, asked, wire) -> None:
         if present and key not in asked:
             asked.add(key)
             try:
-                for answer in session.get(key[:-len("/@alive")] + "/@spec", timeout=1.0):
+                for answer in session.get(key[:-len(wire.ALIVE)] + wire.SPEC, timeout=1.0):
                     if answer.ok is not None:
                         bridge.describe(wire.decode(answer.ok.payload.to_bytes()))
             except Exception:  # noqa: BLE001 - a node gone meanwhile: its channels get a generic schema
@@ -121,7 +121,7 @@ def _handle(bridge, session, item, asked, wire) -> None:
     except wire.WireError:
         return  # a malformed sample: the recorder counts those; a viewer shows what it can
     stamp = meta[1] if meta and meta[1] else time.time_ns()
-    if key.endswith("/@trace"):
+    if key.endswith("/" + wire.TRACE):
         try:
             events = wire.trace_events(value)
         except wire.WireError:

@@ -1,0 +1,55 @@
+"""`iotad agent`: run on each machine of a system spread over hosts; the hub's `iotad run` gives it
+that host's part of the run (docs/hosts.md)."""
+from __future__ import annotations
+
+import argparse
+
+ORDER = 28
+
+EPILOG = """\
+examples:
+  iotad agent --name arm --connect tcp/10.0.0.1:7447
+  iotad agent --name arm --connect tls/10.0.0.1:7447 --certs /etc/iotad/certs
+
+The agent waits at the hub (it keeps trying while no 'iotad run' holds it), then runs what the
+hub's 'iotad run SYSTEM.toml' asks: 'iotad run SYSTEM.toml --host NAME' as its own child, its
+lines relayed to the hub. Run it from a checkout of the same repository revision as the hub's,
+at the same path where you can: the system file names its nodes' code by path. Ctrl-C (or
+SIGTERM, as systemd sends) stops the agent and whatever it runs. docs/hosts.md has a systemd
+unit for it."""
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    from iotad.cli import endpoint
+
+    parser = sub.add_parser(
+        "agent", help="serve one host of a system spread over hosts (started by the hub's 'iotad run')",
+        description="Wait at a system's hub and run this host's nodes when the hub's 'iotad run' asks; "
+                    "supervise them as a local launcher does, and stop them when the run ends.",
+        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--name", required=True, metavar="NAME",
+                        help="this host's name, as in the system file's [hosts.NAME] and its nodes' host = NAME")
+    parser.add_argument("--connect", required=True, type=endpoint, action="append", metavar="ENDPOINT",
+                        help="the hub's endpoint, e.g. tcp/10.0.0.1:7447 or tls/10.0.0.1:7447 (repeat for several)")
+    parser.add_argument("--certs", metavar="DIR",
+                        help="folder with ca.pem, NAME.pem and NAME.key (iotad certs) for tls/ endpoints")
+    parser.add_argument("--workdir", metavar="DIR",
+                        help="where a system file the hub sends is written when this host lacks it "
+                             "(default: a folder under the temporary directory)")
+    parser.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from iotad.cli import CliError
+    from iotad.host.certificates import CertificateError, use
+    from iotad.launcher.agent import main
+
+    tls = None
+    if args.certs:
+        try:
+            tls = use(args.certs, args.name)  # the runs it starts (launcher, nodes) use them too
+        except CertificateError as exc:
+            raise CliError(str(exc)) from None
+    elif any(endpoint.startswith(("tls/", "quic/")) for endpoint in args.connect):
+        raise CliError(f"{args.connect[0]} is a TLS endpoint: give --certs DIR with this host's certificate")
+    return main(args.name, args.connect, tls, args.workdir)

@@ -1,0 +1,191 @@
+"""The agent of one host (`iotad agent --name NAME --connect ENDPOINT`): waits at the system's hub
+for the run that `iotad run` on the hub's machine starts, and runs this host's part of it as
+`iotad run SYSTEM.toml --host NAME` would, as a child it owns; stops it when told, or when the
+hub is gone for longer than the run's own allowance.
+
+Its wire, all under `iota/@agent/<name>` (an '@' chunk, so no system's `**` matches it):
+- a liveliness token on the key itself: the hub's `iotad run` sees the agent, and sees it go;
+- queryable `.../run`: an order (JSON) with the system file's text, its path on the hub and the
+  launcher's arguments; the answer is {"ok": true, "pid": N} or {"ok": false, "error": "..."};
+- queryable `.../stop`: SIGINT to the child, as Ctrl-C would; answered once it has exited;
+- publications `.../log` (each line the child prints) and `.../exit` ({"code": N}).
+
+A system file names its nodes' code by path. The agent runs the file at the path the hub gave
+when that path holds the same text here (a checkout of the same repository at the same place),
+and otherwise writes the text beside the paths it names (refusing, with the reason, when that
+would differ from the hub's): code travels with the repository, not over the hub."""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+from typing import Callable
+
+AGENT_PREFIX = "iota/@agent"
+
+
+def agent_key(name: str) -> str:
+    return f"{AGENT_PREFIX}/{name}"
+
+
+def digest(text: str) -> str:
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+class AgentError(Exception):
+    """An order the agent cannot carry out, said in one line."""
+
+
+def system_file_for(order: dict, workdir: Path) -> Path:
+    """Where this host finds the system file of `order`: the hub's own path when it holds the same
+    text here, else a copy written into `workdir`. Raises `AgentError` when neither works."""
+    text, path = order.get("system"), order.get("path")
+    if not isinstance(text, str) or not isinstance(path, str):
+        raise AgentError("an order without a system file (expected 'system' text and its 'path')")
+    if order.get("digest") not in (None, digest(text)):
+        raise AgentError("the system file's text does not match its digest: the order was damaged")
+    here = Path(path)
+    try:
+        if here.is_file() and here.read_text(encoding="utf-8") == text:
+            return here
+    except OSError:
+        pass
+    if here.is_file():
+        raise AgentError(f"{path} here differs from the hub's (sha256 {digest(text)[:12]}): "
+                         "run the agent in a checkout of the same revision")
+    # the hub's path does not exist here: the copy runs from the agent's folder, so a relative
+    # path to node code resolves against the same repository layout
+    workdir.mkdir(parents=True, exist_ok=True)
+    copy = workdir / Path(path).name
+    copy.write_text(text, encoding="utf-8")
+    return copy
+
+
+class Agent:
+    """One host's agent: `serve()` until `stop()` (or SIGINT/SIGTERM in `main`)."""
+
+    def __init__(self, name: str, connect: list[str], tls=None, workdir: str | Path | None = None,
+                 say: Callable[[str], None] = print, python: str = sys.executable):
+        self.name, self.connect, self.tls, self.say, self.python = name, list(connect), tls, say, python
+        self.workdir = Path(workdir) if workdir else Path(tempfile.gettempdir()) / f"iotad-agent-{name}"
+        self.child: subprocess.Popen | None = None
+        self._lock = threading.Lock()
+        self._stopping = threading.Event()
+        self.session = None
+
+    # ------------------------------------------------------------- serving
+    def serve(self) -> int:
+        from iotad.host.transport import open_session
+
+        self.say(f"agent {self.name}: waiting for the hub at {', '.join(self.connect)}")
+        while not self._stopping.is_set():
+            try:
+                self.session = open_session([], self.connect, mode="client", connect_timeout=2.0,
+                                            credentials=False, tls=self.tls)
+                break
+            except Exception:  # noqa: BLE001 - no hub yet: zenoh says "Unable to connect"
+                self._stopping.wait(1.0)
+        if self.session is None:
+            return 0
+        key = agent_key(self.name)
+        # the queryables before the token: a hub that sees the token may ask at once
+        declared = [self.session.declare_queryable(f"{key}/run", self._on_run),
+                    self.session.declare_queryable(f"{key}/stop", self._on_stop),
+                    self.session.liveliness().declare_token(key)]
+        self.say(f"agent {self.name}: ready at the hub")
+        try:
+            self._stopping.wait()
+        finally:
+            self._stop_child("the agent stops")
+            for item in declared:
+                item.undeclare()
+            self.session.close()
+        return 0
+
+    def stop(self) -> None:
+        self._stopping.set()
+
+    # ------------------------------------------------------------- orders
+    def _on_run(self, query) -> None:
+        try:
+            order = json.loads(query.payload.to_bytes()) if query.payload is not None else None
+            if not isinstance(order, dict):
+                raise AgentError("an order must be a JSON object")
+            pid = self._start(order)
+            answer = {"ok": True, "pid": pid}
+        except (AgentError, ValueError, OSError) as exc:
+            answer = {"ok": False, "error": str(exc)}
+            self.say(f"agent {self.name}: refused a run: {exc}")
+        query.reply(query.key_expr, json.dumps(answer).encode())
+
+    def _on_stop(self, query) -> None:
+        code = self._stop_child("the hub asked")
+        query.reply(query.key_expr, json.dumps({"ok": True, "code": code}).encode())
+
+    def _start(self, order: dict) -> int:
+        args = order.get("args", [])
+        if not isinstance(args, list) or not all(isinstance(a, str) for a in args):
+            raise AgentError("an order's 'args' must be a list of strings")
+        with self._lock:
+            if self.child is not None and self.child.poll() is None:
+                raise AgentError(f"host {self.name} already runs a system (pid {self.child.pid})")
+            path = system_file_for(order, self.workdir)
+            command = [self.python, "-m", "iotad", "run", str(path), "--host", self.name, "--plain", *args]
+            env = dict(os.environ)
+            env.update({k: v for k, v in (order.get("env") or {}).items() if isinstance(v, str)})
+            self.child = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                                          env=env, start_new_session=True)
+            child = self.child
+        self.say(f"agent {self.name}: runs {path} (pid {child.pid})")
+        threading.Thread(target=self._relay, args=(child,), daemon=True, name=f"agent-{self.name}-log").start()
+        return child.pid
+
+    def _relay(self, child: subprocess.Popen) -> None:
+        """The child's lines to the hub, then its exit status."""
+        for line in child.stdout:
+            self._publish("log", {"line": line.rstrip("\n")})
+        code = child.wait()
+        self._publish("exit", {"code": code})
+        self.say(f"agent {self.name}: the run exited with {code}")
+
+    def _publish(self, part: str, payload: dict) -> None:
+        # session.put, not a publisher declared once: after the hub of an earlier run closed and
+        # the next one's opened, a publisher declared before did not reach the new subscribers
+        try:
+            self.session.put(f"{agent_key(self.name)}/{part}", json.dumps(payload).encode())
+        except Exception:  # noqa: BLE001 - the session is closing: the hub is gone anyway
+            pass
+
+    def _stop_child(self, why: str, grace: float = 15.0) -> int | None:
+        """SIGINT (the launcher stops its nodes in order), then SIGKILL to the group past `grace`."""
+        with self._lock:
+            child = self.child
+        if child is None:
+            return None
+        if child.poll() is None:
+            self.say(f"agent {self.name}: stopping the run ({why})")
+            try:
+                os.killpg(child.pid, signal.SIGINT)
+                return child.wait(grace)
+            except subprocess.TimeoutExpired:
+                os.killpg(child.pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+        return child.wait()
+
+
+def main(name: str, connect: list[str], tls=None, workdir: str | None = None) -> int:
+    agent = Agent(name, connect, tls, workdir)
+    previous = {sig: signal.signal(sig, lambda signum, frame: agent.stop()) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        return agent.serve()
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)

@@ -1,0 +1,167 @@
+"""`iotad run SYSTEM.toml` on the hub's machine starts a system spread over hosts through each
+other host's `iotad agent`: the Figure 2 scheduler on host brain (with the hub and the recorder),
+the requester on host arm, in two network namespaces. The run commits as on one host, the arm's
+lines reach the hub's console, the recording holds both hosts' events and checks clean, one
+agent serves run after run, and a host without an agent is a one-line error, not a hang."""
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from launcher_helpers import ROOT
+from namespaces import hosts
+from iotad.launcher.processes import interrupt_then_kill
+
+EXAMPLES = ROOT / "examples"
+
+
+def system_text(hub: str) -> str:
+    return f"""
+[system]
+name = "split"
+hub_host = "brain"
+[system.endpoints]
+listen = ["tcp/{hub}:7615"]
+
+[hosts.brain]
+listen = ["tcp/{hub}:0"]
+[hosts.arm]
+listen = ["tcp/0.0.0.0:0"]
+
+[[node]]
+name = "scheduler"
+host = "brain"
+python = "{EXAMPLES}/scheduler.py:Scheduler"
+params = {{ N = 1, T = 0.5 }}
+
+[[node]]
+name = "vision"
+host = "arm"
+python = "{EXAMPLES}/requesters.py:Requester"
+params = {{ priority = 1, epoch = 1.0, timeout = 2.0, start = 0.5, pause = 1.2, count = 2 }}
+after = ["scheduler"]
+
+[[bind]]
+from = "vision.req"
+to = "scheduler.req[0]"
+[[bind]]
+from = "scheduler.ack[0]"
+to = "vision.ack"
+"""
+
+
+def assert_checked(recording: Path) -> None:
+    """`iotad check` of the hub's recording: both hosts' nodes are in it with every firing, every
+    message was delivered as sent, and the only problems are firings a loaded CPU made late in
+    real time (a timing judgement, not a lost or foreign event)."""
+    checked = iotad(lambda *c: list(c), "check", str(recording))
+    out = checked.stdout
+    # how many requests fit in the run depends on how long the hosts took to start: at least one
+    assert re.search(r"scheduler: \d+ events, [1-9]\d* firings checked", out), out[-3000:]
+    assert re.search(r"vision: \d+ events, [1-9]\d* firings checked", out), out[-3000:]
+    assert re.search(r"delivery: (\d+) of \1 messages delivered as sent over 2 links", out), out[-3000:]
+    kinds = set(re.findall(r"^\s+t=\S+ \[(\w+)\]", out, re.MULTILINE))
+    assert kinds <= {"late"} and (checked.returncode == 0) == (not kinds), out[-3000:]
+
+
+def iotad(place, *args, timeout=120):
+    return subprocess.run(place(sys.executable, "-m", "iotad", *args), capture_output=True, text=True,
+                          timeout=timeout, cwd=ROOT)
+
+
+def test_the_hub_starts_the_arm_through_its_agent(tmp_path):
+    with hosts("brain", "arm", net=202) as net:
+        hub = net.addresses[("brain", "arm")]
+        path = tmp_path / "split.toml"
+        path.write_text(system_text(hub).replace("0.0.0.0", net.addresses["arm"]))
+        agent = subprocess.Popen(net.exec("arm", sys.executable, "-m", "iotad", "agent", "--name", "arm",
+                                          "--connect", f"tcp/{hub}:7615"),
+                                 stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=ROOT,
+                                 start_new_session=True)
+        try:
+            runs = []
+            for k in range(2):  # the same agent serves a second run after the first one's hub closed
+                recording = tmp_path / f"split{k}.mcap"
+                runs.append(iotad(lambda *c: net.exec("brain", *c), "run", str(path), "--until", "8", "--plain",
+                                  "-o", str(recording)))
+                done = runs[-1]
+                assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-2000:]
+                assert "host arm: its agent runs its nodes" in done.stdout
+                assert "[arm]" in done.stdout and "vision: live (pid" in done.stdout  # the arm's own lines
+                assert "vision: live (on another host)" in done.stdout
+                assert "COMMIT" in done.stdout and "host arm: exit 130 (stopped by this run)" in done.stdout
+                assert_checked(recording)
+        finally:
+            code = interrupt_then_kill(agent)
+            output = agent.stdout.read()
+        assert code == 0, output
+        assert output.count("agent arm: runs") == 2
+
+
+def test_a_host_without_an_agent_is_one_clear_error(tmp_path):
+    with hosts("brain", "arm", net=203) as net:
+        hub = net.addresses[("brain", "arm")]
+        path = tmp_path / "split.toml"
+        path.write_text(system_text(hub).replace("0.0.0.0", net.addresses["arm"]))
+        done = iotad(lambda *c: net.exec("brain", *c), "run", str(path), "--until", "5", "--no-record", "--plain",
+                     "--agent-timeout", "2")
+        assert done.returncode == 2, done.stdout + done.stderr
+        assert "no agent answered for host(s) arm within 2 s" in done.stderr
+        assert "iotad agent --name HOST --connect" in done.stderr and "Traceback" not in done.stderr
+
+
+ROGUE = r"""
+import sys, zenoh
+from iotad.host import certificates
+from iotad.host.transport import open_session
+hub, stranger, own = sys.argv[1], sys.argv[2], sys.argv[3]
+for name, endpoint, files in (("tcp", hub.replace("tls/", "tcp/"), None), ("tls without a certificate", hub, None),
+                              ("tls with another authority's", hub, certificates.host_files(stranger, "rogue")),
+                              # the control: the hub is reachable from here, for a host of the system
+                              ("tls with the system's", hub, certificates.host_files(own, "guest"))):
+    try:
+        with open_session([], [endpoint], mode="client", connect_timeout=2, credentials=False, tls=files) as s:
+            s.declare_subscriber("iota/split/**", lambda sample: None)
+            if files is None or "guest" not in str(files.certificate):  # the control writes nothing
+                s.put("iota/split/scheduler/req/0", b"\x00")
+        print(name, "OPENED")
+    except zenoh.ZError:
+        print(name, "refused")
+"""
+
+
+def test_hosts_linked_by_tls_admit_no_process_without_a_certificate(tmp_path):
+    certs = tmp_path / "certs"
+    with hosts("brain", "arm", "rogue", net=204) as net:
+        hub, arm = net.addresses[("brain", "arm")], net.addresses["arm"]
+        for step in (["init", str(certs)], ["host", "brain", "--dir", str(certs), "--address", hub],
+                     ["host", "arm", "--dir", str(certs), "--address", arm],
+                     ["host", "guest", "--dir", str(certs)],
+                     ["init", str(tmp_path / "other")], ["host", "rogue", "--dir", str(tmp_path / "other")]):
+            assert iotad(lambda *c: list(c), "certs", *step).returncode == 0
+        path = tmp_path / "split.toml"
+        path.write_text(system_text(hub).replace("tcp/", "tls/").replace("0.0.0.0", arm))
+        agent = subprocess.Popen(net.exec("arm", sys.executable, "-m", "iotad", "agent", "--name", "arm",
+                                          "--connect", f"tls/{hub}:7615", "--certs", str(certs)),
+                                 stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=ROOT,
+                                 start_new_session=True)
+        run = subprocess.Popen(net.exec("brain", sys.executable, "-m", "iotad", "run", str(path), "--until", "10",
+                                        "--plain", "--certs", str(certs), "-o", str(tmp_path / "tls.mcap")),
+                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=ROOT,
+                               start_new_session=True)
+        try:
+            rogue = subprocess.run(net.exec("rogue", sys.executable, "-c", ROGUE, f"tls/{hub}:7615",
+                                            str(tmp_path / "other"), str(certs)),
+                                   capture_output=True, text=True, timeout=60, cwd=ROOT)
+            output = run.communicate(timeout=120)[0]
+        finally:
+            interrupt_then_kill(run)
+            interrupt_then_kill(agent)
+        assert run.returncode == 0, output[-3000:]
+        assert rogue.stdout.split("\n")[:4] == ["tcp refused", "tls without a certificate refused",
+                                               "tls with another authority's refused", "tls with the system's OPENED"], \
+            rogue.stdout + rogue.stderr
+        assert "host arm: its agent runs its nodes" in output and "COMMIT" in output
+        assert_checked(tmp_path / "tls.mcap")

@@ -1,0 +1,74 @@
+"""Test "hosts" as network namespaces: the first joined to each other one by a veth pair of its
+own (a star: 10.<net>.<k>.1 on the first's end toward host k, 10.<net>.<k>.2 on host k's, whose
+default route goes to the first). Only
+addresses inside namespaces the test makes and removes; never a real interface. A partition is
+one end of a pair set down."""
+from __future__ import annotations
+
+import os
+import subprocess
+from contextlib import contextmanager
+
+import pytest
+
+
+def ip(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run(["ip", *args], capture_output=True, text=True, timeout=10)
+
+
+class Hosts:
+    """Namespaces by host name; `exec(host, *cmd)` is the command line that runs `cmd` there."""
+
+    def __init__(self, names: dict[str, str], addresses: dict[str, str], links: dict[str, tuple[str, str]]):
+        self.names, self.addresses, self.links = names, addresses, links
+
+    def exec(self, host: str, *command: str) -> list[str]:
+        return ["ip", "netns", "exec", self.names[host], *command]
+
+    def cut(self, a: str, b: str) -> None:
+        """A partition: the link between `a` and `b` down (at `a`'s end)."""
+        name, ns = self.links[(a, b)]
+        assert ip("-n", ns, "link", "set", name, "down").returncode == 0
+
+    def heal(self, a: str, b: str) -> None:
+        name, ns = self.links[(a, b)]
+        assert ip("-n", ns, "link", "set", name, "up").returncode == 0
+
+
+@contextmanager
+def hosts(first: str, *others: str, net: int = 200):
+    """`first` joined to each of `others` by its own veth pair (a star around `first`): first is
+    10.<net>.<k>.1 toward other k, which is 10.<net>.<k>.2. Skips without root."""
+    tag = f"{os.getpid() % 100000}"
+    names = {host: f"iotad-{host}-{tag}" for host in (first, *others)}
+    made, addresses, links = [], {}, {}
+    try:
+        for ns in names.values():
+            result = ip("netns", "add", ns)
+            if result.returncode != 0:
+                pytest.skip(f"cannot create network namespaces here (ip netns add: {result.stderr.strip()}); "
+                            "this test needs root or CAP_NET_ADMIN")
+            made.append(ns)
+        ip("-n", names[first], "link", "set", "lo", "up")
+        for k, other in enumerate(others, start=1):
+            near, far = f"i{k}a{tag}", f"i{k}b{tag}"
+            here, there = f"10.{net}.{k}.1", f"10.{net}.{k}.2"
+            for step in (("link", "add", near, "type", "veth", "peer", "name", far),
+                         ("link", "set", near, "netns", names[first]), ("link", "set", far, "netns", names[other]),
+                         ("-n", names[first], "addr", "add", f"{here}/24", "dev", near),
+                         ("-n", names[other], "addr", "add", f"{there}/24", "dev", far),
+                         ("-n", names[first], "link", "set", near, "up"), ("-n", names[other], "link", "set", far, "up"),
+                         ("-n", names[other], "link", "set", "lo", "up"),
+                         # every address of the first host is reachable from host k, not only the
+                         # one on its own link (the first host does not forward between the others)
+                         ("-n", names[other], "route", "add", "default", "via", here)):
+                result = ip(*step)
+                if result.returncode != 0:
+                    pytest.skip(f"cannot wire the namespaces (ip {' '.join(step)}: {result.stderr.strip()})")
+            addresses[(first, other)], addresses[other] = here, there
+            links[(first, other)] = (near, names[first])
+            links[(other, first)] = (far, names[other])
+        yield Hosts(names, addresses, links)
+    finally:
+        for ns in made:
+            ip("netns", "del", ns)  # takes its veth ends (and so the pairs) with it
