@@ -44,7 +44,8 @@ _SYSTEM_KEYS = {"name", "time_unit", "endpoints", "hub_host", "heartbeat_period"
 TABLE_HINT = {"external": " (a top-level key must come before the first table; or put it in [system])"}
 _NODE_KEYS = {"name", "spec", "iota", "python", "params", "restart", "max_restarts", "backoff", "host",
               "after", "policy", "seed", "required", "input_queue"}
-_TOP_KEYS = {"system", "node", "bind", "external", "hosts", "can", "ros2"}
+_TOP_KEYS = {"system", "node", "bind", "external", "hosts", "can", "ros2", "sweep"}
+_SWEEP_KEYS = {"metrics"}
 _CAN_KEYS = {"name", "interface", "channel", "bitrate", "stations", "options", "log"}
 
 
@@ -150,6 +151,9 @@ class Declaration:
     hosts: Mapping[str, HostSpec] = field(default_factory=lambda: MappingProxyType({}))
     buses: Mapping[str, CanBusSpec] = field(default_factory=lambda: MappingProxyType({}))
     ros2: tuple[Any, ...] = ()       # [[ros2]] tables as written; checked with the channels (docs/ros2.md)
+    # [sweep] metrics: "file.py:function" (absolute where the file has a folder) or "module:function",
+    # what `iotad sweep` measures each run with (docs/sweeps.md); nothing else reads it
+    sweep_metrics: str | None = None
 
     @property
     def file(self) -> str:
@@ -231,6 +235,7 @@ class _Parser:
         self.parse_hosts()
         self.parse_nodes()
         self.parse_buses()
+        self.parse_sweep()
         self.add_bus_loggers()  # one implicit node per logged bus, named after it
         self.check_after()  # after the loggers: a node may start after a bus's logger
         raw_system = self.data.get("system")
@@ -458,6 +463,25 @@ class _Parser:
             self.error(self.nodes[cycle[0]].entry,
                        f"after goes round in a circle, so none of these could ever start: {' -> '.join(cycle)} "
                        f"(each waits for the next to be live)")
+
+    def parse_sweep(self) -> None:
+        """`[sweep]`: what `iotad sweep` measures in each run of this system (docs/sweeps.md)."""
+        raw = self.data.get("sweep", {})
+        if not isinstance(raw, dict):
+            self.error("[sweep]", "must be a table: [sweep] metrics = \"file.py:function\"")
+            return
+        for key in sorted(set(raw) - _SWEEP_KEYS):
+            self.error("[sweep]", f"unknown key {key!r} (expected one of {sorted(_SWEEP_KEYS)})")
+        if "metrics" not in raw:
+            return
+        ref = raw["metrics"]
+        if not isinstance(ref, str) or ":" not in ref or not all(ref.rsplit(":", 1)):
+            self.error("[sweep]", f"metrics must be \"file.py:function\" or \"module:function\", got {ref!r}")
+            return
+        where, function = ref.rsplit(":", 1)
+        if where.endswith(".py") and self.base is not None:  # as python = "file.py:Class": relative to
+            ref = f"{(self.base / where).resolve()}:{function}"  # this file; `iotad sweep` looks for it
+        self.settings["sweep_metrics"] = ref
 
     def parse_buses(self) -> None:
         for number, raw in enumerate(self.table_list("can"), 1):
