@@ -12,6 +12,46 @@ from contextlib import contextmanager
 import pytest
 
 
+def split_figure2(name: str, hub: str, port: int, hub_host: str, other: str, other_address: str,
+                  scheme: str = "tcp") -> str:
+    """The Figure 2 scheduler on `hub_host` (which holds the hub at `hub`:`port`) and one
+    requester on `other`, bound both ways: the smallest system spread over two hosts."""
+    from pathlib import Path
+    examples = Path(__file__).resolve().parents[1] / "examples"
+    return f"""
+[system]
+name = "{name}"
+hub_host = "{hub_host}"
+[system.endpoints]
+listen = ["{scheme}/{hub}:{port}"]
+
+[hosts.{hub_host}]
+listen = ["{scheme}/{hub}:0"]
+[hosts.{other}]
+listen = ["{scheme}/{other_address}:0"]
+
+[[node]]
+name = "scheduler"
+host = "{hub_host}"
+python = "{examples}/scheduler.py:Scheduler"
+params = {{ N = 1, T = 0.5 }}
+
+[[node]]
+name = "vision"
+host = "{other}"
+python = "{examples}/requesters.py:Requester"
+params = {{ priority = 1, epoch = 1.0, timeout = 2.0, start = 0.5, pause = 1.2, count = 2 }}
+after = ["scheduler"]
+
+[[bind]]
+from = "vision.req"
+to = "scheduler.req[0]"
+[[bind]]
+from = "scheduler.ack[0]"
+to = "vision.ack"
+"""
+
+
 def ip(*args: str) -> subprocess.CompletedProcess:
     return subprocess.run(["ip", *args], capture_output=True, text=True, timeout=10)
 

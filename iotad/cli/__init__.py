@@ -21,7 +21,7 @@ from . import commands
 GROUPS = (
     ("try it", ("demo",)),
     ("specify and simulate an IOTA (virtual time, one process)", ("spec",)),
-    ("run a system (one process per IOTA, over zenoh)", ("run", "agent", "certs")),
+    ("run a system (one process per IOTA, over zenoh), or sweep it in virtual time", ("run", "agent", "certs", "sweep")),
     ("record and examine a recording (MCAP)", ("record", "info", "replay", "check", "plot", "export", "recover",
                                                "candump")),
     ("watch a running system", ("top", "view", "ls", "echo", "pub", "hz")),

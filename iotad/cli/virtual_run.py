@@ -19,7 +19,9 @@ from iotad.launcher.violation_examples import ViolationExamples
 PROGRESS_EVERY = 1.0  # wall-clock seconds between progress lines
 
 
-def run_virtual(system, args: argparse.Namespace) -> int:
+def run_virtual(system, args: argparse.Namespace, second_process: bool = True) -> int:
+    """Run `system` as `iotad run --virtual` with `args`; `second_process=False`: the recording is
+    written in this process even with cores to spare (a sweep's runs already use every core)."""
     from iotad.recording.mcap_format import MAX_RECORDED_SECONDS
     from iotad.recording.writer_process import RecordingProcess
 
@@ -34,7 +36,7 @@ def run_virtual(system, args: argparse.Namespace) -> int:
     # With a core to spare, the recording is written by a second process (a quarter of the work
     # of a run): started now, its start-up overlaps building the system.
     writer = None
-    if not args.no_record and cores() > 1:
+    if not args.no_record and second_process and cores() > 1:
         try:
             writer = RecordingProcess()
         except OSError:  # no interpreter to start (an embedded Python): this process writes it

@@ -17,13 +17,13 @@ from __future__ import annotations
 
 import math
 import threading
-import time
 from dataclasses import dataclass
 from typing import Callable, Sequence
 
 import msgpack
 
 from iotad.host.wire import PREFIX
+from iotad.kernel.clock import wall
 
 DEFAULT_LIMIT = 1e-3  # seconds: a host whose offset is known no better than this is a violation
 
@@ -101,7 +101,7 @@ class ClockServer:
     """The hub's side: answers every clock query with the times it received and replied, on
     `clock` (the wall clock by default). Close it (or use `with`)."""
 
-    def __init__(self, session, system: str, clock: Callable[[], float] = time.time):
+    def __init__(self, session, system: str, clock: Callable[[], float] = wall):
         self._clock = clock
         self._queryable = session.declare_queryable(clock_key(system), self._answer)
 
@@ -112,6 +112,8 @@ class ClockServer:
     def close(self) -> None:
         self._queryable.undeclare()
 
+    undeclare = close  # as the zenoh entities a launcher undeclares at its end
+
     def __enter__(self) -> "ClockServer":
         return self
 
@@ -119,7 +121,7 @@ class ClockServer:
         self.close()
 
 
-def measure(session, system: str, rounds: int = 16, clock: Callable[[], float] = time.time,
+def measure(session, system: str, rounds: int = 16, clock: Callable[[], float] = wall,
             timeout: float = 1.0) -> ClockOffset:
     """This host's offset to the hub of `system`: `rounds` round trips, one at a time. Raises
     `ClockError` when the hub answers none of them."""

@@ -9,9 +9,24 @@ from __future__ import annotations
 import heapq
 import itertools
 import math
+import os
 import queue
 import time
 from typing import Any
+
+# A drill of a host whose clock is wrong (tests of clock correction across hosts, docs/hosts.md):
+# every wall-clock reading of this process, and of the processes it starts, is off by this many
+# seconds. Zero unless IOTAD_CLOCK_SKEW says otherwise.
+CLOCK_SKEW_ENV = "IOTAD_CLOCK_SKEW"
+try:
+    _SKEW = float(os.environ.get(CLOCK_SKEW_ENV) or 0.0)
+except ValueError:
+    raise SystemExit(f"{CLOCK_SKEW_ENV}={os.environ[CLOCK_SKEW_ENV]!r}: expected seconds, e.g. 0.05") from None
+
+
+def wall() -> float:
+    """This host's wall clock (`time.time()`, plus the drill's skew): what origins are in."""
+    return time.time() + _SKEW
 
 
 class Clock:
@@ -68,9 +83,9 @@ class RealClock(Clock):
         """`origin` is a wall-clock time (`time.time()`) that is t=0, so that nodes started by
         one launcher share a timeline; time then advances by the monotonic clock."""
         self.time_unit = time_unit
-        mono, wall = time.monotonic(), time.time()
-        self._origin = mono if origin is None else mono - (wall - origin)
-        self.origin_wall = wall if origin is None else origin
+        mono, now = time.monotonic(), wall()
+        self._origin = mono if origin is None else mono - (now - origin)
+        self.origin_wall = now if origin is None else origin
         self._inbox: queue.Queue = queue.Queue()
 
     def now(self) -> float:

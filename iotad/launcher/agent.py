@@ -95,9 +95,10 @@ class Agent:
         if self.session is None:
             return 0
         key = agent_key(self.name)
-        declared = [self.session.liveliness().declare_token(key),
-                    self.session.declare_queryable(f"{key}/run", self._on_run),
-                    self.session.declare_queryable(f"{key}/stop", self._on_stop)]
+        # the queryables before the token: a hub that sees the token may ask at once
+        declared = [self.session.declare_queryable(f"{key}/run", self._on_run),
+                    self.session.declare_queryable(f"{key}/stop", self._on_stop),
+                    self.session.liveliness().declare_token(key)]
         self.say(f"agent {self.name}: ready at the hub")
         try:
             self._stopping.wait()

@@ -38,13 +38,14 @@ _PATH = re.compile(r"^[A-Za-z_][\w-]*(/[A-Za-z_][\w-]*)*$")
 _SYSTEM_NAME = re.compile(r"^[A-Za-z_][\w-]*$")
 
 _SYSTEM_KEYS = {"name", "time_unit", "endpoints", "hub_host", "heartbeat_period", "heartbeat_timeout",
-                "start_timeout", "external", "deadline_tolerance", "arrival_tolerance", "input_queue", "debug",
+                "start_timeout", "clock_bound", "external", "deadline_tolerance", "arrival_tolerance", "input_queue", "debug",
                 "start_gate"}
 # In TOML a key written after a [[node]] or [[bind]] table belongs to that table.
 TABLE_HINT = {"external": " (a top-level key must come before the first table; or put it in [system])"}
 _NODE_KEYS = {"name", "spec", "iota", "python", "params", "restart", "max_restarts", "backoff", "host",
               "after", "policy", "seed", "required", "input_queue"}
-_TOP_KEYS = {"system", "node", "bind", "external", "hosts", "can", "ros2"}
+_TOP_KEYS = {"system", "node", "bind", "external", "hosts", "can", "ros2", "sweep"}
+_SWEEP_KEYS = {"metrics"}
 _CAN_KEYS = {"name", "interface", "channel", "bitrate", "stations", "options", "log"}
 
 
@@ -134,6 +135,8 @@ class Declaration:
     heartbeat_period: float = 0.2
     heartbeat_timeout: float = 3.0
     start_timeout: float = 15.0
+    # seconds: a host whose clock offset to the hub is known no better than this is a violation
+    clock_bound: float = 1e-3
     deadline_tolerance: float = 0.002  # seconds a firing may be late before it is a deadline miss
     arrival_tolerance: float = 0.002   # seconds an input may be early (jitter) against its switching time
     input_queue: int = DEFAULT_INPUT_QUEUE  # per node host, unless its [[node]] says otherwise
@@ -148,6 +151,9 @@ class Declaration:
     hosts: Mapping[str, HostSpec] = field(default_factory=lambda: MappingProxyType({}))
     buses: Mapping[str, CanBusSpec] = field(default_factory=lambda: MappingProxyType({}))
     ros2: tuple[Any, ...] = ()       # [[ros2]] tables as written; checked with the channels (docs/ros2.md)
+    # [sweep] metrics: "file.py:function" (absolute where the file has a folder) or "module:function",
+    # what `iotad sweep` measures each run with (docs/sweeps.md); nothing else reads it
+    sweep_metrics: str | None = None
 
     @property
     def file(self) -> str:
@@ -229,6 +235,7 @@ class _Parser:
         self.parse_hosts()
         self.parse_nodes()
         self.parse_buses()
+        self.parse_sweep()
         self.add_bus_loggers()  # one implicit node per logged bus, named after it
         self.check_after()  # after the loggers: a node may start after a bus's logger
         raw_system = self.data.get("system")
@@ -256,7 +263,7 @@ class _Parser:
             self.take(raw, "name", system, entry, _chunk, "one key chunk (letters, digits, _ and -)")
         elif not _SYSTEM_NAME.match(system["name"]):
             self.error(entry, f"no name given and the file name {system['name']!r} is not a valid one")
-        for key in ("time_unit", "heartbeat_period", "heartbeat_timeout", "start_timeout",
+        for key in ("time_unit", "heartbeat_period", "heartbeat_timeout", "start_timeout", "clock_bound",
                     "deadline_tolerance", "arrival_tolerance"):
             if key in raw:
                 value = raw[key]
@@ -456,6 +463,25 @@ class _Parser:
             self.error(self.nodes[cycle[0]].entry,
                        f"after goes round in a circle, so none of these could ever start: {' -> '.join(cycle)} "
                        f"(each waits for the next to be live)")
+
+    def parse_sweep(self) -> None:
+        """`[sweep]`: what `iotad sweep` measures in each run of this system (docs/sweeps.md)."""
+        raw = self.data.get("sweep", {})
+        if not isinstance(raw, dict):
+            self.error("[sweep]", "must be a table: [sweep] metrics = \"file.py:function\"")
+            return
+        for key in sorted(set(raw) - _SWEEP_KEYS):
+            self.error("[sweep]", f"unknown key {key!r} (expected one of {sorted(_SWEEP_KEYS)})")
+        if "metrics" not in raw:
+            return
+        ref = raw["metrics"]
+        if not isinstance(ref, str) or ":" not in ref or not all(ref.rsplit(":", 1)):
+            self.error("[sweep]", f"metrics must be \"file.py:function\" or \"module:function\", got {ref!r}")
+            return
+        where, function = ref.rsplit(":", 1)
+        if where.endswith(".py") and self.base is not None:  # as python = "file.py:Class": relative to
+            ref = f"{(self.base / where).resolve()}:{function}"  # this file; `iotad sweep` looks for it
+        self.settings["sweep_metrics"] = ref
 
     def parse_buses(self) -> None:
         for number, raw in enumerate(self.table_list("can"), 1):

@@ -73,15 +73,22 @@ class Fleet:
             raise FleetError("host(s) refused their part: " + "; ".join(refused))
 
     def _ask(self, key: str, payload: bytes | None = None, timeout: float = 10.0) -> dict:
-        try:
-            for reply in self.session.get(key, payload=payload, timeout=timeout):
-                try:
-                    return json.loads(reply.ok.payload.to_bytes())
-                except (AttributeError, ValueError):
-                    return {"ok": False, "error": "a malformed answer"}
-        except Exception as exc:  # noqa: BLE001 - the hub session is closing
-            return {"ok": False, "error": str(exc)}
-        return {"ok": False, "error": f"no answer in {timeout:g} s"}
+        """The agent's answer on `key`. A query that no queryable is known for yet ends at once
+        with no reply (the agent's declaration may still be on its way to the hub): asked again
+        until `timeout`."""
+        deadline = time.monotonic() + timeout
+        while True:
+            try:
+                for reply in self.session.get(key, payload=payload, timeout=max(0.1, deadline - time.monotonic())):
+                    try:
+                        return json.loads(reply.ok.payload.to_bytes())
+                    except (AttributeError, ValueError):
+                        return {"ok": False, "error": "a malformed answer"}
+            except Exception as exc:  # noqa: BLE001 - the hub session is closing
+                return {"ok": False, "error": str(exc)}
+            if time.monotonic() >= deadline:
+                return {"ok": False, "error": f"no answer in {timeout:g} s"}
+            time.sleep(0.1)
 
     def _host_of(self, key: str) -> str:
         return str(key).split("/")[2]

@@ -36,6 +36,8 @@ from pathlib import Path
 from typing import Any
 
 from iotad.host import wire
+from iotad.host.clock_offset import ClockServer
+from iotad.kernel.clock import wall
 from iotad.host.node_config import CONFIGURATION_ERROR
 from iotad.host.stop_signals import Flag
 from iotad.launcher.access_control import AccessControl
@@ -224,7 +226,6 @@ class Launcher:
             self.view.line(f"hub: {', '.join(listen)} (tools attach with --connect {tools}, e.g. iotad top --connect {tools})")
         for line in (self.access.opened(listen) if self.access and system.opens_hub(self.host) else ()):
             self.view.line(line)
-        base = f"{wire.PREFIX}/{system.name}"
         self._publisher = session.declare_publisher(wire.launcher_key(system.name))
         self._declared.append(self._publisher)
         self._declared.append(session.liveliness().declare_subscriber(
@@ -233,12 +234,15 @@ class Launcher:
         self._declared.append(session.declare_subscriber(wire.every_node(system.name, wire.TRACE), self._on_trace))
         if system.opens_hub(self.host):
             if self.origin is None:
-                self.origin = time.time()
+                self.origin = wall()
+            # the hub's clock, which every other host measures itself against (docs/hosts.md)
+            self._declared.append(ClockServer(session, system.name))
             origin_payload = wire.encode({"origin": self.origin})
             key = wire.origin_key(system.name)
             self._declared.append(session.declare_queryable(key, lambda q: q.reply(key, origin_payload)))
         elif self.origin is None:
             self.origin = self._ask_origin()
+            self._correct_clock()
 
     def _ask_origin(self) -> float:
         """A launcher for one host of several takes the hub launcher's origin, so that every
@@ -251,9 +255,31 @@ class Launcher:
                     return float(wire.decode(reply.ok.payload.to_bytes())["origin"])
             self._stop_asked.wait(0.2)
         if self._stop_asked.is_set():
-            return time.time()  # stopping before anything started: the origin no longer matters
+            return wall()  # stopping before anything started: the origin no longer matters
         self.view.line(f"warning: no hub launcher answered on {key}; this host's nodes use its own clock origin")
-        return time.time()
+        return wall()
+
+    def _correct_clock(self) -> None:
+        """Measure this host's clock against the hub's and move the origin by the offset, so that
+        this host's nodes count `t` on the hub's timeline. The measurement is a launcher event
+        (`clock`, in the recording); one known no better than the system's `clock_bound` is a
+        `clock_violation` event and a warning: windows on this host are then judged on a clock
+        that may be off by that much."""
+        from iotad.host.clock_offset import ClockError, measure
+
+        try:
+            measured = measure(self.session, self.system.name)
+        except ClockError as exc:
+            self._launcher_event("clock_violation", f"warning: {exc}; this host's clock is not corrected",
+                                 host=self.host)
+            return
+        self.origin -= measured.offset  # hub = host + offset: the hub's origin on this host's clock
+        problem = measured.problem(self.system.clock_bound)
+        self._launcher_event("clock_violation" if problem else "clock",
+                             (f"warning: host {self.host}: {problem}" if problem else
+                              f"host {self.host}: clock offset to the hub {measured.offset * 1e3:+.3f} ms "
+                              f"+-{measured.bound * 1e3:.3f} ms ({measured.samples} round trips); corrected"),
+                             host=self.host, **measured.as_plain())
 
     def _start_recorder(self) -> None:
         """Start the recorder and wait until it has subscribed, before any node starts. A

@@ -109,3 +109,17 @@ def test_iotad_plot_node_draws_that_schedulers_timeline_and_refuses_one_that_sch
     assert main(["plot", str(run["path"]), "-o", str(tmp_path / "motor.png"), "--node", "motor"]) == 2
     assert "motor never fired 'schedule': it is no motion scheduler (here: scheduler)" in capsys.readouterr().err
     assert not (tmp_path / "motor.png").exists()
+
+
+def test_sweep_metrics_count_what_the_world_and_the_scheduler_did(run):
+    """examples/conveyor.toml's [sweep] metrics, as `iotad sweep` loads them, on this run."""
+    from iotad.kernel.python_loader import load_object
+    from iotad.launcher.system_file import load_system
+
+    from conveyor_variant import ROOT
+
+    hook = load_object(load_system(ROOT / "examples" / "conveyor.toml", check=False).sweep_metrics)
+    metrics = hook(read_recording(run["path"]))
+    assert metrics == {"spawned": 2, "placed": 2, "missed": 0, "dropped": 0, "preemptions": metrics["preemptions"]}
+    # each pick takes the arm from vision for manipulation: one preemption at least per object placed
+    assert metrics["preemptions"] >= 2

@@ -1,55 +1,21 @@
 """`iotad run SYSTEM.toml` on the hub's machine starts a system spread over hosts through each
 other host's `iotad agent`: the Figure 2 scheduler on host brain (with the hub and the recorder),
-the requester on host arm, in two network namespaces. The run commits as on one host, the arm's
+the requester on host arm, in network namespaces. The run commits as on one host, the arm's
 lines reach the hub's console, the recording holds both hosts' events and checks clean, one
-agent serves run after run, and a host without an agent is a one-line error, not a hang."""
+agent serves run after run, a host without an agent is a one-line error, not a hang, TLS links
+admit no process without a certificate of the system, and a host's wrong clock is corrected."""
 import re
 import subprocess
 import sys
 from pathlib import Path
 
-import pytest
-
 from launcher_helpers import ROOT
-from namespaces import hosts
+from namespaces import hosts, split_figure2
 from iotad.launcher.processes import interrupt_then_kill
 
-EXAMPLES = ROOT / "examples"
 
-
-def system_text(hub: str) -> str:
-    return f"""
-[system]
-name = "split"
-hub_host = "brain"
-[system.endpoints]
-listen = ["tcp/{hub}:7615"]
-
-[hosts.brain]
-listen = ["tcp/{hub}:0"]
-[hosts.arm]
-listen = ["tcp/0.0.0.0:0"]
-
-[[node]]
-name = "scheduler"
-host = "brain"
-python = "{EXAMPLES}/scheduler.py:Scheduler"
-params = {{ N = 1, T = 0.5 }}
-
-[[node]]
-name = "vision"
-host = "arm"
-python = "{EXAMPLES}/requesters.py:Requester"
-params = {{ priority = 1, epoch = 1.0, timeout = 2.0, start = 0.5, pause = 1.2, count = 2 }}
-after = ["scheduler"]
-
-[[bind]]
-from = "vision.req"
-to = "scheduler.req[0]"
-[[bind]]
-from = "scheduler.ack[0]"
-to = "vision.ack"
-"""
+def system_text(hub: str, arm: str, scheme: str = "tcp") -> str:
+    return split_figure2("split", hub, 7615, "brain", "arm", arm, scheme)
 
 
 def assert_checked(recording: Path) -> None:
@@ -75,7 +41,7 @@ def test_the_hub_starts_the_arm_through_its_agent(tmp_path):
     with hosts("brain", "arm", net=202) as net:
         hub = net.addresses[("brain", "arm")]
         path = tmp_path / "split.toml"
-        path.write_text(system_text(hub).replace("0.0.0.0", net.addresses["arm"]))
+        path.write_text(system_text(hub, net.addresses["arm"]))
         agent = subprocess.Popen(net.exec("arm", sys.executable, "-m", "iotad", "agent", "--name", "arm",
                                           "--connect", f"tcp/{hub}:7615"),
                                  stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=ROOT,
@@ -104,7 +70,7 @@ def test_a_host_without_an_agent_is_one_clear_error(tmp_path):
     with hosts("brain", "arm", net=203) as net:
         hub = net.addresses[("brain", "arm")]
         path = tmp_path / "split.toml"
-        path.write_text(system_text(hub).replace("0.0.0.0", net.addresses["arm"]))
+        path.write_text(system_text(hub, net.addresses["arm"]))
         done = iotad(lambda *c: net.exec("brain", *c), "run", str(path), "--until", "5", "--no-record", "--plain",
                      "--agent-timeout", "2")
         assert done.returncode == 2, done.stdout + done.stderr
@@ -142,7 +108,7 @@ def test_hosts_linked_by_tls_admit_no_process_without_a_certificate(tmp_path):
                      ["init", str(tmp_path / "other")], ["host", "rogue", "--dir", str(tmp_path / "other")]):
             assert iotad(lambda *c: list(c), "certs", *step).returncode == 0
         path = tmp_path / "split.toml"
-        path.write_text(system_text(hub).replace("tcp/", "tls/").replace("0.0.0.0", arm))
+        path.write_text(system_text(hub, arm, "tls"))
         agent = subprocess.Popen(net.exec("arm", sys.executable, "-m", "iotad", "agent", "--name", "arm",
                                           "--connect", f"tls/{hub}:7615", "--certs", str(certs)),
                                  stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=ROOT,
@@ -165,3 +131,42 @@ def test_hosts_linked_by_tls_admit_no_process_without_a_certificate(tmp_path):
             rogue.stdout + rogue.stderr
         assert "host arm: its agent runs its nodes" in output and "COMMIT" in output
         assert_checked(tmp_path / "tls.mcap")
+
+
+def test_a_host_whose_clock_is_50_ms_ahead_is_measured_and_corrected(tmp_path):
+    """The arm's agent (and so its launcher and nodes) runs on a clock 50 ms ahead of the hub's.
+    Its launcher measures the offset at start, records it, and moves its nodes' origin by it:
+    messages between the hosts then arrive a fraction of a millisecond after they were sent on
+    the one timeline, not 50 ms before or after."""
+    from iotad.kernel.clock import CLOCK_SKEW_ENV
+    from iotad.recording.delivery import check_delivery
+    from iotad.recording.mcap_reader import read_recording
+
+    with hosts("brain", "arm", net=205) as net:
+        hub = net.addresses[("brain", "arm")]
+        path = tmp_path / "split.toml"
+        path.write_text(system_text(hub, net.addresses["arm"]))
+        agent = subprocess.Popen(net.exec("arm", "env", f"{CLOCK_SKEW_ENV}=0.05", sys.executable, "-m", "iotad",
+                                          "agent", "--name", "arm", "--connect", f"tcp/{hub}:7615"),
+                                 stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=ROOT,
+                                 start_new_session=True)
+        try:
+            done = iotad(lambda *c: net.exec("brain", *c), "run", str(path), "--until", "8", "--plain",
+                         "-o", str(tmp_path / "skew.mcap"))
+        finally:
+            interrupt_then_kill(agent)
+        assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-2000:]
+        assert re.search(r"host arm: clock offset to the hub -(49|50)\.\d+ ms", done.stdout), done.stdout[-3000:]
+        recording = read_recording(tmp_path / "skew.mcap")
+        measured = [m.value for m in recording.messages if m.topic.endswith("/@launcher")
+                    and isinstance(m.value, dict) and m.value.get("event") in ("clock", "clock_violation")]
+        assert len(measured) == 1 and measured[0]["host"] == "arm", measured
+        assert abs(measured[0]["offset"] - (-0.05)) <= measured[0]["bound"] + 1e-6, measured
+        report = check_delivery(recording, tolerance=0.01)
+        links = {link.label: link for link in report.links}
+        for label in ("vision.req -> scheduler.req[0]", "scheduler.ack[0] -> vision.ack"):
+            link = links[label]
+            assert link.sent >= 1 and link.delivered == link.sent, link
+            p50, p99, most = link.latency()
+            # on one timeline: received after it was sent, and far sooner than the skew
+            assert 0 <= p50 <= most < 0.02, (label, p50, most)

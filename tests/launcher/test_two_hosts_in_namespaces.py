@@ -3,10 +3,8 @@ holds the hub), the requester on host b, one `iotad run --host` per namespace. O
 addresses inside namespaces this test creates and removes; no traffic leaves them."""
 import pytest
 
-from launcher_helpers import ROOT, launcher
-from namespaces import hosts
-
-EXAMPLES = ROOT / "examples"
+from launcher_helpers import launcher
+from namespaces import hosts, split_figure2
 
 
 @pytest.fixture
@@ -16,38 +14,9 @@ def two_hosts():
         yield net.names["a"], net.names["b"]
 
 
-SYSTEM = f"""
-[system]
-name = "twohost"
-hub_host = "a"
-[system.endpoints]
-listen = ["tcp/10.200.1.1:7613"]   # not zenoh's default 7447: once, on a dev machine, nothing reached a hub on 7447 while other ports worked
-
-[hosts.a]
-listen = ["tcp/10.200.1.1:0"]
-[hosts.b]
-listen = ["tcp/10.200.1.2:0"]
-
-[[node]]
-name = "scheduler"
-host = "a"
-python = "{EXAMPLES}/scheduler.py:Scheduler"
-params = {{ N = 1, T = 0.5 }}
-
-[[node]]
-name = "vision"
-host = "b"
-python = "{EXAMPLES}/requesters.py:Requester"
-params = {{ priority = 1, epoch = 1.0, timeout = 2.0, start = 0.5, pause = 1.2, count = 2 }}
-after = ["scheduler"]
-
-[[bind]]
-from = "vision.req"
-to = "scheduler.req[0]"
-[[bind]]
-from = "scheduler.ack[0]"
-to = "vision.ack"
-"""
+# the hub on 7613, not zenoh's default 7447: once, on a dev machine, nothing reached a hub on 7447
+# while other ports worked
+SYSTEM = split_figure2("twohost", "10.200.1.1", 7613, "a", "b", "10.200.1.2")
 
 
 def test_nodes_split_across_two_namespaces(two_hosts, tmp_path):
