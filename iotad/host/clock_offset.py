@@ -122,11 +122,15 @@ class ClockServer:
 
 
 def measure(session, system: str, rounds: int = 16, clock: Callable[[], float] = wall,
-            timeout: float = 1.0) -> ClockOffset:
+            timeout: float = 1.0, stop: threading.Event | None = None) -> ClockOffset:
     """This host's offset to the hub of `system`: `rounds` round trips, one at a time. Raises
-    `ClockError` when the hub answers none of them."""
+    `ClockError` when the hub answers none of them; gives up after three unanswered in a row
+    (a hub that is gone does not hold a launcher for `rounds` seconds), or once `stop` is set."""
     samples: list[Sample] = []
+    unanswered = 0
     for _ in range(rounds):
+        if unanswered >= 3 or (stop is not None and stop.is_set()):
+            break
         done = threading.Event()
         answer: list = []
 
@@ -138,7 +142,9 @@ def measure(session, system: str, rounds: int = 16, clock: Callable[[], float] =
         sent = clock()
         session.get(clock_key(system), on_reply, timeout=timeout)
         if not done.wait(timeout) or not answer:
+            unanswered += 1
             continue
+        unanswered = 0
         received, reply = answer[0]
         try:
             hub_received, hub_replied = msgpack.unpackb(reply.ok.payload.to_bytes())

@@ -91,6 +91,7 @@ class Launcher:
         # the agents of the other hosts (iotad/launcher/fleet.py), for a hub launcher that starts
         # the whole of a system spread over hosts; asked to stop before this host's own nodes
         self.fleet = fleet
+        self._hub_answered = False  # another host's launcher: the hub launcher answered its origin query
         self.host, self.until = launch.host, launch.until
         self._live_at: float | None = None  # with after_live: when every node was first live
         self.hub = with_port(system.listen, launch.port) if launch.port is not None else list(system.listen)
@@ -242,7 +243,8 @@ class Launcher:
             self._declared.append(session.declare_queryable(key, lambda q: q.reply(key, origin_payload)))
         elif self.origin is None:
             self.origin = self._ask_origin()
-            self._correct_clock()
+            if self._hub_answered:  # a hub that answered has a clock to measure against
+                self._correct_clock()
 
     def _ask_origin(self) -> float:
         """A launcher for one host of several takes the hub launcher's origin, so that every
@@ -252,6 +254,7 @@ class Launcher:
         while time.monotonic() < deadline and not self._stop_asked.is_set():
             for reply in self.session.get(key, timeout=1.0):
                 if reply.ok is not None:
+                    self._hub_answered = True
                     return float(wire.decode(reply.ok.payload.to_bytes())["origin"])
             self._stop_asked.wait(0.2)
         if self._stop_asked.is_set():
@@ -268,7 +271,7 @@ class Launcher:
         from iotad.host.clock_offset import ClockError, measure
 
         try:
-            measured = measure(self.session, self.system.name)
+            measured = measure(self.session, self.system.name, stop=self._stop_asked)
         except ClockError as exc:
             self._launcher_event("clock_violation", f"warning: {exc}; this host's clock is not corrected",
                                  host=self.host)
