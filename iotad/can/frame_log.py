@@ -119,7 +119,12 @@ class BusLogger(Iota):
     def heard(self, value):
         frame = Frame.from_value(value)
         bits = frame_bits(frame.id, frame.extended, frame.rtr, frame.data, dlc=frame.dlc)
-        self.log.append(bus_frame(value, None, bits / self.bitrate))
+        self.log.append(self.logged_frame(bus_frame(value, None, bits / self.bitrate)))
+
+    def logged_frame(self, record):
+        """The record logged for a frame heard (a bus with CANopen stations names its frames by
+        family: `canopen_frame_log.CanopenBusLogger`)."""
+        return record
 
     # Logged at once; the window only bounds how stale the log's times may get on a busy machine.
     @frames.action(value=lambda self: self.log[0], when=lambda self: bool(self.log), within=(0, "lag"))
