@@ -19,6 +19,9 @@ not read the clock, so the record itself does not repeat it.
 
 A node's own view stays in its trace (`can_tx` outputs, `can_rx` inputs); this log is the bus's.
 
+A bus whose stations name CiA 402 node ids logs `canopen_frame_log.CANOPEN_BUS_FRAME` records
+instead, each frame named by its family (CANopen service or CAN Simple message).
+
 In real time nothing models the bus, so `iotad run` runs `BusLogger` as one more node per
 `[[can]]` bus, named after it: a listen-only station whose node host opens the same python-can
 bus (SocketCAN hands every socket the frames of all the others) and which logs each frame it
