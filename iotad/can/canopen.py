@@ -241,6 +241,29 @@ def cob_node(frame_id: int) -> tuple[int, int]:
     return frame_id & 0x780, frame_id & 0x7F
 
 
+def service_of(frame_id: int) -> str | None:
+    """The CANopen service an 11-bit id belongs to, whatever its frame holds (NMT, SYNC, TIME,
+    TPDO1, SDO_REQUEST, HEARTBEAT...); None for an id that none uses."""
+    if frame_id in _BROADCASTS:
+        return _BROADCASTS[frame_id]
+    function, node = cob_node(frame_id)
+    return SERVICES.get(function) if node else None
+
+
+_BROADCASTS = {NMT: "NMT", SYNC: "SYNC", TIME: "TIME"}
+
+
+def claims(frame: Frame, nodes: frozenset | set) -> bool:
+    """Whether a frame is CANopen on a bus whose CANopen node ids are `nodes`: NMT, SYNC, a
+    heartbeat, or a service of one of the nodes (the ids an ODrive of a mixed bus must not use,
+    nodes/can_motor checks that). Every frame of a bus with no CANopen node is not."""
+    if frame.extended or not nodes:
+        return False
+    if frame.id in (NMT, SYNC) or frame.id & 0x780 == HEARTBEAT:
+        return True
+    return frame.id & 0x7F in nodes and frame.id & 0x780 in SERVICES
+
+
 def decode(frame: Frame) -> Message:
     """The CANopen service a frame carries, with its fields; PDO data stays raw bytes
     (`unpack_pdo` reads it against a mapping)."""
@@ -461,13 +484,8 @@ class PdoTracker:
         self.maps[cob] = PdoMap.from_words(words.get(k, 0) for k in range(1, count + 1))
 
     def claims(self, frame: Frame) -> bool:
-        """Whether a frame is CANopen on this bus: NMT, SYNC, a heartbeat, or a service of one of
-        the nodes (the ids an ODrive of a mixed bus must not use, nodes/can_motor checks that)."""
-        if frame.extended or not self.nodes:
-            return False
-        if frame.id in (NMT, SYNC) or frame.id & 0x780 == HEARTBEAT:
-            return True
-        return frame.id & 0x7F in self.nodes and frame.id & 0x780 in SERVICES
+        """Whether a frame is CANopen on this bus (`claims` of the tracker's nodes)."""
+        return claims(frame, self.nodes)
 
     def describe(self, frame: Frame) -> str:
         """The frame in words (`decode` and `describe`); raises FrameError if it is not CANopen."""

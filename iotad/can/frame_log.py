@@ -19,6 +19,9 @@ not read the clock, so the record itself does not repeat it.
 
 A node's own view stays in its trace (`can_tx` outputs, `can_rx` inputs); this log is the bus's.
 
+A bus whose stations name CiA 402 node ids logs `canopen_frame_log.CANOPEN_BUS_FRAME` records
+instead, each frame named by its family (CANopen service or CAN Simple message).
+
 In real time nothing models the bus, so `iotad run` runs `BusLogger` as one more node per
 `[[can]]` bus, named after it: a listen-only station whose node host opens the same python-can
 bus (SocketCAN hands every socket the frames of all the others) and which logs each frame it
@@ -119,7 +122,12 @@ class BusLogger(Iota):
     def heard(self, value):
         frame = Frame.from_value(value)
         bits = frame_bits(frame.id, frame.extended, frame.rtr, frame.data, dlc=frame.dlc)
-        self.log.append(bus_frame(value, None, bits / self.bitrate))
+        self.log.append(self.logged_frame(bus_frame(value, None, bits / self.bitrate)))
+
+    def logged_frame(self, record):
+        """The record logged for a frame heard (a bus with CANopen stations names its frames by
+        family: `canopen_frame_log.CanopenBusLogger`)."""
+        return record
 
     # Logged at once; the window only bounds how stale the log's times may get on a busy machine.
     @frames.action(value=lambda self: self.log[0], when=lambda self: bool(self.log), within=(0, "lag"))

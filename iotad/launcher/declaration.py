@@ -24,6 +24,7 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import Any, Callable, Mapping
 
+from iotad.can.canopen_ids import canopen_nodes
 from iotad.host.transport import DEFAULT_HUB_ENDPOINT, endpoint_problem, reachable
 from iotad.kernel.ports import Port
 from iotad.kernel.text_file import read_text_file
@@ -33,6 +34,7 @@ RESTART_MODES = ("never", "on-failure", "always")
 LOOPBACK_LISTEN = ["tcp/127.0.0.1:0"]
 DEFAULT_INPUT_QUEUE = 1000     # inputs a node host holds for its engine before it drops (and counts) more
 LOGGER_REF = "iotad.can.frame_log:BusLogger"  # the class of a bus's logger node (bus_logger.py)
+CANOPEN_LOGGER_REF = "iotad.can.canopen_frame_log:CanopenBusLogger"  # ... of a bus with CiA 402 stations
 LOGGER_LAG = 0.1  # seconds a frame may wait in the logger before its log entry is late (a deadline miss)
 _PATH = re.compile(r"^[A-Za-z_][\w-]*(/[A-Za-z_][\w-]*)*$")
 _SYSTEM_NAME = re.compile(r"^[A-Za-z_][\w-]*$")
@@ -546,10 +548,14 @@ class _Parser:
             if not bus.log or bus.name in self.nodes:
                 continue
             hosts = [self.nodes[s].host for s in bus.stations if s in self.nodes]
+            params = {"bitrate": bus.bitrate, "lag": LOGGER_LAG / unit}  # lag: in the system's time unit
+            ref = LOGGER_REF
+            canopen = canopen_nodes(self.nodes[s].params for s in bus.stations if s in self.nodes)
+            if canopen:  # its log names each frame by family, CANopen or CAN Simple
+                ref, params["canopen"] = CANOPEN_LOGGER_REF, sorted(canopen)
             self.nodes[bus.name] = NodeDecl(
-                name=bus.name, entry=f"{bus.entry}'s bus logger", source={"kind": "python", "ref": LOGGER_REF},
-                params={"bitrate": bus.bitrate, "lag": LOGGER_LAG / unit},  # lag: in the system's time unit
-                host=next((h for h in hosts if h is not None), None), bus_logger=True)
+                name=bus.name, entry=f"{bus.entry}'s bus logger", source={"kind": "python", "ref": ref},
+                params=params, host=next((h for h in hosts if h is not None), None), bus_logger=True)
 
 
 def _positive(value: Any) -> bool:

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from iotad.can.canopen_ids import canopen_nodes
 from iotad.kernel.compose import Composite
 from iotad.launcher.bus_logger import is_bus_logger
 from iotad.launcher.system_file import CAN_RX, CAN_TX, System, instantiate
@@ -21,7 +22,15 @@ def compose(system: System) -> Composite:
     components: list[Any] = [instantiate(node) for node in system.nodes.values() if not is_bus_logger(system, node.name)]
     binds = [(str(b.source), str(b.target)) for b in system.bindings]
     for bus in system.buses.values():
-        components.append(CanBus(bus.name, stations=len(bus.stations), bitrate=bus.bitrate, log_frames=bus.log))
+        params = dict(stations=len(bus.stations), bitrate=bus.bitrate, log_frames=bus.log)
+        # a bus with CiA 402 stations logs each frame by family (CANopen or CAN Simple); one of
+        # ODrives only stays the plain model, so its recordings are what they were
+        canopen = canopen_nodes(system.nodes[station].params for station in bus.stations if station in system.nodes)
+        if canopen:
+            from iotad.can.canopen_frame_log import CanopenCanBus
+            components.append(CanopenCanBus(bus.name, canopen=sorted(canopen), **params))
+        else:
+            components.append(CanBus(bus.name, **params))
         for k, station in enumerate(bus.stations):
             binds.append((f"{station}.{CAN_TX}", f"{bus.name}.tx[{k}]"))
             binds.append((f"{bus.name}.rx[{k}]", f"{station}.{CAN_RX}"))

@@ -20,6 +20,21 @@ COMMANDS = {"Set_Input_Pos", "Set_Input_Vel", "Set_Input_Torque", "Set_Axis_Stat
             "Set_Controller_Mode", "Set_Limits"}
 
 
+def mixed_canopen_system(folder: Path) -> Path:
+    """examples/arm_canopen.toml on a mixed bus, written into `folder`: joints 1-3 on simulated
+    ODrives (node ids 1..3), joints 4-6 on CiA 402 drives (4..6), behind the same motor node."""
+    text = (ROOT / "examples" / "arm_canopen.toml").read_text()
+    text = text.replace('python = "arm_trajectory.py:', f'python = "{ROOT / "examples" / "arm_trajectory.py"}:')
+    text = text.replace("cia402 = { joint1 = 1, joint2 = 2, joint3 = 3, joint4 = 4, joint5 = 5, joint6 = 6 }",
+                        "cia402 = { joint4 = 4, joint5 = 5, joint6 = 6 }, node_ids = { joint1 = 1, joint2 = 2, joint3 = 3 }, "
+                        "encoder_period = 0.02, watchdog_timeout = 0.08")
+    for node in (1, 2, 3):
+        text = text.replace(f'protocol = "cia402"\nnode_id = {node}\n', f'protocol = "odrive"\nnode_id = {node}\n')
+    system = folder / "mixed.toml"
+    system.write_text(text)
+    return system
+
+
 def system_variant(folder: Path, *, segment: float | None = None, odrives: dict | None = None,
                    motor: dict | None = None, port: int | None = None, bus: tuple[str, str] | None = None,
                    backoff: float | None = None) -> Path:

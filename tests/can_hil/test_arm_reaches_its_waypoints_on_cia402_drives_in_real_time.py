@@ -4,7 +4,7 @@ motor node starts the simulated CiA 402 drives over NMT and SDO, enables them an
 RPDO at SYNC, and the arm ends within 0.01 rad of the last waypoint, as in virtual time. It runs
 12 s after every node is live: on a loaded two-core machine the simulated drives' process runs its
 physics several times slower than the wall clock (it runs late rather than skip), and the
-trajectory's 3.5 s take longer to play out."""
+trajectory's 3.5 s take longer to play out. The bus logger names every frame it heard as CANopen."""
 import sys
 
 import pytest
@@ -44,3 +44,16 @@ def test_the_drives_were_driven_over_canopen(trace):
     got = [co.decode(Frame.from_value(e["value"])).kind for e in trace
            if e.get("node") == "drives" and e.get("action") == "can_rx" and e.get("kind") == "input"]
     assert got.count("SYNC") > 100 and got.count("RPDO1") > 600 and "SDO_REQUEST" in got and "NMT" in got
+
+
+def test_the_bus_logger_names_the_frames_as_canopen(trace):
+    # the real-time bus logger of a bus with CiA 402 stations (CanopenBusLogger): every frame it
+    # heard by its CANopen service, none as an ODrive message
+    from iotad.can.canopen_frame_log import CANOPEN_MESSAGES
+
+    log = [e["value"] for e in trace if e.get("node") == "arm_bus" and e.get("action") == "frames"
+           and e.get("kind") == "output"]
+    assert log and not [r for r in log if r["message"] not in CANOPEN_MESSAGES]
+    messages = [r["message"] for r in log]
+    assert messages.count("SYNC") > 100 and messages.count("RPDO1") > 600 and messages.count("TPDO1") > 600
+    assert {"NMT", "HEARTBEAT", "SDO_REQUEST", "SDO_RESPONSE"} <= set(messages)

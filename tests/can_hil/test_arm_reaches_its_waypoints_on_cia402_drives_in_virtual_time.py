@@ -6,7 +6,7 @@ import pytest
 
 pytest.importorskip("pybullet")
 
-from arm_hil import FINAL, ROOT, final_positions  # noqa: E402
+from arm_hil import FINAL, ROOT, final_positions, mixed_canopen_system  # noqa: E402
 from iotad.can import canopen as co  # noqa: E402
 from iotad.can.frame import Frame  # noqa: E402
 from iotad.cli import main  # noqa: E402
@@ -61,14 +61,7 @@ def test_the_recording_of_the_cia402_arm_checks(tmp_path, capsys):
 
 
 def test_a_mixed_bus_of_odrives_and_cia402_drives_reaches_the_waypoint(tmp_path):
-    text = EXAMPLE.read_text().replace('python = "arm_trajectory.py:', f'python = "{ROOT / "examples" / "arm_trajectory.py"}:')
-    text = text.replace("cia402 = { joint1 = 1, joint2 = 2, joint3 = 3, joint4 = 4, joint5 = 5, joint6 = 6 }",
-                        "cia402 = { joint4 = 4, joint5 = 5, joint6 = 6 }, node_ids = { joint1 = 1, joint2 = 2, joint3 = 3 }, "
-                        "encoder_period = 0.02, watchdog_timeout = 0.08")
-    for node in (1, 2, 3):
-        text = text.replace(f'protocol = "cia402"\nnode_id = {node}\n', f'protocol = "odrive"\nnode_id = {node}\n')
-    system = tmp_path / "mixed.toml"
-    system.write_text(text)
+    system = mixed_canopen_system(tmp_path)
     trace = run(tmp_path / "mixed.mcap", system).trace()
     assert final_positions(trace) == pytest.approx(FINAL, abs=0.01)
     frames = received(trace, "drives")

@@ -11,6 +11,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+from iotad.can.canopen_ids import canopen_nodes
+
 ORDER = 37
 
 EPILOG = """\
@@ -83,21 +85,6 @@ def _node_list(text: str) -> frozenset:
     if not nodes or not all(1 <= n <= 127 for n in nodes):
         raise argparse.ArgumentTypeError(f"CANopen node ids are 1..127, got {text!r}")
     return nodes
-
-
-def canopen_nodes(node_params) -> frozenset:
-    """The CiA 402 node ids that nodes' params name: a motor node's joints with protocol = "cia402",
-    simulated drives' `cia402` ids."""
-    nodes = set()
-    for params in node_params:
-        if not isinstance(params, dict):
-            continue
-        joints = params.get("joints")
-        entries = joints.values() if isinstance(joints, dict) else joints if isinstance(joints, list) else ()
-        nodes |= {j.get("node_id") for j in entries if isinstance(j, dict) and j.get("protocol") == "cia402"}
-        drives = params.get("cia402")
-        nodes |= set(drives.values() if isinstance(drives, dict) else drives if isinstance(drives, list) else ())
-    return frozenset(n for n in nodes if isinstance(n, int) and not isinstance(n, bool) and 1 <= n <= 127)
 
 
 def _tracker(args: argparse.Namespace, named: frozenset):
