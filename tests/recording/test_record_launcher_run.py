@@ -18,7 +18,7 @@ ROOT = Path(__file__).resolve().parents[2]
 def recorded(tmp_path_factory):
     out = tmp_path_factory.mktemp("fig2") / "figure2.mcap"
     run = subprocess.run([sys.executable, "-m", "iotad.cli", "run", str(ROOT / "examples/figure2.toml"),
-                          "--until", "8", "--port", str(free_port()), "-o", str(out), "--plain"],
+                          "--until", "8", "--after-live", "--port", str(free_port()), "-o", str(out), "--plain"],
                          cwd=ROOT, capture_output=True, text=True, timeout=90)
     assert run.returncode == 0, run.stdout[-2000:] + run.stderr[-2000:]
     return out

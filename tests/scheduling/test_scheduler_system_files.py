@@ -63,7 +63,7 @@ def test_subsumption_system_in_virtual_time(tmp_path):
 def test_resume_system_over_zenoh_smoke(tmp_path):
     """One short real run: three processes, the vision request preempted, raised and committed."""
     out = tmp_path / "resume.mcap"
-    result = subprocess.run([sys.executable, "-m", "iotad", "run", str(EXAMPLES / "resume.toml"), "--until", "12",
+    result = subprocess.run([sys.executable, "-m", "iotad", "run", str(EXAMPLES / "resume.toml"), "--until", "12", "--after-live",
                              "--port", str(free_port()), "--plain", "-o", str(out)],
                             capture_output=True, text=True, timeout=90, cwd=tmp_path, start_new_session=True)
     assert result.returncode == 0, result.stdout + result.stderr
@@ -77,7 +77,7 @@ def test_a_composite_node_over_zenoh_keeps_its_parts_deliveries_to_itself(tmp_pa
     """The subsumption arbiter is one process holding a tree of IOTAs: what its parts pass each
     other never crosses the wire, so the delivery check neither counts it nor calls it outside."""
     out = tmp_path / "subsumption.mcap"
-    result = subprocess.run([sys.executable, "-m", "iotad", "run", str(EXAMPLES / "subsumption.toml"), "--until", "4",
+    result = subprocess.run([sys.executable, "-m", "iotad", "run", str(EXAMPLES / "subsumption.toml"), "--until", "4", "--after-live",
                              "--port", str(free_port()), "--plain", "-o", str(out)],
                             capture_output=True, text=True, timeout=90, cwd=tmp_path, start_new_session=True)
     assert result.returncode == 0, result.stdout + result.stderr
