@@ -19,7 +19,7 @@ if TYPE_CHECKING:  # python-can is imported only where a python-can message is m
 CAN_FRAME = Struct("canFrame", id=Int(0, 0x1FFFFFFF), extended=Bool, rtr=Bool, dlc=Int(0, 8),
                    data=Array(Int(0, 255), 8))
 
-_FRAME_RECORD = CAN_FRAME.record
+_FRAME_RECORD = CAN_FRAME.record  # called as CAN_FRAME(...) is, one call fewer (to_value)
 
 STANDARD_ID_MAX = 0x7FF
 EXTENDED_ID_MAX = 0x1FFFFFFF
@@ -68,8 +68,8 @@ class Frame:
 
     def to_value(self):
         """The CAN_FRAME record of this frame: data zero-padded to 8, dlc the valid bytes."""
-        return CAN_FRAME(id=self.id, extended=self.extended, rtr=self.rtr, dlc=len(self.data),
-                         data=list(self.data) + [0] * (8 - len(self.data)))
+        return _FRAME_RECORD(id=self.id, extended=self.extended, rtr=self.rtr, dlc=len(self.data),
+                             data=list(self.data) + [0] * (8 - len(self.data)))
 
     @classmethod
     def from_value(cls, value: Any) -> "Frame":

@@ -44,6 +44,7 @@ CAN_MESSAGE = Enum("canMessage", *odrive.MESSAGES, "UNKNOWN", "MALFORMED")
 CAN_BUS_FRAME = Struct("canBusFrame", duration=Float(0, None), station=Int(0, None),
                        id=Int(0, 0x1FFFFFFF), extended=Bool, rtr=Bool, dlc=Int(0, 8),
                        data=Array(Int(0, 255), 8), direction=CAN_DIRECTION, message=CAN_MESSAGE)
+_BUS_RECORD = CAN_BUS_FRAME.record  # called as CAN_BUS_FRAME(...) is, one call fewer (bus_frame)
 
 
 def classify(frame: Frame) -> tuple[str, str]:
@@ -90,8 +91,8 @@ def bus_frame(value: Any, station: int | None, duration: float):
         found = _CLASSES.get((value.id, rtr, dlc))
         if found is not None and value.data.__class__ is list and len(value.data) == 8:
             data = [0] * 8 if rtr else value.data[:dlc] + [0] * (8 - dlc)
-            return CAN_BUS_FRAME(duration=duration, station=station, id=value.id, extended=False, rtr=rtr,
-                                 dlc=dlc, data=data, direction=found[0], message=found[1])
+            return _BUS_RECORD(duration=duration, station=station, id=value.id, extended=False, rtr=rtr,
+                               dlc=dlc, data=data, direction=found[0], message=found[1])
     frame = Frame.from_value(value)
     direction, name = classify(frame)
     return CAN_BUS_FRAME(duration=duration, station=station, id=frame.id, extended=frame.extended,

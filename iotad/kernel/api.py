@@ -105,7 +105,9 @@ def _as_fn(value: Any, family: bool, param_names: bool = True) -> Callable | Non
         return lambda iota, index: getattr(iota, name)
     if not callable(value):
         constant = value
-        return lambda iota, index: constant
+        fn = lambda iota, index: constant  # noqa: E731
+        fn.iotad_constant = constant  # a time bound the engine then reads without calling it
+        return fn
     if family:
         return value
     fn = value

@@ -61,7 +61,7 @@ class Slot:
     """One channel (one index of a family) of one leaf: its last event time and switching time."""
 
     __slots__ = ("leaf", "channel", "index", "switching", "last", "targets", "input_action", "type", "deliveries",
-                 "dynamic", "do")
+                 "dynamic", "do", "affects")
 
     def __init__(self, leaf: Leaf, channel: Channel, index: int | None):
         self.leaf, self.channel, self.index = leaf, channel, index
@@ -73,6 +73,7 @@ class Slot:
         self.input_action: Action | None = None
         self.dynamic: tuple = ()  # its input action's writes `x[k]` (`_dynamic_writes`), when tracked
         self.do: Callable | None = None  # its input action's do-block bound (`bind`): do(value)
+        self.affects: list | None = None  # instances its input action may affect (computed on first input)
 
 
 class ActionInstance:
@@ -80,7 +81,7 @@ class ActionInstance:
 
     __slots__ = ("leaf", "action", "index", "slot", "rank", "enabled", "gen", "te", "lower", "upper",
                  "fire_at", "affects", "iota", "when", "value", "do", "after", "before", "reads", "dynamic",
-                 "failing")
+                 "failing", "reevaluate", "lower_bound", "upper_bound")
 
     def __init__(self, leaf: Leaf, action: Action, index: int | None, slot: Slot, rank: int):
         self.leaf, self.action, self.index, self.slot, self.rank = leaf, action, index, slot, rank
@@ -92,6 +93,10 @@ class ActionInstance:
         self.enabled, self.gen = False, 0
         self.te = self.lower = self.upper = self.fire_at = 0.0
         self.affects: list[ActionInstance] | None = None  # computed on first firing
+        # itself, then `affects` without itself: what a firing re-evaluates, in that order
+        self.reevaluate: list[ActionInstance] | None = None
+        # a time bound that is a constant (`after=0.01`): its float, read without a call
+        self.lower_bound, self.upper_bound = constant_bound(action.lower), constant_bound(action.upper)
         self.dynamic = _dynamic_writes(action)
         self.failing = False  # its precondition raised at its last evaluation
         self.reads = _concrete(action.reads, index)
@@ -107,6 +112,18 @@ def bind(fn: Callable | None, iota: Any, index: int | None) -> Callable | None:
     if own is not None:
         return MethodType(own, iota)
     return partial(fn, iota, index)
+
+
+def constant_bound(fn: Callable | None) -> float | None:
+    """The float of a time bound that the Python API made from a constant (`after=0.01`), which
+    `_enable` then needs not call; None for any other (a function, a parameter's name)."""
+    constant = getattr(fn, "iotad_constant", None)
+    if constant is None or isinstance(constant, bool):
+        return None
+    try:
+        return float(constant)
+    except (TypeError, ValueError, OverflowError):
+        return None  # called as before, which reports it
 
 
 def _dynamic_writes(action: Action) -> tuple:
@@ -169,7 +186,6 @@ class Engine:
         self.instances: list[ActionInstance] = []
         self._by_leaf: dict[str, list[ActionInstance]] = {}
         self._readers: dict[str, dict[tuple, list[ActionInstance]]] = {}
-        self._input_affects: dict[tuple, list[ActionInstance]] = {}
         self.leaves = {leaf.path: leaf for leaf in self.flat.leaves}
         rank = 0
         for leaf in self.flat.leaves:
@@ -389,13 +405,21 @@ class Engine:
         if emit:
             slot.last = now
             self._emit(now, leaf.path, action.channel, index, slot.channel.direction, plain)
-        affects = instance.affects
-        if affects is None:
-            affects = instance.affects = self._affected(leaf, action.writes, index)
         if dynamic:
+            affects = instance.affects
+            if affects is None:
+                affects = instance.affects = self._affected(leaf, action.writes, index)
             affects = self._with_dynamic(leaf, affects, dynamic, before)
-        self._evaluate(instance, now)
-        self._evaluate_all(affects, now, instance)
+            self._evaluate(instance, now)
+            self._evaluate_all(affects, now, instance)
+        else:
+            again = instance.reevaluate
+            if again is None:
+                affects = instance.affects
+                if affects is None:
+                    affects = instance.affects = self._affected(leaf, action.writes, index)
+                again = instance.reevaluate = [instance] + [other for other in affects if other is not instance]
+            self._evaluate_all(again, now)
         if emit:
             for target, checked in slot.deliveries:
                 self._deliver(target, plain, now, checked)
@@ -472,10 +496,9 @@ class Engine:
             except (Exception, SystemExit) as exc:  # noqa: BLE001
                 self._violation(now, leaf.path, channel.name, index, "runtime_error",
                                 f"{action.label}: {type(exc).__name__}: {exc}")
-        key = (leaf.path, channel.name, index)
-        affects = self._input_affects.get(key)
+        affects = slot.affects
         if affects is None:
-            affects = self._input_affects[key] = self._affected(leaf, action.writes, index)
+            affects = slot.affects = self._affected(leaf, action.writes, index)
         if dynamic:
             affects = self._with_dynamic(leaf, affects, dynamic, before)
         self._evaluate_all(affects, now)
@@ -515,8 +538,12 @@ class Engine:
         instance.enabled = True
         instance.gen += 1
         try:
-            lower = 0.0 if instance.after is None else float(instance.after())
-            upper = INF if instance.before is None else float(instance.before())
+            lower = instance.lower_bound
+            if lower is None:
+                lower = 0.0 if instance.after is None else float(instance.after())
+            upper = instance.upper_bound
+            if upper is None:
+                upper = INF if instance.before is None else float(instance.before())
         except (Exception, SystemExit) as exc:  # noqa: BLE001
             self._runtime_error(now, instance, "time bound", exc)
             lower, upper = INF, INF
@@ -546,6 +573,8 @@ class Engine:
                             f"{action.label}: switching time {instance.slot.switching:g} puts its earliest "
                             f"firing at {earliest:.6g}, past its window's end {instance.upper:.6g}")
             fire_at = earliest
+        elif self.policy.__class__ is Eager:
+            fire_at = earliest  # Eager.choose, without the call
         else:
             fire_at = self.policy.choose(earliest, instance.upper)
         instance.fire_at = fire_at
@@ -558,9 +587,11 @@ class Engine:
 
     # ---------------------------------------------------------------- events
     def _emit(self, t: float, path: str, channel: str, index: int | None, kind: str, value: Any) -> None:
-        event = {"t": t, "iota": path, "action": channel, "index": index, "kind": kind, "value": value}
-        for sink in self.sinks:
-            sink(event)
+        sinks = self.sinks
+        if sinks:  # (none: the event is not built)
+            event = {"t": t, "iota": path, "action": channel, "index": index, "kind": kind, "value": value}
+            for sink in sinks:
+                sink(event)
 
     def _violation(self, t: float, path: str, channel: str, index: int | None, code: str, message: str) -> None:
         self._emit(t, path, channel, index, "violation", {"violation": code, "message": message})
