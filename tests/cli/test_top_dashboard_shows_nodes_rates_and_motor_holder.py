@@ -114,7 +114,7 @@ def test_iotad_top_in_a_terminal_shows_the_nodes_and_who_holds_the_motors(tmp_pa
     text = text.replace("../nodes/", f"{ROOT}/nodes/").replace('"requesters.py:', f'"{ROOT}/examples/requesters.py:')
     system = tmp_path / "figure2.toml"
     system.write_text(text)
-    with launcher(system, "--port", str(port), "--until", "30", "--no-record") as proc:
+    with launcher(system, "--port", str(port), "--until", "30", "--after-live", "--no-record") as proc:
         assert wait_until(lambda: "manipulation: started" in proc.output.read_text(), 20), proc.output.read_text()
         master, slave = pty.openpty()
         fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 50, 150, 0, 0))  # rows, columns

@@ -59,7 +59,7 @@ def test_a_foxglove_client_receives_what_the_recording_holds(tmp_path):
     system.write_text(text)
     recording = tmp_path / "fig2.mcap"
     received, advertised = [], {}
-    with launcher(system, "--port", str(port), "--until", "14", "-o", str(recording)) as proc:
+    with launcher(system, "--port", str(port), "--until", "14", "--after-live", "-o", str(recording)) as proc:
         assert wait_until(lambda: "manipulation: started" in proc.output.read_text(), 20), proc.output.read_text()
         view = subprocess.Popen([sys.executable, "-m", "iotad", "view", "--connect", f"tcp/127.0.0.1:{port}",
                                  "--system", "figure2", "--port", str(ws_port), "--until", "30"],

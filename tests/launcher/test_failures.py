@@ -320,7 +320,7 @@ def test_a_real_time_run_with_force_replaces_the_recording(tmp_path):
     system_file = pair_system(tmp_path, port)
     recording = tmp_path / "rec.mcap"
     recording.write_bytes(b"an earlier run")
-    with launcher(system_file, "-o", str(recording), "--force", "--until", "2") as proc:
+    with launcher(system_file, "-o", str(recording), "--force", "--until", "2", "--after-live") as proc:
         assert proc.wait(60) == 0, proc.output.read_text()
     replaced = read_recording(recording)
     assert replaced.complete
@@ -470,7 +470,7 @@ def test_a_reader_that_leaves_does_not_stop_the_run(tmp_path):
     --until and is recorded; only the lines stop (rich would have ended the program)."""
     out = tmp_path / "piped.mcap"
     run = subprocess.Popen([sys.executable, "-m", "iotad", "run", str(ROOT / "examples" / "figure2.toml"),
-                            "--until", "3", "--port", str(free_port()), "--plain", "-o", str(out)],
+                            "--until", "3", "--after-live", "--port", str(free_port()), "--plain", "-o", str(out)],
                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=tmp_path)
     try:
         first = run.stdout.readline()

@@ -80,7 +80,7 @@ def test_a_killed_reader_of_mdl_command_gets_the_masters_program_again(tmp_path)
     observer = Observer("reader", f"tcp/127.0.0.1:{port}")
     taken = CommandsTaken(observer)
     try:
-        with launcher(path, "-o", str(output), "--until", str(EPOCH + 4)) as proc:
+        with launcher(path, "-o", str(output), "--until", str(EPOCH + 4), "--after-live") as proc:
             assert observer.wait_all_alive(("scheduler", "reader", "asker"), 30), proc.output.read_text()
             assert taken.wait(1, 30), ("the reader never took the program", proc.output.read_text())
             reader = next(pid for pid, cmd in children_of(proc.pid).items() if "reader.json" in cmd)

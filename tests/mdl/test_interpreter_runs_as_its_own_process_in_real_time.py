@@ -16,7 +16,7 @@ SYSTEM = ROOT / "examples" / "mdl_arm_realtime.toml"
 
 def test_a_program_runs_to_its_end_in_real_time(tmp_path):
     out = tmp_path / "rt.mcap"
-    done = subprocess.run([sys.executable, "-m", "iotad", "run", str(SYSTEM), "--plain", "--until", "8",
+    done = subprocess.run([sys.executable, "-m", "iotad", "run", str(SYSTEM), "--plain", "--until", "8", "--after-live",
                            "--port", str(free_port()), "-o", str(out), "--log-dir", str(tmp_path / "logs")],
                           capture_output=True, text=True, timeout=90, cwd=ROOT)
     assert done.returncode == 0, done.stdout + done.stderr

@@ -36,7 +36,7 @@ def recorded(tmp_path_factory):
     help_text = subprocess.run([sys.executable, "-m", "iotad", "run", "--help"], capture_output=True, text=True,
                                timeout=60, cwd=ROOT).stdout
     insecure = ["--insecure"] if "--insecure" in help_text else []
-    system = iotad("run", str(FIGURE2), *insecure, "--no-record", "--until", "8", "--port", str(port), "--plain",
+    system = iotad("run", str(FIGURE2), *insecure, "--no-record", "--until", "8", "--after-live", "--port", str(port), "--plain",
                    "--log-dir", str(directory / "logs"), out=directory / "run.out")
     # The recorder runs until the system has ended (SIGINT then), not for a fixed time: under load
     # the nodes can take seconds to go live, and a fixed span would cut the run's end off.

@@ -13,6 +13,7 @@ from iotad.recording.mcap_reader import read_recording
 
 from scheduling_helpers import EXAMPLES
 from launcher_helpers import free_port
+from recorded_systems import check_of_a_real_run
 
 SYSTEMS = ["resume", "fusion", "subsumption"]
 
@@ -63,21 +64,27 @@ def test_subsumption_system_in_virtual_time(tmp_path):
 def test_resume_system_over_zenoh_smoke(tmp_path):
     """One short real run: three processes, the vision request preempted, raised and committed."""
     out = tmp_path / "resume.mcap"
-    result = subprocess.run([sys.executable, "-m", "iotad", "run", str(EXAMPLES / "resume.toml"), "--until", "12",
+    result = subprocess.run([sys.executable, "-m", "iotad", "run", str(EXAMPLES / "resume.toml"), "--until", "12", "--after-live",
                              "--port", str(free_port()), "--plain", "-o", str(out)],
                             capture_output=True, text=True, timeout=90, cwd=tmp_path, start_new_session=True)
     assert result.returncode == 0, result.stdout + result.stderr
-    assert "vision.urgency" in result.stdout and "violations: 0" in result.stdout, result.stdout
+    assert "vision.urgency" in result.stdout, result.stdout
+    # a violation a node recorded may only be a firing past deadline_tolerance (2 ms), as a loaded
+    # machine makes it (check judges those at its own tolerance below); nothing else may be wrong
+    recording = read_recording(str(out))
+    violations = [e["value"]["violation"] for node in recording.specs for e in recording.trace(node)
+                  if e["kind"] == "violation"]
+    assert set(violations) <= {"deadline_miss"}, result.stdout
     assert ("scheduler.ack[0]", "COMMIT") in {(line.split()[0], "COMMIT") for line in result.stdout.splitlines()
                                               if "COMMIT" in line}
-    assert main(["check", str(out)]) == 0
+    check_of_a_real_run(out)
 
 
 def test_a_composite_node_over_zenoh_keeps_its_parts_deliveries_to_itself(tmp_path, capsys):
     """The subsumption arbiter is one process holding a tree of IOTAs: what its parts pass each
     other never crosses the wire, so the delivery check neither counts it nor calls it outside."""
     out = tmp_path / "subsumption.mcap"
-    result = subprocess.run([sys.executable, "-m", "iotad", "run", str(EXAMPLES / "subsumption.toml"), "--until", "4",
+    result = subprocess.run([sys.executable, "-m", "iotad", "run", str(EXAMPLES / "subsumption.toml"), "--until", "4", "--after-live",
                              "--port", str(free_port()), "--plain", "-o", str(out)],
                             capture_output=True, text=True, timeout=90, cwd=tmp_path, start_new_session=True)
     assert result.returncode == 0, result.stdout + result.stderr
