@@ -464,6 +464,10 @@ def main(argv: list[str] | None = None) -> int:
         raise Terminated(signum)
 
     signal.signal(signal.SIGTERM, terminated)  # passed on to the command, as Ctrl-C is
+    # Ctrl-C as KeyboardInterrupt even for a wrapper started with SIGINT ignored (Python then
+    # leaves it ignored): a background job of a non-interactive shell, as a test run or CI may be,
+    # would otherwise never pass a SIGINT on, and its command would run to its end
+    signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
         chosen = best_tier(args.tier)
         print(f"iotad-can: tier {chosen.name}: {chosen.description}", file=sys.stderr, flush=True)
