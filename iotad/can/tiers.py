@@ -438,7 +438,7 @@ def main(argv: list[str] | None = None) -> int:
                     "host has; without `run`, say which tiers it has. The command finds its bus in "
                     "IOTAD_CAN_INTERFACE and IOTAD_CAN_CHANNEL (iotad.can.bus.open_env_bus).",
         usage="python -m iotad.can.tiers [detect | run [--tier T] [--timeout S] -- COMMAND...]",
-        epilog="example: python -m iotad.can.tiers run -- .venv/bin/python bench/can.py")
+        epilog="example: python -m iotad.can.tiers run -- .venv/bin/python bench/can_bus.py")
     parser.add_argument("action", nargs="?", choices=("run", "detect"), default="detect")
     parser.add_argument("--tier", choices=TIERS, help="use this tier (default: IOTAD_CAN_TIER, else the best)")
     parser.add_argument("--timeout", type=float, default=600.0, help="seconds before the command is killed (600)")

@@ -14,7 +14,7 @@
    the node's SYNCs longer than 1.5 cycles counts each cycle it skipped); bus load.
 4. examples/arm_can.toml in virtual time, in this process: its speed as a multiple of real time.
 
-    .venv/bin/python bench/can.py [--count 2000] [--seconds 10] [--tier uml]
+    .venv/bin/python bench/can_bus.py [--count 2000] [--seconds 10] [--tier uml]
 
 The host side picks the tier and runs parts 1 and 2 inside it (`--inside`); inside, the echo
 peer is a second process (`--echo`). Prints the tier first. Figures only, no pass/fail on timings.
@@ -32,8 +32,6 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-# This file is named can.py: drop its folder from the path, or `import can` would import it.
-sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
 sys.path.insert(0, str(ROOT))
 
 ECHO_ID, REQUEST_ID, READY_ID, STOP_ID = 0x101, 0x100, 0x7F0, 0x7F1
