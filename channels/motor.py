@@ -44,7 +44,9 @@ JOINT_EVENT = Enum("jointEvent",
                    "RESET",              # estop = false: a FAULT or ESTOPPED axis will re-arm
                    "EMCY",               # CiA 402: the drive sent an emergency message (axis_error: its code)
                    "SDO_ABORT",          # CiA 402: the drive refused a configuration write (disarm_reason: the code)
-                   "BOOT_UP")            # CiA 402: the drive (re)booted; it is configured again
+                   "BOOT_UP",            # CiA 402: the drive (re)booted; it is configured again
+                   "LINK_LOST",          # no setpoints for link_timeout: the axis was commanded IDLE
+                   "LINK_FOUND")         # setpoints again after LINK_LOST
 
 JOINT_STATUS = Struct(
     "jointStatus",

@@ -21,6 +21,12 @@ One IOTA drives one CAN bus of ODrive axes (firmware 0.6), one axis per joint of
   SDO start-up, the controlword toward OPERATION ENABLED (a fault reset first), RPDO setpoints
   taken at the SYNC this node sends every tick, TPDO state, and this node's heartbeat, which the
   drives watch: a silent master is their fault reaction.
+- Link watch (`link_timeout` > 0): once setpoints have come, none for `link_timeout` means the
+  link to their source (or the source) is lost: every armed or arming axis is commanded IDLE
+  (a CiA 402 drive a quick stop), keep-alives stop, and each joint reports LINK_LOST; the
+  axes are not armed again until setpoints come back (LINK_FOUND), then re-armed with
+  `auto_rearm`, else FAULT until `estop = false`. Off by default; the launcher turns it on for
+  a node whose setpoints come from another host (iotad/launcher/link_watch.py).
 - A heartbeat missing for `lost_after` heartbeat periods: LOST. Frames it cannot use go to
   `bad_frame`. `estop = true` (and `final_can_frames`, the node host's shutdown hook) sends
   Estop to every axis; `estop = false` resets ESTOPPED and FAULT axes, which then re-arm.
@@ -107,6 +113,7 @@ class CanMotor(Iota):
     master_node_id = Param(127)     # CiA 402: this node's CANopen node id (its heartbeat's COB-ID 0x700 + id)
     master_heartbeat = Param(0.05)  # CiA 402: s between this node's heartbeats; drives fault after lost_after of them
     velocity_every = Param(1)       # CiA 402: SYNCs between a drive's TPDO2 (velocity actual); 1..240
+    link_timeout = Param(0.0)       # s without setpoints (once they came) before the axes go IDLE; 0: off
 
     # Sized per joint map (see `_sized`); the declarations here are for six joints.
     setpoints = Input(joint_setpoints(6), switching=0)
@@ -153,6 +160,8 @@ class CanMotor(Iota):
         self.estopped = False
         self.ticks = 0
         self.setpoints_tick = -1 << 62  # the tick of the last setpoints message (none yet)
+        self.link_ticks = _ticks("link_timeout", self.link_timeout, self.period)
+        self.link_lost = False          # the setpoints' source went silent: the axes are held IDLE
         self.states_due = False
 
     def can_node_ids(self) -> tuple[str, dict[int, str]]:
@@ -163,6 +172,8 @@ class CanMotor(Iota):
     # ------------------------------------------------------------------ inputs
     @setpoints.input
     def on_setpoints(self, value):
+        if self.link_lost:
+            self._link_found()
         if not self.estopped:
             self._command(value)
 
@@ -186,7 +197,7 @@ class CanMotor(Iota):
         return [frame.to_value() for frame in frames]
 
     # ------------------------------------------------------------------ arming and timers
-    @arm.action(when=lambda self, i: self.axes[i].phase == UNARMED and not self.axes[i].lost,
+    @arm.action(when=lambda self, i: self.axes[i].phase == UNARMED and not self.axes[i].lost and not self.link_lost,
                 after=lambda self, i: self.arm_retry if self.axes[i].retry else 0.0)
     def send_arming(self, i):
         self._send_arming(i)
@@ -515,6 +526,9 @@ class CanMotor(Iota):
 
     def _tick(self) -> None:
         self.ticks += 1
+        if self.link_ticks and not self.link_lost and self.ticks - self.setpoints_tick > self.link_ticks \
+                and self.setpoints_tick >= 0:
+            self._link_lost()
         if self.keepalive_ticks or self.arm_hold_ticks:
             self._keep_alive()
         for name, every in self.poll_plan:
@@ -525,6 +539,32 @@ class CanMotor(Iota):
             self._canopen_tick()
         if all(axis.has_position for axis in self.axes):
             self.states_due = True
+
+    def _link_lost(self) -> None:
+        """No setpoints for `link_timeout`: whoever sends them is cut off (or gone), so nothing
+        here knows what the arm should do. Every axis that is (or is becoming) armed is told to go
+        IDLE at once, rather than left to the firmware's watchdog, which the keep-alive would feed."""
+        self.link_lost = True
+        for i, axis in enumerate(self.axes):
+            if axis.phase in (ARMED, ARMING):
+                if i in self.links:
+                    self.links[i].abandon()
+                    self.tx.append(self.links[i].quick_stop(axis.command))
+                else:
+                    self.tx.append(encode(axis.node_id, "Set_Axis_State", Axis_Requested_State=AXIS_STATE["IDLE"]))
+                axis.phase = FAULT
+            self.reports[i].append(("LINK_LOST", 0.0, 0.0))
+        if self.links:
+            self.tx.append(co.sync())  # the quick stops are taken now, not at the next tick
+
+    def _link_found(self) -> None:
+        """Setpoints again: the axes the link watch stopped arm again with `auto_rearm` (the first
+        command after arming is the setpoint of that moment), else they stay in FAULT until a reset."""
+        self.link_lost = False
+        for i, axis in enumerate(self.axes):
+            if axis.phase == FAULT and self.auto_rearm and not self.estopped:
+                axis.phase, axis.retry = UNARMED, False
+            self.reports[i].append(("LINK_FOUND", 0.0, 0.0))
 
     def _keep_alive(self) -> None:
         """Feed the firmware's watchdog. An ARMED axis with no command for `keepalive` gets its last
