@@ -40,7 +40,7 @@ _PATH = re.compile(r"^[A-Za-z_][\w-]*(/[A-Za-z_][\w-]*)*$")
 _SYSTEM_NAME = re.compile(r"^[A-Za-z_][\w-]*$")
 
 _SYSTEM_KEYS = {"name", "time_unit", "endpoints", "hub_host", "heartbeat_period", "heartbeat_timeout",
-                "start_timeout", "clock_bound", "external", "deadline_tolerance", "arrival_tolerance", "input_queue", "debug",
+                "start_timeout", "clock_bound", "link_timeout", "external", "deadline_tolerance", "arrival_tolerance", "input_queue", "debug",
                 "start_gate"}
 # In TOML a key written after a [[node]] or [[bind]] table belongs to that table.
 TABLE_HINT = {"external": " (a top-level key must come before the first table; or put it in [system])"}
@@ -139,6 +139,9 @@ class Declaration:
     start_timeout: float = 15.0
     # seconds: a host whose clock offset to the hub is known no better than this is a violation
     clock_bound: float = 1e-3
+    # seconds without setpoints from another host before a node that watches its link (a CAN motor
+    # node's `link_timeout`) stops its motors; 0: no such watch (iotad/launcher/link_watch.py)
+    link_timeout: float = 0.06
     deadline_tolerance: float = 0.002  # seconds a firing may be late before it is a deadline miss
     arrival_tolerance: float = 0.002   # seconds an input may be early (jitter) against its switching time
     input_queue: int = DEFAULT_INPUT_QUEUE  # per node host, unless its [[node]] says otherwise
@@ -276,6 +279,7 @@ class _Parser:
                     system[key] = float(value)
                 else:
                     self.error(entry, f"{key} must be a positive number of seconds, got {value!r}")
+        self.take(raw, "link_timeout", system, entry, lambda v: v == 0 or _positive(v), "seconds >= 0 (0: off)")
         self.take(raw, "start_gate", system, entry, _flag, "true or false")
         self.take(raw, "input_queue", system, entry, _queue_size, "a whole number of inputs >= 1")
         period = system.get("heartbeat_period", Declaration.heartbeat_period)

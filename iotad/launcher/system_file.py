@@ -48,6 +48,7 @@ from typing import Any
 from iotad.host import wire
 from iotad.kernel.ports import Port, PortSyntaxError
 from iotad.launcher.bus_logger import logger_port_config
+from iotad.launcher.link_watch import link_params
 from iotad.launcher.declaration import (  # noqa: F401 - the declaration's names, as callers know them here
     DEFAULT_INPUT_QUEUE, LOOPBACK_LISTEN, RESTART_MODES, TABLE_HINT, CanBusSpec, Declaration, HostSpec, NodeDecl,
     SystemFileError, read_declaration)
@@ -77,6 +78,7 @@ class NodeSpec:
 
     declared: NodeDecl
     channels: dict[str, ChannelInfo] = field(default_factory=dict)
+    param_names: frozenset[str] = frozenset()  # its IOTA's parameters (empty when loaded unchecked)
 
     def __getattr__(self, name: str) -> Any:
         if name == "declared":  # not set yet (a copy being made): no recursion
@@ -151,7 +153,8 @@ class System:
     def node_config(self, node: str, origin: float, hub: list[str]) -> dict[str, Any]:
         """The JSON config of `python -m iotad.host` (docs/internals.md, "Node host")."""
         spec = self.nodes[node]
-        config = {"system": self.name, "path": spec.name, "source": dict(spec.source), "params": dict(spec.params),
+        config = {"system": self.name, "path": spec.name, "source": dict(spec.source),
+                  "params": {**link_params(self, node), **spec.params},
                   "time_unit": self.time_unit, "origin": origin, "listen": self.listen_for(spec.host),
                   "connect": list(hub), "inputs": self.inputs_of(node), "readers": self.readers_of(node),
                   "heartbeat_period": self.heartbeat_period,
@@ -222,6 +225,7 @@ class _Checker:
                                    "its module or init may block (Ctrl-C stops)"):
                     instance = instantiate(node)
                 node.channels = channel_table(instance)
+                node.param_names = _param_names(instance)
                 claims = getattr(instance, "can_node_ids", None)
                 if callable(claims):
                     self.can_claims[node.name] = claims()
@@ -433,6 +437,13 @@ def channel_table(instance: Any) -> dict[str, ChannelInfo]:
             table[name] = ChannelInfo(name, channel.direction, channel.type, spec.switching_of(channel, params),
                                       spec.size_of(channel, params))
     return table
+
+
+def _param_names(instance: Any) -> frozenset[str]:
+    """The parameters a leaf IOTA declares (a composite's own: none)."""
+    from iotad.kernel.compose import Composite
+    from iotad.kernel.model import param_values
+    return frozenset() if isinstance(instance, Composite) else frozenset(param_values(instance))
 
 
 # ---------------------------------------------------------------------------- helpers
