@@ -1,0 +1,272 @@
+"""The arm over CAN split over two namespace hosts, for partitions: the trajectory (the setpoints'
+source) on `brain` with the hub, the simulated ODrives, the CAN motor node and their bus on `arm`.
+`SplitArm` starts it as a person would (an agent on arm, one `iotad run` on brain), records on
+the arm host (an `iotad record` peer there, which still hears the arm's nodes while brain is cut
+off), watches the motor node's outputs from brain, and cuts and heals the link between them.
+`safe_times` reads, from the arm's own recording, how long after a cut each axis was told IDLE.
+Shared by tests/hosts/ and bench/hosts.py."""
+from __future__ import annotations
+
+import os
+import queue
+import signal
+import subprocess
+import sys
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from iotad.can.odrive import AXIS_STATE
+from iotad.can.tiers import UDP_GROUP
+
+ROOT = Path(__file__).resolve().parents[1]
+SET_AXIS_STATE, SET_INPUT_POS, HEARTBEAT = 0x07, 0x0C, 0x01
+IDLE, CLOSED_LOOP = AXIS_STATE["IDLE"], AXIS_STATE["CLOSED_LOOP_CONTROL"]
+NODE_IDS = range(1, 7)
+START, SEGMENT = 0.5, 3.0  # the trajectory's first leg starts START s after the first joint state
+
+
+def split_arm_system(name: str, hub: str, port: int, arm: str, extra: str = "") -> str:
+    """examples/arm_can.toml's arm, over two hosts: a long motion (three legs of SEGMENT s)."""
+    waypoints = "[[0.5, 0.1, -0.8, 0.4, 1.0, 0.5], [-0.3, -0.2, -1.1, -0.3, 1.4, -0.4], [0.5, 0.1, -0.8, 0.4, 1.0, 0.5]]"
+    joints = "\n".join(f'[[node.params.joints]]\nname = "joint{k}"\nnode_id = {k}\nvelocity_limit = 3.14\n'
+                       f'current_limit = 50.0\nout_of_range = "clamp"\n' for k in NODE_IDS)
+    return f"""
+[system]
+name = "{name}"
+time_unit = 1.0
+hub_host = "brain"
+start_timeout = 60.0
+heartbeat_timeout = 10.0
+external = ["motor.estop"]
+{extra}
+[system.endpoints]
+listen = ["tcp/{hub}:{port}"]
+
+[hosts.brain]
+listen = ["tcp/{hub}:0"]
+[hosts.arm]
+listen = ["tcp/{arm}:0"]
+
+[[node]]
+name = "odrives"
+host = "arm"
+python = "sim.odrive_sim:SimulatedOdrives"
+params = {{ world = "arm", step_period = 0.005, encoder_period = 0.02, watchdog_timeout = 0.08, timing_slack = 0.01, node_ids = {{ joint1 = 1, joint2 = 2, joint3 = 3, joint4 = 4, joint5 = 5, joint6 = 6 }} }}
+
+[[node]]
+name = "motor"
+host = "arm"
+python = "nodes.can_motor:CanMotor"
+after = ["odrives"]
+
+[node.params]
+encoder_period = 0.02
+polls = {{ Get_Error = 0.5 }}
+auto_rearm = true
+{joints}
+[[node]]
+name = "trajectory"
+host = "brain"
+python = "{ROOT}/examples/arm_trajectory.py:ArmTrajectory"
+params = {{ waypoints = {waypoints}, segment = {SEGMENT}, start = {START}, period = 0.02 }}
+
+[[can]]
+name = "arm_bus"
+interface = "udp_multicast"
+channel = "{UDP_GROUP}"
+stations = ["motor", "odrives"]
+# arm's namespace has a veth end (toward brain) besides its loopback; the group is routed to the
+# loopback (multicast_on_loopback), and the veth leads only into brain's namespace
+options = {{ allow_real_interfaces = true }}
+
+[[bind]]
+from = "trajectory.setpoints"
+to = "motor.setpoints"
+[[bind]]
+from = "motor.joint_states"
+to = "trajectory.joint_states"
+"""
+
+
+# Run in brain's namespace: a client of the hub that prints what the motor node publishes, one
+# line each ("states <joint1 position>", "status <joint> <event>"), so that a test waits on events.
+WATCHER = r"""
+import sys, threading, time, msgpack, zenoh
+from iotad.host.transport import open_session
+hub, system = sys.argv[1], sys.argv[2]
+lock = threading.Lock()  # two callback threads: one whole line at a time
+def say(*words):
+    with lock:
+        sys.stdout.write(" ".join(map(str, words)) + "\n")
+        sys.stdout.flush()
+while True:
+    try:
+        session = open_session([], [hub], mode="client", connect_timeout=2, credentials=False)
+        break
+    except zenoh.ZError:
+        time.sleep(0.2)
+def states(sample):
+    say("states", msgpack.unpackb(sample.payload.to_bytes())["position"][0])
+def status(sample):
+    value = msgpack.unpackb(sample.payload.to_bytes())
+    say("status", value["joint"], value["event"])
+with session:
+    session.declare_subscriber(f"iota/{system}/motor/joint_states", states)
+    session.declare_subscriber(f"iota/{system}/motor/joint_status/*", status)
+    say("watching")
+    sys.stdin.read()  # until the test closes it
+"""
+
+
+def multicast_on_loopback(namespace: str) -> None:
+    """The CAN tier udp_multicast inside `namespace`: its loopback carries the bus's group."""
+    for step in (("link", "set", "lo", "multicast", "on"), ("route", "add", "224.0.0.0/4", "dev", "lo")):
+        result = subprocess.run(["ip", "-n", namespace, *step], capture_output=True, text=True, timeout=10)
+        assert result.returncode == 0, result.stderr
+
+
+@dataclass
+class SplitArm:
+    """The split arm running in `net` (tests/namespaces.py `hosts("brain", "arm")`)."""
+
+    net: object
+    folder: Path
+    port: int
+    name: str = "armsplit"
+    extra: str = ""
+    procs: dict = field(default_factory=dict)
+    lines: "queue.Queue[str]" = field(default_factory=queue.Queue)
+    seen: list = field(default_factory=list)
+
+    @property
+    def hub(self) -> str:
+        return self.net.addresses[("brain", "arm")]
+
+    @property
+    def recording(self) -> Path:
+        return self.folder / "arm.mcap"
+
+    def start(self) -> None:
+        multicast_on_loopback(self.net.names["arm"])
+        path = self.folder / f"{self.name}.toml"
+        path.write_text(split_arm_system(self.name, self.hub, self.port, self.net.addresses["arm"], self.extra))
+        endpoint = f"tcp/{self.hub}:{self.port}"
+        iotad = (sys.executable, "-m", "iotad")
+        self._spawn("agent", "arm", *iotad, "agent", "--name", "arm", "--connect", endpoint)
+        self._spawn("recorder", "arm", *iotad, "record", f"iota/{self.name}/**", "--connect", endpoint,
+                    "--listen", f"tcp/{self.net.addresses['arm']}:0", "-o", str(self.recording), "--quiet")
+        self._spawn("run", "brain", *iotad, "run", str(path), "--plain", "--no-record", "--until", "120")
+        self._spawn("watcher", "brain", sys.executable, "-c", WATCHER, endpoint, self.name, stdin=True)
+        threading.Thread(target=self._read, daemon=True).start()
+
+    def _spawn(self, role: str, host: str, *command: str, stdin: bool = False) -> None:
+        out = subprocess.PIPE if role == "watcher" else open(self.folder / f"{role}.out", "w")
+        self.procs[role] = subprocess.Popen(self.net.exec(host, *command), stdout=out, stderr=subprocess.STDOUT,
+                                            stdin=subprocess.PIPE if stdin else subprocess.DEVNULL, text=True,
+                                            cwd=ROOT, start_new_session=True)
+
+    def _read(self) -> None:
+        for line in self.procs["watcher"].stdout:
+            self.lines.put(line.split())
+
+    def wait_for(self, wanted, timeout: float, what: str) -> list[str]:
+        """The first watcher line (split) for which `wanted(line)` holds; AssertionError after `timeout` s."""
+        deadline = time.monotonic() + timeout
+        while True:
+            left = deadline - time.monotonic()
+            try:
+                line = self.lines.get(timeout=max(0.0, left))
+            except queue.Empty:
+                raise AssertionError(f"no {what} within {timeout:g} s; the run said:\n{self.output()[-3000:]}") from None
+            self.seen.append(line)
+            if wanted(line):
+                return line
+
+    def wait_moving(self, timeout: float, by: float = 0.1) -> None:
+        """Until joint1 is `by` rad away from where the watcher first saw it: the arm is moving."""
+        first = float(self.wait_for(lambda line: line[0] == "states", timeout, "joint states")[1])
+        self.wait_for(lambda line: line[0] == "states" and abs(float(line[1]) - first) > by, timeout,
+                      f"motion of joint1 by {by} rad")
+
+    def cut(self) -> int:
+        """The link between brain and arm down; the wall-clock ns just before it went."""
+        now = time.time_ns()
+        self.net.cut("brain", "arm")
+        return now
+
+    def heal(self) -> int:
+        self.net.heal("brain", "arm")
+        return time.time_ns()
+
+    def output(self) -> str:
+        path = self.folder / "run.out"
+        return path.read_text() if path.exists() else ""
+
+    def stop(self) -> None:
+        """Every process stopped, the run first (it stops the arm's part through its agent), the
+        recorder last; SIGKILL to a group that outlives its patience."""
+        for role in ("run", "watcher", "agent", "recorder"):
+            proc = self.procs.get(role)
+            if proc is None or proc.poll() is not None:
+                continue
+            if role == "watcher":
+                proc.stdin.close()
+            else:
+                proc.send_signal(signal.SIGINT)
+            try:
+                proc.wait(30)
+            except subprocess.TimeoutExpired:
+                try:
+                    os.killpg(proc.pid, signal.SIGKILL)
+                except ProcessLookupError:
+                    pass
+                proc.wait()
+
+
+@dataclass
+class Partition:
+    """What the arm host's recording says of one cut: per axis, seconds from the cut to its
+    Set_Axis_State IDLE frame on the bus (None: none came before the heal), and what the bus
+    carried between that and the heal."""
+
+    safe: dict[int, float | None]
+    commands_while_cut: int        # Set_Input_Pos or closed-loop requests after the last IDLE, before the heal
+    idle_heartbeats: int           # heartbeats while cut (after the last IDLE + a heartbeat period) saying IDLE
+    armed_heartbeats: int          # ... and saying closed loop
+    rearmed: set[int]              # axes asked for closed loop after the heal
+    commanded_after: set[int]      # axes sent Set_Input_Pos after the heal
+    link_events: dict[str, int]    # LINK_LOST / LINK_FOUND reports of the motor node
+
+
+def read_partition(recording: Path, system: str, cut_ns: int, heal_ns: int) -> Partition:
+    from iotad.recording.mcap_reader import read_recording
+
+    frames, events = [], {"LINK_LOST": 0, "LINK_FOUND": 0}
+    for message in read_recording(recording).messages:
+        if message.topic == f"iota/{system}/arm_bus/frames":
+            value = message.value
+            frames.append((message.publish_time, value["id"] >> 5, value["id"] & 0x1F, bytes(value["data"])))
+        elif message.topic.startswith(f"iota/{system}/motor/joint_status/"):
+            event = message.value["event"]
+            if event in events:
+                events[event] += 1
+    frames.sort()
+    safe: dict[int, float | None] = {}
+    for node in NODE_IDS:
+        idle = [t for t, n, cmd, data in frames if n == node and cmd == SET_AXIS_STATE and t >= cut_ns
+                and t < heal_ns and data[0] == IDLE]
+        safe[node] = (idle[0] - cut_ns) / 1e9 if idle else None
+    last_idle = cut_ns + int(max([s for s in safe.values() if s is not None], default=0.0) * 1e9)
+    while_cut = [(n, cmd, data) for t, n, cmd, data in frames if last_idle < t < heal_ns]
+    settled = last_idle + 150_000_000  # a heartbeat period (0.1 s) and some for it to be sent
+    beats = [data[4] for t, n, cmd, data in frames if cmd == HEARTBEAT and settled < t < heal_ns]
+    return Partition(
+        safe=safe,
+        commands_while_cut=sum(1 for n, cmd, data in while_cut
+                               if cmd == SET_INPUT_POS or (cmd == SET_AXIS_STATE and data[0] == CLOSED_LOOP)),
+        idle_heartbeats=beats.count(IDLE), armed_heartbeats=beats.count(CLOSED_LOOP),
+        rearmed={n for t, n, cmd, data in frames if t > heal_ns and cmd == SET_AXIS_STATE and data[0] == CLOSED_LOOP},
+        commanded_after={n for t, n, cmd, data in frames if t > heal_ns and cmd == SET_INPUT_POS},
+        link_events=events)
