@@ -74,6 +74,17 @@ class Hosts:
         name, ns = self.links[(a, b)]
         assert ip("-n", ns, "link", "set", name, "up").returncode == 0
 
+    def limit(self, a: str, b: str, rate: str, burst: str = "2kb", latency: str = "50ms") -> None:
+        """What leaves `a` toward `b` shaped by a token bucket (tc tbf: this kernel has no netem):
+        at most `rate` on average, `burst` at once; a packet that would wait past `latency` in
+        its queue is dropped. A rate below what is sent is delay (the queue) and loss."""
+        name, ns = self.links[(a, b)]
+        result = subprocess.run(["ip", "netns", "exec", ns, "tc", "qdisc", "add", "dev", name, "root", "tbf",
+                                 "rate", rate, "burst", burst, "latency", latency],
+                                capture_output=True, text=True, timeout=10)
+        if result.returncode != 0:
+            pytest.skip(f"cannot shape a link here (tc qdisc add ... tbf: {result.stderr.strip()})")
+
 
 @contextmanager
 def hosts(first: str, *others: str, net: int = 200):
