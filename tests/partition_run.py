@@ -7,6 +7,7 @@ off), watches the motor node's outputs from brain, and cuts and heals the link b
 Shared by tests/hosts/ and bench/hosts.py."""
 from __future__ import annotations
 
+import json
 import os
 import queue
 import signal
@@ -90,16 +91,18 @@ to = "trajectory.joint_states"
 """
 
 
-# Run in brain's namespace: a client of the hub that prints what the motor node publishes, one
-# line each ("states <joint1 position>", "status <joint> <event>"), so that a test waits on events.
+# Run in brain's namespace: a client of the hub that prints each sample on the keys it is given,
+# one line each, "<key below iota/SYSTEM/> <value as JSON>", so that a test waits on events.
 WATCHER = r"""
-import sys, threading, time, msgpack, zenoh
+import json, sys, threading, time, msgpack, zenoh
 from iotad.host.transport import open_session
-hub, system = sys.argv[1], sys.argv[2]
-lock = threading.Lock()  # two callback threads: one whole line at a time
-def say(*words):
+hub, system, keys = sys.argv[1], sys.argv[2], sys.argv[3:]
+lock = threading.Lock()  # callbacks come on several threads: one whole line at a time
+def show(sample):
+    key = str(sample.key_expr).split("/", 2)[2]
+    line = key + " " + json.dumps(msgpack.unpackb(sample.payload.to_bytes())) + "\n"
     with lock:
-        sys.stdout.write(" ".join(map(str, words)) + "\n")
+        sys.stdout.write(line)
         sys.stdout.flush()
 while True:
     try:
@@ -107,15 +110,9 @@ while True:
         break
     except zenoh.ZError:
         time.sleep(0.2)
-def states(sample):
-    say("states", msgpack.unpackb(sample.payload.to_bytes())["position"][0])
-def status(sample):
-    value = msgpack.unpackb(sample.payload.to_bytes())
-    say("status", value["joint"], value["event"])
 with session:
-    session.declare_subscriber(f"iota/{system}/motor/joint_states", states)
-    session.declare_subscriber(f"iota/{system}/motor/joint_status/*", status)
-    say("watching")
+    for key in keys:
+        session.declare_subscriber(f"iota/{system}/{key}", show)
     sys.stdin.read()  # until the test closes it
 """
 
@@ -128,67 +125,65 @@ def multicast_on_loopback(namespace: str) -> None:
 
 
 @dataclass
-class SplitArm:
-    """The split arm running in `net` (tests/namespaces.py `hosts("brain", "arm")`)."""
+class SplitRun:
+    """A system split over `net`'s hosts brain (the hub) and arm (tests/namespaces.py `hosts("brain",
+    "arm")`), started as a person would: an agent on arm, then one `iotad run` on brain; a watcher
+    on brain prints what it is told to watch; `cut` and `heal` the link between them."""
 
     net: object
     folder: Path
     port: int
-    name: str = "armsplit"
-    extra: str = ""
+    name: str
+    text: str                      # the system file
+    watch: tuple = ()              # keys below iota/<name>/ the watcher prints
+    run_args: tuple = ("--no-record",)
     procs: dict = field(default_factory=dict)
-    lines: "queue.Queue[str]" = field(default_factory=queue.Queue)
-    seen: list = field(default_factory=list)
+    lines: "queue.Queue[tuple]" = field(default_factory=queue.Queue)
 
     @property
     def hub(self) -> str:
         return self.net.addresses[("brain", "arm")]
 
     @property
-    def recording(self) -> Path:
-        return self.folder / "arm.mcap"
+    def endpoint(self) -> str:
+        return f"tcp/{self.hub}:{self.port}"
 
     def start(self) -> None:
-        multicast_on_loopback(self.net.names["arm"])
         path = self.folder / f"{self.name}.toml"
-        path.write_text(split_arm_system(self.name, self.hub, self.port, self.net.addresses["arm"], self.extra))
-        endpoint = f"tcp/{self.hub}:{self.port}"
+        path.write_text(self.text)
         iotad = (sys.executable, "-m", "iotad")
-        self._spawn("agent", "arm", *iotad, "agent", "--name", "arm", "--connect", endpoint)
-        self._spawn("recorder", "arm", *iotad, "record", f"iota/{self.name}/**", "--connect", endpoint,
-                    "--listen", f"tcp/{self.net.addresses['arm']}:0", "-o", str(self.recording), "--quiet")
-        self._spawn("run", "brain", *iotad, "run", str(path), "--plain", "--no-record", "--until", "120")
-        self._spawn("watcher", "brain", sys.executable, "-c", WATCHER, endpoint, self.name, stdin=True)
+        self._spawn("agent", "arm", *iotad, "agent", "--name", "arm", "--connect", self.endpoint)
+        self.before_run()
+        self._spawn("run", "brain", *iotad, "run", str(path), "--plain", "--until", "120", *self.run_args)
+        self._spawn("watcher", "brain", sys.executable, "-c", WATCHER, self.endpoint, self.name, *self.watch)
         threading.Thread(target=self._read, daemon=True).start()
 
-    def _spawn(self, role: str, host: str, *command: str, stdin: bool = False) -> None:
-        out = subprocess.PIPE if role == "watcher" else open(self.folder / f"{role}.out", "w")
+    def before_run(self) -> None:
+        """What starts after the agent and before the run (nothing here)."""
+
+    def _spawn(self, role: str, host: str, *command: str) -> None:
+        watcher = role == "watcher"
+        out = subprocess.PIPE if watcher else open(self.folder / f"{role}.out", "w")
         self.procs[role] = subprocess.Popen(self.net.exec(host, *command), stdout=out, stderr=subprocess.STDOUT,
-                                            stdin=subprocess.PIPE if stdin else subprocess.DEVNULL, text=True,
+                                            stdin=subprocess.PIPE if watcher else subprocess.DEVNULL, text=True,
                                             cwd=ROOT, start_new_session=True)
 
     def _read(self) -> None:
         for line in self.procs["watcher"].stdout:
-            self.lines.put(line.split())
+            key, _, value = line.partition(" ")
+            self.lines.put((key, json.loads(value)))
 
-    def wait_for(self, wanted, timeout: float, what: str) -> list[str]:
-        """The first watcher line (split) for which `wanted(line)` holds; AssertionError after `timeout` s."""
+    def wait_for(self, wanted, timeout: float, what: str) -> tuple:
+        """The first (key, value) the watcher prints for which `wanted(key, value)` holds;
+        AssertionError after `timeout` s."""
         deadline = time.monotonic() + timeout
         while True:
-            left = deadline - time.monotonic()
             try:
-                line = self.lines.get(timeout=max(0.0, left))
+                key, value = self.lines.get(timeout=max(0.0, deadline - time.monotonic()))
             except queue.Empty:
                 raise AssertionError(f"no {what} within {timeout:g} s; the run said:\n{self.output()[-3000:]}") from None
-            self.seen.append(line)
-            if wanted(line):
-                return line
-
-    def wait_moving(self, timeout: float, by: float = 0.1) -> None:
-        """Until joint1 is `by` rad away from where the watcher first saw it: the arm is moving."""
-        first = float(self.wait_for(lambda line: line[0] == "states", timeout, "joint states")[1])
-        self.wait_for(lambda line: line[0] == "states" and abs(float(line[1]) - first) > by, timeout,
-                      f"motion of joint1 by {by} rad")
+            if wanted(key, value):
+                return key, value
 
     def cut(self) -> int:
         """The link between brain and arm down; the wall-clock ns just before it went."""
@@ -223,6 +218,42 @@ class SplitArm:
                 except ProcessLookupError:
                     pass
                 proc.wait()
+
+
+class SplitArm(SplitRun):
+    """The split arm (`split_arm_system`), recorded on the arm host by an `iotad record` peer there,
+    which still hears the arm's nodes while brain is cut off; the watcher prints the motor
+    node's joint states and status reports."""
+
+    def __init__(self, net, folder: Path, port: int, extra: str = ""):
+        name = "armsplit"
+        super().__init__(net, folder, port, name, split_arm_system(name, net.addresses[("brain", "arm")], port,
+                                                                   net.addresses["arm"], extra),
+                         watch=("motor/joint_states", "motor/joint_status/*"))
+
+    @property
+    def recording(self) -> Path:
+        return self.folder / "arm.mcap"
+
+    def before_run(self) -> None:
+        multicast_on_loopback(self.net.names["arm"])
+        self._spawn("recorder", "arm", sys.executable, "-m", "iotad", "record", f"iota/{self.name}/**",
+                    "--connect", self.endpoint, "--listen", f"tcp/{self.net.addresses['arm']}:0",
+                    "-o", str(self.recording), "--quiet")
+
+    def wait_moving(self, timeout: float, by: float = 0.1) -> None:
+        """Until joint1 is `by` rad away from where the watcher first saw it: the arm is moving."""
+        states = "motor/joint_states"
+        first = self.wait_for(lambda key, value: key == states, timeout, "joint states")[1]["position"][0]
+        self.wait_for(lambda key, value: key == states and abs(value["position"][0] - first) > by, timeout,
+                      f"motion of joint1 by {by} rad")
+
+    def wait_all(self, event: str, timeout: float) -> None:
+        """Until every joint has reported `event` on joint_status."""
+        joints: set = set()
+        self.wait_for(lambda key, value: key.startswith("motor/joint_status/") and value["event"] == event
+                      and (joints.add(value["joint"]) or len(joints) == len(NODE_IDS)), timeout,
+                      f"{event} of every joint")
 
 
 @dataclass

@@ -25,12 +25,8 @@ def test_a_partition_mid_motion_puts_the_motors_safe_and_the_system_resumes(tmp_
             time.sleep(HOLD)  # the partition's length, the stimulus (nothing to wait on: brain hears nothing)
             heal = arm.heal()
             # the arm comes back: every joint reports LINK_FOUND, re-arms, and moves again
-            found = set()
-            arm.wait_for(lambda line: line[:1] == ["status"] and line[2] == "LINK_FOUND"
-                         and (found.add(line[1]) or len(found) == 6), 60, "LINK_FOUND of every joint")
-            armed = set()
-            arm.wait_for(lambda line: line[:1] == ["status"] and line[2] == "ARM_DONE"
-                         and (armed.add(line[1]) or len(armed) == 6), 30, "every joint armed again")
+            arm.wait_all("LINK_FOUND", 60)
+            arm.wait_all("ARM_DONE", 30)
             arm.wait_moving(timeout=30, by=0.05)
         finally:
             arm.stop()

@@ -1,0 +1,92 @@
+"""The Figure 2 scheduler under a partition: the scheduler (and the hub) on brain, two requesters
+on arm. hi holds the motors (epoch 2 s); lo waits behind it with a timeout of 1 s; the moment
+lo's request reaches brain the link is cut for 3 s. The scheduler judges both on its own clock
+during the cut: lo's timeout passes (REJECT) and hi's motion ends (COMMIT). Its answers wait in
+the link and reach the requesters after the heal, which then go on with their next requests; in
+the end every request of both has its answer at its requester, and the scheduler holds nothing:
+no request is stranded."""
+import time
+
+from namespaces import hosts
+from partition_run import SplitRun
+from iotad.recording.mcap_reader import read_recording
+
+HOLD = 3.0  # s the link stays down: past lo's timeout and hi's epoch
+PARAMS = {"hi": "priority = 5, epoch = 2.0, timeout = 3.0, start = 1.0, pause = 0.5, count = 2",
+          "lo": "priority = 1, epoch = 0.5, timeout = 1.0, start = 1.5, pause = 0.5, count = 2"}
+
+
+def system(hub: str, arm: str, port: int) -> str:
+    from launcher_helpers import ROOT
+    requesters = "".join(f"""
+[[node]]
+name = "{name}"
+host = "arm"
+python = "{ROOT}/examples/requesters.py:Requester"
+params = {{ {params} }}
+after = ["scheduler"]
+[[bind]]
+from = "{name}.req"
+to = "scheduler.req[{k}]"
+[[bind]]
+from = "scheduler.ack[{k}]"
+to = "{name}.ack"
+""" for k, (name, params) in enumerate(PARAMS.items()))
+    return f"""
+[system]
+name = "cutsched"
+hub_host = "brain"
+[system.endpoints]
+listen = ["tcp/{hub}:{port}"]
+[hosts.brain]
+listen = ["tcp/{hub}:0"]
+[hosts.arm]
+listen = ["tcp/{arm}:0"]
+
+[[node]]
+name = "scheduler"
+host = "brain"
+python = "{ROOT}/examples/scheduler.py:Scheduler"
+params = {{ N = 2, T = 0.5 }}
+{requesters}"""
+
+
+def test_requests_whose_bounds_pass_during_a_partition_are_answered_after_it(tmp_path):
+    with hosts("brain", "arm", net=208) as net:
+        hub, port = net.addresses[("brain", "arm")], 7618
+        run = SplitRun(net, tmp_path, port, "cutsched", system(hub, net.addresses["arm"], port),
+                       watch=("lo/req", "hi/@trace", "lo/@trace"), run_args=("-o", str(tmp_path / "hub.mcap")))
+        try:
+            run.start()
+            run.wait_for(lambda key, value: key == "lo/req", 90, "lo's first request at brain")
+            cut = run.cut()
+            time.sleep(HOLD)  # the partition's length, the stimulus
+            heal = run.heal()
+            # until each requester has taken its second answer (its trace says so)
+            answers = {"hi/@trace": 0, "lo/@trace": 0}
+
+            def taken(key, burst):
+                if key in answers:
+                    events = [burst] if isinstance(burst, dict) else burst  # a burst of one may be one dict
+                    answers[key] += sum(1 for e in events if e["action"] == "ack" and e["kind"] == "input")
+                return min(answers.values()) == 2
+            run.wait_for(taken, 60, "both requesters' second answers")
+        finally:
+            run.stop()
+        output = run.output()
+    assert "Traceback" not in output, output[-3000:]
+    recording = read_recording(tmp_path / "hub.mcap")
+    acks = {k: [(m.publish_time, m.value) for m in recording.messages if m.topic == f"iota/cutsched/scheduler/ack/{k}"]
+            for k in (0, 1)}
+    # the scheduler answered both first requests on its own clock while the link was down
+    assert cut < acks[1][0][0] < heal and acks[1][0][1] == "REJECT", (acks, cut, heal)
+    assert cut < acks[0][0][0] < heal and acks[0][0][1] == "COMMIT", (acks, cut, heal)
+    for name in PARAMS:  # every request answered at its requester: nothing stranded
+        trace = [m.value for m in recording.messages if m.topic == f"iota/cutsched/{name}/@trace"]
+        asked = [e for e in trace if e["action"] == "req" and e["kind"] == "output"]
+        answered = [e for e in trace if e["action"] == "ack" and e["kind"] == "input"]
+        assert len(asked) == len(answered) == 2, (name, asked, answered)
+        assert all(e["kind"] != "violation" or e["value"]["violation"] == "deadline_miss" for e in trace), trace
+    heard = [m.value for m in recording.messages if m.topic == "iota/cutsched/hi/@trace"
+             and m.value["action"] == "ack" and m.value["kind"] == "input"]
+    assert [e["value"] for e in heard] == ["COMMIT", "COMMIT"], heard
