@@ -1,8 +1,10 @@
 """Links between hosts: zenoh echo round trips between two network namespaces joined by a veth
 pair, against the same pair of processes on one host, each over TCP and over TLS with mutual
-authentication (prints p50/p99 and ratios; asserts nothing).
+authentication; the time from a partition to the motors safe; the conveyor arm split over two
+hosts in real time (prints figures; asserts nothing).
 
-    .venv/bin/python bench/hosts.py [--rounds 2000] [--payload 64]
+    .venv/bin/python bench/hosts.py [--rounds 2000] [--payload 64] [--only links|partition|conveyor]
+    .venv/bin/python bench/hosts.py --only partition [--cuts 8] [--quiet 30] [--load 2]
 
 Two "hosts" are network namespaces this benchmark makes and removes (needs root): `brain`
 (10.201.0.1) and `arm` (10.201.0.2), with addresses that exist only inside them. The echo process
@@ -148,10 +150,121 @@ def percentile(values: list[float], fraction: float) -> float:
     return ordered[min(len(ordered) - 1, int(fraction * len(ordered)))]
 
 
+def partition_figures(cuts: int, quiet: float, load: int) -> None:
+    """The arm split over brain and arm (tests/partition_run.py): first `quiet` s of motion with no
+    cut, under `load` busy processes beside it, for how far apart the motor node takes its
+    setpoints (what its link watch judges) and whether it trips; then `cuts` partitions of 1 s
+    mid-motion, each healed and the arm re-armed before the next: from each cut to the last
+    axis told IDLE, on the frames the arm host recorded."""
+    sys.path.insert(0, str(ROOT / "tests"))
+    from namespaces import hosts
+    from partition_run import SplitArm, read_partition, setpoint_gaps
+
+    busy = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(load)]
+    marks = []
+    with tempfile.TemporaryDirectory(prefix="iotad-bench-partition-") as folder, hosts("brain", "arm", net=209) as net:
+        # legs of 3 s: the quiet part, then about 4 s per cut (1 s cut, re-arming, motion seen)
+        arm = SplitArm(net, Path(folder), 7619, legs=int(quiet / 3 + cuts * 2.5) + 4)
+        try:
+            arm.start()
+            arm.wait_moving(timeout=180)
+            quiet_from = time.time_ns()
+            time.sleep(quiet)  # the motion goes on uncut: the part whose setpoint gaps are measured
+            quiet_to = time.time_ns()
+            for _ in range(cuts):
+                arm.wait_moving(timeout=60, by=0.02)
+                cut = arm.cut()
+                time.sleep(1.0)
+                marks.append((cut, arm.heal()))
+                arm.wait_all("LINK_FOUND", 60)
+                arm.wait_all("ARM_DONE", 60)
+        finally:
+            arm.stop()
+            for proc in busy:
+                proc.kill()
+                proc.wait()
+        gaps = setpoint_gaps(arm.recording, arm.name, quiet_from, quiet_to)
+        from iotad.recording.mcap_reader import read_recording
+        false_trips = sum(1 for m in read_recording(arm.recording).messages
+                          if m.topic.startswith(f"iota/{arm.name}/motor/joint_status/") and quiet_from <= m.publish_time
+                          <= quiet_to and m.value["event"] == "LINK_LOST")
+        partitions = [read_partition(arm.recording, arm.name, cut, heal) for cut, heal in marks]
+    print(f"partition of the arm's host, {load} busy process(es) beside it, {os.cpu_count()} cores, "
+          f"load average {os.getloadavg()[0]:.1f}")
+    if gaps:
+        print(f"  setpoints at the motor node over {quiet:g} s uncut ({len(gaps)} gaps, sent every 20 ms): "
+              f"p50 {percentile(gaps, 0.5) * 1e3:.1f} ms  p99 {percentile(gaps, 0.99) * 1e3:.1f} ms  "
+              f"max {max(gaps) * 1e3:.1f} ms; link watch trips without a cut: {false_trips}")
+    worst = [max(s if s is not None else float("inf") for s in p.safe.values()) for p in partitions]
+    every = [s for p in partitions for s in p.safe.values() if s is not None]
+    if worst:
+        print(f"  cut to every axis told IDLE, {len(worst)} cuts: p50 {percentile(worst, 0.5) * 1e3:.0f} ms  "
+              f"max {max(worst) * 1e3:.0f} ms (each axis: p50 {percentile(every, 0.5) * 1e3:.0f} ms); "
+              f"commands while cut: {sum(p.commands_while_cut for p in partitions)}; "
+              f"re-armed after every heal: {all(len(p.rearmed) == 6 for p in partitions)}")
+
+
+def conveyor_figures(until: float) -> None:
+    """examples/conveyor.toml over two hosts in real time: sim, motor and their bus on arm, the rest
+    (scheduler, interpreter, planning, vision, manipulation) and the hub on brain."""
+    sys.path.insert(0, str(ROOT / "tests"))
+    from namespaces import hosts
+    from partition_run import SplitRun, multicast_on_loopback
+
+    text = (ROOT / "examples" / "conveyor.toml").read_text()
+    with tempfile.TemporaryDirectory(prefix="iotad-bench-conveyor-") as folder, hosts("brain", "arm", net=210) as net:
+        hub, port = net.addresses[("brain", "arm")], 7620
+        split = split_conveyor(text, hub, port, net.addresses["arm"])
+        recording = Path(folder) / "conveyor.mcap"
+        run = SplitRun(net, Path(folder), port, "conveyor", split, watch=(),
+                       run_args=("--after-live", "-o", str(recording)))
+        multicast_on_loopback(net.names["arm"])
+        started = time.monotonic()
+        try:
+            run.start()
+            run.procs["run"].wait(until + 300)
+        finally:
+            run.stop()
+        took = time.monotonic() - started
+        sys.path.insert(0, str(ROOT / "examples"))
+        from conveyor.conveyor_metrics import conveyor_metrics
+        from iotad.recording.mcap_reader import read_recording
+        metrics = conveyor_metrics(read_recording(recording))
+        output = run.output()
+    violations = next((line.strip() for line in output.splitlines() if "violations:" in line and "[arm]" not in line), "")
+    print(f"conveyor arm over two hosts (sim, motor, bus on arm), real time, {until:g} s after every node was live "
+          f"({took:.0f} s in all): placed {metrics['placed']}/{metrics['spawned']}, missed {metrics['missed']}, "
+          f"dropped {metrics['dropped']}; {violations}")
+
+
+def split_conveyor(text: str, hub: str, port: int, arm: str) -> str:
+    """examples/conveyor.toml with hosts: sim and motor (and so the bus) on arm, the rest on brain;
+    its relative code paths made absolute (the file is written elsewhere)."""
+    text = text.replace('listen = ["tcp/127.0.0.1:7447"]\n', f'listen = ["tcp/{hub}:{port}"]\n'
+                        f'[hosts.brain]\nlisten = ["tcp/{hub}:0"]\n[hosts.arm]\nlisten = ["tcp/{arm}:0"]\n', 1)
+    text = text.replace('[system]\n', '[system]\nhub_host = "brain"\n', 1)
+    for name in ("sim", "motor", "interpreter", "scheduler", "planning", "vision", "manipulation"):
+        host = "arm" if name in ("sim", "motor") else "brain"
+        text = text.replace(f'[[node]]\nname = "{name}"\n', f'[[node]]\nname = "{name}"\nhost = "{host}"\n', 1)
+    text = text.replace('"conveyor/', f'"{ROOT}/examples/conveyor/')
+    # arm's namespace has a veth end besides its loopback; the bus's group is routed to the loopback
+    return text.replace('stations = ["motor", "sim"]', 'stations = ["motor", "sim"]\n'
+                        'options = { allow_real_interfaces = true }', 1)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--rounds", type=int, default=2000, help="round trips per case (default: 2000)")
     parser.add_argument("--payload", type=int, default=64, help="bytes per ping (default: 64)")
+    parser.add_argument("--only", choices=["links", "partition", "conveyor"],
+                        help="one part: the links' round trips, partitions of the arm's host, or the conveyor arm "
+                             "over two hosts (default: all three)")
+    parser.add_argument("--cuts", type=int, default=8, help="partitions to time (default: 8)")
+    parser.add_argument("--quiet", type=float, default=30.0,
+                        help="s of motion with no cut first, for the setpoints' gaps (default: 30)")
+    parser.add_argument("--load", type=int, default=2, help="busy processes beside the partitioned arm (default: 2)")
+    parser.add_argument("--until", type=float, default=160.0,
+                        help="s the conveyor runs once every node is live (default: 160, 20 cubes)")
     parser.add_argument("--role", choices=["echo", "ping"], help=argparse.SUPPRESS)
     parser.add_argument("--endpoint", help=argparse.SUPPRESS)
     parser.add_argument("--certificates", help=argparse.SUPPRESS)
@@ -161,6 +274,15 @@ def main() -> None:
     if args.role == "ping":
         return ping(args.endpoint, args.certificates, args.rounds, args.payload)
 
+    if args.only in (None, "links"):
+        links(args)
+    if args.only in (None, "partition"):
+        partition_figures(args.cuts, args.quiet, args.load)
+    if args.only in (None, "conveyor"):
+        conveyor_figures(args.until)
+
+
+def links(args: argparse.Namespace) -> None:
     from iotad.host import certificates
     print(f"zenoh echo round trips, {args.rounds} per case, {args.payload}-byte payload, {os.cpu_count()} cores; "
           f"load average {os.getloadavg()[0]:.1f}")

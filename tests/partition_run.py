@@ -28,9 +28,11 @@ NODE_IDS = range(1, 7)
 START, SEGMENT = 0.5, 3.0  # the trajectory's first leg starts START s after the first joint state
 
 
-def split_arm_system(name: str, hub: str, port: int, arm: str, extra: str = "") -> str:
-    """examples/arm_can.toml's arm, over two hosts: a long motion (three legs of SEGMENT s)."""
-    waypoints = "[[0.5, 0.1, -0.8, 0.4, 1.0, 0.5], [-0.3, -0.2, -1.1, -0.3, 1.4, -0.4], [0.5, 0.1, -0.8, 0.4, 1.0, 0.5]]"
+def split_arm_system(name: str, hub: str, port: int, arm: str, extra: str = "", legs: int = 3) -> str:
+    """examples/arm_can.toml's arm, over two hosts: a long motion (`legs` legs of SEGMENT s, to
+    and fro between two poses)."""
+    poses = ("[0.5, 0.1, -0.8, 0.4, 1.0, 0.5]", "[-0.3, -0.2, -1.1, -0.3, 1.4, -0.4]")
+    waypoints = "[" + ", ".join(poses[k % 2] for k in range(legs)) + "]"
     joints = "\n".join(f'[[node.params.joints]]\nname = "joint{k}"\nnode_id = {k}\nvelocity_limit = 3.14\n'
                        f'current_limit = 50.0\nout_of_range = "clamp"\n' for k in NODE_IDS)
     return f"""
@@ -225,10 +227,10 @@ class SplitArm(SplitRun):
     which still hears the arm's nodes while brain is cut off; the watcher prints the motor
     node's joint states and status reports."""
 
-    def __init__(self, net, folder: Path, port: int, extra: str = ""):
+    def __init__(self, net, folder: Path, port: int, extra: str = "", legs: int = 3):
         name = "armsplit"
         super().__init__(net, folder, port, name, split_arm_system(name, net.addresses[("brain", "arm")], port,
-                                                                   net.addresses["arm"], extra),
+                                                                   net.addresses["arm"], extra, legs),
                          watch=("motor/joint_states", "motor/joint_status/*"))
 
     @property
@@ -301,3 +303,14 @@ def read_partition(recording: Path, system: str, cut_ns: int, heal_ns: int) -> P
         rearmed={n for t, n, cmd, data in frames if t > heal_ns and cmd == SET_AXIS_STATE and data[0] == CLOSED_LOOP},
         commanded_after={n for t, n, cmd, data in frames if t > heal_ns and cmd == SET_INPUT_POS},
         link_events=events)
+
+
+def setpoint_gaps(recording: Path, system: str, since_ns: int = 0, until_ns: int = 1 << 62) -> list[float]:
+    """Seconds between consecutive setpoints the motor node took (its trace's input times), for the
+    trace bursts published between `since_ns` and `until_ns`: what its link watch sees."""
+    from iotad.recording.mcap_reader import read_recording
+
+    times = sorted(m.value["t"] for m in read_recording(recording).messages
+                   if m.topic == f"iota/{system}/motor/@trace" and since_ns <= m.publish_time <= until_ns
+                   and m.value.get("action") == "setpoints" and m.value.get("kind") == "input")
+    return [b - a for a, b in zip(times, times[1:])]

@@ -23,10 +23,10 @@ One IOTA drives one CAN bus of ODrive axes (firmware 0.6), one axis per joint of
   drives watch: a silent master is their fault reaction.
 - Link watch (`link_timeout` > 0): once setpoints have come, none for `link_timeout` means the
   link to their source (or the source) is lost: every armed or arming axis is commanded IDLE
-  (a CiA 402 drive a quick stop), keep-alives stop, and each joint reports LINK_LOST; the
-  axes are not armed again until setpoints come back (LINK_FOUND), then re-armed with
-  `auto_rearm`, else FAULT until `estop = false`. Off by default; the launcher turns it on for
-  a node whose setpoints come from another host (iotad/launcher/link_watch.py).
+  (a CiA 402 drive a quick stop), keep-alives stop, and each joint reports LINK_LOST; no axis
+  is armed again until setpoints come back (LINK_FOUND), when the axes the watch stopped
+  re-arm (an Estop meanwhile holds). Off by default; the launcher turns it on for a node whose
+  setpoints come from another host (iotad/launcher/link_watch.py).
 - A heartbeat missing for `lost_after` heartbeat periods: LOST. Frames it cannot use go to
   `bad_frame`. `estop = true` (and `final_can_frames`, the node host's shutdown hook) sends
   Estop to every axis; `estop = false` resets ESTOPPED and FAULT axes, which then re-arm.
@@ -69,6 +69,7 @@ class Axis:
         self.node_id = node_id
         self.phase = UNARMED
         self.retry = False            # the next arming is a retry: it waits arm_retry first
+        self.link_stopped = False     # the link watch disarmed it: it re-arms when setpoints return
         self.lost = False
         self.beat = False             # a heartbeat's report is waiting to go out (see `lost`)
         self.heard = False            # any heartbeat ever
@@ -552,18 +553,21 @@ class CanMotor(Iota):
                     self.tx.append(self.links[i].quick_stop(axis.command))
                 else:
                     self.tx.append(encode(axis.node_id, "Set_Axis_State", Axis_Requested_State=AXIS_STATE["IDLE"]))
-                axis.phase = FAULT
+                axis.phase, axis.link_stopped = FAULT, True
             self.reports[i].append(("LINK_LOST", 0.0, 0.0))
         if self.links:
             self.tx.append(co.sync())  # the quick stops are taken now, not at the next tick
 
     def _link_found(self) -> None:
-        """Setpoints again: the axes the link watch stopped arm again with `auto_rearm` (the first
-        command after arming is the setpoint of that moment), else they stay in FAULT until a reset."""
+        """Setpoints again: the axes the link watch stopped arm again (their arming holds them where
+        they are; the first command after it is the setpoint of that moment). Not by `auto_rearm`:
+        nothing went wrong with the axis, and the network healing is what the system waits for.
+        An axis in FAULT for its own reasons, or estopped meanwhile, stays so until a reset."""
         self.link_lost = False
         for i, axis in enumerate(self.axes):
-            if axis.phase == FAULT and self.auto_rearm and not self.estopped:
+            if axis.link_stopped and axis.phase == FAULT and not self.estopped:
                 axis.phase, axis.retry = UNARMED, False
+            axis.link_stopped = False
             self.reports[i].append(("LINK_FOUND", 0.0, 0.0))
 
     def _keep_alive(self) -> None:

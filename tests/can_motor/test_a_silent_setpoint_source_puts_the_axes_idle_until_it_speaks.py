@@ -2,8 +2,8 @@
 `link_timeout` (the network to their source is cut, or the source died) commands every armed axis
 IDLE at once, stops the keep-alive that would feed the firmware's watchdog, and reports LINK_LOST
 per joint; nothing re-arms while the source is silent. When setpoints come back (LINK_FOUND) the
-axes re-arm with `auto_rearm` and follow them; without it they stay in FAULT until a reset. Off
-(0), the default, a silent source leaves the arm held by the keep-alive as before."""
+axes the watch stopped re-arm and follow them; an axis in FAULT of its own, or estopped, stays so.
+Off (0), the default, a silent source leaves the arm held by the keep-alive as before."""
 import struct
 
 from motor_bench import (CLEAR_ERRORS, CLOSED_LOOP, IDLE, SET_AXIS_STATE, SET_INPUT_POS, Bench, encoder, heartbeat,
@@ -53,8 +53,8 @@ def test_silence_past_link_timeout_commands_idle_and_stops_the_keepalive():
     assert bench.violations() == []
 
 
-def test_setpoints_again_rearm_and_are_followed_with_auto_rearm():
-    bench = armed_with_setpoints(link_timeout=0.05, auto_rearm=True)
+def test_setpoints_again_rearm_the_axes_and_are_followed():
+    bench = armed_with_setpoints(link_timeout=0.05)
     bench.hear(0.2, heartbeat(1, state=IDLE), heartbeat(2, state=IDLE))  # the axes obeyed
     bench.post("setpoints", setpoints(2, [0.5, -0.5]), t=0.5)  # the network healed
     bench.hear(0.52, heartbeat(1), heartbeat(2))
@@ -69,16 +69,20 @@ def test_setpoints_again_rearm_and_are_followed_with_auto_rearm():
         [(0.53, 1, round(0.6 / 6.283185307179586, 6)), (0.53, 2, round(-0.6 / 6.283185307179586, 6))]
 
 
-def test_without_auto_rearm_the_axes_wait_in_fault_for_a_reset():
+def test_an_axis_faulted_before_the_cut_or_estopped_during_it_is_not_rearmed():
     bench = armed_with_setpoints(link_timeout=0.05)
-    for k in range(50, 96):  # the source speaks again from 0.5 on
-        bench.post("setpoints", setpoints(2), t=k / 100)
+    bench.hear(0.06, heartbeat(2, state=IDLE))  # axis 2 drops out on its own: FAULT (no auto_rearm)
+    bench.post("setpoints", setpoints(2), t=0.5)
     bench.run(0.8)
-    assert frames(bench, CLEAR_ERRORS, since=0.3) == []
-    assert {s["phase"] for s in bench.status(event="LINK_FOUND")} == {"FAULT"}
-    bench.post("estop", False, t=0.9)
-    bench.run(0.95)
-    assert [t for t, *_ in frames(bench, CLEAR_ERRORS, since=0.85)] == [0.9, 0.9]
+    assert [(s["t"], s["joint"]) for s in bench.status(event="DISARMED")] == [(0.06, 1)]
+    assert [t for t, node, _ in frames(bench, CLEAR_ERRORS, since=0.3)] == [0.5]  # axis 1's arming only
+    assert [s["phase"] for s in bench.status(joint=1, event="LINK_FOUND")] == ["FAULT"]
+    estopped = armed_with_setpoints(link_timeout=0.05)
+    estopped.post("estop", True, t=0.3)
+    estopped.post("setpoints", setpoints(2), t=0.5)
+    estopped.run(0.8)
+    assert frames(estopped, CLEAR_ERRORS, since=0.3) == []
+    assert {s["phase"] for s in estopped.status(event="LINK_FOUND")} == {"ESTOPPED"}
 
 
 def test_off_by_default_and_never_before_the_first_setpoint():
