@@ -3,7 +3,7 @@ source) on `brain` with the hub, the simulated ODrives, the CAN motor node and t
 `SplitArm` starts it as a person would (an agent on arm, one `iotad run` on brain), records on
 the arm host (an `iotad record` peer there, which still hears the arm's nodes while brain is cut
 off), watches the motor node's outputs from brain, and cuts and heals the link between them.
-`safe_times` reads, from the arm's own recording, how long after a cut each axis was told IDLE.
+`read_partition` reads, from the arm's own recording, how long after a cut each axis was told IDLE.
 Shared by tests/hosts/ and bench/hosts.py."""
 from __future__ import annotations
 
@@ -154,6 +154,7 @@ class SplitRun:
         path = self.folder / f"{self.name}.toml"
         path.write_text(self.text)
         iotad = (sys.executable, "-m", "iotad")
+        self._switch("up")  # the switch ready before it is needed
         self._spawn("agent", "arm", *iotad, "agent", "--name", "arm", "--connect", self.endpoint)
         self.before_run()
         self._spawn("run", "brain", *iotad, "run", str(path), "--plain", "--until", "120", *self.run_args)
@@ -188,14 +189,26 @@ class SplitRun:
                 return key, value
 
     def cut(self) -> int:
-        """The link between brain and arm down; the wall-clock ns just before it went."""
-        now = time.time_ns()
-        self.net.cut("brain", "arm")
-        return now
+        """The link between brain and arm down (brain's end); the wall-clock ns just before."""
+        return self._switch("down")
 
     def heal(self) -> int:
-        self.net.heal("brain", "arm")
-        return time.time_ns()
+        """The link up again; the wall-clock ns just before (it was down until then)."""
+        return self._switch("up")
+
+    def _switch(self, state: str) -> int:
+        # one `ip -batch` process, started before, takes each line as it comes: the link changes
+        # within a fraction of a millisecond of the time taken, not after a process start (tens
+        # of ms on a loaded machine), which would count against the motors' time to safe
+        name, namespace = self.net.links[("brain", "arm")]
+        if "switch" not in self.procs:
+            self.procs["switch"] = subprocess.Popen(["ip", "-n", namespace, "-batch", "-"], stdin=subprocess.PIPE,
+                                                    stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        switch = self.procs["switch"]
+        now = time.time_ns()
+        switch.stdin.write(f"link set {name} {state}\n")
+        switch.stdin.flush()
+        return now
 
     def output(self) -> str:
         path = self.folder / "run.out"
@@ -204,11 +217,11 @@ class SplitRun:
     def stop(self) -> None:
         """Every process stopped, the run first (it stops the arm's part through its agent), the
         recorder last; SIGKILL to a group that outlives its patience."""
-        for role in ("run", "watcher", "agent", "recorder"):
+        for role in ("run", "watcher", "agent", "recorder", "switch"):
             proc = self.procs.get(role)
             if proc is None or proc.poll() is not None:
                 continue
-            if role == "watcher":
+            if role in ("watcher", "switch"):
                 proc.stdin.close()
             else:
                 proc.send_signal(signal.SIGINT)
@@ -260,9 +273,10 @@ class SplitArm(SplitRun):
 
 @dataclass
 class Partition:
-    """What the arm host's recording says of one cut: per axis, seconds from the cut to its
-    Set_Axis_State IDLE frame on the bus (None: none came before the heal), and what the bus
-    carried between that and the heal."""
+    """What the arm host's recording says of one cut: per axis, seconds from the cut to the
+    Set_Axis_State IDLE frame the motor node sent it (None: none before the heal), and what
+    crossed the bus between the last of those and the heal. Frame times are their senders' own
+    (the wall clock a node host stamps each `can_tx` with as it sends it on the bus)."""
 
     safe: dict[int, float | None]
     commands_while_cut: int        # Set_Input_Pos or closed-loop requests after the last IDLE, before the heal
@@ -277,19 +291,20 @@ def read_partition(recording: Path, system: str, cut_ns: int, heal_ns: int) -> P
     from iotad.recording.mcap_reader import read_recording
 
     frames, events = [], {"LINK_LOST": 0, "LINK_FOUND": 0}
+    senders = (f"iota/{system}/motor/can_tx", f"iota/{system}/odrives/can_tx")
     for message in read_recording(recording).messages:
-        if message.topic == f"iota/{system}/arm_bus/frames":
+        if message.topic in senders:
             value = message.value
             frames.append((message.publish_time, value["id"] >> 5, value["id"] & 0x1F, bytes(value["data"])))
         elif message.topic.startswith(f"iota/{system}/motor/joint_status/"):
             event = message.value["event"]
-            if event in events:
+            if event in events and cut_ns <= message.publish_time:
                 events[event] += 1
     frames.sort()
     safe: dict[int, float | None] = {}
     for node in NODE_IDS:
-        idle = [t for t, n, cmd, data in frames if n == node and cmd == SET_AXIS_STATE and t >= cut_ns
-                and t < heal_ns and data[0] == IDLE]
+        idle = [t for t, n, cmd, data in frames if n == node and cmd == SET_AXIS_STATE and cut_ns <= t < heal_ns
+                and data[0] == IDLE]
         safe[node] = (idle[0] - cut_ns) / 1e9 if idle else None
     last_idle = cut_ns + int(max([s for s in safe.values() if s is not None], default=0.0) * 1e9)
     while_cut = [(n, cmd, data) for t, n, cmd, data in frames if last_idle < t < heal_ns]
