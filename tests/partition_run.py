@@ -274,7 +274,8 @@ class SplitArm(SplitRun):
 @dataclass
 class Partition:
     """What the arm host's recording says of one cut: per axis, seconds from the cut to the
-    Set_Axis_State IDLE frame the motor node sent it (None: none before the heal), and what
+    Set_Axis_State IDLE frame the motor node sent it (0: it was IDLE at the cut; None: none
+    before the heal), and what
     crossed the bus between the last of those and the heal. Frame times are their senders' own
     (the wall clock a node host stamps each `can_tx` with as it sends it on the bus)."""
 
@@ -305,7 +306,11 @@ def read_partition(recording: Path, system: str, cut_ns: int, heal_ns: int) -> P
     for node in NODE_IDS:
         idle = [t for t, n, cmd, data in frames if n == node and cmd == SET_AXIS_STATE and cut_ns <= t < heal_ns
                 and data[0] == IDLE]
-        safe[node] = (idle[0] - cut_ns) / 1e9 if idle else None
+        states = [data[0] for t, n, cmd, data in frames if n == node and cmd == SET_AXIS_STATE and t < cut_ns]
+        if states and states[-1] == IDLE:
+            safe[node] = 0.0  # told IDLE before the cut (a trip of the link watch) and not armed since
+        else:
+            safe[node] = (idle[0] - cut_ns) / 1e9 if idle else None
     last_idle = cut_ns + int(max([s for s in safe.values() if s is not None], default=0.0) * 1e9)
     while_cut = [(n, cmd, data) for t, n, cmd, data in frames if last_idle < t < heal_ns]
     settled = last_idle + 150_000_000  # a heartbeat period (0.1 s) and some for it to be sent
