@@ -23,6 +23,7 @@ import sys
 import tempfile
 import threading
 import time
+from contextlib import nullcontext
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -204,20 +205,23 @@ def partition_figures(cuts: int, quiet: float, load: int) -> None:
               f"re-armed after every heal: {all(len(p.rearmed) == 6 for p in partitions)}")
 
 
-def conveyor_figures(until: float) -> None:
+def conveyor_figures(until: float, keep: str | None) -> None:
     """examples/conveyor.toml over two hosts in real time: sim, motor and their bus on arm, the rest
-    (scheduler, interpreter, planning, vision, manipulation) and the hub on brain."""
+    (scheduler, interpreter, planning, vision, manipulation) and the hub on brain. `keep`: a folder
+    that keeps the system file, the recording and the run's output."""
     sys.path.insert(0, str(ROOT / "tests"))
     from namespaces import hosts
     from partition_run import SplitRun, multicast_on_loopback
 
     text = (ROOT / "examples" / "conveyor.toml").read_text()
-    with tempfile.TemporaryDirectory(prefix="iotad-bench-conveyor-") as folder, hosts("brain", "arm", net=210) as net:
+    place = tempfile.TemporaryDirectory(prefix="iotad-bench-conveyor-") if keep is None else nullcontext(keep)
+    with place as folder, hosts("brain", "arm", net=210) as net:
+        Path(folder).mkdir(parents=True, exist_ok=True)
         hub, port = net.addresses[("brain", "arm")], 7620
         split = split_conveyor(text, hub, port, net.addresses["arm"])
         recording = Path(folder) / "conveyor.mcap"
         run = SplitRun(net, Path(folder), port, "conveyor", split, watch=(),
-                       run_args=("--after-live", "-o", str(recording)))
+                       run_args=("--until", f"{until:g}", "--after-live", "-o", str(recording)))
         multicast_on_loopback(net.names["arm"])
         started = time.monotonic()
         try:
@@ -265,6 +269,7 @@ def main() -> None:
     parser.add_argument("--load", type=int, default=2, help="busy processes beside the partitioned arm (default: 2)")
     parser.add_argument("--until", type=float, default=160.0,
                         help="s the conveyor runs once every node is live (default: 160, 20 cubes)")
+    parser.add_argument("--keep", metavar="DIR", help="keep the conveyor's system file, recording and output in DIR")
     parser.add_argument("--role", choices=["echo", "ping"], help=argparse.SUPPRESS)
     parser.add_argument("--endpoint", help=argparse.SUPPRESS)
     parser.add_argument("--certificates", help=argparse.SUPPRESS)
@@ -279,7 +284,7 @@ def main() -> None:
     if args.only in (None, "partition"):
         partition_figures(args.cuts, args.quiet, args.load)
     if args.only in (None, "conveyor"):
-        conveyor_figures(args.until)
+        conveyor_figures(args.until, args.keep)
 
 
 def links(args: argparse.Namespace) -> None:

@@ -28,6 +28,23 @@ NODE_IDS = range(1, 7)
 START, SEGMENT = 0.5, 3.0  # the trajectory's first leg starts START s after the first joint state
 
 
+def split_header(name: str, hub: str, port: int, arm: str, settings: str = "") -> str:
+    """The [system] and [hosts] tables of a system over brain (the hub at `hub`:`port`) and arm
+    (at `arm`), plain TCP; `settings` are more lines of [system]."""
+    return f"""
+[system]
+name = "{name}"
+hub_host = "brain"
+{settings}
+[system.endpoints]
+listen = ["tcp/{hub}:{port}"]
+[hosts.brain]
+listen = ["tcp/{hub}:0"]
+[hosts.arm]
+listen = ["tcp/{arm}:0"]
+"""
+
+
 def split_arm_system(name: str, hub: str, port: int, arm: str, extra: str = "", legs: int = 3) -> str:
     """examples/arm_can.toml's arm, over two hosts: a long motion (`legs` legs of SEGMENT s, to
     and fro between two poses)."""
@@ -35,23 +52,8 @@ def split_arm_system(name: str, hub: str, port: int, arm: str, extra: str = "", 
     waypoints = "[" + ", ".join(poses[k % 2] for k in range(legs)) + "]"
     joints = "\n".join(f'[[node.params.joints]]\nname = "joint{k}"\nnode_id = {k}\nvelocity_limit = 3.14\n'
                        f'current_limit = 50.0\nout_of_range = "clamp"\n' for k in NODE_IDS)
-    return f"""
-[system]
-name = "{name}"
-time_unit = 1.0
-hub_host = "brain"
-start_timeout = 60.0
-heartbeat_timeout = 10.0
-external = ["motor.estop"]
-{extra}
-[system.endpoints]
-listen = ["tcp/{hub}:{port}"]
-
-[hosts.brain]
-listen = ["tcp/{hub}:0"]
-[hosts.arm]
-listen = ["tcp/{arm}:0"]
-
+    settings = f'start_timeout = 60.0\nheartbeat_timeout = 10.0\nexternal = ["motor.estop"]\n{extra}'
+    return split_header(name, hub, port, arm, settings) + f"""
 [[node]]
 name = "odrives"
 host = "arm"
@@ -157,9 +159,11 @@ class SplitRun:
         self._switch("up")  # the switch ready before it is needed
         self._spawn("agent", "arm", *iotad, "agent", "--name", "arm", "--connect", self.endpoint)
         self.before_run()
-        self._spawn("run", "brain", *iotad, "run", str(path), "--plain", "--until", "120", *self.run_args)
-        self._spawn("watcher", "brain", sys.executable, "-c", WATCHER, self.endpoint, self.name, *self.watch)
-        threading.Thread(target=self._read, daemon=True).start()
+        until = () if "--until" in self.run_args else ("--until", "120")  # a cap: a test stops it sooner
+        self._spawn("run", "brain", *iotad, "run", str(path), "--plain", *until, *self.run_args)
+        if self.watch:
+            self._spawn("watcher", "brain", sys.executable, "-c", WATCHER, self.endpoint, self.name, *self.watch)
+            threading.Thread(target=self._read, daemon=True).start()
 
     def before_run(self) -> None:
         """What starts after the agent and before the run (nothing here)."""

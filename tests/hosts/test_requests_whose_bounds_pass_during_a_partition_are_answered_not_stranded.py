@@ -8,7 +8,7 @@ no request is stranded."""
 import time
 
 from namespaces import hosts
-from partition_run import SplitRun
+from partition_run import SplitRun, split_header
 from iotad.recording.mcap_reader import read_recording
 
 HOLD = 3.0  # s the link stays down: past lo's timeout and hi's epoch
@@ -32,17 +32,7 @@ to = "scheduler.req[{k}]"
 from = "scheduler.ack[{k}]"
 to = "{name}.ack"
 """ for k, (name, params) in enumerate(PARAMS.items()))
-    return f"""
-[system]
-name = "cutsched"
-hub_host = "brain"
-[system.endpoints]
-listen = ["tcp/{hub}:{port}"]
-[hosts.brain]
-listen = ["tcp/{hub}:0"]
-[hosts.arm]
-listen = ["tcp/{arm}:0"]
-
+    return split_header("cutsched", hub, port, arm) + f"""
 [[node]]
 name = "scheduler"
 host = "brain"
