@@ -32,6 +32,7 @@ class Fleet:
         self.session = None
         self.exits: dict[str, int] = {}
         self.lost: list[str] = []
+        self.returned: set[str] = set()  # hosts lost for a while and back (a partition that healed)
         self._asked_to_stop: set[str] = set()  # a host that exits after this was stopped, not failed
         self._present: set[str] = set()
         self._started: set[str] = set()
@@ -100,6 +101,11 @@ class Fleet:
         with self._changed:
             if sample.kind == zenoh.SampleKind.PUT:
                 self._present.add(host)
+                if host in self.lost and host not in self.exits:
+                    # a partition longer than zenoh's lease healed: its part ran on meanwhile
+                    self.lost.remove(host)
+                    self.returned.add(host)
+                    self.say(f"host {host} back: its agent answers again (its nodes ran on while it was away)")
             else:
                 self._present.discard(host)
                 if host in self._started and host not in self.exits and host not in self._asked_to_stop:
@@ -153,7 +159,8 @@ class Fleet:
             return "LOST (its agent disappeared)"
         if code is None:
             return "no exit status (its agent did not answer)"
-        return f"exit {code}" + (" (stopped by this run)" if host in self._asked_to_stop else "")
+        return f"exit {code}" + (" (stopped by this run)" if host in self._asked_to_stop else "") \
+            + ("; it was LOST for a while and came back" if host in self.returned else "")
 
     def close(self) -> None:
         for item in self._declared:
