@@ -207,38 +207,57 @@ def partition_figures(cuts: int, quiet: float, load: int) -> None:
 
 def conveyor_figures(until: float, keep: str | None) -> None:
     """examples/conveyor.toml over two hosts in real time: sim, motor and their bus on arm, the rest
-    (scheduler, interpreter, planning, vision, manipulation) and the hub on brain. `keep`: a folder
-    that keeps the system file, the recording and the run's output."""
+    (scheduler, interpreter, planning, vision, manipulation) and the hub on brain; against the same
+    file on one host (one namespace), run just before it. `keep`: a folder that keeps each run's
+    system file, recording and output."""
     sys.path.insert(0, str(ROOT / "tests"))
     from namespaces import hosts
-    from partition_run import SplitRun, multicast_on_loopback
 
     text = (ROOT / "examples" / "conveyor.toml").read_text()
-    place = tempfile.TemporaryDirectory(prefix="iotad-bench-conveyor-") if keep is None else nullcontext(keep)
-    with place as folder, hosts("brain", "arm", net=210) as net:
-        Path(folder).mkdir(parents=True, exist_ok=True)
+    for split in (False, True):
+        place = tempfile.TemporaryDirectory(prefix="iotad-bench-conveyor-") if keep is None \
+            else nullcontext(str(Path(keep) / ("split" if split else "one")))
+        with place as folder, (hosts("brain", "arm", net=210) if split else hosts("one", net=212)) as net:
+            Path(folder).mkdir(parents=True, exist_ok=True)
+            placed, took, violations = conveyor_run(net, Path(folder), text, split, until)
+        where = "two hosts (sim, motor, bus on arm)" if split else "one host                          "
+        print(f"conveyor arm on {where}, real time, {until:g} s after every node was live ({took:.0f} s in all): "
+              f"placed {placed['placed']}/{placed['spawned']} ({placed['missed']} missed, {placed['dropped']} "
+              f"dropped); {violations}")
+
+
+def conveyor_run(net, folder: Path, text: str, split: bool, until: float) -> tuple[dict, float, str]:
+    """One real-time run of the conveyor in `net`: (its metrics, seconds in all, its violations line)."""
+    from partition_run import SplitRun, multicast_on_loopback
+    sys.path.insert(0, str(ROOT / "examples"))
+    from conveyor.conveyor_metrics import conveyor_metrics
+    from iotad.recording.mcap_reader import read_recording
+
+    recording = folder / "conveyor.mcap"
+    args = ("--until", f"{until:g}", "--after-live", "--plain", "-o", str(recording))
+    started = time.monotonic()
+    if split:
         hub, port = net.addresses[("brain", "arm")], 7620
-        split = split_conveyor(text, hub, port, net.addresses["arm"])
-        recording = Path(folder) / "conveyor.mcap"
-        run = SplitRun(net, Path(folder), port, "conveyor", split, watch=(),
-                       run_args=("--until", f"{until:g}", "--after-live", "-o", str(recording)))
+        run = SplitRun(net, folder, port, "conveyor", split_conveyor(text, hub, port, net.addresses["arm"]),
+                       run_args=args)
         multicast_on_loopback(net.names["arm"])
-        started = time.monotonic()
         try:
             run.start()
             run.procs["run"].wait(until + 300)
         finally:
             run.stop()
-        took = time.monotonic() - started
-        sys.path.insert(0, str(ROOT / "examples"))
-        from conveyor.conveyor_metrics import conveyor_metrics
-        from iotad.recording.mcap_reader import read_recording
-        metrics = conveyor_metrics(read_recording(recording))
         output = run.output()
+    else:
+        multicast_on_loopback(net.names["one"])
+        path = folder / "conveyor.toml"
+        path.write_text(text.replace('"conveyor/', f'"{ROOT}/examples/conveyor/'))
+        done = subprocess.run(net.exec("one", sys.executable, "-m", "iotad", "run", str(path), *args),
+                              capture_output=True, text=True, timeout=until + 300, cwd=ROOT)
+        output = done.stdout + done.stderr
+        (folder / "run.out").write_text(output)
+    took = time.monotonic() - started
     violations = next((line.strip() for line in output.splitlines() if "violations:" in line and "[arm]" not in line), "")
-    print(f"conveyor arm over two hosts (sim, motor, bus on arm), real time, {until:g} s after every node was live "
-          f"({took:.0f} s in all): placed {metrics['placed']}/{metrics['spawned']}, missed {metrics['missed']}, "
-          f"dropped {metrics['dropped']}; {violations}")
+    return conveyor_metrics(read_recording(recording)), took, violations
 
 
 def split_conveyor(text: str, hub: str, port: int, arm: str) -> str:

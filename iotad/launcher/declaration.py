@@ -279,7 +279,7 @@ class _Parser:
                     system[key] = float(value)
                 else:
                     self.error(entry, f"{key} must be a positive number of seconds, got {value!r}")
-        self.take(raw, "link_timeout", system, entry, lambda v: v == 0 or _positive(v), "seconds >= 0 (0: off)")
+        self.take(raw, "link_timeout", system, entry, lambda v: not isinstance(v, bool) and (v == 0 or _positive(v)), "seconds >= 0 (0: off)")
         self.take(raw, "start_gate", system, entry, _flag, "true or false")
         self.take(raw, "input_queue", system, entry, _queue_size, "a whole number of inputs >= 1")
         period = system.get("heartbeat_period", Declaration.heartbeat_period)
