@@ -37,6 +37,8 @@ def test_a_partition_mid_motion_puts_the_motors_safe_and_the_system_resumes(tmp_
         (partition.safe, output[-2000:])
     assert partition.commands_while_cut == 0, partition
     assert partition.idle_heartbeats >= 6 and partition.armed_heartbeats == 0, partition
-    assert partition.link_events == {"LINK_LOST": 6, "LINK_FOUND": 6}, partition
+    # a trip per joint for the cut and a recovery after the heal (on a loaded machine a late
+    # setpoint after the heal may trip it again: the watch's price, docs/hosts.md)
+    assert partition.link_events["LINK_LOST"] >= 6 and partition.link_events["LINK_FOUND"] >= 6, partition
     assert partition.rearmed == set(NODE_IDS) and partition.commanded_after == set(NODE_IDS), partition
     print("from the cut to IDLE, per axis (s):", {n: round(s, 3) for n, s in partition.safe.items()})
