@@ -158,8 +158,9 @@ def test_a_host_whose_clock_is_50_ms_ahead_is_measured_and_corrected(tmp_path):
         recording = read_recording(tmp_path / "skew.mcap")
         measured = [m.value for m in recording.messages if m.topic.endswith("/@launcher")
                     and isinstance(m.value, dict) and m.value.get("event") in ("clock", "clock_violation")]
-        assert len(measured) == 1 and measured[0]["host"] == "arm", measured
-        assert abs(measured[0]["offset"] - (-0.05)) <= measured[0]["bound"] + 1e-6, measured
+        # at start, and again every clock_period (10 s) if the run lasts that long
+        assert measured and all(m["host"] == "arm" for m in measured), measured
+        assert all(abs(m["offset"] - (-0.05)) <= m["bound"] + 1e-6 for m in measured), measured
         report = check_delivery(recording, tolerance=0.01)
         links = {link.label: link for link in report.links}
         for label in ("vision.req -> scheduler.req[0]", "scheduler.ack[0] -> vision.ack"):
