@@ -5,6 +5,8 @@ within the bound it reports; the recording holds every measurement, its nodes' c
 them (messages between the hosts are never received more than a period's drift before they were
 sent, where an uncorrected clock would be tens of ms off by the end), and `iotad check` widens
 the arm's windows by its bound and says so."""
+import contextlib
+import io
 import re
 import subprocess
 import sys
@@ -13,6 +15,7 @@ import time
 from launcher_helpers import ROOT
 from namespaces import hosts, split_figure2
 from recorded_systems import check_of_a_real_run
+from iotad.cli import main
 from iotad.kernel.clock import CLOCK_DRIFT_ENV, CLOCK_DRIFT_FROM_ENV, CLOCK_SKEW_ENV
 from iotad.launcher.processes import interrupt_then_kill
 from iotad.recording.mcap_reader import read_recording
@@ -58,6 +61,11 @@ def test_a_host_clock_50_ms_ahead_and_drifting_is_measured_and_corrected_all_run
     readings = recording.clock_offsets()["arm"]
     assert [(r.offset, r.bound) for r in readings] == [(e["offset"], e["bound"]) for e in sorted(events, key=lambda e: e["t"])]
     assert readings[-1].offset - readings[0].offset > 0.02  # it lost tens of ms over the run, and was followed
+    report = io.StringIO()
+    with contextlib.redirect_stdout(report):
+        assert main(["info", str(tmp_path / "drift.mcap")]) == 0
+    assert re.search(rf"    host arm: {len(readings)} measurement\(s\), offset -\d+\.\d+ to \+\d+\.\d+ ms, "
+                     r"bound \d\.\d+ to \d\.\d+ ms, 0 clock violation\(s\)", report.getvalue()), report.getvalue()
 
     from iotad.recording.delivery import check_delivery
     links = {link.label: link for link in check_delivery(recording, tolerance=0.01).links}
