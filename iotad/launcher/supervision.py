@@ -300,12 +300,8 @@ class Launcher:
                 self._origin_publisher.put(wire.encode({"origin": self.origin}))
             except Exception:  # noqa: BLE001 - a closing session: the run is ending anyway
                 pass
-        event = "clock_violation" if reading.problem else "clock"
-        if reading.first or reading.problem:
-            self._launcher_event(event, reading.message(), **reading.event())
-        else:
-            self._publish({"event": event, "node": None, "pid": os.getpid(), "code": None,
-                           "t_ns": time.time_ns(), "message": reading.message(), **reading.event()})
+        self._launcher_event("clock_violation" if reading.problem else "clock", reading.message(),
+                             quiet=not (reading.first or reading.problem), **reading.event())
 
     def _start_recorder(self) -> None:
         """Start the recorder and wait until it has subscribed, before any node starts. A
@@ -593,9 +589,12 @@ class Launcher:
         self._publish({"event": event, "node": run.name, "pid": run.child.pid, "code": code,
                        "t_ns": time.time_ns(), "restarts": run.restarts})
 
-    def _launcher_event(self, event: str, text: str, code: int | None = None, **extra: Any) -> None:
-        """An event of the launcher itself (node None): the recorder's fate..."""
-        self.view.line(text)
+    def _launcher_event(self, event: str, text: str, code: int | None = None, quiet: bool = False,
+                        **extra: Any) -> None:
+        """An event of the launcher itself (node None): the recorder's fate... `quiet`: recorded,
+        not shown."""
+        if not quiet:
+            self.view.line(text)
         self._publish({"event": event, "node": None, "pid": os.getpid(), "code": code,
                        "t_ns": time.time_ns(), "message": text.split("\n", 1)[0], **extra})
 
