@@ -10,7 +10,10 @@ import pytest
 from iotad.host import transport
 from iotad.host.clock_offset import ClockOffset, ClockServer
 from iotad.launcher.clock_watch import ClockReading, ClockWatch, judge
+from iotad.launcher.access_policy import derive
 from iotad.launcher.declaration import parse_declaration as parse_text
+from iotad.launcher.system_file import load_system
+from namespaces import split_figure2
 
 LIMIT = 1e-3
 
@@ -87,3 +90,12 @@ def test_a_skew_that_changes_during_the_run_is_measured_again_and_followed():
         finally:
             watch.close()
         assert watch._thread is None
+
+
+def test_a_node_off_the_hubs_host_may_hear_its_launchers_corrections_and_only_those(tmp_path):
+    path = tmp_path / "split.toml"
+    path.write_text(split_figure2("split", "127.0.0.1", 7447, "brain", "arm", "127.0.0.1"))
+    policy = derive(load_system(path))
+    assert "iota/split/@origin/arm" in policy.grant("node-vision").subscribe  # on arm
+    assert not any("@origin" in key for key in policy.grant("node-scheduler").subscribe)  # the hub's host
+    assert "iota/*/@origin/*" in str(policy.acl())  # a publisher learns of the nodes' subscribers
