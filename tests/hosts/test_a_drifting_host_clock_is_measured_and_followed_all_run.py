@@ -53,10 +53,12 @@ def test_a_host_clock_50_ms_ahead_and_drifting_is_measured_and_corrected_all_run
     events = [e for e in recording.launcher_events() if e.get("event") in ("clock", "clock_violation")]
     assert all(e["event"] == "clock" and e["host"] == "arm" for e in events), events
     assert len(events) >= 5, events  # at start and every half second of a 10 s run
+    hub_origin = recording.specs["scheduler"]["origin"]  # on the hub's clock, which is the machine's
     for event in events:
-        # the launcher's own t_ns is the machine's true time (the drills move only iotad's clocks)
-        true = -(SKEW + DRIFT * (event["t_ns"] / 1e9 - drift_from))
-        assert abs(event["offset"] - true) <= event["bound"] + 2e-4, (event, true)
+        # measured at t on the hub's timeline, when the arm's clock was this far off; it drifts by
+        # up to 0.75 ms while 16 round trips take up to 150 ms on a loaded machine
+        true = -(SKEW + DRIFT * (hub_origin + event["t"] - drift_from))
+        assert abs(event["offset"] - true) <= event["bound"] + abs(DRIFT) * 0.15, (event, true)
     # the recording's reader gives the same, per host, in time order
     readings = recording.clock_offsets()["arm"]
     assert [(r.offset, r.bound) for r in readings] == [(e["offset"], e["bound"]) for e in sorted(events, key=lambda e: e["t"])]
