@@ -217,6 +217,12 @@ def _value_of(instance: ActionInstance) -> Any:
     return to_plain(value) if kind is None else kind.to_plain(value)
 
 
+def tolerance_at(tolerance: float, widen: Callable[[float], float] | None, t: float) -> float:
+    """The tolerance of a time judgement at t: the check's, plus the bound of the node's host
+    clock then (`widen`, iotad/recording/clock_offsets.py; None: a clock not measured, exact)."""
+    return tolerance if widen is None else tolerance + widen(t)
+
+
 def _earliest(instance: ActionInstance) -> float:
     slot = instance.slot
     return max(instance.lower, plus(slot.last, slot.switching))
@@ -281,8 +287,7 @@ class TraceChecker:
 
     # -- steps
     def _slack(self, t: float) -> float:
-        """The tolerance of a time judgement at t: the check's, plus the host clock's bound then."""
-        return self.tolerance if self._widen is None else self.tolerance + self._widen(t)
+        return tolerance_at(self.tolerance, self._widen, t)
 
     def _find(self, t: float, code: str, message: str, position: int, due: float | None = None) -> None:
         self.report.findings.append(Finding(t, code, message, position, due))
@@ -474,27 +479,30 @@ class ImplementsReport:
     explored: int = 0
     exhausted: bool = False            # the search budget ran out: the answer is not final
     first_unexplained: dict | None = None
+    widened: str = ""                  # how its times were widened beyond the tolerance ("": not)
 
     def lines(self) -> list[str]:
+        said = [f"  {self.widened}"] if self.widened else []
         if self.ok:
             return [f"{self.node} implements {self.spec} on this trace: {self.events} external events "
-                    f"explained ({self.explored} search steps)"]
+                    f"explained ({self.explored} search steps)"] + said
         where = describe(self.first_unexplained) if self.first_unexplained else "the end of the trace"
         head = (f"{self.node} does not implement {self.spec} on this trace: the spec cannot explain "
                 f"event #{self.explained} ({where})")
         if self.exhausted:
             head = f"inconclusive: search budget ({self.explored} steps) ran out before event #{self.explained} " \
                    f"({where}) was explained"
-        return [head] + [f"  {reason}" for reason in self.reasons[:8]]
+        return [head] + said + [f"  {reason}" for reason in self.reasons[:8]]
 
 
 class ImplementsChecker:
     """Bounded search for a behaviour of `spec_root` whose external trace is `events`."""
 
     def __init__(self, spec_root: Any, tolerance: float = 0.0, budget: int = 20_000, max_hidden: int = 64,
-                 start: float = 0.0):
+                 start: float = 0.0, widen: Callable[[float], float] | None = None):
         self.root = spec_root
         self.tolerance, self.budget, self.max_hidden = tolerance, budget, max_hidden
+        self._widen = widen  # as TraceChecker's
         engine, _ = _new_engine(spec_root, start)
         self.flat = engine.flat
         self.outputs = {}  # root channel name -> leaf endpoint
@@ -558,7 +566,8 @@ class ImplementsChecker:
                     if not instance.enabled or not self.hidden(instance):
                         continue
                     earliest = max(_earliest(instance), engine.now())
-                    if earliest > t + self.tolerance or earliest > instance.upper + self.tolerance:
+                    slack = tolerance_at(self.tolerance, self._widen, t)
+                    if earliest > t + slack or earliest > instance.upper + slack:
                         continue
                     latest = min(instance.upper, t)
                     for when, bucket in ((earliest, children), (latest, late_children)):
@@ -583,7 +592,7 @@ class ImplementsChecker:
     # -- moves
     def _expired(self, engine: Engine, t: float) -> str | None:
         for instance in engine.instances:
-            if instance.enabled and instance.upper + self.tolerance < t:
+            if instance.enabled and instance.upper + tolerance_at(self.tolerance, self._widen, t) < t:
                 return (f"{label_of(instance)} (enabled at t={instance.te:.6g}) had to fire by "
                         f"t={instance.upper:.6g}, and nothing observed lets it")
         return None
@@ -620,7 +629,7 @@ class ImplementsChecker:
                 return []
             endpoint = self.inputs[name]
             slot = child.slots.get((endpoint.path, endpoint.channel, index if endpoint.index is None else endpoint.index))
-            if slot is not None and t < plus(slot.last, slot.switching) - self.tolerance:
+            if slot is not None and t < plus(slot.last, slot.switching) - tolerance_at(self.tolerance, self._widen, t):
                 why.append(f"{describe(event)} is sooner than the spec's switching time {slot.switching:g} "
                            f"after t={slot.last:.6g}")
                 return []
@@ -644,7 +653,8 @@ class ImplementsChecker:
                     continue
             except Exception:  # noqa: BLE001
                 continue
-            if not (_earliest(instance) - self.tolerance <= t <= instance.upper + self.tolerance):
+            slack = tolerance_at(self.tolerance, self._widen, t)
+            if not (_earliest(instance) - slack <= t <= instance.upper + slack):
                 why.append(f"{describe(event)}: {label_of(instance)} may fire only in "
                            f"[{_earliest(instance):.6g}, {instance.upper:.6g}]")
                 continue
@@ -666,6 +676,10 @@ class ImplementsChecker:
 
 def check_implements(spec_root: Any, events: list[dict], *, node: str = "", spec_name: str = "",
                      tolerance: float = 0.0, budget: int = 20_000, until: float | None = None,
-                     start: float = 0.0) -> ImplementsReport:
+                     start: float = 0.0, widen: Callable[[float], float] | None = None,
+                     widened: str = "") -> ImplementsReport:
+    """`widen`, `widened`: as `check_runs`'s."""
     events, start = split_start(events, start)
-    return ImplementsChecker(spec_root, tolerance, budget, start=start).check(events, node, spec_name, until)
+    report = ImplementsChecker(spec_root, tolerance, budget, start=start, widen=widen).check(events, node, spec_name, until)
+    report.widened = widened
+    return report

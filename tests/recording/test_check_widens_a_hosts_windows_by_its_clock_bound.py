@@ -104,3 +104,15 @@ def test_the_offsets_over_time_are_read_per_host_in_time_order(recorded, tmp_pat
     assert Widening("arm", [ClockOffsetAt(0.0, 0.0, 0.0006)], time_unit=0.001)(3.0) == pytest.approx(0.6)
     with pytest.raises(ValueError, match="no clock measurement"):
         Widening("arm", [])
+
+
+def test_implements_is_widened_by_the_bound_too(recorded, tmp_path, capsys):
+    spec = f"{__import__('scheduler').__file__}:Scheduler"
+    args = ["--node", "scheduler", "--spec", spec, "--param", "N=2", "--param", "T=0.5"]
+    inside = mutate(recorded, tmp_path / "in.mcap", "scheduler", late_commit(0.0003), on_hosts((0.0, 0.0004)))
+    code, out = check(inside, capsys, *args)
+    assert code == 0 and "scheduler implements" in out, out
+    assert "  windows of host arm widened by 0.4 ms (clock bound" in out
+    beyond = mutate(recorded, tmp_path / "out.mcap", "scheduler", late_commit(0.0003), on_hosts((0.0, 0.0002)))
+    code, out = check(beyond, capsys, *args)
+    assert code == 1 and "does not implement" in out and "widened by 0.2 ms" in out, out
