@@ -256,6 +256,7 @@ class Launcher:
         node's `t` counts from one instant; if the hub does not answer, its own (with a warning)."""
         deadline = time.monotonic() + self.system.start_timeout
         key = wire.origin_key(self.system.name)
+        self.view.line(f"waiting up to {self.system.start_timeout:g} s for the hub launcher's clock origin on {key}")
         while time.monotonic() < deadline and not self._stop_asked.is_set():
             for reply in self.session.get(key, timeout=1.0):
                 if reply.ok is not None:
