@@ -94,11 +94,24 @@ class Agent:
 
     # ------------------------------------------------------------- serving
     def serve(self) -> int:
+        self.say(f"agent {self.name}: waiting for the hub at {', '.join(self.connect)}")
+        try:
+            while not self._stopping.is_set():
+                admitted_as = self._admit()
+                if self.session is None:
+                    break
+                self._serve_session(admitted_as)
+        finally:
+            self._stop_child("the agent stops")
+            self._remove_credentials()
+        return 0
+
+    def _admit(self) -> str | None:
+        """Open a session with the hub once a run holds it (None: the agent stopped first); the
+        user it was admitted as."""
         from iotad.host.admission import listening
         from iotad.host.transport import open_session
 
-        self.say(f"agent {self.name}: waiting for the hub at {', '.join(self.connect)}")
-        admitted_as = None
         while not self._stopping.is_set():
             if not any(listening(endpoint) for endpoint in self.connect):
                 self._refusal = ""
@@ -110,31 +123,45 @@ class Agent:
                 try:
                     self.session = open_session([], self.connect, mode="client", connect_timeout=2.0,
                                                 credentials=credentials, tls=self.tls)
-                    admitted_as = credentials and credentials.user
-                    break
+                    return credentials.user if credentials else None
                 except Exception:  # noqa: BLE001 - zenoh says only "Unable to connect"
                     continue
-            if self.session is not None:
-                break
             self._not_admitted()
             self._stopping.wait(1.0)
-        if self.session is None:
-            return 0
+        return None
+
+    def _serve_session(self, admitted_as: str | None) -> None:
+        """Serve orders until the agent stops, or until the hub is gone while no run of this host
+        is in progress: the next run's hub is joined anew, since it may check credentials where
+        the last did not, or the reverse (a run in progress keeps its session, which zenoh
+        reconnects when the network heals)."""
         key = agent_key(self.name)
         # the queryables before the token: a hub that sees the token may ask at once
         declared = [self.session.declare_queryable(f"{key}/run", self._on_run),
                     self.session.declare_queryable(f"{key}/stop", self._on_stop),
                     self.session.liveliness().declare_token(key)]
         self.say(f"agent {self.name}: ready at the hub" + (f" (admitted as {admitted_as})" if admitted_as else ""))
+        absent = 0
         try:
-            self._stopping.wait()
+            while not self._stopping.wait(1.0):
+                hub_there = any(True for _ in self.session.info.peers_zid()) or \
+                    any(True for _ in self.session.info.routers_zid())
+                absent = 0 if hub_there or self._running() else absent + 1
+                if absent >= 2:
+                    self.say(f"agent {self.name}: the hub is gone; waiting for the next run")
+                    break
         finally:
-            self._stop_child("the agent stops")
-            self._remove_credentials()
             for item in declared:
-                item.undeclare()
+                try:
+                    item.undeclare()
+                except Exception:  # noqa: BLE001 - a session the hub left
+                    pass
             self.session.close()
-        return 0
+            self.session = None
+
+    def _running(self) -> bool:
+        with self._lock:
+            return self.child is not None and self.child.poll() is None
 
     def stop(self) -> None:
         self._stopping.set()

@@ -58,8 +58,12 @@ class Fleet:
         missing = [host for host in self.hosts if host not in self._present]
         if missing:
             self.close()
+            guarded = access is not None and access.fleet_credentials() is not False
             raise FleetError(f"no agent answered for host(s) {', '.join(missing)} within {self.start_timeout:g} s: "
-                             f"start 'iotad agent --name HOST --connect {self.hub[0]}' there (docs/hosts.md)")
+                             f"start 'iotad agent --name HOST --connect {self.hub[0]}' there (docs/hosts.md)"
+                             + ("; this run is under access control: an agent needs --certs DIR with its "
+                                "HOST.secret, and says on its own console why the hub does not admit it"
+                                if guarded else ""))
         refused = []
         for host in self.hosts:
             # the hub admits only the agent of `host` to serve this key: its credentials go to it alone

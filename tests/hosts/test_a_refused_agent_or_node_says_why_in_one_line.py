@@ -8,20 +8,18 @@ import os
 import stat
 import subprocess
 import sys
-import threading
 import time
 from pathlib import Path
 
 import pytest
 
+from agent_helpers import agent_lines, hub_session
 from launcher_helpers import ROOT
 
 from iotad.host import agent_secret, certificates
 from iotad.host.certificates import CertificateError
-from iotad.host.credentials import Credentials, CredentialStore
-from iotad.host.transport import free_port, open_session
+from iotad.host.transport import free_port
 from iotad.launcher.agent import Agent, AgentError
-from iotad.launcher.processes import interrupt_then_kill
 
 
 @pytest.fixture
@@ -83,39 +81,6 @@ def test_an_agent_keeps_its_hosts_credentials_private_for_the_run_and_removes_th
     for bad, why in (({"node-vision": "p2"}, "lack this host's launcher"), ({"x": 1}, "map user names")):
         with pytest.raises(AgentError, match=why):
             agent._start({**order, "credentials": bad})
-
-
-def hub_session(authority: Path, port: int, users: dict[str, str], tmp_path: Path):
-    """A hub under user-password authentication that knows `users`, on tls/127.0.0.1:port."""
-    store = CredentialStore([], parent=str(tmp_path), passwords=users)
-    for user in users:  # the dictionary is what the hub checks against
-        assert user in store.dictionary.read_text()
-    hub = Credentials("iotad-hub", store.hub().password, str(store.dictionary))
-    return open_session([f"tls/127.0.0.1:{port}"], [], credentials=hub,
-                        tls=certificates.host_files(authority, "brain"))
-
-
-def agent_lines(certs: Path, port: int, until: str, timeout: float = 40) -> tuple[list[str], str]:
-    """`iotad agent --name arm` with the certificates in `certs`, until one of its lines holds
-    `until` (or `timeout`): its lines and its standard error."""
-    proc = subprocess.Popen([sys.executable, "-m", "iotad", "agent", "--name", "arm", "--connect",
-                             f"tls/127.0.0.1:{port}", "--certs", str(certs)], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, cwd=ROOT, start_new_session=True)
-    lines, found = [], threading.Event()
-
-    def read():
-        for line in proc.stdout:
-            lines.append(line.rstrip("\n"))
-            if until in line:
-                found.set()
-        found.set()
-
-    threading.Thread(target=read, daemon=True).start()
-    try:
-        found.wait(timeout)
-    finally:
-        interrupt_then_kill(proc)
-    return lines, proc.stderr.read()
 
 
 def test_an_agent_of_another_authority_or_with_a_wrong_secret_says_why_once(authority, tmp_path):
