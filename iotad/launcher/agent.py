@@ -85,6 +85,7 @@ class Agent:
         self.name, self.connect, self.tls, self.say, self.python = name, list(connect), tls, say, python
         self.credentials = Credentials(agent_user(name), secret) if secret else None
         self._refusal = ""  # the last reason the hub gave for not admitting this agent, said once
+        self._admitted_with = self.credentials  # how the last hub admitted it (False: without credentials)
         self._store = None  # the credentials of the run in progress (a private folder), removed after it
         self.workdir = Path(workdir) if workdir else Path(tempfile.gettempdir()) / f"iotad-agent-{name}"
         self.child: subprocess.Popen | None = None
@@ -117,12 +118,15 @@ class Agent:
                 self._refusal = ""
                 self._stopping.wait(0.5)  # no run holds the hub yet
                 continue
-            # with its secret first (a run under access control), then without (a run that has none:
-            # zenoh refuses a user-password session on a hub that checks none)
-            for credentials in ([self.credentials] if self.credentials else []) + [False]:
+            # with its secret (a run under access control) and without (a run that has none: zenoh
+            # refuses a user-password session on a hub that checks none, after the whole timeout),
+            # the way the last run admitted it first
+            ways = ([self.credentials] if self.credentials else []) + [False]
+            for credentials in sorted(ways, key=lambda way: way is not self._admitted_with):
                 try:
                     self.session = open_session([], self.connect, mode="client", connect_timeout=2.0,
                                                 credentials=credentials, tls=self.tls)
+                    self._admitted_with = credentials
                     return credentials.user if credentials else None
                 except Exception:  # noqa: BLE001 - zenoh says only "Unable to connect"
                     continue
@@ -141,9 +145,11 @@ class Agent:
                     self.session.declare_queryable(f"{key}/stop", self._on_stop),
                     self.session.liveliness().declare_token(key)]
         self.say(f"agent {self.name}: ready at the hub" + (f" (admitted as {admitted_as})" if admitted_as else ""))
+        # the hub gone for 1 s with no run here: closed now, the next run's hub is joined sooner than
+        # zenoh's own reconnection (backing off) would
         absent = 0
         try:
-            while not self._stopping.wait(1.0):
+            while not self._stopping.wait(0.5):
                 hub_there = any(True for _ in self.session.info.peers_zid()) or \
                     any(True for _ in self.session.info.routers_zid())
                 absent = 0 if hub_there or self._running() else absent + 1

@@ -352,8 +352,8 @@ def access_for(system, args: argparse.Namespace):
             raise CliError(str(exc)) from None
         if own is not None and own.user == launcher_user(args.host):
             return AccessOptions(given=given)  # started by this host's agent, for the hub's run
-        return AccessOptions.off(f"--host {args.host} started by hand: no hub hands this host's launcher its "
-                                 "credentials; start every host through its agent (docs/hosts.md)")
+        return AccessOptions.off(f"--host {args.host}: no credentials from the hub, whose run is without access "
+                                 "control or which did not start this launcher through its agent (docs/hosts.md)")
     if args.local:
         return AccessOptions.off("--local")
     certs = args.certs or os.environ.get(ENV_DIR)
