@@ -41,10 +41,11 @@ def read(directory: str | Path, host: str, why: str = "") -> str:
         text = path.read_text().strip()
     except OSError:
         raise CertificateError(f"no agent secret for host {host!r}: {path} is missing {why}".rstrip() +
-                               f"; make it with 'iotad certs host {host} --dir DIR --force' where the "
-                               "authority's key is, and copy it with the host's key") from None
+                               f"; make it with 'iotad certs secret {host} --dir DIR' where the authority's "
+                               "key is, and copy it beside the host's key") from None
     if len(text) < 32:
-        raise CertificateError(f"{path}: not an agent secret (too short); make it again with 'iotad certs host'")
+        raise CertificateError(f"{path}: not an agent secret (too short); make it again with "
+                               f"'iotad certs secret {host}'")
     return text
 
 

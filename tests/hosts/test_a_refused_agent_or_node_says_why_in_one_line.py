@@ -42,7 +42,7 @@ def test_an_agent_secret_is_private_and_differs_by_host_and_authority(authority,
     (tmp_path / "copy").mkdir()
     (tmp_path / "copy" / "arm.secret").write_text(written.read_text())
     assert agent_secret.derive(tmp_path / "copy", "arm") == agent_secret.derive(authority, "arm")
-    with pytest.raises(CertificateError, match=r"no agent secret for host 'base'.*iotad certs host base"):
+    with pytest.raises(CertificateError, match=r"no agent secret for host 'base'.*iotad certs secret base"):
         agent_secret.derive(tmp_path / "copy", "base")
 
 
@@ -119,3 +119,29 @@ def test_a_node_whose_credentials_are_refused_says_so_in_one_line(authority, tmp
         f"iotad.host: error: echo: cannot start on zenoh: not admitted: the hub at tls/127.0.0.1:{port} refused the "
         "credentials of user 'node-echo': they are not this run's (an agent's HOST.secret from another authority, or "
         "a stale credentials file)"]
+
+
+def test_a_hub_that_cannot_admit_a_hosts_agent_refuses_to_start_in_one_line(authority, tmp_path):
+    # the hub's folder has its own certificate but neither the authority's key nor arm's secret
+    from namespaces import split_figure2
+
+    hub_only = tmp_path / "hub-only"
+    hub_only.mkdir()
+    for name in ("ca.pem", "brain.pem", "brain.key"):
+        (hub_only / name).write_bytes((authority / name).read_bytes())
+    path = tmp_path / "split.toml"
+    path.write_text(split_figure2("split", "127.0.0.1", free_port(), "brain", "arm", "127.0.0.1", "tls"))
+    done = subprocess.run([sys.executable, "-m", "iotad", "run", str(path), "--certs", str(hub_only), "--no-record",
+                           "--until", "5"], capture_output=True, text=True, timeout=60, cwd=ROOT)
+    assert done.returncode == 2 and done.stdout == "", done.stdout + done.stderr
+    assert done.stderr.strip().splitlines() == [
+        f"iotad: error: no agent secret for host 'arm': {hub_only}/arm.secret is missing (nor the authority's key "
+        f"{hub_only}/ca.key to derive it); make it with 'iotad certs secret arm --dir DIR' where the authority's "
+        "key is, and copy it beside the host's key"]
+    made = subprocess.run([sys.executable, "-m", "iotad", "certs", "secret", "arm", "--dir", str(authority)],
+                          capture_output=True, text=True, timeout=60, cwd=ROOT)
+    assert made.returncode == 0 and agent_secret.read(authority, "arm") == agent_secret.derive(authority, "arm")
+    (hub_only / "arm.secret").write_text((authority / "arm.secret").read_text())  # as the hub's copy
+    refused = subprocess.run([sys.executable, "-m", "iotad", "certs", "secret", "arm", "--dir", str(hub_only)],
+                             capture_output=True, text=True, timeout=60, cwd=ROOT)
+    assert refused.returncode == 2 and "no authority's key" in refused.stderr and "Traceback" not in refused.stderr

@@ -3,6 +3,7 @@ host, for TLS links with mutual authentication (docs/hosts.md)."""
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 ORDER = 29
 
@@ -12,6 +13,7 @@ examples (once, on the hub's machine; then copy DIR/ca.pem, HOST.pem, HOST.key a
   iotad certs host brain --dir certs/ --address 10.0.0.1
   iotad certs host arm --dir certs/ --address 10.0.0.2 --address arm.local
   iotad certs show certs/arm.pem
+  iotad certs secret arm --dir certs/               only arm.secret, for a folder made before secrets
 
 Keys are written readable by their owner only. Keep ca.key on one machine: whoever holds it can
 admit a host to the system. A process without a certificate of this authority cannot open a
@@ -41,6 +43,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                       help="an IP address or DNS name the host is reached at (repeat for several)")
     host.add_argument("--days", type=_days, default=825, help="valid for this many days (default: 825)")
     host.add_argument("--force", action="store_true", help="replace the host's certificate and key")
+    secret = actions.add_parser("secret", help="write host NAME's agent secret (NAME.secret in DIR) from the "
+                                               "authority's key, without a new certificate")
+    secret.add_argument("name", metavar="NAME", help="the host's name, as in the system file's [hosts.NAME]")
+    secret.add_argument("--dir", default="certs", help="the authority's folder (default: certs)")
     show = actions.add_parser("show", help="say what a certificate holds (names, issuer, expiry)")
     show.add_argument("files", nargs="+", metavar="FILE")
     parser.set_defaults(func=run)
@@ -66,6 +72,15 @@ def run(args: argparse.Namespace) -> int:
             secret = agent_secret.write(args.dir, args.name)  # its agent's proof under access control
             print(f"signed {files.certificate} and its key {files.key} for host {args.name!r}, and wrote its "
                   f"agent's secret {secret}; copy them with {files.authority} to that host")
+        elif args.certs_action == "secret":
+            from iotad.host import agent_secret
+            from iotad.host.certificates import AUTHORITY_KEY
+
+            if not (Path(args.dir) / AUTHORITY_KEY).is_file():  # else derive would read the secret it writes
+                raise certificates.CertificateError(f"no authority's key {Path(args.dir) / AUTHORITY_KEY}: "
+                                                    "run this where the authority is")
+            print(f"wrote {agent_secret.write(args.dir, args.name)}: host {args.name!r}'s agent secret; copy it "
+                  "beside that host's key")
         else:
             for path in args.files:
                 print(certificates.describe(path))
