@@ -101,8 +101,7 @@ class Launcher:
         self.run_dir = Path(launch.log_dir) if launch.log_dir else Path(tempfile.mkdtemp(prefix=f"iotad-{system.name}-"))
         self.run_dir.mkdir(parents=True, exist_ok=True)
         # the hub's credentials and rules, made now: `iotad run --view` hands the tools' file to its viewer
-        self.access: AccessControl | None = None if access is None else \
-            AccessControl(system, enabled=access.enabled, why_off=access.why_off)
+        self.access: AccessControl | None = None if access is None else AccessControl.of(system, access)
         self.events: queue.Queue = queue.Queue()
         self.tally = Tally()
         self.alive_paths: set[str] = set()
@@ -225,6 +224,11 @@ class Launcher:
             if "Address already in use" in text:
                 raise LauncherError(f"the hub endpoint {', '.join(listen)} is taken (another 'iotad run'?); "
                                     "choose another with --port") from None
+            if self.access is not None and self.access.own is not None:  # another host's, under access control
+                from iotad.host.admission import diagnose
+                from iotad.host.certificates import from_env
+
+                text = f"not admitted: {diagnose(connect[0], from_env(), self.access.own.user).reason}"
             raise LauncherError(f"cannot open the hub session (listen {listen}, connect {connect}): {text}") from None
         session = self.session
         if system.opens_hub(self.host):  # with --port 0 this is the only place the port is told
@@ -323,7 +327,7 @@ class Launcher:
 
         self.fleet.say = self.view.line
         try:
-            self.fleet.start()
+            self.fleet.start(self.access)
         except FleetError as exc:
             raise LauncherError(str(exc)) from None
 
