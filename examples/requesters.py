@@ -8,8 +8,15 @@ If the scheduler restarts while a request is in flight, the restarted scheduler 
 it and would never answer: the node host tells the requester through its `peer_restart` input
 (iotad/host/peer_restart.py), and the requester takes that as the ABORT it is (the motors were
 taken from it) and goes on with its next request after its pause (docs/failures.md).
+
+An answer can also be lost on the way: the network between hosts is cut for longer than it
+keeps messages, or a late answer (held up by a partition) arrives sooner after the previous one
+than the `ack` input's switching time allows and is refused (a `switching_time` violation). The
+scheduler answers every request within its timeout and epoch (and its ack window T), so a
+requester that has heard nothing `patience` seconds past `timeout + epoch` takes its request as
+aborted too, and goes on: no request is left waiting for ever.
 """
-from iotad import Input, Iota, Output, Param
+from iotad import Input, Internal, Iota, Output, Param
 
 from channels.messages import ACK, MDL_REQ, MODE
 
@@ -22,10 +29,12 @@ class Requester(Iota):
     pause = Param(1.0)
     count = Param(3)       # how many requests it makes
     setpoint = Param(0.0)  # the MDL control input w it asks for
+    patience = Param(2.0)  # s past timeout + epoch without an answer before it takes the request as aborted
 
     req = Output(MDL_REQ, switching=1)
     ack = Input(ACK, switching=1)
     peer_restart = Input()  # fed by the node host: the scheduler restarted (no binding needed)
+    no_answer = Internal()
 
     def init(self):
         self.waiting = False
@@ -44,6 +53,11 @@ class Requester(Iota):
     def answered(self, x):
         self.waiting = False
         self.answers.append(x)
+
+    @no_answer.action(when=lambda self: self.waiting, after=lambda self: self.timeout + self.epoch + self.patience)
+    def gave_up(self):
+        self.waiting = False
+        self.answers.append(ACK.ABORT)
 
     @peer_restart.input
     def scheduler_restarted(self, x):
