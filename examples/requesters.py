@@ -51,8 +51,9 @@ class Requester(Iota):
 
     @ack.input
     def answered(self, x):
-        self.waiting = False
-        self.answers.append(x)
+        if self.waiting:  # else an answer come after this requester gave its request up: too late
+            self.waiting = False
+            self.answers.append(x)
 
     @no_answer.action(when=lambda self: self.waiting, after=lambda self: self.timeout + self.epoch + self.patience)
     def gave_up(self):

@@ -290,14 +290,17 @@ class Partition:
     rearmed: set[int]              # axes asked for closed loop after the heal
     commanded_after: set[int]      # axes sent Set_Input_Pos after the heal
     link_events: dict[str, int]    # LINK_LOST / LINK_FOUND reports of the motor node
+    silence: float | None          # on the motor node's own clock: from the last setpoint it took to its first IDLE
 
 
 def read_partition(recording: Path, system: str, cut_ns: int, heal_ns: int) -> Partition:
     from iotad.recording.mcap_reader import read_recording
 
-    frames, events = [], {"LINK_LOST": 0, "LINK_FOUND": 0}
+    frames, events, trace = [], {"LINK_LOST": 0, "LINK_FOUND": 0}, []
     senders = (f"iota/{system}/motor/can_tx", f"iota/{system}/odrives/can_tx")
     for message in read_recording(recording).messages:
+        if message.topic == f"iota/{system}/motor/@trace" and message.publish_time >= cut_ns - 1_000_000_000:
+            trace.append(message.value)
         if message.topic in senders:
             value = message.value
             frames.append((message.publish_time, value["id"] >> 5, value["id"] & 0x1F, bytes(value["data"])))
@@ -326,7 +329,21 @@ def read_partition(recording: Path, system: str, cut_ns: int, heal_ns: int) -> P
         idle_heartbeats=beats.count(IDLE), armed_heartbeats=beats.count(CLOSED_LOOP),
         rearmed={n for t, n, cmd, data in frames if t > heal_ns and cmd == SET_AXIS_STATE and data[0] == CLOSED_LOOP},
         commanded_after={n for t, n, cmd, data in frames if t > heal_ns and cmd == SET_INPUT_POS},
-        link_events=events)
+        link_events=events, silence=silence_of(trace))
+
+
+def silence_of(trace: list[dict]) -> float | None:
+    """From the last setpoint the motor node took to its first Set_Axis_State IDLE after it, in the
+    node's own time (its trace): what its link watch promises, whatever the load does to the wall."""
+    taken = None
+    for event in sorted(trace, key=lambda e: e["t"]):
+        if event["action"] == "setpoints" and event["kind"] == "input":
+            taken = event["t"]
+        elif event["action"] == "can_tx" and event["kind"] == "output" and taken is not None:
+            frame = event["value"]
+            if frame["id"] & 0x1F == SET_AXIS_STATE and frame["data"][0] == IDLE:
+                return event["t"] - taken
+    return None
 
 
 def setpoint_gaps(recording: Path, system: str, since_ns: int = 0, until_ns: int = 1 << 62) -> list[float]:
