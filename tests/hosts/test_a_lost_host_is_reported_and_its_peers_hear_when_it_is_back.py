@@ -2,7 +2,8 @@
 its nodes are marked down (a `down` launcher event each, in the recording), and its part dies
 with its agent. When an agent of that host is back during the run, the hub gives it its part
 again, and its nodes' peers on the other hosts get restart notices (`peer_restart`) as for a
-local restart. In network namespaces: the Figure 2 scheduler on arm, the requester on brain."""
+local restart. `iotad ls` and `iotad top` name each node's host. In network namespaces: the Figure 2 scheduler on arm, the requester on brain."""
+import json
 import re
 import signal
 import subprocess
@@ -55,6 +56,11 @@ def start_agent(net, hub: str) -> subprocess.Popen:
                             start_new_session=True)
 
 
+def tool(net, *args: str) -> subprocess.CompletedProcess:
+    return subprocess.run(net.exec("brain", sys.executable, "-m", "iotad", *args), capture_output=True, text=True,
+                          timeout=60, cwd=ROOT)
+
+
 def test_a_lost_host_is_reported_its_nodes_marked_down_and_its_return_restarts_them(tmp_path):
     recording = tmp_path / "lost.mcap"
     with hosts("brain", "arm", net=208) as net:
@@ -71,6 +77,14 @@ def test_a_lost_host_is_reported_its_nodes_marked_down_and_its_return_restarts_t
         try:
             assert wait_until(lambda: "vision: live (pid" in log.read_text()
                               and "scheduler: live (on another host)" in log.read_text(), 90), log.read_text()[-3000:]
+            # ls and top name each node's host
+            listed = tool(net, "ls", "--system", "lost", "--json", "--connect", f"tcp/{hub}:7645")
+            assert listed.returncode == 0, listed.stderr
+            hosts_of = {entry["path"]: entry["host"] for entry in map(json.loads, listed.stdout.splitlines())}
+            assert hosts_of == {"scheduler": "arm", "vision": "brain"}, listed.stdout
+            top = tool(net, "top", "--system", "lost", "--once", "2", "--connect", f"tcp/{hub}:7645")
+            assert re.search(r"scheduler\s*│\s*arm\s*│\s*alive", top.stdout), top.stdout + top.stderr
+            assert re.search(r"vision\s*│\s*brain\s*│\s*alive", top.stdout), top.stdout + top.stderr
             first.send_signal(signal.SIGKILL)  # the agent alone: its run dies with it (parent-death signal)
             first.wait(10)
             assert wait_until(lambda: "scheduler: DOWN (host arm lost)" in log.read_text(), 60), log.read_text()[-3000:]
