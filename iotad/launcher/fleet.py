@@ -40,6 +40,7 @@ class Fleet:
         self.notify: Callable[[str, str], None] | None = None
         self._stop = None
         self._closing = False
+        self._ran_on: dict[str, bool] = {}  # host -> its agent said its part was running already
         # the files the system names, served by hash: the bytes hashed are the bytes served
         files = named_files(self.path, self.text)
         self._code = {item["sha256"]: Path(item["path"]).read_bytes() for item in files}
@@ -103,6 +104,7 @@ class Fleet:
         with self._changed:
             self._started.add(host)
             self.exits.pop(host, None)  # a host back after it was lost: its earlier run is over
+        self._ran_on[host] = bool(answer.get("already"))
         how = "already runs its part" if answer.get("already") else "runs its nodes"
         self.say(f"host {host}: its agent {how} (pid {answer.get('pid')})")
         for line in answer.get("fetched") or []:
@@ -178,7 +180,8 @@ class Fleet:
             self.returns[host] = self.returns.get(host, 0) + 1
             self._changed.notify_all()
         if self.notify is not None:
-            self.notify("back", host)
+            # "resumed": an agent cut off a while (the network), whose part ran on meanwhile
+            self.notify("resumed" if self._ran_on.get(host) else "back", host)
 
     def _on_message(self, sample) -> None:
         host = self._host_of(sample.key_expr)

@@ -425,9 +425,12 @@ class Launcher:
                 self.view.line(f"{name}: DOWN (host {host} lost)")
                 self._publish({"event": "down", "node": name, "host": host, "pid": None, "code": None,
                                "t_ns": time.time_ns(), "message": f"host {host} lost"})
+        elif event == "resumed":
+            self._launcher_event("host_back", f"host {host}: back; its nodes ran on while it was cut off "
+                                              f"({', '.join(nodes)})", host=host, resumed=True)
         else:
             self._launcher_event("host_back", f"host {host}: back; its nodes start again ({', '.join(nodes)})",
-                                 host=host)
+                                 host=host, resumed=False)
 
     def _exited(self, run: NodeRun, code: int) -> None:
         now = time.monotonic()
