@@ -10,43 +10,14 @@ import subprocess
 import sys
 
 from launcher_helpers import ROOT, wait_until
-from namespaces import hosts
+from namespaces import hosts, split_figure2
 from iotad.launcher.processes import interrupt_then_kill
 from iotad.recording.mcap_reader import read_recording
 
 
 def system_text(hub: str, arm: str) -> str:
-    return f"""
-[system]
-name = "lost"
-hub_host = "brain"
-[system.endpoints]
-listen = ["tcp/{hub}:7645"]
-[hosts.brain]
-listen = ["tcp/{hub}:0"]
-[hosts.arm]
-listen = ["tcp/{arm}:0"]
-
-[[node]]
-name = "scheduler"
-host = "arm"
-python = "{ROOT}/examples/scheduler.py:Scheduler"
-params = {{ N = 1, T = 0.5 }}
-
-[[node]]
-name = "vision"
-host = "brain"
-python = "{ROOT}/examples/requesters.py:Requester"
-params = {{ priority = 1, epoch = 1.0, timeout = 2.0, start = 0.5, pause = 0.5, count = 1000 }}
-after = ["scheduler"]
-
-[[bind]]
-from = "vision.req"
-to = "scheduler.req[0]"
-[[bind]]
-from = "scheduler.ack[0]"
-to = "vision.ack"
-"""
+    """The Figure 2 scheduler on arm, the requester (asking on and on) on brain with the hub."""
+    return split_figure2("lost", hub, 7645, "brain", "arm", arm, scheduler_on="arm", count=1000, pause=0.5)
 
 
 def start_agent(net, hub: str) -> subprocess.Popen:

@@ -7,48 +7,24 @@ import subprocess
 import sys
 
 from launcher_helpers import ROOT, wait_until
-from namespaces import hosts
+from namespaces import hosts, split_figure2
 from iotad.launcher.processes import interrupt_then_kill
 
 AGENT_TIMEOUT = 300  # the run is stopped long before this: a wait that ignored Ctrl-C fails the test
 
 
 def three_hosts(hub: str, arm: str, base: str) -> str:
-    """The Figure 2 scheduler on brain (the hub), one requester on arm and one on base."""
-    requester = f"{ROOT}/examples/requesters.py:Requester"
-    nodes = "".join(f"""
-[[node]]
-name = "{name}"
-host = "{host}"
-python = "{requester}"
-params = {{ priority = {k + 1}, epoch = 1.0, timeout = 2.0, start = 0.5, pause = 1.2, count = 2 }}
-after = ["scheduler"]
-[[bind]]
-from = "{name}.req"
-to = "scheduler.req[{k}]"
-[[bind]]
-from = "scheduler.ack[{k}]"
-to = "{name}.ack"
-""" for k, (name, host) in enumerate([("vision", "arm"), ("dock", "base")]))
-    return f"""
-[system]
-name = "three"
-hub_host = "brain"
-[system.endpoints]
-listen = ["tcp/{hub}:7635"]
-[hosts.brain]
-listen = ["tcp/{hub}:0"]
-[hosts.arm]
-listen = ["tcp/{arm}:0"]
+    """The split Figure 2 (scheduler on brain with the hub, requester on arm) and an echo on base."""
+    # a top-level key comes before the first table
+    return 'external = ["dock.inp"]\n' + split_figure2("three", hub, 7635, "brain", "arm", arm) + f"""
 [hosts.base]
 listen = ["tcp/{base}:0"]
 
 [[node]]
-name = "scheduler"
-host = "brain"
-python = "{ROOT}/examples/scheduler.py:Scheduler"
-params = {{ N = 2, T = 0.5 }}
-{nodes}"""
+name = "dock"
+host = "base"
+python = "{ROOT}/examples/echo.py:Echo"
+"""
 
 
 def test_ctrl_c_while_waiting_for_an_agent_stops_at_once_and_stops_the_started_hosts(tmp_path):
