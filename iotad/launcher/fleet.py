@@ -40,6 +40,7 @@ class Fleet:
         self.notify: Callable[[str, str], None] | None = None
         self._stop = None
         self._closing = False
+        self._rejoining: set[str] = set()
         self._ran_on: dict[str, bool] = {}  # host -> its agent said its part was running already
         # the files the system names, served by hash: the bytes hashed are the bytes served
         files = named_files(self.path, self.text)
@@ -150,7 +151,8 @@ class Fleet:
         with self._changed:
             if sample.kind == zenoh.SampleKind.PUT:
                 self._present.add(host)
-                if host in self.lost and not self._closing and not self._stopped():
+                if host in self.lost and host not in self._rejoining and not self._closing and not self._stopped():
+                    self._rejoining.add(host)  # its token seen twice (history, live): one new order
                     event = "back"
             else:
                 self._present.discard(host)
@@ -171,6 +173,8 @@ class Fleet:
     def _rejoin(self, host: str) -> None:
         self.say(f"host {host}: its agent is back; giving it its part again")
         error = self._order(host, interruptible=False)
+        with self._changed:
+            self._rejoining.discard(host)
         if error is not None:
             self.say(f"host {host}: its agent is back but refused its part: {error}")
             return
