@@ -143,6 +143,9 @@ class Agent:
         except (AgentError, ValueError, OSError) as exc:
             answer = {"ok": False, "error": str(exc)}
             self.say(f"agent {self.name}: refused a run: {exc}")
+        except Exception as exc:  # noqa: BLE001 - the session closing under a fetch...: the hub hears why
+            answer = {"ok": False, "error": f"{type(exc).__name__}: {exc}"}
+            self.say(f"agent {self.name}: could not take a run: {answer['error']}")
         query.reply(query.key_expr, json.dumps(answer).encode())
 
     def _on_stop(self, query) -> None:
