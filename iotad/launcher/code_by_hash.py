@@ -110,6 +110,10 @@ def localize(system_text: str, system_path: str, files: list, cache: CodeCache,
             replaced[written] = str(hub_path)  # this checkout holds the hub's version at its path
             continue
         name = hub_path.name
+        if not name.endswith((".py", ".iota")) or name.startswith("."):
+            # a node names a .py or .iota file; anything else is no order of a hub (and must not
+            # name a place outside the cache)
+            raise CodeError(f"an order names {written!r} at {hub_path}: not a node's .py or .iota file")
         if not cache.holds(sha, name):
             why = "another version is" if hub_path.is_file() else "no file is"
             cache.store(sha, name, fetch(sha))

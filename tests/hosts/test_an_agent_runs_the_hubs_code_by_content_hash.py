@@ -84,6 +84,9 @@ def test_bytes_that_do_not_hash_to_the_named_sha256_are_refused(tmp_path):
         localize(system.read_text(), str(elsewhere), files, cache, lambda sha: b"print('not the hub file')\n",
                  tmp_path / "run")
     assert not list(cache.folder.rglob("*.py"))  # nothing stored under any hash
+    with pytest.raises(CodeError, match="not a node's .py or .iota file"):
+        localize("", str(elsewhere), [{"written": "..", "path": "/x/..", "sha256": "ab" * 32}], cache,
+                 lambda sha: b"", tmp_path / "run")
     with pytest.raises(CodeError, match="without its written name, path and sha256"):
         localize("", str(elsewhere), [{"written": "x.py", "path": "/x.py", "sha256": "../../etc"}], cache,
                  lambda sha: b"", tmp_path / "run")
