@@ -39,7 +39,8 @@ def test_a_lost_host_is_reported_its_nodes_marked_down_and_its_return_restarts_t
         path = tmp_path / "lost.toml"
         path.write_text(system_text(hub, net.addresses["arm"]))
         first = start_agent(net, hub)
-        second = None
+        second = watch = None
+        trace = tmp_path / "vision-trace.jsonl"
         log = tmp_path / "run.log"
         with log.open("w") as out:
             run = subprocess.Popen(net.exec("brain", sys.executable, "-m", "iotad", "run", str(path), "--plain",
@@ -56,6 +57,11 @@ def test_a_lost_host_is_reported_its_nodes_marked_down_and_its_return_restarts_t
             top = tool(net, "top", "--system", "lost", "--once", "2", "--connect", f"tcp/{hub}:7645")
             assert re.search(r"scheduler\s*│\s*arm\s*│\s*alive", top.stdout), top.stdout + top.stderr
             assert re.search(r"vision\s*│\s*brain\s*│\s*alive", top.stdout), top.stdout + top.stderr
+            # the requester's events, to see it take the restart notice in before the run is stopped
+            watch = subprocess.Popen(net.exec("brain", sys.executable, "-m", "iotad", "echo", "iota/lost/vision/@trace",
+                                              "--json", "--connect", f"tcp/{hub}:7645"),
+                                     stdout=trace.open("w"), stderr=subprocess.STDOUT, cwd=ROOT, start_new_session=True)
+            assert wait_until(lambda: trace.read_text().strip(), 30), "iotad echo saw none of the requester's events"
             first.send_signal(signal.SIGKILL)  # the agent alone: its run dies with it (parent-death signal)
             first.wait(10)
             assert wait_until(lambda: "scheduler: DOWN (host arm lost)" in log.read_text(), 60), log.read_text()[-3000:]
@@ -63,13 +69,14 @@ def test_a_lost_host_is_reported_its_nodes_marked_down_and_its_return_restarts_t
             back = wait_until(lambda: re.search(r"host arm: back; its nodes start again \(scheduler\)"
                                                 r"[\s\S]*scheduler: live \(on another host\)", log.read_text()), 90)
             assert back, log.read_text()[-3000:]
+            assert wait_until(lambda: '"peer_restart"' in trace.read_text(), 60), trace.read_text()[-2000:]
             run.send_signal(signal.SIGINT)
             code = run.wait(60)
         finally:
             interrupt_then_kill(run)
-            for agent in (first, second):
-                if agent is not None:
-                    interrupt_then_kill(agent)
+            for process in (first, second, watch):
+                if process is not None:
+                    interrupt_then_kill(process)
         output = log.read_text()
         assert code == 130, output[-3000:]
         assert "host arm LOST: its agent is gone" in output
