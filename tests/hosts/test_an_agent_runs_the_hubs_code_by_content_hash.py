@@ -156,22 +156,39 @@ def test_an_agent_whose_checkout_is_stale_runs_the_hubs_files(tmp_path):
                                           "--workdir", str(tmp_path / "agent")),
                                  stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=ROOT,
                                  start_new_session=True)
+        run = watch = None
         try:
-            done = subprocess.run(net.exec("brain", sys.executable, "-m", "iotad", "run", str(system), "--until", "8",
-                                           "--plain", "--no-record"),
-                                  capture_output=True, text=True, timeout=120, cwd=ROOT)
+            # the scheduler's first answer to the arm's requester (a COMMIT), however long start-up
+            # takes: watched from before the hub opens (the watcher waits for it)
+            watch = subprocess.Popen(net.exec("brain", sys.executable, "-m", "iotad", "echo", "iota/split/scheduler/ack/0",
+                                              "--count", "1", "--timeout", "90", "--connect-timeout", "60",
+                                              "--connect", f"tcp/{address}:7625"),
+                                     stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=ROOT,
+                                     start_new_session=True)
+            log = tmp_path / "run.log"
+            with log.open("w") as out:
+                run = subprocess.Popen(net.exec("brain", sys.executable, "-m", "iotad", "run", str(system), "--plain",
+                                                "--no-record"),
+                                       stdout=out, stderr=subprocess.STDOUT, text=True, cwd=ROOT, start_new_session=True)
+            answered = watch.communicate(timeout=150)[0]
+            code_of_run = interrupt_then_kill(run)
         finally:
+            for process in (watch, run):
+                if process is not None:
+                    interrupt_then_kill(process)
             code = interrupt_then_kill(agent)
             output = agent.stdout.read()
+        stdout = log.read_text()
         if "mount: " in output and "permission denied" in output.lower():
             pytest.skip(f"cannot mount in a namespace here: {output[:300]}")
-        assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-2000:] + output[-2000:]
-        assert "host arm: its agent runs its nodes" in done.stdout and "COMMIT" in done.stdout
+        assert watch.returncode == 0, answered + stdout[-3000:] + output[-2000:]
+        assert code_of_run == 130, stdout[-3000:]  # stopped by the test's Ctrl-C, after the answer
+        assert "host arm: its agent runs its nodes" in stdout and "COMMIT" in stdout, stdout[-3000:]
         assert f"host arm: code/scheduler.py: another version is at {hub}/code/scheduler.py here; " \
-               "fetched sha256" in done.stdout, done.stdout[-3000:]
+               "fetched sha256" in stdout, stdout[-3000:]
         assert f"host arm: code/requesters.py: no file is at {hub}/code/requesters.py here; " \
-               "fetched sha256" in done.stdout, done.stdout[-3000:]
-        assert re.search(r"\[arm\] .*vision: live \(pid", done.stdout), done.stdout[-3000:]
+               "fetched sha256" in stdout, stdout[-3000:]
+        assert re.search(r"\[arm\] .*vision: live \(pid", stdout), stdout[-3000:]
         for name in ("scheduler.py", "requesters.py"):  # cached by hash, the hub's bytes
             data = (hub / "code" / name).read_bytes()
             assert (tmp_path / "agent" / "code" / sha256_of(data) / name).read_bytes() == data
