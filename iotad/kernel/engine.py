@@ -289,6 +289,9 @@ class Engine:
         """Run until virtual time `until` (inclusive), until nothing is left, or until stopped."""
         self.start()
         clock, heap = self.clock, self._heap
+        if clock.__class__ is VirtualClock:
+            self._run_virtual(until)
+            return self.trace
         while not self.halted:
             while heap and heap[0][3].gen != heap[0][2]:
                 heapq.heappop(heap)  # a dropped window
@@ -310,6 +313,34 @@ class Engine:
             if clock.virtual or now >= until:
                 break  # the deadline was `until`, or nothing is left to happen
         return self.trace
+
+    def _run_virtual(self, until: float) -> None:
+        """`run` under a `VirtualClock` (the class itself), its `wait` and `now` read inline:
+        the same steps in the same order, two Python calls fewer per instant."""
+        clock, heap = self.clock, self._heap
+        inbox = clock._inbox
+        heappop = heapq.heappop
+        while not self.halted:
+            while heap and heap[0][3].gen != heap[0][2]:
+                heappop(heap)  # a dropped window
+            next_fire = heap[0][0] if heap else INF
+            deadline = next_fire if next_fire < until else until
+            if inbox and inbox[0][0] <= deadline:  # VirtualClock.wait: an input due first
+                t, _, item = heappop(inbox)
+                clock._now = t
+                if item is STOP:
+                    break
+                self._external_input(item, t)
+                continue
+            if deadline != INF and deadline != -INF and deadline > clock._now:
+                clock._now = deadline
+            if next_fire <= until and next_fire != INF:
+                try:
+                    self._fire_due(clock._now)
+                except Halted:
+                    break
+                continue
+            break  # the deadline was `until`, or nothing is left to happen
 
     def fire_due(self, count: int) -> int:
         """Fire at most `count` of the action instances due at the clock's present time, in the
@@ -404,7 +435,8 @@ class Engine:
         instance.gen += 1
         if emit:
             slot.last = now
-            self._emit(now, leaf.path, action.channel, index, slot.channel.direction, plain)
+            if self.sinks:  # (none: no event is built, and no call made)
+                self._emit(now, leaf.path, action.channel, index, slot.channel.direction, plain)
         if dynamic:
             affects = instance.affects
             if affects is None:
@@ -460,7 +492,8 @@ class Engine:
         if slot.type is not None:
             try:
                 if checked:
-                    value = slot.type.from_checked_plain(plain)
+                    # a type whose checked plain value is the value itself (an int, a bool) is not called
+                    value = plain if slot.type.checked_plain_is_value else slot.type.from_checked_plain(plain)
                 else:
                     value = slot.type.from_plain(plain)
                     # what the IOTA got, as its type writes it: an int of 100 bits in a float
@@ -483,7 +516,8 @@ class Engine:
                             f"{slot.switching:g} after the last one at {slot.last:.6g}; rejected")
             return
         slot.last = now
-        self._emit(now, leaf.path, channel.name, index, "input", plain)
+        if self.sinks:
+            self._emit(now, leaf.path, channel.name, index, "input", plain)
         action = slot.input_action
         if action is None:
             return
@@ -558,12 +592,26 @@ class Engine:
             # earlier window stay behind (a checker would see that window expire)
             instance.te, instance.lower, instance.upper = now, INF, INF
             return
-        # `plus` inlined for its usual cases (no delay; no deadline): this is a hot path
-        earliest = now if lower == 0 else plus(now, lower)
-        instance.te, instance.lower, instance.upper = now, earliest, INF if upper == INF else plus(now, upper)
+        # `plus` inlined for its usual cases (no delay; a delay short of 1e290; no deadline, or
+        # one equal to the delay, as `after=d` makes it): this is a hot path
+        if lower == 0:
+            earliest = now
+        else:
+            later = now + lower
+            if -1e290 < later < 1e290:  # (the grid's product cannot overflow: `plus` without the call)
+                on_grid = round(later * TIME_GRID) / TIME_GRID
+                earliest = on_grid if on_grid >= now else now
+            else:
+                earliest = plus(now, lower)
+        instance.te, instance.lower = now, earliest
+        instance.upper = INF if upper == INF else earliest if upper == lower else plus(now, upper)
         slot = instance.slot
         if slot.last + slot.switching > earliest:
             earliest = max(earliest, plus(slot.last, slot.switching))
+        if earliest <= instance.upper and self.policy.__class__ is Eager:
+            instance.fire_at = earliest  # `_schedule`'s usual case, without the call
+            heapq.heappush(self._heap, (earliest, instance.rank, instance.gen, instance))
+            return
         self._schedule(instance, earliest, now)
 
     def _schedule(self, instance: ActionInstance, earliest: float, now: float) -> None:
