@@ -401,24 +401,27 @@ class Engine:
         return fired
 
     def _fire(self, instance: ActionInstance, now: float) -> None:
-        leaf, action, index, iota = instance.leaf, instance.action, instance.index, instance.iota
+        # (the instance's leaf, action and index are read only where a branch needs them: a hot path)
         slot = instance.slot
         # A window that the switching time made unreachable was reported then, and fires at the
         # earliest legal time after it: only firing later than that is the process being late.
         deadline = instance.fire_at if instance.upper < instance.fire_at < INF else instance.upper
         if now > deadline + self.deadline_tolerance:
-            self._violation(now, leaf.path, action.channel, index, "deadline_miss",
+            action = instance.action
+            self._violation(now, instance.leaf.path, action.channel, instance.index, "deadline_miss",
                             f"{action.label} fired at {now:.6g}, after its deadline {deadline:.6g}")
         plain = None
         emit = True
         dynamic = instance.dynamic
         if dynamic:
+            iota = instance.iota
             before = [getattr(iota, source, None) for _, source in dynamic]
         if instance.value is not None:
             try:
                 plain = slot.type.checked_plain(instance.value())
             except BadValue as exc:
-                self._violation(now, leaf.path, action.channel, index, "bad_value",
+                action = instance.action
+                self._violation(now, instance.leaf.path, action.channel, instance.index, "bad_value",
                                 f"{action.label}: output value rejected: {exc}")
                 emit = False
             # a fault in a spec (sys.exit() too) is a violation, not the end of the process
@@ -436,8 +439,10 @@ class Engine:
         if emit:
             slot.last = now
             if self.sinks:  # (none: no event is built, and no call made)
-                self._emit(now, leaf.path, action.channel, index, slot.channel.direction, plain)
+                self._emit(now, instance.leaf.path, instance.action.channel, instance.index, slot.channel.direction,
+                           plain)
         if dynamic:
+            leaf, action, index = instance.leaf, instance.action, instance.index
             affects = instance.affects
             if affects is None:
                 affects = instance.affects = self._affected(leaf, action.writes, index)
@@ -449,7 +454,8 @@ class Engine:
             if again is None:
                 affects = instance.affects
                 if affects is None:
-                    affects = instance.affects = self._affected(leaf, action.writes, index)
+                    affects = instance.affects = self._affected(instance.leaf, instance.action.writes,
+                                                                instance.index)
                 again = instance.reevaluate = [instance] + [other for other in affects if other is not instance]
             self._evaluate_all(again, now)
         if emit:
@@ -560,7 +566,8 @@ class Engine:
                         instance.failing = True
                     holds = False
                 else:
-                    instance.failing = False
+                    if instance.failing:
+                        instance.failing = False
             if holds:
                 if not instance.enabled:
                     self._enable(instance, now)
