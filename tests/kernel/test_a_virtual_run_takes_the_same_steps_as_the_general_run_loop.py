@@ -100,3 +100,28 @@ def test_a_stop_posted_mid_run_ends_both_loops_at_the_same_event():
     fast, general = stopped(VirtualClock()), stopped(GeneralClock())
     assert fast == general
     assert fast[1] == 4.0 and fast[0][-1]["t"] <= 4.0
+
+
+class Spinner(Iota):
+    """Fires at t=1, then again and again at once: a Zeno loop the engine halts."""
+    out = Output(Int)
+
+    def init(self):
+        self.n = 0
+
+    @out.action(value=lambda self: self.n, after=lambda self: 1.0 if self.n == 0 else 0.0)
+    def spin(self):
+        self.n += 1
+
+
+def test_a_zeno_loop_halts_both_loops_at_the_same_firing():
+    def halted(clock):
+        engine = Engine(Spinner("spinner"), clock, max_firings_per_instant=50)
+        engine.run(10.0)
+        return engine.trace, engine.clock.now(), engine.firings, engine.halted
+
+    fast, general = halted(VirtualClock()), halted(GeneralClock())
+    assert fast == general
+    trace, now, firings, stopped = fast
+    assert stopped and now == 1.0 and firings == 50  # fifty at t=1; the fifty-first is refused
+    assert trace[-1]["kind"] == "violation" and trace[-1]["value"]["violation"] == "zeno"
