@@ -164,7 +164,10 @@ def test_a_host_whose_clock_is_50_ms_ahead_is_measured_and_corrected(tmp_path):
         links = {link.label: link for link in report.links}
         for label in ("vision.req -> scheduler.req[0]", "scheduler.ack[0] -> vision.ack"):
             link = links[label]
-            assert link.sent >= 1 and link.delivered == link.sent, link
+            # every message delivered, but for one in flight as the run ended (not judged)
+            unjudged = [f.message for f in report.notes if f.link == label]
+            assert link.delivered >= 1 and link.lost == 0 and link.unjudged <= 1, (link, unjudged)
+            assert link.delivered + link.unjudged == link.sent, (link, unjudged)
             p50, p99, most = link.latency()
             # on one timeline: received after it was sent, and far sooner than the skew
             assert 0 <= p50 <= most < 0.02, (label, p50, most)
