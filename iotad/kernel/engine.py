@@ -468,8 +468,7 @@ class Engine:
             if affects is None:
                 affects = instance.affects = self._affected(leaf, action.writes, index)
             affects = self._with_dynamic(leaf, affects, dynamic, before)
-            self._evaluate(instance, now)
-            self._evaluate_all(affects, now, instance)
+            self._evaluate_all([instance] + [other for other in affects if other is not instance], now)
         else:
             again = instance.reevaluate
             if again is None:
@@ -564,15 +563,10 @@ class Engine:
             affects = self._with_dynamic(leaf, affects, dynamic, before)
         self._evaluate_all(affects, now)
 
-    def _evaluate(self, instance: ActionInstance, now: float) -> None:
-        self._evaluate_all((instance,), now)
-
-    def _evaluate_all(self, instances: list[ActionInstance], now: float, skip: Any = None) -> None:
-        """Each of `instances` but `skip`: enable it if its precondition now holds (its window
-        opens), drop its window if it no longer does. The engine's hottest loop."""
+    def _evaluate_all(self, instances: list[ActionInstance], now: float) -> None:
+        """Each of `instances`: enable it if its precondition now holds (its window opens), drop
+        its window if it no longer does. The engine's hottest loop."""
         for instance in instances:
-            if instance is skip:
-                continue
             when = instance.when
             if when is None:
                 holds = True
