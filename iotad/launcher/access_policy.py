@@ -23,7 +23,9 @@ QUERY_KEYS = [f"{wire.PREFIX}/**/{wire.SPEC}", f"{wire.PREFIX}/*/{wire.ORIGIN}",
 ALIVE_KEYS = [f"{wire.PREFIX}/**/{wire.ALIVE}"]
 # Which subscribers and queryables exist is told to every user: a client's publisher sends only
 # when it knows of a matching subscriber (zenoh's interests), and a declaration carries no data.
-DECLARATION_KEYS = [*READ_KEYS, *QUERY_KEYS[:2], *ALIVE_KEYS]
+# The hub's origin on another host's clock, which that host's launcher publishes to its nodes
+ORIGIN_KEYS = [f"{wire.PREFIX}/*/{wire.ORIGIN}/*"]
+DECLARATION_KEYS = [*READ_KEYS, *QUERY_KEYS[:2], *ALIVE_KEYS, *ORIGIN_KEYS]
 
 
 def node_user(path: str) -> str:
@@ -42,6 +44,9 @@ class Grant:
     ask: list[str] = field(default_factory=list)         # queries from it, replies to it
     tokens: list[str] = field(default_factory=list)      # liveliness tokens it declares
     watch: list[str] = field(default_factory=list)       # liveliness it subscribes to or asks
+    # subscribers and queryables it is told of beyond every user's `DECLARATION_KEYS`: the agents'
+    # wire (iotad/launcher/host_access.py) is outside `iota/<system>`
+    declarations: list[str] = field(default_factory=list)
 
 
 @dataclass
@@ -79,7 +84,8 @@ class Policy:
             rule("token", "ingress", ["liveliness_token"], grant.tokens)
             rule("watch", "ingress", ["declare_liveliness_subscriber", "liveliness_query"], grant.watch)
             rule("seen", "egress", ["liveliness_token"], grant.watch)
-            rule("declared", "egress", ["declare_subscriber", "declare_queryable"], DECLARATION_KEYS)
+            rule("declared", "egress", ["declare_subscriber", "declare_queryable"],
+                 [*DECLARATION_KEYS, *grant.declarations])
             subject_id = f"s{number}"
             subjects.append({"id": subject_id, "usernames": [grant.user]})
             policies.append({"id": f"p{number}", "rules": ids, "subjects": [subject_id]})
@@ -115,6 +121,9 @@ def derive(system: System) -> Policy:
         grant.publish += [f"{base}/{wire.TRACE}", f"{base}/{wire.HEARTBEAT}"]
         bound = [key for keys in system.inputs_of(node.name).values() for key in keys]
         grant.subscribe = _unique(bound + own_inputs)
+        if node.host is not None and not system.opens_hub(node.host):
+            # its launcher measures the host's clock during the run; the node's clock follows
+            grant.subscribe.append(wire.host_origin_key(name, node.host))
         grant.serve = [f"{base}/{wire.SPEC}"]
         grant.tokens = [f"{base}/{wire.ALIVE}"]
         # peer_restart inputs watch the others' tokens; every node waits for its launcher's start gate

@@ -27,7 +27,12 @@ def assert_checked(recording: Path) -> None:
     # how many requests fit in the run depends on how long the hosts took to start: at least one
     assert re.search(r"scheduler: \d+ events, [1-9]\d* firings checked", out), out[-3000:]
     assert re.search(r"vision: \d+ events, [1-9]\d* firings checked", out), out[-3000:]
-    assert re.search(r"delivery: (\d+) of \1 messages delivered as sent over 2 links", out), out[-3000:]
+    # every message delivered as sent, but for one the run's end caught in flight (judged as such,
+    # not lost: the last ack may be on its way when --until stops the hosts, on a loaded machine)
+    delivery = re.search(r"delivery: (\d+) of (\d+) messages delivered as sent over 2 links", out)
+    assert delivery, out[-3000:]
+    in_flight = re.search(r"(\d+) not judged \(in flight at the end", out)
+    assert int(delivery[1]) + (int(in_flight[1]) if in_flight else 0) == int(delivery[2]), out[-3000:]
 
 
 def iotad(place, *args, timeout=120):
@@ -83,7 +88,9 @@ from iotad.host.transport import open_session
 hub, stranger, own = sys.argv[1], sys.argv[2], sys.argv[3]
 for name, endpoint, files in (("tcp", hub.replace("tls/", "tcp/"), None), ("tls without a certificate", hub, None),
                               ("tls with another authority's", hub, certificates.host_files(stranger, "rogue")),
-                              # the control: the hub is reachable from here, for a host of the system
+                              # a host of the system reaches the hub from here, but the run is under
+                              # access control and it has no credentials (the control that reads with
+                              # them: test_a_third_host_without_credentials_can_neither_command_nor_read)
                               ("tls with the system's", hub, certificates.host_files(own, "guest"))):
     try:
         with open_session([], [endpoint], mode="client", connect_timeout=2, credentials=False, tls=files) as s:
@@ -125,7 +132,7 @@ def test_hosts_linked_by_tls_admit_no_process_without_a_certificate(tmp_path):
             interrupt_then_kill(agent)
         assert run.returncode == 0, output[-3000:]
         assert rogue.stdout.split("\n")[:4] == ["tcp refused", "tls without a certificate refused",
-                                               "tls with another authority's refused", "tls with the system's OPENED"], \
+                                               "tls with another authority's refused", "tls with the system's refused"], \
             rogue.stdout + rogue.stderr
         assert "host arm: its agent runs its nodes" in output and "COMMIT" in output
         assert_checked(tmp_path / "tls.mcap")
@@ -158,8 +165,9 @@ def test_a_host_whose_clock_is_50_ms_ahead_is_measured_and_corrected(tmp_path):
         recording = read_recording(tmp_path / "skew.mcap")
         measured = [m.value for m in recording.messages if m.topic.endswith("/@launcher")
                     and isinstance(m.value, dict) and m.value.get("event") in ("clock", "clock_violation")]
-        assert len(measured) == 1 and measured[0]["host"] == "arm", measured
-        assert abs(measured[0]["offset"] - (-0.05)) <= measured[0]["bound"] + 1e-6, measured
+        # at start, and again every clock_period (10 s) if the run lasts that long
+        assert measured and all(m["host"] == "arm" for m in measured), measured
+        assert all(abs(m["offset"] - (-0.05)) <= m["bound"] + 1e-6 for m in measured), measured
         report = check_delivery(recording, tolerance=0.01)
         links = {link.label: link for link in report.links}
         for label in ("vision.req -> scheduler.req[0]", "scheduler.ack[0] -> vision.ack"):
