@@ -105,6 +105,7 @@ class Launcher:
         self.events: queue.Queue = queue.Queue()
         self.tally = Tally()
         self.alive_paths: set[str] = set()
+        self._ever_alive: set[str] = set()  # every node path that has shown its token, on any host
         self.runs: dict[str, NodeRun] = {}
         for spec in system.nodes_on(self.host):
             child = Child(spec.name, [], log=self.run_dir / f"{spec.name.replace('/', '.')}.log",
@@ -326,8 +327,10 @@ class Launcher:
         from iotad.launcher.fleet import FleetError
 
         self.fleet.say = self.view.line
+        # a host lost or back is the loop's to report (its nodes' state, the recording)
+        self.fleet.notify = lambda event, host: self.events.put(("host", event, host))
         try:
-            self.fleet.start(self.access)
+            self.fleet.start(self.access, stop=self._stop_asked)  # Ctrl-C ends the wait for agents at once
         except FleetError as exc:
             raise LauncherError(str(exc)) from None
 
@@ -414,6 +417,8 @@ class Launcher:
         elif kind == "alive":
             _, path, present, when = item
             (self.alive_paths.add if present else self.alive_paths.discard)(path)
+            if present:
+                self._ever_alive.add(path)
             run = self.runs.get(path)
             if run is None:
                 if present and self.host is not None:
@@ -436,6 +441,25 @@ class Launcher:
                 self.recorder.exited(item[1], item[2])
         elif kind == "clock":
             self._clock_measured(item[1])
+        elif kind == "host":
+            self._host_changed(item[1], item[2])
+
+    def _host_changed(self, event: str, host: str) -> None:
+        """Another host's agent was lost, or came back and runs its part again: its nodes are
+        down (a launcher event each, in the recording) or starting again. Their peers learn of
+        the restart from the nodes' own tokens when they come back (iotad/host/peer_restart.py)."""
+        nodes = [name for name, spec in self.system.nodes.items() if spec.host == host]
+        if event == "lost":
+            for name in nodes:
+                self.view.line(f"{name}: DOWN (host {host} lost)")
+                self._publish({"event": "down", "node": name, "host": host, "pid": None, "code": None,
+                               "t_ns": time.time_ns(), "message": f"host {host} lost"})
+        elif event == "resumed":
+            self._launcher_event("host_back", f"host {host}: back; its nodes ran on while it was cut off "
+                                              f"({', '.join(nodes)})", host=host, resumed=True)
+        else:
+            self._launcher_event("host_back", f"host {host}: back; its nodes start again ({', '.join(nodes)})",
+                                 host=host, resumed=False)
 
     def _exited(self, run: NodeRun, code: int) -> None:
         now = time.monotonic()
@@ -502,10 +526,18 @@ class Launcher:
             return None
         if not self.options.after_live:
             return self._started
-        if self._live_at is None and self._everyone_live():
+        if self._live_at is None and self._everyone_live() and self._other_hosts_live():
             self._live_at = now
             self.view.line(f"every node is live: --until {self.until:g} s counts from now")
         return self._live_at
+
+    def _other_hosts_live(self) -> bool:
+        """A hub that starts the other hosts through their agents: every node of theirs has been
+        live once (they start seconds after this host's, an agent and a launcher later), so that
+        --after-live's seconds are the whole system's. The start gates stay each host's own."""
+        if self.fleet is None:
+            return True
+        return all(name in self._ever_alive for name in self.system.nodes if name not in self.runs)
 
     def _everyone_live(self) -> bool:
         """Every node is live or has ended for good, and one at least is live: a node that failed
@@ -607,7 +639,7 @@ class Launcher:
         if self._publisher is None:
             return
         if self.host is not None:
-            payload["host"] = self.host
+            payload.setdefault("host", self.host)  # a lost host's nodes are named with their own
         try:
             self._publisher.put(wire.encode(payload), attachment=wire.encode_attachment(self._event_seq))
             self._event_seq += 1

@@ -27,10 +27,12 @@ def assert_checked(recording: Path) -> None:
     # how many requests fit in the run depends on how long the hosts took to start: at least one
     assert re.search(r"scheduler: \d+ events, [1-9]\d* firings checked", out), out[-3000:]
     assert re.search(r"vision: \d+ events, [1-9]\d* firings checked", out), out[-3000:]
-    # a message still in flight when --until stopped the run is not judged, and not lost
-    delivery = re.search(r"delivery: (\d+) of (\d+) messages delivered as sent over 2 links.*?(?:; (\d+) not judged "
-                         r"\(in flight at the end|$)", out, re.M)
-    assert delivery and int(delivery[1]) + int(delivery[3] or 0) == int(delivery[2]), out[-3000:]
+    # every message delivered as sent, but for one the run's end caught in flight (judged as such,
+    # not lost: the last ack may be on its way when --until stops the hosts, on a loaded machine)
+    delivery = re.search(r"delivery: (\d+) of (\d+) messages delivered as sent over 2 links", out)
+    assert delivery, out[-3000:]
+    in_flight = re.search(r"(\d+) not judged \(in flight at the end", out)
+    assert int(delivery[1]) + (int(in_flight[1]) if in_flight else 0) == int(delivery[2]), out[-3000:]
 
 
 def iotad(place, *args, timeout=120):
@@ -51,7 +53,7 @@ def test_the_hub_starts_the_arm_through_its_agent(tmp_path):
             runs = []
             for k in range(2):  # the same agent serves a second run after the first one's hub closed
                 recording = tmp_path / f"split{k}.mcap"
-                runs.append(iotad(lambda *c: net.exec("brain", *c), "run", str(path), "--until", "8", "--plain",
+                runs.append(iotad(lambda *c: net.exec("brain", *c), "run", str(path), "--until", "8", "--after-live", "--plain",
                                   "-o", str(recording)))
                 done = runs[-1]
                 assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-2000:]
@@ -117,7 +119,7 @@ def test_hosts_linked_by_tls_admit_no_process_without_a_certificate(tmp_path):
                                  stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=ROOT,
                                  start_new_session=True)
         run = subprocess.Popen(net.exec("brain", sys.executable, "-m", "iotad", "run", str(path), "--until", "10",
-                                        "--plain", "--certs", str(certs), "-o", str(tmp_path / "tls.mcap")),
+                                        "--after-live", "--plain", "--certs", str(certs), "-o", str(tmp_path / "tls.mcap")),
                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=ROOT,
                                start_new_session=True)
         try:
@@ -154,7 +156,7 @@ def test_a_host_whose_clock_is_50_ms_ahead_is_measured_and_corrected(tmp_path):
                                  stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=ROOT,
                                  start_new_session=True)
         try:
-            done = iotad(lambda *c: net.exec("brain", *c), "run", str(path), "--until", "8", "--plain",
+            done = iotad(lambda *c: net.exec("brain", *c), "run", str(path), "--until", "8", "--after-live", "--plain",
                          "-o", str(tmp_path / "skew.mcap"))
         finally:
             interrupt_then_kill(agent)
