@@ -24,10 +24,11 @@ class Fleet:
 
     def __init__(self, system_path: str | Path, hosts: list[str], hub: list[str], args: list[str], *,
                  tls=None, env: dict[str, str] | None = None, say: Callable[[str], None] = print,
-                 start_timeout: float = 30.0):
+                 start_timeout: float = 30.0, host_args: dict[str, list[str]] | None = None):
         self.path = Path(system_path).resolve()
         self.text = self.path.read_text(encoding="utf-8")
         self.hosts, self.hub, self.args, self.tls = list(hosts), list(hub), list(args), tls
+        self.host_args = {host: list(extra) for host, extra in (host_args or {}).items()}  # one host's own (its recording)
         self.env, self.say, self.start_timeout = dict(env or {}), say, start_timeout
         self.session = None
         self.exits: dict[str, int] = {}
@@ -58,10 +59,10 @@ class Fleet:
             self.close()
             raise FleetError(f"no agent answered for host(s) {', '.join(missing)} within {self.start_timeout:g} s: "
                              f"start 'iotad agent --name HOST --connect {self.hub[0]}' there (docs/hosts.md)")
-        order = json.dumps({"system": self.text, "path": str(self.path), "digest": digest(self.text),
-                            "args": self.args, "env": self.env}).encode()
         refused = []
         for host in self.hosts:
+            order = json.dumps({"system": self.text, "path": str(self.path), "digest": digest(self.text),
+                                "args": self.args + self.host_args.get(host, []), "env": self.env}).encode()
             answer = self._ask(f"{agent_key(host)}/run", order)
             if answer.get("ok"):
                 self._started.add(host)

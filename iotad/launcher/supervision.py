@@ -132,9 +132,13 @@ class Launcher:
         self._system_live = False  # every node has been live (or ended) once: the system runs
         from iotad.launcher.status_view import StatusView
         self.view = StatusView(launch.console, launch.live_table, title=f"iotad run {system.file}")
-        # the recorder, where this launcher holds the hub (another host's launcher records nothing)
+        # the recorder: the hub's launcher records what reaches the hub, another host's launcher
+        # what its own nodes do (iotad/launcher/host_recording.py)
         self.recorder: RecorderSupervisor | None = None
-        if recording is not None and system.opens_hub(self.host):
+        self._local: list[str] = []      # another host's launcher: where its recorder and nodes reach it
+        self._hub_origin: float | None = None  # another host's launcher: the origin the hub answered
+        self._clock: dict | None = None        # another host's launcher: its clock offset, as measured
+        if recording is not None:
             self.recorder = RecorderSupervisor(
                 system, recording, hub=self.hub, run_dir=self.run_dir,
                 env=self.access.recorder_env() if self.access else None, events=self.events,
@@ -213,6 +217,11 @@ class Launcher:
             listen, connect = self.hub, list(system.connect)
         else:
             listen, connect = system.listen_for(self.host), self.hub
+            if self.recorder is not None:  # its recorder and nodes connect here: a known port
+                from iotad.launcher.host_recording import local_endpoints, pinned
+
+                listen = pinned(listen)
+                self._local = local_endpoints(listen)
         try:
             self.session = open_session(listen, connect, **(self.access.hub_options() if self.access else {}))
         except Exception as exc:  # noqa: BLE001 - zenoh says why in its message
@@ -255,7 +264,8 @@ class Launcher:
             for reply in self.session.get(key, timeout=1.0):
                 if reply.ok is not None:
                     self._hub_answered = True
-                    return float(wire.decode(reply.ok.payload.to_bytes())["origin"])
+                    self._hub_origin = float(wire.decode(reply.ok.payload.to_bytes())["origin"])
+                    return self._hub_origin
             self._stop_asked.wait(0.2)
         if self._stop_asked.is_set():
             return wall()  # stopping before anything started: the origin no longer matters
@@ -277,6 +287,7 @@ class Launcher:
                                  host=self.host)
             return
         self.origin -= measured.offset  # hub = host + offset: the hub's origin on this host's clock
+        self._clock = dict(measured.as_plain(), measured_ns=int(wall() * 1e9))  # for its own recording
         problem = measured.problem(self.system.clock_bound)
         self._launcher_event("clock_violation" if problem else "clock",
                              (f"warning: host {self.host}: {problem}" if problem else
@@ -289,6 +300,14 @@ class Launcher:
         recording that cannot be written (no folder, no space, the recorder fails) is an error
         here, while nothing runs yet: --no-record runs without one."""
         if self.recorder is not None:
+            if self.host is not None:  # a run spread over hosts: whose recording this is (iotad merge)
+                from iotad.launcher.host_recording import run_info
+
+                hub = self.system.opens_hub(self.host)
+                origin = self.origin if hub or self._hub_origin is None else self._hub_origin
+                self.recorder.run_info = run_info(self.host, hub, origin, None if hub else self._clock)
+                if not hub and self._local:
+                    self.recorder.hub = list(self._local)  # the host's own launcher, not the hub
             try:
                 self.recorder.start()
             except RecordingError as exc:
@@ -533,7 +552,9 @@ class Launcher:
                 self._kill(run, f"liveliness token gone for {now - run.lost_since:.1f} s")
 
     def _spawn(self, run: NodeRun, event: str) -> None:
-        config = self.system.node_config(run.name, self.origin, self.hub)
+        # another host's recording: its nodes connect to its launcher too, so that its recorder
+        # hears them from their first event and while the hub is out of reach
+        config = self.system.node_config(run.name, self.origin, self.hub + self._local)
         config["restarts"] = run.restarts  # its heartbeats say it: a tool attached later counts them
         if not self.gate_open:  # a node (re)started after the gate opened starts its engine at once
             config["start_gate"] = self.gate_key
