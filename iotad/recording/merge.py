@@ -12,7 +12,7 @@ also while the hub was out of reach. Each file's metadata says whose it is (`iot
   clock, with the sender's corrected origin), and so do the trace events' `t` (already on the hub's
   timeline: each host's origin was corrected at start).
 - **Once.** A message that two recorders wrote (the same topic, sender's time, sequence number and
-  bytes) is kept once: the copy of the host that owns it (the host of the node whose key it is, or
+  bytes; a heartbeat, which carries no sender's time, by its bytes) is kept once: the copy of the host that owns it (the host of the node whose key it is, or
   of the launcher that sent it), whose file has its node's events in the order they happened.
 - **Gaps.** A marked gap (`MERGE_GAP_TOPIC`, one message each, and the list in metadata
   `iotad.merge`) names the host and the interval (hub clock, and seconds of the run): events of a
@@ -205,7 +205,10 @@ class _Join:
                     if isinstance(gap, dict):
                         recorder_gaps.append((to_hub(message.log_time), gap))
                     continue
-                base = (message.topic, message.publish_time, message.sequence, message.data)
+                # a sample without the sender's attachment (a heartbeat) has the receipt as its
+                # publish time, which differs between recorders: its bytes name it (a beat's `t`)
+                sent = None if message.publish_time == message.log_time else message.publish_time
+                base = (message.topic, sent, message.sequence, message.data)
                 key = (*base, seen[base])  # the n-th copy in one file matches the n-th in another
                 seen[base] += 1
                 keys.add(key)

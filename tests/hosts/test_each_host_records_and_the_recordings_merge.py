@@ -77,6 +77,9 @@ def test_each_host_records_its_part_and_the_merged_recording_holds_both(tmp_path
     for node, files in (("vision", (arm_file, hub_file)), ("scheduler", (hub_file,)), ("manipulation", (hub_file,))):
         held = set().union(*(trace_keys(f, node) for f in files))
         assert trace_keys(merged, node) == held and held, node
+    # heartbeats (no sender's time) once each too, not once per recording that heard them
+    beats = lambda r: [m.data for m in r.messages if m.topic == "iota/split2/vision/@heartbeat"]
+    assert sorted(beats(merged)) == sorted(set(beats(hub_file)) | set(beats(arm_file)))
     # no stretch of the arm's events missed by the hub: the network held (the gaps, if any, say so)
     assert not [g for g in merged_gaps(merged) if "did not reach the hub" in g["reason"]], merged_gaps(merged)
 

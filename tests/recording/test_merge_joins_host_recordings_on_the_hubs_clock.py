@@ -88,20 +88,27 @@ def scheduler(t: float, seq: int, received: int) -> tuple:
     return SCHEDULER, received, ns(t), seq, event("scheduler", t, "ack")
 
 
+def heartbeat(t: float, received: int) -> tuple:
+    """Vision's heartbeat: sent without an attachment, so each recorder stamps its own receipt as
+    its publish time; its bytes (the node's t) are what is the same in both files."""
+    return "iota/split/vision/@heartbeat", received, received, 0, {"t": t, "firings": 3, "queue": 0, "restarts": 0}
+
+
 @pytest.fixture
 def partitioned(tmp_path):
     """The arm cut off from the hub from t=2.5 to t=4.5: the hub's recording lacks vision's events
     at t=3 and t=4 (its recorder saw seq 4 after seq 1: a sequence gap), the arm's own has them."""
     hub = write(tmp_path / "split.mcap", "brain", [
         scheduler(1.03, 0, ns(1.03) + MS), vision(1.0, 0, True), vision(2.0, 1, True),
-        scheduler(2.5, 1, ns(2.5) + MS), vision(5.0, 4, True),
+        scheduler(2.5, 1, ns(2.5) + MS), vision(5.0, 4, True), heartbeat(2.2, ns(2.2) + 2 * MS),
         (GAP_TOPIC, ns(5.0) + 2 * MS, ns(5.0) + 2 * MS, 0, {"key": VISION, "expected": 2, "got": 4, "missing": 2}),
         (GAP_TOPIC, ns(5.1), ns(5.1), 1, {"key": SCHEDULER, "expected": 2, "got": 3, "missing": 1}),
     ], hub=True)
     # the arm heard the scheduler's first event too (before the cut): on its own clock
     arm = write(tmp_path / "split.arm.mcap", "arm", [
         vision(1.0, 0, False), scheduler(1.03, 0, ns(1.03) + round(AHEAD * 1e9) + 3 * MS),
-        vision(2.0, 1, False), vision(3.0, 2, False), vision(4.0, 3, False), vision(5.0, 4, False),
+        vision(2.0, 1, False), heartbeat(2.2, ns(2.2) + round(AHEAD * 1e9) + MS), vision(3.0, 2, False),
+        vision(4.0, 3, False), vision(5.0, 4, False),
     ], offset=-AHEAD)
     return hub, arm
 
@@ -125,6 +132,8 @@ def test_host_times_move_onto_the_hubs_clock_and_each_message_is_kept_once(parti
     # the sender's times are left as sent (the delivery check reads them on the sender's clock)
     assert {m.publish_time for m in merged.messages if m.topic == VISION} == \
         {ns(t) + round(AHEAD * 1e9) for t in (1.0, 2.0, 3.0, 4.0, 5.0)}
+    beats = [m for m in merged.messages if m.topic.endswith("@heartbeat")]
+    assert len(beats) == 1 and beats[0].log_time == ns(2.2) + MS, beats  # once, the arm's own
     assert merged.complete and merged.info["merged"] == ["split.mcap", "split.arm.mcap"]
 
 
@@ -208,10 +217,10 @@ def test_the_merge_command_writes_a_file_that_info_reads_and_refuses_bad_input(p
     out = tmp_path / "merged.mcap"
     done = iotad("merge", hub, arm, "-o", out)
     assert done.returncode == 0, done.stderr
-    # 7 events, once each, the scheduler's sequence gap and 2 host gaps
-    assert "merged 2 recordings of split: 10 messages" in done.stdout, done.stdout
-    assert "4 copies held twice kept once, 1 recorder sequence gap(s) left" in done.stdout
-    assert "split.arm.mcap: host arm's recording, 6 messages, 5 kept; clock offset -50.000 ms +-0.200 ms" in done.stdout
+    # 7 events and a heartbeat, once each, the scheduler's sequence gap and 2 host gaps
+    assert "merged 2 recordings of split: 11 messages" in done.stdout, done.stdout
+    assert "5 copies held twice kept once, 1 recorder sequence gap(s) left" in done.stdout
+    assert "split.arm.mcap: host arm's recording, 7 messages, 6 kept; clock offset -50.000 ms +-0.200 ms" in done.stdout
     info = iotad("info", out)
     assert info.returncode == 0, info.stderr
     assert "merged from: split.mcap, split.arm.mcap; host gaps: 2" in info.stdout, info.stdout

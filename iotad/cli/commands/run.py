@@ -264,6 +264,12 @@ def _launch(system, args: argparse.Namespace, record_to: str | None, summary_hoo
     print(f"summary of {system.name}" + (where if launcher.host else "") + ":")
     for line in launcher.summary():
         print(line)
+    if fleet is not None and record_to is not None and launcher.recorder is not None:
+        from iotad.launcher.host_recording import host_recording_path
+
+        others = [str(host_recording_path(record_to, host)) for host in fleet.hosts]
+        print(f"  each other host recorded its part on its own machine: {', '.join(others)}; "
+              f"join them with: iotad merge {record_to} {' '.join(others)} -o MERGED.mcap")
     if summary_hook is not None:
         code = summary_hook(launcher, code)
     if sys.stdout is not None:  # None when the shell closed it (>&-)
