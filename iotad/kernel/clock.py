@@ -29,18 +29,6 @@ def wall() -> float:
     return time.time() + _SKEW
 
 
-_SKEW_NS = round(_SKEW * 1e9)
-
-
-def _skewed_ns() -> int:
-    return time.time_ns() + _SKEW_NS
-
-
-# `wall()` in integer nanoseconds, for a recorder's log times: `time.time_ns` itself (no cost)
-# unless the drill's skew is set
-wall_ns = _skewed_ns if _SKEW_NS else time.time_ns
-
-
 class Clock:
     virtual = True
 

@@ -287,7 +287,6 @@ class Launcher:
                                  host=self.host)
             return
         self.origin -= measured.offset  # hub = host + offset: the hub's origin on this host's clock
-        self._clock = dict(measured.as_plain(), measured_ns=int(wall() * 1e9))  # for its own recording
         problem = measured.problem(self.system.clock_bound)
         self._launcher_event("clock_violation" if problem else "clock",
                              (f"warning: host {self.host}: {problem}" if problem else
@@ -589,6 +588,9 @@ class Launcher:
 
     def _launcher_event(self, event: str, text: str, code: int | None = None, **extra: Any) -> None:
         """An event of the launcher itself (node None): the recorder's fate..."""
+        if event in ("clock", "clock_violation") and self._clock is None and "offset" in extra:
+            # the clock measured at start, for this host's own recording (started after it)
+            self._clock = dict(extra, measured_ns=round(wall() * 1e9))
         self.view.line(text)
         self._publish({"event": event, "node": None, "pid": os.getpid(), "code": code,
                        "t_ns": time.time_ns(), "message": text.split("\n", 1)[0], **extra})

@@ -55,8 +55,8 @@ def offsets(recording: Any) -> list[Offset]:
             continue
         if isinstance(event, dict) and event.get("event") in CLOCK_EVENTS and event.get("host") == host \
                 and _number(event.get("offset")):
-            when = event.get("t_ns") if isinstance(event.get("t_ns"), int) else message.log_time
-            found.append(Offset(when, float(event["offset"]), float(event.get("bound") or 0.0)))
+            # from when it was recorded: log times are what the offsets move
+            found.append(Offset(message.log_time, float(event["offset"]), float(event.get("bound") or 0.0)))
     found.sort(key=lambda o: o.since_ns)
     return found
 

@@ -48,7 +48,7 @@ from iotad.launcher.recording_paths import continuation_path, unused_recording_p
 from iotad.recording.mcap_format import FORMAT, GAP_TOPIC, MALFORMED_TOPIC, packb, trace_event_problem
 from iotad.recording.mcap_sink import channel_schemas, McapSink, schema_for_topic, write_set_file
 from iotad.host.transport import DEFAULT_LISTEN, open_session
-from iotad.kernel.clock import wall_ns
+from iotad.kernel.clock import CLOCK_SKEW_ENV, wall
 from iotad.launcher.declaration import Declaration, SystemFileError, read_declaration
 
 _MAPS = ("/" + wire.LAUNCHER, "/" + wire.HEARTBEAT)
@@ -80,6 +80,19 @@ def yield_cpu(threads: Iterable[int] | None = None, niceness: int = NICENESS) ->
         except OSError:
             pass
     return done
+
+
+def log_clock() -> Callable[[], int]:
+    """The clock a recorder's log times are on, in ns: the one origins are in (`wall()`), so that a
+    host's recording moves onto the hub's clock by the host's measured offset (`iotad merge`).
+    That is `time.time_ns` itself (no cost in the hot loop) unless a drill makes this host's
+    clock wrong on purpose (IOTAD_CLOCK_SKEW and the like: docs/hosts.md)."""
+    if not any(os.environ.get(name) for name in (CLOCK_SKEW_ENV, "IOTAD_CLOCK_DRIFT")):
+        return time.time_ns
+    return lambda: round(wall() * 1e9)
+
+
+wall_ns = log_clock()
 
 
 def expand_keys(keys: Iterable[str]) -> list[str]:

@@ -10,9 +10,8 @@ import sys
 from pathlib import Path
 
 from launcher_helpers import ROOT
-from namespaces import hosts
+from namespaces import agent, hosts
 from recorded_systems import check_of_a_real_run
-from iotad.launcher.processes import interrupt_then_kill
 from iotad.recording.mcap_reader import read_recording
 from iotad.recording.merge import merged_gaps
 
@@ -50,18 +49,13 @@ def test_each_host_records_its_part_and_the_merged_recording_holds_both(tmp_path
         hub = net.addresses[("brain", "arm")]
         system = tmp_path / "split2.toml"
         system.write_text(figure2_over(hub, net.addresses["arm"]))
-        agent = subprocess.Popen(net.exec("arm", sys.executable, "-m", "iotad", "agent", "--name", "arm",
-                                          "--connect", f"tcp/{hub}:7617"),
-                                 stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=ROOT,
-                                 start_new_session=True)
-        try:
+        with agent(net, "arm", f"tcp/{hub}:7617"):
             done = iotad("run", system, "--until", "9", "--after-live", "--plain", "-o", tmp_path / "split.mcap",
                          place=lambda *c: net.exec("brain", *c))
-        finally:
-            interrupt_then_kill(agent)
     assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-2000:]
     # the arm's launcher said where it records, on its own machine (here: the same folder)
     assert f"recording to {tmp_path / 'split.arm.mcap'}" in done.stdout, done.stdout[-3000:]
+    assert f"join them with: iotad merge {tmp_path / 'split.mcap'} {tmp_path / 'split.arm.mcap'}" in done.stdout
     hub_file, arm_file = read_recording(tmp_path / "split.mcap"), read_recording(tmp_path / "split.arm.mcap")
     assert hub_file.info["run"]["hub"] is True and hub_file.info["run"]["host"] == "brain"
     arm_run = arm_file.info["run"]

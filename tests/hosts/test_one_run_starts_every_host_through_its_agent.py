@@ -48,7 +48,7 @@ def test_the_hub_starts_the_arm_through_its_agent(tmp_path):
             runs = []
             for k in range(2):  # the same agent serves a second run after the first one's hub closed
                 recording = tmp_path / f"split{k}.mcap"
-                runs.append(iotad(lambda *c: net.exec("brain", *c), "run", str(path), "--until", "8", "--plain",
+                runs.append(iotad(lambda *c: net.exec("brain", *c), "run", str(path), "--until", "8", "--after-live", "--plain",
                                   "-o", str(recording)))
                 done = runs[-1]
                 assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-2000:]
@@ -111,7 +111,7 @@ def test_hosts_linked_by_tls_admit_no_process_without_a_certificate(tmp_path):
                                           "--connect", f"tls/{hub}:7615", "--certs", str(certs)),
                                  stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=ROOT,
                                  start_new_session=True)
-        run = subprocess.Popen(net.exec("brain", sys.executable, "-m", "iotad", "run", str(path), "--until", "10",
+        run = subprocess.Popen(net.exec("brain", sys.executable, "-m", "iotad", "run", str(path), "--until", "10", "--after-live",
                                         "--plain", "--certs", str(certs), "-o", str(tmp_path / "tls.mcap")),
                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=ROOT,
                                start_new_session=True)
@@ -149,7 +149,7 @@ def test_a_host_whose_clock_is_50_ms_ahead_is_measured_and_corrected(tmp_path):
                                  stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=ROOT,
                                  start_new_session=True)
         try:
-            done = iotad(lambda *c: net.exec("brain", *c), "run", str(path), "--until", "8", "--plain",
+            done = iotad(lambda *c: net.exec("brain", *c), "run", str(path), "--until", "8", "--after-live", "--plain",
                          "-o", str(tmp_path / "skew.mcap"))
         finally:
             interrupt_then_kill(agent)
