@@ -63,6 +63,7 @@ class RecorderSupervisor:
         # a run spread over hosts: whose recording this is (metadata `run`, for `iotad merge`),
         # set by the launcher before `start()`, once it knows the run's origin and its clock
         self.run_info: dict | None = None
+        self.nodes: list[str] | None = None  # another host's recording: only its own nodes
 
     # ------------------------------------------------------------------ allowances
     def start_allowance(self) -> float:
@@ -112,6 +113,8 @@ class RecorderSupervisor:
             argv += ["--max-duration", repr(float(options.max_duration))]
         if self.run_info is not None:
             argv += ["--run", json.dumps(self.run_info)]
+        if self.nodes is not None:
+            argv += ["--nodes", ",".join(self.nodes)]
         for endpoint in self.hub:  # a client of the hub, which relays each node's first sample
             argv += ["--connect", endpoint]
         # If the launcher is killed (-9), the recorder is interrupted, not killed: it writes the

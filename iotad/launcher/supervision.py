@@ -307,6 +307,8 @@ class Launcher:
                 self.recorder.run_info = run_info(self.host, hub, origin, None if hub else self._clock)
                 if not hub and self._local:
                     self.recorder.hub = list(self._local)  # the host's own launcher, not the hub
+                if not hub:
+                    self.recorder.nodes = list(self.runs)  # its own nodes (the hub records the others)
             try:
                 self.recorder.start()
             except RecordingError as exc:

@@ -108,8 +108,12 @@ def expand_keys(keys: Iterable[str]) -> list[str]:
     return out
 
 
-def trace_keys(system: str) -> list[str]:
-    """What a trace-sourced recorder subscribes to: no channel key, so no wake-up per message."""
+def trace_keys(system: str, nodes: list[str] | None = None) -> list[str]:
+    """What a trace-sourced recorder subscribes to: no channel key, so no wake-up per message.
+    `nodes`: only theirs (and the launchers' events), not every node's."""
+    if nodes is not None:
+        return [*(wire.node_key(system, node, suffix) for node in nodes for suffix in (wire.TRACE, wire.HEARTBEAT)),
+                wire.launcher_key(system)]
     return [wire.every_node(system, wire.TRACE), wire.launcher_key(system), wire.every_node(system, wire.HEARTBEAT)]
 
 
@@ -130,7 +134,7 @@ class Recorder:
                  flush_period: float = 0.05, spec_timeout: float = 0.5, query_specs: bool = True,
                  fifo_capacity: int = 65536, background: bool = False, from_traces: bool = False,
                  max_size: int | None = None, max_duration: float | None = None, replace: bool = False,
-                 run: dict | None = None):
+                 run: dict | None = None, nodes: Iterable[str] | None = None):
         # a launcher's recorder of a run spread over hosts: whose recording this is (host, hub or
         # not, the run's origin, the host's clock offset to the hub), for `iotad merge`
         self.run = dict(run) if run else None
@@ -153,7 +157,9 @@ class Recorder:
             if self.system is None or any(expand_keys([k]) != expand_keys(whole) for k in keys):
                 raise ValueError("a trace-sourced recording records one whole system: give 'iota/SYS/**' "
                                  "or a system file, not single keys")
-            self.keys = trace_keys(self.system)
+            # a host's own recording (`nodes`: that host's): only its nodes' traces and beats cross
+            # from the other hosts' links to it; the hub's recording has theirs
+            self.keys = trace_keys(self.system, None if nodes is None else list(nodes))
         # trace-sourced: node paths whose outputs their own traces record (the system file's
         # nodes, every node seen on @trace) and every key a node published an output on
         self._nodes: set[str] = set() if self.declaration is None else set(self.declaration.nodes)

@@ -77,6 +77,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--max-duration", type=float, default=None, help="split: seconds per file")
     parser.add_argument("--run", type=json.loads, default=None,
                         help="JSON: whose recording this is in a run spread over hosts (metadata `run`)")
+    parser.add_argument("--nodes", default=None,
+                        help="comma-separated: record only these nodes' traces (a host's own recording)")
     args = parser.parse_args(argv)
     stop = stop_on_signals()
     try:
@@ -84,7 +86,7 @@ def main(argv: list[str] | None = None) -> int:
                             connect=args.connect, background=True,  # yield the CPU to the nodes
                             from_traces=True,  # one wake-up per trace burst, not per message
                             max_size=args.max_size, max_duration=args.max_duration, replace=args.force,
-                            run=args.run)
+                            run=args.run, nodes=None if args.nodes is None else args.nodes.split(","))
         recorder.start(lambda: not stop.is_set())  # its hub is up: this waits only for credentials
     except (OSError, ValueError, UnicodeDecodeError) as exc:
         print(f"recorder: error: {exc}", file=sys.stderr, flush=True)
