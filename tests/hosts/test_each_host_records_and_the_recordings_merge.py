@@ -39,7 +39,7 @@ def acks(recording, system: str) -> dict[str, list[str]]:
             for k in (0, 1)}
 
 
-def trace_keys(recording, node: str) -> set:
+def traced(recording, node: str) -> set:
     return {(m.publish_time, m.sequence, m.data) for m in recording.messages if m.topic == f"iota/split2/{node}/@trace"}
 
 
@@ -60,9 +60,9 @@ def test_each_host_records_its_part_and_the_merged_recording_holds_both(tmp_path
     arm_run = arm_file.info["run"]
     assert arm_run["host"] == "arm" and not arm_run["hub"] and arm_run["origin"] == hub_file.info["run"]["origin"]
     assert abs(arm_run["clock"]["offset"]) <= 0.005 and arm_run["clock"]["samples"] >= 1, arm_run
-    assert trace_keys(arm_file, "vision"), "the arm's own recording holds vision's events"
+    assert traced(arm_file, "vision"), "the arm's own recording holds vision's events"
     # and only the arm's: the brain's nodes' traces do not cross the link to be recorded twice
-    assert not trace_keys(arm_file, "scheduler") and not trace_keys(arm_file, "manipulation")
+    assert not traced(arm_file, "scheduler") and not traced(arm_file, "manipulation")
 
     merged_path = tmp_path / "split.merged.mcap"
     joined = iotad("merge", tmp_path / "split.mcap", tmp_path / "split.arm.mcap", "-o", merged_path)
@@ -70,8 +70,8 @@ def test_each_host_records_its_part_and_the_merged_recording_holds_both(tmp_path
     merged = read_recording(merged_path)
     # every event of every host's nodes, from whichever file held it
     for node, files in (("vision", (arm_file, hub_file)), ("scheduler", (hub_file,)), ("manipulation", (hub_file,))):
-        held = set().union(*(trace_keys(f, node) for f in files))
-        assert trace_keys(merged, node) == held and held, node
+        held = set().union(*(traced(f, node) for f in files))
+        assert traced(merged, node) == held and held, node
     # heartbeats (no sender's time) once each too, not once per recording that heard them
     beats = lambda r: [m.data for m in r.messages if m.topic == "iota/split2/vision/@heartbeat"]
     assert sorted(beats(merged)) == sorted(set(beats(hub_file)) | set(beats(arm_file)))

@@ -235,3 +235,24 @@ def test_the_merge_command_writes_a_file_that_info_reads_and_refuses_bad_input(p
         assert bad.returncode != 0 and error in bad.stderr, (args, bad.stderr)
         assert "Traceback" not in bad.stderr
     assert iotad("merge", hub, arm, "-o", out, "--force").returncode == 0
+
+
+def test_a_host_clock_measured_again_moves_later_times_by_the_newer_offset(tmp_path):
+    """The offset at start is in the file's metadata; a later measurement (a `clock` launcher
+    event of the host) moves every time recorded after it by the offset it found."""
+    from iotad.recording.recorded_clock import to_hub
+
+    hub = write(tmp_path / "split.mcap", "brain", [scheduler(1.0, 0, ns(1.0) + MS)], hub=True)
+    later = ns(2.0) + round(AHEAD * 1e9)  # on the arm's clock, when it measured again
+    arm = write(tmp_path / "split.arm.mcap", "arm", [
+        vision(1.0, 0, False),
+        ("iota/split/@launcher", later, later, 0, {"event": "clock", "host": "arm", "offset": -0.04, "bound": 0.0003}),
+        # the arm's clock was found to be 40 ms ahead from then on: sent at t=3 on the hub's clock
+        (VISION, ns(3.0) + 40 * MS + MS, ns(3.0) + 40 * MS, 1, event("vision", 3.0)),
+    ], offset=-AHEAD)
+    clock = to_hub(read_recording(arm))
+    assert [o.offset for o in clock.measured] == [-AHEAD, -0.04]
+    assert clock(ns(1.0) + round(AHEAD * 1e9)) == ns(1.0) and clock(later + 1) == later + 1 - 40 * MS
+    merged = merge([hub, arm])
+    times = {m.value["t"]: m.log_time for m in merged.recording.messages if m.topic == VISION}
+    assert times == {1.0: ns(1.0) + MS, 3.0: ns(3.0) + MS}
