@@ -52,13 +52,16 @@ iota clocked(float P = 1.0, int TIMES = 3): go()/0 -> tick()/0, total(int)/0 {
 """
 
 
-def mutate(source, target, node, change):
-    """Copy a recording with `change(events) -> events` applied to `node`'s @trace (re-sorted by t)."""
+def mutate(source, target, node, change, extra=()):
+    """Copy a recording with `change(events) -> events` applied to `node`'s @trace (re-sorted by t),
+    and the messages `extra` ((topic, t, value) each) added."""
     recording = read_recording(source)
     topic = f"iota/{recording.system}/{node}/@trace"
     events = [m.value for m in recording.messages if m.topic == topic]
     events = sorted(change(events), key=lambda e: e["t"])
     others = [m for m in recording.messages if m.topic != topic]
+    others += [RecordedMessage(where, int(t * 1e9), int(t * 1e9), k, packb(value))
+               for k, (where, t, value) in enumerate(extra)]
     mutated = [RecordedMessage(topic, int(e["t"] * 1e9), int(e["t"] * 1e9), k, packb(e)) for k, e in enumerate(events)]
     sink = McapSink(target)
     for attachment in recording.attachments:

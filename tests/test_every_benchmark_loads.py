@@ -11,7 +11,7 @@ BENCHMARKS = sorted((ROOT / "bench").glob("*.py"))
 
 
 def test_there_are_benchmarks():
-    assert {p.name for p in BENCHMARKS} >= {"kernel.py", "can.py", "record.py", "latency.py", "worlds.py"}
+    assert {p.name for p in BENCHMARKS} >= {"kernel.py", "can_bus.py", "record.py", "latency.py", "worlds.py"}
 
 
 @pytest.mark.parametrize("script", BENCHMARKS, ids=lambda p: p.name)

@@ -16,6 +16,11 @@ engine can even look at the inputs (a switching-time check refuses them only onc
 The engine thread reports the count as one `input_overflow` violation per channel (at most one
 per `overflow_period`, and at the stop): how many inputs were dropped and between which times.
 What fits in the queue is served as usual; the stop and restart notices are never dropped.
+
+On a host other than the hub's, its launcher measures the host's clock against the hub's during
+the run and tells its nodes the hub's origin on this host's clock again (`follow`): the clock
+then reads its raw time plus a `Correction` (iotad/host/clock_correction.py), stepped forward or
+slewed back, never run backwards.
 """
 from __future__ import annotations
 
@@ -25,6 +30,7 @@ import threading
 from typing import Any, Callable
 
 from iotad.host import wire
+from iotad.host.clock_correction import Correction
 from iotad.kernel.clock import RealClock
 from iotad.kernel.engine import STOP
 
@@ -71,6 +77,20 @@ class HostClock(RealClock):
         # The input the engine is handling now (set when `wait` hands it over, cleared at the next
         # `wait`): the host adds its key and the sender's attachment to the input's trace event.
         self.current_input: RawInput | None = None
+        self.correction: Correction | None = None  # made by the first `follow`: none on the hub's host
+
+    def now(self) -> float:
+        raw = RealClock.now(self)
+        correction = self.correction
+        return raw if correction is None else raw + correction.at(raw)
+
+    def follow(self, origin: float) -> float:
+        """The launcher measured this host's clock again: `origin` is the hub's origin on it now
+        (wall seconds). The clock moves onto it, forward at once, back by slewing; returns the
+        step taken now, in clock units (0 while slewing)."""
+        if self.correction is None:
+            self.correction = Correction()
+        return self.correction.aim((self.origin_wall - origin) / self.time_unit, RealClock.now(self))
 
     def post(self, item: Any, t: float | None = None) -> None:
         """Queue an input (a zenoh callback's or the CAN port's `RawInput`); when the inbox holds

@@ -62,6 +62,10 @@ class NodeConfig:
     # no engine runs while other nodes are still importing and building on the same cores.
     # None: the engine starts at once (a restart, or a node run by hand).
     start_gate: str | None = None
+    # Where this host's launcher publishes the hub's origin on this host's clock each time it
+    # measures the clock again (`iota/<system>/@origin/<host>`, a host other than the hub's): the
+    # node's clock follows it (iotad/host/clock_correction.py). None: the origin above holds.
+    follow_origin: str | None = None
 
     @property
     def name(self) -> str:
@@ -71,7 +75,7 @@ class NodeConfig:
 
 _KNOWN = {"system", "path", "source", "params", "time_unit", "origin", "listen", "connect", "inputs", "readers",
           "heartbeat_period", "deadline_tolerance", "arrival_tolerance", "trace_period", "policy", "seed", "zenoh", "can",
-          "input_queue", "restarts", "start_gate"}
+          "input_queue", "restarts", "start_gate", "follow_origin"}
 
 
 def load(path: str | Path) -> NodeConfig:
@@ -130,6 +134,14 @@ def from_dict(data: Any, where: str = "config") -> NodeConfig:
             raise ConfigError(f"{where}: start_gate must be a liveliness key without wildcards "
                               f"(the launcher's iota/<system>/@go/<host>), got {gate!r}")
         config.start_gate = gate
+    if data.get("follow_origin") is not None:
+        key = data["follow_origin"]
+        if not isinstance(key, str) or not key or set(key) & set("*$?#"):
+            raise ConfigError(f"{where}: follow_origin must be a key without wildcards "
+                              f"(the launcher's iota/<system>/@origin/<host>), got {key!r}")
+        if data.get("origin") is None:
+            raise ConfigError(f"{where}: follow_origin needs an origin to correct")
+        config.follow_origin = key
     if "trace_period" in data:
         value = data["trace_period"]
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not (0 <= value <= 1):

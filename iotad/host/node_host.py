@@ -9,6 +9,7 @@ and closes the session: an unclosed session with callback subscribers hangs the 
 """
 from __future__ import annotations
 
+import math
 import os
 import threading
 import time
@@ -173,6 +174,8 @@ class NodeHost:
                                    self.clock.post_always)
             if watch is not None:
                 self._declared.append(watch)
+        if config.follow_origin is not None:  # the hub's origin on this host's clock, measured again
+            self._declared.append(session.declare_subscriber(config.follow_origin, self._on_origin))
         if config.start_gate is not None:
             self._declared.append(session.liveliness().declare_subscriber(
                 config.start_gate, self._on_gate, history=True))  # history: a token already there counts
@@ -181,6 +184,15 @@ class NodeHost:
         self._settle = settle
         self._thread = threading.Thread(target=self._run, name=f"engine {config.path}", daemon=True)
         self._thread.start()
+
+    def _on_origin(self, sample: zenoh.Sample) -> None:
+        try:
+            origin = wire.decode(sample.payload.to_bytes())["origin"]
+            if isinstance(origin, bool) or not isinstance(origin, (int, float)) or not math.isfinite(origin):
+                raise TypeError(origin)
+        except (wire.WireError, TypeError, KeyError):
+            return  # not the launcher's: the clock keeps what it has
+        self.clock.follow(float(origin))
 
     def _on_gate(self, sample: zenoh.Sample) -> None:
         if sample.kind == zenoh.SampleKind.PUT:

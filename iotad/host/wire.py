@@ -14,7 +14,8 @@
 - The first event a node host puts on `@trace` is `start_event(...)` (kind `start`): the engine's
   start time `t` in the node's clock, when every precondition was first evaluated.
 - Launcher events (node start, exit, restart) go on `iota/<system>/@launcher`; a launcher's start
-  gate is a liveliness token on `gate_key(system, host)`.
+  gate is a liveliness token on `gate_key(system, host)`; the launcher of a host other than the
+  hub's publishes the hub's origin on its clock on `host_origin_key(system, host)`.
 - Payload: msgpack of the plain value (None for a channel without a value).
 - Attachment: msgpack `[sequence, send_time_ns]`: a per-publisher counter from 0 (a receiver or
   recorder sees gaps) and the sender's wall clock `time.time_ns()` at send.
@@ -67,6 +68,12 @@ def every_node(system: str, suffix: str) -> str:
 
 def origin_key(system: str) -> str:
     return f"{PREFIX}/{system}/{ORIGIN}"
+
+
+def host_origin_key(system: str, host: str) -> str:
+    """Where the launcher of `host` publishes the hub's origin on its own clock, each time it
+    measures that clock again (msgpack `{"origin": wall seconds}`): its nodes' clocks follow it."""
+    return f"{PREFIX}/{system}/{ORIGIN}/{host}"
 
 
 def node_path(key: str, system: str, suffix: str) -> str | None:

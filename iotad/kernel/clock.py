@@ -12,21 +12,57 @@ import math
 import os
 import queue
 import time
-from typing import Any
+from typing import Any, Callable
 
 # A drill of a host whose clock is wrong (tests of clock correction across hosts, docs/hosts.md):
 # every wall-clock reading of this process, and of the processes it starts, is off by this many
 # seconds. Zero unless IOTAD_CLOCK_SKEW says otherwise.
 CLOCK_SKEW_ENV = "IOTAD_CLOCK_SKEW"
-try:
-    _SKEW = float(os.environ.get(CLOCK_SKEW_ENV) or 0.0)
-except ValueError:
-    raise SystemExit(f"{CLOCK_SKEW_ENV}={os.environ[CLOCK_SKEW_ENV]!r}: expected seconds, e.g. 0.05") from None
+# The drill of a clock that drifts: this host's clocks (wall and monotonic) run fast by this many
+# seconds per second (1e-3: it gains a millisecond a second), counted from IOTAD_CLOCK_DRIFT_FROM
+# (a wall-clock time), which the first process of the drill sets for the processes it starts, so
+# that a launcher and its nodes drift as one machine's clock would.
+CLOCK_DRIFT_ENV = "IOTAD_CLOCK_DRIFT"
+CLOCK_DRIFT_FROM_ENV = "IOTAD_CLOCK_DRIFT_FROM"
+
+
+def _seconds(name: str, example: str) -> float:
+    try:
+        return float(os.environ.get(name) or 0.0)
+    except ValueError:
+        raise SystemExit(f"{name}={os.environ[name]!r}: expected seconds, e.g. {example}") from None
+
+
+_SKEW = _seconds(CLOCK_SKEW_ENV, "0.05")
+_DRIFT = _seconds(CLOCK_DRIFT_ENV, "0.001")
+if _DRIFT and not os.environ.get(CLOCK_DRIFT_FROM_ENV):
+    os.environ[CLOCK_DRIFT_FROM_ENV] = repr(time.time())
+_DRIFT_FROM = _seconds(CLOCK_DRIFT_FROM_ENV, "1764000000.0") if _DRIFT else 0.0
+_DRIFT_MONOTONIC = time.monotonic() - (time.time() - _DRIFT_FROM) if _DRIFT else 0.0
 
 
 def wall() -> float:
-    """This host's wall clock (`time.time()`, plus the drill's skew): what origins are in."""
-    return time.time() + _SKEW
+    """This host's wall clock (`time.time()`, plus the drills' skew and drift): what origins are in."""
+    now = time.time()
+    return now + _SKEW + _DRIFT * (now - _DRIFT_FROM) if _DRIFT else now + _SKEW
+
+
+def _drifting_monotonic() -> float:
+    now = time.monotonic()
+    return now + _DRIFT * (now - _DRIFT_MONOTONIC)
+
+
+# This host's monotonic clock, what a real-time clock counts elapsed time by: `time.monotonic`
+# itself (a clock's hot path: no call more), or running fast by the drift drill.
+monotonic: Callable[[], float] = _drifting_monotonic if _DRIFT else time.monotonic
+
+
+def steady_wall() -> Callable[[], float]:
+    """A wall clock that reads `wall()` now and then advances by `monotonic()`, as a `RealClock`
+    does: a step of the system clock (an administrator, NTP) after this call does not move it.
+    Clock offsets between hosts are measured on these, the clocks node times are counted on."""
+    start_wall, start = wall(), monotonic()
+    return lambda: start_wall + (monotonic() - start)
 
 
 class Clock:
@@ -83,13 +119,13 @@ class RealClock(Clock):
         """`origin` is a wall-clock time (`time.time()`) that is t=0, so that nodes started by
         one launcher share a timeline; time then advances by the monotonic clock."""
         self.time_unit = time_unit
-        mono, now = time.monotonic(), wall()
+        mono, now = monotonic(), wall()
         self._origin = mono if origin is None else mono - (now - origin)
         self.origin_wall = now if origin is None else origin
         self._inbox: queue.Queue = queue.Queue()
 
     def now(self) -> float:
-        return (time.monotonic() - self._origin) / self.time_unit
+        return (monotonic() - self._origin) / self.time_unit
 
     def post(self, item: Any, t: float | None = None) -> None:
         self._inbox.put(item)

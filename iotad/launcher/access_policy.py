@@ -23,7 +23,9 @@ QUERY_KEYS = [f"{wire.PREFIX}/**/{wire.SPEC}", f"{wire.PREFIX}/*/{wire.ORIGIN}",
 ALIVE_KEYS = [f"{wire.PREFIX}/**/{wire.ALIVE}"]
 # Which subscribers and queryables exist is told to every user: a client's publisher sends only
 # when it knows of a matching subscriber (zenoh's interests), and a declaration carries no data.
-DECLARATION_KEYS = [*READ_KEYS, *QUERY_KEYS[:2], *ALIVE_KEYS]
+# The hub's origin on another host's clock, which that host's launcher publishes to its nodes
+ORIGIN_KEYS = [f"{wire.PREFIX}/*/{wire.ORIGIN}/*"]
+DECLARATION_KEYS = [*READ_KEYS, *QUERY_KEYS[:2], *ALIVE_KEYS, *ORIGIN_KEYS]
 
 
 def node_user(path: str) -> str:
@@ -115,6 +117,9 @@ def derive(system: System) -> Policy:
         grant.publish += [f"{base}/{wire.TRACE}", f"{base}/{wire.HEARTBEAT}"]
         bound = [key for keys in system.inputs_of(node.name).values() for key in keys]
         grant.subscribe = _unique(bound + own_inputs)
+        if node.host is not None and not system.opens_hub(node.host):
+            # its launcher measures the host's clock during the run; the node's clock follows
+            grant.subscribe.append(wire.host_origin_key(name, node.host))
         grant.serve = [f"{base}/{wire.SPEC}"]
         grant.tokens = [f"{base}/{wire.ALIVE}"]
         # peer_restart inputs watch the others' tokens; every node waits for its launcher's start gate

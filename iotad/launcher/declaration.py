@@ -40,7 +40,7 @@ _PATH = re.compile(r"^[A-Za-z_][\w-]*(/[A-Za-z_][\w-]*)*$")
 _SYSTEM_NAME = re.compile(r"^[A-Za-z_][\w-]*$")
 
 _SYSTEM_KEYS = {"name", "time_unit", "endpoints", "hub_host", "heartbeat_period", "heartbeat_timeout",
-                "start_timeout", "clock_bound", "external", "deadline_tolerance", "arrival_tolerance", "input_queue", "debug",
+                "start_timeout", "clock_bound", "clock_period", "external", "deadline_tolerance", "arrival_tolerance", "input_queue", "debug",
                 "start_gate"}
 # In TOML a key written after a [[node]] or [[bind]] table belongs to that table.
 TABLE_HINT = {"external": " (a top-level key must come before the first table; or put it in [system])"}
@@ -139,6 +139,8 @@ class Declaration:
     start_timeout: float = 15.0
     # seconds: a host whose clock offset to the hub is known no better than this is a violation
     clock_bound: float = 1e-3
+    # seconds between two measurements of a host's clock against the hub's during a run
+    clock_period: float = 10.0
     deadline_tolerance: float = 0.002  # seconds a firing may be late before it is a deadline miss
     arrival_tolerance: float = 0.002   # seconds an input may be early (jitter) against its switching time
     input_queue: int = DEFAULT_INPUT_QUEUE  # per node host, unless its [[node]] says otherwise
@@ -265,7 +267,7 @@ class _Parser:
             self.take(raw, "name", system, entry, _chunk, "one key chunk (letters, digits, _ and -)")
         elif not _SYSTEM_NAME.match(system["name"]):
             self.error(entry, f"no name given and the file name {system['name']!r} is not a valid one")
-        for key in ("time_unit", "heartbeat_period", "heartbeat_timeout", "start_timeout", "clock_bound",
+        for key in ("time_unit", "heartbeat_period", "heartbeat_timeout", "start_timeout", "clock_bound", "clock_period",
                     "deadline_tolerance", "arrival_tolerance"):
             if key in raw:
                 value = raw[key]

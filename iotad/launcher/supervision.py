@@ -37,7 +37,7 @@ from typing import Any
 
 from iotad.host import wire
 from iotad.host.clock_offset import ClockServer
-from iotad.kernel.clock import wall
+from iotad.kernel.clock import steady_wall, wall
 from iotad.host.node_config import CONFIGURATION_ERROR
 from iotad.host.stop_signals import Flag
 from iotad.launcher.access_control import AccessControl
@@ -113,6 +113,11 @@ class Launcher:
             policy = RestartPolicy(spec.restart, spec.max_restarts, spec.backoff)
             self.runs[spec.name] = NodeRun(spec, child, policy)
         self.session = None
+        # this host's clock as its nodes count time (wall, then monotonic): what the hub answers
+        # clock queries on, and what another host measures its offset on (iotad/launcher/clock_watch.py)
+        self._steady = steady_wall()
+        self.clock_watch = None  # another host's launcher, where the hub answered: its clock measured
+        self._origin_publisher = None
         self._publisher = None
         self._event_seq = 0
         self._declared: list[Any] = []
@@ -246,7 +251,7 @@ class Launcher:
             if self.origin is None:
                 self.origin = wall()
             # the hub's clock, which every other host measures itself against (docs/hosts.md)
-            self._declared.append(ClockServer(session, system.name))
+            self._declared.append(ClockServer(session, system.name, clock=self._steady))
             origin_payload = wire.encode({"origin": self.origin})
             key = wire.origin_key(system.name)
             self._declared.append(session.declare_queryable(key, lambda q: q.reply(key, origin_payload)))
@@ -274,25 +279,39 @@ class Launcher:
 
     def _correct_clock(self) -> None:
         """Measure this host's clock against the hub's and move the origin by the offset, so that
-        this host's nodes count `t` on the hub's timeline. The measurement is a launcher event
-        (`clock`, in the recording); one known no better than the system's `clock_bound` is a
+        this host's nodes count `t` on the hub's timeline; then measure it again every
+        `clock_period` during the run, and have the nodes' clocks follow (_clock_measured). Each
+        measurement is a launcher event (`clock`, in the recording); one known no better than the
+        system's `clock_bound`, or one that finds the nodes' clocks off by more, is a
         `clock_violation` event and a warning: windows on this host are then judged on a clock
         that may be off by that much."""
-        from iotad.host.clock_offset import ClockError, measure
+        from iotad.launcher.clock_watch import ClockWatch
 
-        try:
-            measured = measure(self.session, self.system.name, stop=self._stop_asked)
-        except ClockError as exc:
-            self._launcher_event("clock_violation", f"warning: {exc}; this host's clock is not corrected",
-                                 host=self.host)
+        system = self.system
+        self.clock_watch = watch = ClockWatch(
+            self.session, system.name, self.host, self.origin, time_unit=system.time_unit, limit=system.clock_bound,
+            period=system.clock_period, clock=self._steady, report=lambda reading: self.events.put(("clock", reading)))
+        self._clock_measured(watch.first(stop=self._stop_asked))
+        self._origin_publisher = self.session.declare_publisher(wire.host_origin_key(system.name, self.host))
+        self._declared.append(self._origin_publisher)
+        watch.start()
+
+    def _clock_measured(self, reading: Any) -> None:
+        """A measurement of this host's clock (a `ClockReading`, or why there is none): move the
+        origin of nodes started from now on, tell the running ones, record it. A reading at start
+        is said on the console; later ones only when they are violations (one every
+        `clock_period` would drown the run's lines)."""
+        if isinstance(reading, str):
+            self._launcher_event("clock_violation", reading, host=self.host)
             return
-        self.origin -= measured.offset  # hub = host + offset: the hub's origin on this host's clock
-        problem = measured.problem(self.system.clock_bound)
-        self._launcher_event("clock_violation" if problem else "clock",
-                             (f"warning: host {self.host}: {problem}" if problem else
-                              f"host {self.host}: clock offset to the hub {measured.offset * 1e3:+.3f} ms "
-                              f"+-{measured.bound * 1e3:.3f} ms ({measured.samples} round trips); corrected"),
-                             host=self.host, **measured.as_plain())
+        self.origin = self.clock_watch.origin
+        if self._origin_publisher is not None:
+            try:
+                self._origin_publisher.put(wire.encode({"origin": self.origin}))
+            except Exception:  # noqa: BLE001 - a closing session: the run is ending anyway
+                pass
+        self._launcher_event("clock_violation" if reading.problem else "clock", reading.message(),
+                             quiet=not (reading.first or reading.problem), **reading.event())
 
     def _start_recorder(self) -> None:
         """Start the recorder and wait until it has subscribed, before any node starts. A
@@ -430,6 +449,8 @@ class Launcher:
         elif kind == "recorder":
             if self.recorder is not None:
                 self.recorder.exited(item[1], item[2])
+        elif kind == "clock":
+            self._clock_measured(item[1])
 
     def _exited(self, run: NodeRun, code: int) -> None:
         now = time.monotonic()
@@ -559,6 +580,8 @@ class Launcher:
         config["restarts"] = run.restarts  # its heartbeats say it: a tool attached later counts them
         if not self.gate_open:  # a node (re)started after the gate opened starts its engine at once
             config["start_gate"] = self.gate_key
+        if self.clock_watch is not None:  # its clock follows this host's measurements of the hub's
+            config["follow_origin"] = wire.host_origin_key(self.system.name, self.host)
         path = self.run_dir / f"{run.name.replace('/', '.')}.json"
         path.write_text(json.dumps(config, indent=1))
         run.child.argv = self.node_argv(str(path))
@@ -588,12 +611,15 @@ class Launcher:
         self._publish({"event": event, "node": run.name, "pid": run.child.pid, "code": code,
                        "t_ns": time.time_ns(), "restarts": run.restarts})
 
-    def _launcher_event(self, event: str, text: str, code: int | None = None, **extra: Any) -> None:
-        """An event of the launcher itself (node None): the recorder's fate..."""
+    def _launcher_event(self, event: str, text: str, code: int | None = None, quiet: bool = False,
+                        **extra: Any) -> None:
+        """An event of the launcher itself (node None): the recorder's fate... `quiet`: recorded,
+        not shown."""
         if event in ("clock", "clock_violation") and self._clock is None and "offset" in extra:
             # the clock measured at start, for this host's own recording (started after it)
             self._clock = dict(extra, measured_ns=round(wall() * 1e9))
-        self.view.line(text)
+        if not quiet:
+            self.view.line(text)
         self._publish({"event": event, "node": None, "pid": os.getpid(), "code": code,
                        "t_ns": time.time_ns(), "message": text.split("\n", 1)[0], **extra})
 
@@ -623,6 +649,8 @@ class Launcher:
     def _shutdown(self) -> None:
         """Other hosts' parts and this host's nodes first (the recorder sees them go), then the
         recorder, then the session."""
+        if self.clock_watch is not None:
+            self.clock_watch.close()  # no measurement of a hub that is going away
         if self.fleet is not None:
             self.fleet.stop()
             self.fleet.close()

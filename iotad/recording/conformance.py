@@ -95,6 +95,7 @@ class CheckReport:
     recorded_violations: list[dict] = field(default_factory=list)
     tolerance: float = 0.0
     restarts: list[float] = field(default_factory=list)  # when later processes of the node started
+    widened: str = ""  # how its windows were widened beyond the tolerance, said in the report ("": not)
 
     @property
     def ok(self) -> bool:
@@ -104,6 +105,8 @@ class CheckReport:
         head = (f"{self.node}: {self.events} events, {self.firings} firings checked, "
                 f"{len(self.findings)} problem(s)" + ("" if self.ok else f"; first: {self.findings[0]}"))
         out = [head]
+        if self.widened:
+            out.append(f"  {self.widened}")
         if self.restarts:
             out.append(f"  restarted at t={', t='.join(f'{t:.6g}' for t in self.restarts)}: each run of its "
                        f"process is checked from its own start")
@@ -214,6 +217,12 @@ def _value_of(instance: ActionInstance) -> Any:
     return to_plain(value) if kind is None else kind.to_plain(value)
 
 
+def tolerance_at(tolerance: float, widen: Callable[[float], float] | None, t: float) -> float:
+    """The tolerance of a time judgement at t: the check's, plus the bound of the node's host
+    clock then (`widen`, iotad/recording/clock_offsets.py; None: a clock not measured, exact)."""
+    return tolerance if widen is None else tolerance + widen(t)
+
+
 def _earliest(instance: ActionInstance) -> float:
     slot = instance.slot
     return max(instance.lower, plus(slot.last, slot.switching))
@@ -223,9 +232,13 @@ def _earliest(instance: ActionInstance) -> float:
 class TraceChecker:
     """Checks one node's recorded trace against the node's own spec (see module doc)."""
 
-    def __init__(self, root: Any, node: str = "", tolerance: float = 0.0, start: float = 0.0):
+    def __init__(self, root: Any, node: str = "", tolerance: float = 0.0, start: float = 0.0,
+                 widen: Callable[[float], float] | None = None):
+        """`widen(t)`: how much more than `tolerance` a window or switching time of an event at t
+        is given (spec units): the bound of the node's host clock then (iotad/recording/clock_offsets.py)."""
         self.engine, self.collect = _new_engine(root, start)
         self.tolerance = tolerance
+        self._widen = widen
         self.report = CheckReport(node or root.instance_name, tolerance=tolerance)
         self._leaf_paths = list(self.engine.leaves)
         self._reported_expired: set[tuple[int, int]] = set()
@@ -273,6 +286,9 @@ class TraceChecker:
         return report
 
     # -- steps
+    def _slack(self, t: float) -> float:
+        return tolerance_at(self.tolerance, self._widen, t)
+
     def _find(self, t: float, code: str, message: str, position: int, due: float | None = None) -> None:
         self.report.findings.append(Finding(t, code, message, position, due))
 
@@ -287,8 +303,9 @@ class TraceChecker:
     def _advance(self, t: float, position: int, event: dict | None, leaf: str | None) -> None:
         """Move to time t; every window that closed before t with nothing fired is a finding."""
         engine = self.engine
+        slack = self._slack(t)
         for instance in engine.instances:
-            if not instance.enabled or instance.upper + self.tolerance >= t:
+            if not instance.enabled or instance.upper + slack >= t:
                 continue
             if event is not None and instance.leaf.path == leaf and instance.action.channel == event.get("action") \
                     and instance.index == event.get("index"):
@@ -317,7 +334,7 @@ class TraceChecker:
                 self._find(t, "not_enabled", f"{describe(event)}: a bound input, but no output bound to it "
                            f"fired at t={t:.6g}", position)
             return
-        if t < plus(slot.last, slot.switching) - self.tolerance:
+        if t < plus(slot.last, slot.switching) - self._slack(t):
             self._find(t, "switching_time",
                        f"{describe(event)} came {t - slot.last:.6g} after the previous one at "
                        f"t={slot.last:.6g}, sooner than its switching time {slot.switching:g}", position)
@@ -357,19 +374,20 @@ class TraceChecker:
             self._find(t, "wrong_value", f"{describe(event)}: the spec allows only {options} here{differs}",
                        position)
             matching = enabled  # keep the state in step with what the node did
-        inside = [i for i in matching if i.lower - self.tolerance <= t <= i.upper + self.tolerance]
+        slack = self._slack(t)
+        inside = [i for i in matching if i.lower - slack <= t <= i.upper + slack]
         instance = (inside or matching)[0]
         slot = instance.slot
         name = label_of(instance)
-        if t < instance.lower - self.tolerance:
+        if t < instance.lower - slack:
             self._find(t, "early", f"{describe(event)} fired {instance.lower - t:.6g} before its window "
                        f"[{instance.lower:.6g}, {instance.upper:.6g}] opened ({name} enabled at "
                        f"t={instance.te:.6g})", position)
-        elif t > instance.upper + self.tolerance:
+        elif t > instance.upper + slack:
             self._find(t, "late", f"{describe(event)} fired {t - instance.upper:.6g} after its window "
                        f"[{instance.lower:.6g}, {instance.upper:.6g}] closed ({name} enabled at "
                        f"t={instance.te:.6g})", position, due=instance.upper)
-        if t < plus(slot.last, slot.switching) - self.tolerance:
+        if t < plus(slot.last, slot.switching) - slack:
             self._find(t, "switching_time", f"{describe(event)} came {t - slot.last:.6g} after the previous "
                        f"event on {channel} at t={slot.last:.6g}, sooner than its switching time "
                        f"{slot.switching:g}", position)
@@ -387,11 +405,12 @@ def _value_of_safe(instance: ActionInstance) -> Any:
 
 
 def check_trace(root: Any, events: list[dict], *, node: str = "", tolerance: float = 0.0,
-                until: float | None = None, start: float = 0.0) -> CheckReport:
+                until: float | None = None, start: float = 0.0,
+                widen: Callable[[float], float] | None = None) -> CheckReport:
     """`start`: when the node's engine started, in its clock (`recording.start_time`); a node
-    host's `start` event among `events` says it exactly and wins."""
+    host's `start` event among `events` says it exactly and wins. `widen`: as `TraceChecker`'s."""
     events, start = split_start(events, start)
-    return TraceChecker(root, node, tolerance, start).check(events, until)
+    return TraceChecker(root, node, tolerance, start, widen).check(events, until)
 
 
 def split_runs(events: list[dict], start: float = 0.0) -> list[tuple[float, list[dict]]]:
@@ -412,17 +431,19 @@ def split_runs(events: list[dict], start: float = 0.0) -> list[tuple[float, list
 
 
 def check_runs(build: Callable[[], Any], events: list[dict], *, node: str = "", tolerance: float = 0.0,
-               start: float = 0.0, until: float | None = None) -> CheckReport:
+               start: float = 0.0, until: float | None = None, widen: Callable[[float], float] | None = None,
+               widened: str = "") -> CheckReport:
     """`check_trace` of every run of a node's process, each from its own start and a fresh
     instance (`build()`): a restarted process starts from the spec's initial state, and a window
     open when the process died is not judged. One report; `restarts` lists the later starts.
     `until`: when the last run is known to have run to (a virtual run's end), past its last
-    event: a window that closed before then and never fired is reported expired."""
+    event: a window that closed before then and never fired is reported expired. `widen`: as
+    `TraceChecker`'s; `widened`: the report's line that says so."""
     runs = split_runs(events, start)
-    merged = CheckReport(node, tolerance=tolerance)
+    merged = CheckReport(node, tolerance=tolerance, widened=widened)
     for number, (begun, run) in enumerate(runs):
         last = number == len(runs) - 1
-        report = TraceChecker(build(), node, tolerance, begun).check(run, until=until if last else None)
+        report = TraceChecker(build(), node, tolerance, begun, widen).check(run, until=until if last else None)
         merged.events += report.events
         merged.firings += report.firings
         merged.findings += report.findings
@@ -458,27 +479,30 @@ class ImplementsReport:
     explored: int = 0
     exhausted: bool = False            # the search budget ran out: the answer is not final
     first_unexplained: dict | None = None
+    widened: str = ""                  # how its times were widened beyond the tolerance ("": not)
 
     def lines(self) -> list[str]:
+        said = [f"  {self.widened}"] if self.widened else []
         if self.ok:
             return [f"{self.node} implements {self.spec} on this trace: {self.events} external events "
-                    f"explained ({self.explored} search steps)"]
+                    f"explained ({self.explored} search steps)"] + said
         where = describe(self.first_unexplained) if self.first_unexplained else "the end of the trace"
         head = (f"{self.node} does not implement {self.spec} on this trace: the spec cannot explain "
                 f"event #{self.explained} ({where})")
         if self.exhausted:
             head = f"inconclusive: search budget ({self.explored} steps) ran out before event #{self.explained} " \
                    f"({where}) was explained"
-        return [head] + [f"  {reason}" for reason in self.reasons[:8]]
+        return [head] + said + [f"  {reason}" for reason in self.reasons[:8]]
 
 
 class ImplementsChecker:
     """Bounded search for a behaviour of `spec_root` whose external trace is `events`."""
 
     def __init__(self, spec_root: Any, tolerance: float = 0.0, budget: int = 20_000, max_hidden: int = 64,
-                 start: float = 0.0):
+                 start: float = 0.0, widen: Callable[[float], float] | None = None):
         self.root = spec_root
         self.tolerance, self.budget, self.max_hidden = tolerance, budget, max_hidden
+        self._widen = widen  # as TraceChecker's
         engine, _ = _new_engine(spec_root, start)
         self.flat = engine.flat
         self.outputs = {}  # root channel name -> leaf endpoint
@@ -542,7 +566,8 @@ class ImplementsChecker:
                     if not instance.enabled or not self.hidden(instance):
                         continue
                     earliest = max(_earliest(instance), engine.now())
-                    if earliest > t + self.tolerance or earliest > instance.upper + self.tolerance:
+                    slack = tolerance_at(self.tolerance, self._widen, t)
+                    if earliest > t + slack or earliest > instance.upper + slack:
                         continue
                     latest = min(instance.upper, t)
                     for when, bucket in ((earliest, children), (latest, late_children)):
@@ -567,7 +592,7 @@ class ImplementsChecker:
     # -- moves
     def _expired(self, engine: Engine, t: float) -> str | None:
         for instance in engine.instances:
-            if instance.enabled and instance.upper + self.tolerance < t:
+            if instance.enabled and instance.upper + tolerance_at(self.tolerance, self._widen, t) < t:
                 return (f"{label_of(instance)} (enabled at t={instance.te:.6g}) had to fire by "
                         f"t={instance.upper:.6g}, and nothing observed lets it")
         return None
@@ -604,7 +629,7 @@ class ImplementsChecker:
                 return []
             endpoint = self.inputs[name]
             slot = child.slots.get((endpoint.path, endpoint.channel, index if endpoint.index is None else endpoint.index))
-            if slot is not None and t < plus(slot.last, slot.switching) - self.tolerance:
+            if slot is not None and t < plus(slot.last, slot.switching) - tolerance_at(self.tolerance, self._widen, t):
                 why.append(f"{describe(event)} is sooner than the spec's switching time {slot.switching:g} "
                            f"after t={slot.last:.6g}")
                 return []
@@ -628,7 +653,8 @@ class ImplementsChecker:
                     continue
             except Exception:  # noqa: BLE001
                 continue
-            if not (_earliest(instance) - self.tolerance <= t <= instance.upper + self.tolerance):
+            slack = tolerance_at(self.tolerance, self._widen, t)
+            if not (_earliest(instance) - slack <= t <= instance.upper + slack):
                 why.append(f"{describe(event)}: {label_of(instance)} may fire only in "
                            f"[{_earliest(instance):.6g}, {instance.upper:.6g}]")
                 continue
@@ -650,6 +676,10 @@ class ImplementsChecker:
 
 def check_implements(spec_root: Any, events: list[dict], *, node: str = "", spec_name: str = "",
                      tolerance: float = 0.0, budget: int = 20_000, until: float | None = None,
-                     start: float = 0.0) -> ImplementsReport:
+                     start: float = 0.0, widen: Callable[[float], float] | None = None,
+                     widened: str = "") -> ImplementsReport:
+    """`widen`, `widened`: as `check_runs`'s."""
     events, start = split_start(events, start)
-    return ImplementsChecker(spec_root, tolerance, budget, start=start).check(events, node, spec_name, until)
+    report = ImplementsChecker(spec_root, tolerance, budget, start=start, widen=widen).check(events, node, spec_name, until)
+    report.widened = widened
+    return report

@@ -105,9 +105,12 @@ def _receive(acc: Accounts, rows: Rows, receiver: str, matching: _Matching) -> l
     heard_until = -math.inf  # the latest send time among the frames it received so far
     starts = [run[0] for run in life.runs] if life is not None and life.seen and life.virtual_end is None else []
 
-    def run_start(t: float) -> float:  # the engine start of the receiver's process at t
+    def run_start(t: float) -> float:
+        # the engine start of the receiver's process at t, if a restart: the twins sent before its
+        # first start are trimmed by `_unheard_before_start`, which keeps as many as the receiver
+        # heard; its socket may have opened any time before (a slow start on a loaded machine)
         k = last_at_or_before(starts, t)
-        return starts[k] if k >= 0 else -math.inf
+        return starts[k] if k >= 1 else -math.inf
     for t, frame in got:
         best = None
         for s in senders:

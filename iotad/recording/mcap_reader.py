@@ -284,6 +284,12 @@ class Recording:
                     out.append(dict(value, log_time=message.log_time))
         return out
 
+    def clock_offsets(self) -> dict[str, list]:
+        """host -> its clock's offset to the hub's and bound over the run, as (t, offset, bound)
+        in time order (`iotad.recording.clock_offsets`); empty for a system on one host."""
+        from iotad.recording.clock_offsets import clock_offsets
+        return clock_offsets(self)
+
     def duration(self) -> float:
         if not self.messages:
             return 0.0

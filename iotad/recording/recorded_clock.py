@@ -4,8 +4,8 @@ host's clock moved onto the hub's (what `iotad merge` orders host recordings by)
 hub clock = host clock + offset (`iotad.host.clock_offset`). A host launcher's recorder stores the
 offset its launcher measured at start in the file's metadata (`iotad.recording`: `run.clock`, with
 the host clock's time of the measurement); every later measurement is a launcher event `clock` of
-that host on `@launcher`. Everything that reads offsets goes through `offsets` and `to_hub`, so
-that a clock measured more often only adds events, not readers.
+that host on `@launcher`, read by `iotad.recording.clock_offsets`. Merging reads offsets only
+through `offsets` and `to_hub`.
 """
 from __future__ import annotations
 
@@ -13,9 +13,6 @@ import bisect
 from dataclasses import dataclass
 from typing import Any
 
-from iotad.host import wire
-
-CLOCK_EVENTS = ("clock", "clock_violation")  # a clock_violation still says the offset it measured
 
 
 @dataclass(frozen=True)
@@ -34,29 +31,25 @@ def run_info(recording: Any) -> dict:
 
 
 def offsets(recording: Any) -> list[Offset]:
-    """Every offset of the recording's host to the hub, oldest first: the one measured at start
-    (metadata), then each `clock` event of its host. [] for the hub's own recording (offset 0)
-    and for a recording that holds none."""
+    """Every offset of the recording's host to the hub, oldest first, each from the host-clock
+    time it was measured: the one measured at start (metadata), then each later measurement of
+    its host (`iotad.recording.clock_offsets`, whose `t` is on the hub's timeline). [] for the
+    hub's own recording (offset 0) and for a recording that holds none."""
+    from iotad.recording.clock_offsets import clock_offsets
+
     run = run_info(recording)
-    host = run.get("host")
-    if run.get("hub"):
+    host, origin = run.get("host"), run.get("origin")
+    if run.get("hub") or not _number(origin):
         return []
     found: list[Offset] = []
     clock = run.get("clock")
     if isinstance(clock, dict) and _number(clock.get("offset")):
         found.append(Offset(int(clock.get("measured_ns") or 0), float(clock["offset"]),
                             float(clock.get("bound") or 0.0)))
-    for message in recording.messages:
-        if not message.topic.endswith("/" + wire.LAUNCHER):
-            continue
-        try:
-            event = message.value
-        except Exception:  # noqa: BLE001 - a damaged event says nothing of the clock
-            continue
-        if isinstance(event, dict) and event.get("event") in CLOCK_EVENTS and event.get("host") == host \
-                and _number(event.get("offset")):
-            # from when it was recorded: log times are what the offsets move
-            found.append(Offset(message.log_time, float(event["offset"]), float(event.get("bound") or 0.0)))
+    unit = recording.time_unit
+    for reading in clock_offsets(recording).get(host, []):
+        hub_s = origin + reading.t * unit  # when it was measured, on the hub's clock: on the host's
+        found.append(Offset(round((hub_s - reading.offset) * 1e9), reading.offset, reading.bound))
     found.sort(key=lambda o: o.since_ns)
     return found
 

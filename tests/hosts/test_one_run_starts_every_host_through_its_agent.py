@@ -158,13 +158,17 @@ def test_a_host_whose_clock_is_50_ms_ahead_is_measured_and_corrected(tmp_path):
         recording = read_recording(tmp_path / "skew.mcap")
         measured = [m.value for m in recording.messages if m.topic.endswith("/@launcher")
                     and isinstance(m.value, dict) and m.value.get("event") in ("clock", "clock_violation")]
-        assert len(measured) == 1 and measured[0]["host"] == "arm", measured
-        assert abs(measured[0]["offset"] - (-0.05)) <= measured[0]["bound"] + 1e-6, measured
+        # at start, and again every clock_period (10 s) if the run lasts that long
+        assert measured and all(m["host"] == "arm" for m in measured), measured
+        assert all(abs(m["offset"] - (-0.05)) <= m["bound"] + 1e-6 for m in measured), measured
         report = check_delivery(recording, tolerance=0.01)
         links = {link.label: link for link in report.links}
         for label in ("vision.req -> scheduler.req[0]", "scheduler.ack[0] -> vision.ack"):
             link = links[label]
-            assert link.sent >= 1 and link.delivered == link.sent, link
+            # every message delivered, but for one in flight as the run ended (not judged)
+            unjudged = [f.message for f in report.notes if f.link == label]
+            assert link.delivered >= 1 and link.lost == 0 and link.unjudged <= 1, (link, unjudged)
+            assert link.delivered + link.unjudged == link.sent, (link, unjudged)
             p50, p99, most = link.latency()
             # on one timeline: received after it was sent, and far sooner than the skew
             assert 0 <= p50 <= most < 0.02, (label, p50, most)

@@ -243,10 +243,10 @@ def test_a_host_clock_measured_again_moves_later_times_by_the_newer_offset(tmp_p
     from iotad.recording.recorded_clock import to_hub
 
     hub = write(tmp_path / "split.mcap", "brain", [scheduler(1.0, 0, ns(1.0) + MS)], hub=True)
-    later = ns(2.0) + round(AHEAD * 1e9)  # on the arm's clock, when it measured again
+    later = ns(2.0) + 40 * MS  # on the arm's clock, when it measured again (at t=2 on the hub's)
     arm = write(tmp_path / "split.arm.mcap", "arm", [
         vision(1.0, 0, False),
-        ("iota/split/@launcher", later, later, 0, {"event": "clock", "host": "arm", "offset": -0.04, "bound": 0.0003}),
+        ("iota/split/@launcher", later, later, 0, {"event": "clock", "host": "arm", "t": 2.0, "offset": -0.04, "bound": 0.0003}),
         # the arm's clock was found to be 40 ms ahead from then on: sent at t=3 on the hub's clock
         (VISION, ns(3.0) + 40 * MS + MS, ns(3.0) + 40 * MS, 1, event("vision", 3.0)),
     ], offset=-AHEAD)

@@ -121,8 +121,11 @@ def run(args: argparse.Namespace) -> int:
             raise CliError(f"node {args.node!r} has no @trace events in {args.file} "
                            f"(nodes: {', '.join(recording.nodes()) or 'none'})")
         spec = load_spec(args.spec, args.node, args.iota, parse_params(args.param))
+        from iotad.recording.clock_offsets import widenings
+        widen = widenings(recording).get(args.node)  # its host's clock bound, where it was measured
         report = check_implements(spec, events, node=args.node, spec_name=args.spec, tolerance=tolerance,
-                                  budget=args.budget, start=start_time(recording.specs.get(args.node)))
+                                  budget=args.budget, start=start_time(recording.specs.get(args.node)),
+                                  widen=widen, widened=widen.line() if widen is not None else "")
         print("\n".join(report.lines()))
         return 0 if report.ok else 1
     specs = recording.specs
@@ -167,8 +170,10 @@ def run(args: argparse.Namespace) -> int:
     _merged_notes(recording, args.file)
     # a long recording takes a while per node (about 2 s per 100,000 events): say what is going on
     long = len(recording.messages) > LONG
+    from iotad.recording.clock_offsets import widenings
+    widened = widenings(recording)  # the nodes of hosts whose clocks were measured against the hub's
     for node in nodes:
-        report = _check_node(recording, node, args, tolerance, long)
+        report = _check_node(recording, node, args, tolerance, long, widened.get(node))
         if report is None:
             unchecked.append(node)
             continue
@@ -214,10 +219,11 @@ def _merged_notes(recording, file: str) -> None:
         print(f"  note: {describe_gap(gap)}")
 
 
-def _check_node(recording, node: str, args: argparse.Namespace, tolerance: float, long: bool):
+def _check_node(recording, node: str, args: argparse.Namespace, tolerance: float, long: bool, widen=None):
     """The conformance report of one node against its own spec, or None (said why) when it cannot
     be checked. Its trace, decoded, is the bulk of the memory a check takes: it is read here, and
-    let go before the next node's is read."""
+    let go before the next node's is read. `widen`: its host clock's bound over time
+    (`iotad.recording.clock_offsets.Widening`), which its windows are widened by."""
     from iotad.cli import CliError
     from iotad.host.wire import START_KIND
     from iotad.recording.conformance import check_runs
@@ -239,7 +245,8 @@ def _check_node(recording, node: str, args: argparse.Namespace, tolerance: float
               f"started), so the state the node was in is unknown")
         return None
     return check_runs(lambda: node_root(recording, node), events, node=node, tolerance=tolerance,
-                      until=None if real_time else recording.run_end, start=start_time(recording.specs.get(node)))
+                      until=None if real_time else recording.run_end, start=start_time(recording.specs.get(node)),
+                      widen=widen, widened=widen.line() if widen is not None else "")
 
 
 def _never_ran(recording, specs: dict, unchecked: list[str]) -> list[str]:

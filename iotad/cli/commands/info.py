@@ -85,6 +85,25 @@ def _launcher_line(event: dict, first_ns: int) -> str:
     return "  ".join(parts)
 
 
+def _clocks(recording) -> None:
+    """Each measured host's clock over the run, one line each (docs/hosts.md "Clocks")."""
+    from iotad.recording.clock_offsets import CLOCK_EVENTS
+
+    offsets = recording.clock_offsets()
+    if not offsets:
+        return
+    violations = {}
+    for event in recording.launcher_events():
+        if event.get("event") == CLOCK_EVENTS[1]:
+            violations[event.get("host")] = violations.get(event.get("host"), 0) + 1
+    print("  clocks (offset to the hub's, and the bound it is known within):")
+    for host, readings in sorted(offsets.items()):
+        low, high = min(r.offset for r in readings), max(r.offset for r in readings)
+        least, most = min(r.bound for r in readings), max(r.bound for r in readings)
+        print(f"    host {host}: {len(readings)} measurement(s), offset {low * 1e3:+.3f} to {high * 1e3:+.3f} ms, "
+              f"bound {least * 1e3:.3f} to {most * 1e3:.3f} ms, {violations.get(host, 0)} clock violation(s)")
+
+
 def _joints_at_the_end(trace: list[dict], unit: float) -> list[str]:
     """Where each joint of a motor node (a node with `joint_status[i]` outputs: the CAN motor
     node's) was when the recording ends: a robot whose axes went to FAULT and stayed there (a
@@ -192,6 +211,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"    {gap['key']}: expected #{gap['expected']}, got #{gap['got']}")
     _host_gaps(recording, args.violations)
     _delivery(recording, args.violations)
+    _clocks(recording)
     launcher = recording.launcher_events()
     if launcher:
         print(f"  launcher events: {len(launcher)}")
