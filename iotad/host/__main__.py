@@ -64,7 +64,7 @@ def main(argv: list[str] | None = None) -> int:
         except CanPortError as exc:
             return _fail(f"{config.path}: {exc}")
         except Exception as exc:  # noqa: BLE001 - zenoh rejects an endpoint, a port is taken...
-            return _fail(f"{config.path}: cannot start on zenoh: {exc}".splitlines()[0])
+            return _fail(f"{config.path}: cannot start on zenoh: {_refused(config, exc)}".splitlines()[0])
         while not stop.wait(0.25):
             if not host.alive():
                 break
@@ -75,6 +75,27 @@ def main(argv: list[str] | None = None) -> int:
     if host.engine.halted:
         return _fail(f"{config.path}: engine halted (see the zeno violation on @trace)", 1)
     return _signalled(received)
+
+
+def _refused(config, exc: Exception) -> str:
+    """zenoh's reason, or for a node given credentials (under access control) why the hub did not
+    admit it: its certificate or its credentials, said in one line (iotad/host/admission.py)."""
+    from iotad.host.credentials import CredentialsError, from_env
+
+    try:
+        own = from_env()
+    except CredentialsError as refused:
+        return str(refused)
+    if own is None or not config.connect:
+        return str(exc)
+    from iotad.host.admission import diagnose
+    from iotad.host.certificates import CertificateError, from_env as tls_from_env
+
+    try:
+        tls = tls_from_env()
+    except CertificateError as refused:
+        return str(refused)
+    return f"not admitted: {diagnose(config.connect[0], tls, own.user).reason}"
 
 
 def _freeze_heap() -> None:

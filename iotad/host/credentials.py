@@ -114,11 +114,14 @@ class CredentialStore:
     dictionary. `remove()` deletes it all (and the pointer), which the launcher does at its end."""
 
     def __init__(self, users: Iterable[str], parent: str | None = None,
-                 may_publish: dict[str, list[str]] | None = None):
-        """`may_publish`: for some users, the keys they may publish on, written into their file."""
+                 may_publish: dict[str, list[str]] | None = None, passwords: dict[str, str] | None = None):
+        """`may_publish`: for some users, the keys they may publish on, written into their file.
+        `passwords`: the passwords of some users, fixed elsewhere (a host's agent secret, or the
+        credentials an agent received from the hub); the others get fresh random ones."""
         self.folder = Path(tempfile.mkdtemp(prefix="iotad-credentials-", dir=parent))
         os.chmod(self.folder, 0o700)
         self._passwords = {user: secrets.token_urlsafe(24) for user in [HUB_USER, *users]}
+        self._passwords.update(passwords or {})
         for user, password in self._passwords.items():
             if ":" in user or "\n" in user:
                 raise CredentialsError(f"user name {user!r} cannot hold ':' or a line break")
@@ -174,4 +177,19 @@ class CredentialStore:
         shutil.rmtree(self.folder, ignore_errors=True)
 
 
-__all__ = ["ENV", "Credentials", "CredentialsError", "CredentialStore", "for_endpoints", "from_env", "load"]
+class GivenCredentials(CredentialStore):
+    """Credentials that another process wrote for this one and owns (a host's agent, for the
+    launcher it starts and that launcher's nodes): read here, never removed here."""
+
+    def __init__(self, folder: str | Path):  # noqa: super().__init__ would make new ones
+        self.folder, self.pointer, self._passwords = Path(folder), None, {}
+
+    def credentials(self, user: str) -> Credentials:
+        return load(self.file_of(user))
+
+    def remove(self) -> None:
+        pass
+
+
+__all__ = ["ENV", "Credentials", "CredentialsError", "CredentialStore", "GivenCredentials", "for_endpoints",
+           "from_env", "load"]

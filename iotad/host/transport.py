@@ -69,9 +69,9 @@ def open_session(listen: Iterable[str] = DEFAULT_LISTEN, connect: Iterable[str] 
     a node wants (its hub may start later) but not what a command-line tool wants.
 
     `credentials` None: those the launcher gave this process in `IOTAD_CREDENTIALS`, if any; a
-    process given credentials is a client of the hub that listens nowhere, so that everything
-    it sends passes the hub's access control (a listening peer could be reached around it).
-    False: none, whatever the environment says.
+    process given credentials (these, or explicit ones without the hub's dictionary) is a client
+    of the hub that listens nowhere, so that everything it sends passes the hub's access control
+    (a listening peer could be reached around it). False: none, whatever the environment says.
 
     `tls` None: the certificates this process was given in `IOTAD_CERTS`/`IOTAD_CERTS_HOST`, if
     any (iotad/host/certificates.py): used on `tls/` endpoints."""
@@ -79,11 +79,16 @@ def open_session(listen: Iterable[str] = DEFAULT_LISTEN, connect: Iterable[str] 
         tls = tls_from_env()
     if credentials is None:
         credentials = from_env()
-        if credentials is not None:
-            mode, listen = "client", ()
-        elif connect:
+        if credentials is None and connect:
             # a hub that this user's `iotad run` guards lets in its tools' user (read only)
             credentials = for_endpoints(connect)
+            given = False
+        else:
+            given = credentials is not None
+    else:
+        given = bool(credentials) and credentials.dictionary is None
+    if given:  # a user of the hub (not the hub itself): everything it does crosses the hub's rules
+        mode, listen = "client", ()
     config = make_config(listen, connect, mode, extra, credentials or None, tls)
     if connect_timeout is not None and list(connect):
         config.insert_json5("connect/timeout_ms", json.dumps(max(1, int(connect_timeout * 1000))))

@@ -5,32 +5,66 @@ object for a run without it (`iotad run --insecure`), which only warns."""
 from __future__ import annotations
 
 import os
+from pathlib import Path
 from typing import Any
 
-from iotad.host.credentials import ENV, CredentialStore
+from iotad.host import agent_secret
+from iotad.host.agent_secret import agent_user
+from iotad.host.credentials import ENV, Credentials, CredentialStore, GivenCredentials, load
 from iotad.launcher.access_policy import RECORDER_USER, TOOLS_USER, Policy, derive, node_user
+from iotad.launcher.host_access import FLEET_USER, host_grants, host_users
+from iotad.launcher.options import AccessOptions
 from iotad.launcher.system_file import System
 
 
 class AccessControl:
-    def __init__(self, system: System, enabled: bool = True, why_off: str = ""):
-        self.enabled, self.why_off = enabled, why_off
+    def __init__(self, system: System, enabled: bool = True, why_off: str = "", hosts: tuple[str, ...] = (),
+                 certs: str | None = None, given: str | None = None):
+        """`hosts`: the other hosts of a system spread over hosts, whose agents and launchers become
+        users too (their agents' passwords derived from the authority in `certs`). `given`: this
+        launcher runs one host's part, with the credentials file its agent received for it."""
+        self.enabled, self.why_off, self.system = enabled, why_off, system
         self.policy: Policy | None = derive(system) if enabled else None
         self.store: CredentialStore | None = None
-        if self.policy is not None:
-            # the tools' file says where they may publish: `iotad pub` refuses the rest itself
-            self.store = CredentialStore(self.policy.users(),
-                                         may_publish={TOOLS_USER: self.policy.grant(TOOLS_USER).publish})
+        self.own: Credentials | None = None  # a host's launcher: its own, from its agent
+        if self.policy is None:
+            return
+        if given is not None:
+            self.store = GivenCredentials(Path(given).parent)
+            self.own = load(given)
+            return
+        self.policy.grants += host_grants(system, list(hosts))
+        agents = {agent_user(host): agent_secret.derive(certs, host) for host in hosts}
+        # the tools' file says where they may publish: `iotad pub` refuses the rest itself
+        self.store = CredentialStore(self.policy.users(), passwords=agents,
+                                     may_publish={TOOLS_USER: self.policy.grant(TOOLS_USER).publish})
+
+    @classmethod
+    def of(cls, system: System, options: AccessOptions) -> "AccessControl":
+        return cls(system, options.enabled, options.why_off, options.hosts, options.certs, options.given)
 
     @classmethod
     def off(cls, system: System, why: str) -> "AccessControl":
         return cls(system, enabled=False, why_off=why)
 
     def hub_options(self) -> dict[str, Any]:
-        """Keyword arguments of `transport.open_session` for the hub's session."""
+        """Keyword arguments of `transport.open_session` for the launcher's session: the hub's, or
+        for another host's launcher its own user's (a client of the hub, listening nowhere)."""
         if self.store is None:
             return {"credentials": False}
+        if self.own is not None:
+            return {"credentials": self.own}
         return {"credentials": self.store.hub(), "extra": {"access_control": self.policy.acl()}}
+
+    def host_part(self, host: str) -> dict[str, str]:
+        """The credentials `host`'s agent receives for its launcher and nodes (user: password)."""
+        if self.store is None or self.own is not None:
+            return {}
+        return {user: self.store.credentials(user).password for user in host_users(self.system, host)}
+
+    def fleet_credentials(self) -> Credentials | bool:
+        """The hub launcher's session with the agents: its own user, or none without access control."""
+        return False if self.store is None or self.own is not None else self.store.credentials(FLEET_USER)
 
     def env_for(self, user: str) -> dict[str, str] | None:
         """A child's environment: the launcher's plus where its credentials are."""

@@ -44,6 +44,9 @@ class Grant:
     ask: list[str] = field(default_factory=list)         # queries from it, replies to it
     tokens: list[str] = field(default_factory=list)      # liveliness tokens it declares
     watch: list[str] = field(default_factory=list)       # liveliness it subscribes to or asks
+    # subscribers and queryables it is told of beyond every user's `DECLARATION_KEYS`: the agents'
+    # wire (iotad/launcher/host_access.py) is outside `iota/<system>`
+    declarations: list[str] = field(default_factory=list)
 
 
 @dataclass
@@ -81,7 +84,8 @@ class Policy:
             rule("token", "ingress", ["liveliness_token"], grant.tokens)
             rule("watch", "ingress", ["declare_liveliness_subscriber", "liveliness_query"], grant.watch)
             rule("seen", "egress", ["liveliness_token"], grant.watch)
-            rule("declared", "egress", ["declare_subscriber", "declare_queryable"], DECLARATION_KEYS)
+            rule("declared", "egress", ["declare_subscriber", "declare_queryable"],
+                 [*DECLARATION_KEYS, *grant.declarations])
             subject_id = f"s{number}"
             subjects.append({"id": subject_id, "usernames": [grant.user]})
             policies.append({"id": f"p{number}", "rules": ids, "subjects": [subject_id]})

@@ -5,8 +5,10 @@ hub is gone for longer than the run's own allowance.
 
 Its wire, all under `iota/@agent/<name>` (an '@' chunk, so no system's `**` matches it):
 - a liveliness token on the key itself: the hub's `iotad run` sees the agent, and sees it go;
-- queryable `.../run`: an order (JSON) with the system file's text, its path on the hub and the
-  launcher's arguments; the answer is {"ok": true, "pid": N} or {"ok": false, "error": "..."};
+- queryable `.../run`: an order (JSON) with the system file's text, its path on the hub, the
+  launcher's arguments and, under access control, this host's credentials (its launcher's and its
+  nodes', written to a private folder for the run and removed after it); the answer is
+  {"ok": true, "pid": N} or {"ok": false, "error": "..."};
 - queryable `.../stop`: SIGINT to the child, as Ctrl-C would; answered once it has exited;
 - publications `.../log` (each line the child prints) and `.../exit` ({"code": N}).
 
@@ -27,6 +29,8 @@ import threading
 import time
 from pathlib import Path
 from typing import Callable
+
+from iotad.host.credentials import ENV, CredentialStore
 
 AGENT_PREFIX = "iota/@agent"
 
@@ -72,8 +76,17 @@ class Agent:
     """One host's agent: `serve()` until `stop()` (or SIGINT/SIGTERM in `main`)."""
 
     def __init__(self, name: str, connect: list[str], tls=None, workdir: str | Path | None = None,
-                 say: Callable[[str], None] = print, python: str = sys.executable):
+                 say: Callable[[str], None] = print, python: str = sys.executable, secret: str | None = None):
+        """`secret`: this host's agent secret (HOST.secret, iotad/host/agent_secret.py), with which
+        it is admitted by a hub under access control."""
+        from iotad.host.agent_secret import agent_user
+        from iotad.host.credentials import Credentials
+
         self.name, self.connect, self.tls, self.say, self.python = name, list(connect), tls, say, python
+        self.credentials = Credentials(agent_user(name), secret) if secret else None
+        self._refusal = ""  # the last reason the hub gave for not admitting this agent, said once
+        self._admitted_with = self.credentials  # how the last hub admitted it (False: without credentials)
+        self._store = None  # the credentials of the run in progress (a private folder), removed after it
         self.workdir = Path(workdir) if workdir else Path(tempfile.gettempdir()) / f"iotad-agent-{name}"
         self.child: subprocess.Popen | None = None
         self._lock = threading.Lock()
@@ -82,35 +95,92 @@ class Agent:
 
     # ------------------------------------------------------------- serving
     def serve(self) -> int:
+        self.say(f"agent {self.name}: waiting for the hub at {', '.join(self.connect)}")
+        try:
+            while not self._stopping.is_set():
+                admitted_as = self._admit()
+                if self.session is None:
+                    break
+                self._serve_session(admitted_as)
+        finally:
+            self._stop_child("the agent stops")
+            self._remove_credentials()
+        return 0
+
+    def _admit(self) -> str | None:
+        """Open a session with the hub once a run holds it (None: the agent stopped first); the
+        user it was admitted as."""
+        from iotad.host.admission import listening
         from iotad.host.transport import open_session
 
-        self.say(f"agent {self.name}: waiting for the hub at {', '.join(self.connect)}")
         while not self._stopping.is_set():
-            try:
-                self.session = open_session([], self.connect, mode="client", connect_timeout=2.0,
-                                            credentials=False, tls=self.tls)
-                break
-            except Exception:  # noqa: BLE001 - no hub yet: zenoh says "Unable to connect"
-                self._stopping.wait(1.0)
-        if self.session is None:
-            return 0
+            if not any(listening(endpoint) for endpoint in self.connect):
+                self._refusal = ""
+                self._stopping.wait(0.5)  # no run holds the hub yet
+                continue
+            # with its secret (a run under access control) and without (a run that has none: zenoh
+            # refuses a user-password session on a hub that checks none, after the whole timeout),
+            # the way the last run admitted it first
+            ways = ([self.credentials] if self.credentials else []) + [False]
+            for credentials in sorted(ways, key=lambda way: way is not self._admitted_with):
+                try:
+                    self.session = open_session([], self.connect, mode="client", connect_timeout=2.0,
+                                                credentials=credentials, tls=self.tls)
+                    self._admitted_with = credentials
+                    return credentials.user if credentials else None
+                except Exception:  # noqa: BLE001 - zenoh says only "Unable to connect"
+                    continue
+            self._not_admitted()
+            self._stopping.wait(1.0)
+        return None
+
+    def _serve_session(self, admitted_as: str | None) -> None:
+        """Serve orders until the agent stops, or until the hub is gone while no run of this host
+        is in progress: the next run's hub is joined anew, since it may check credentials where
+        the last did not, or the reverse (a run in progress keeps its session, which zenoh
+        reconnects when the network heals)."""
         key = agent_key(self.name)
         # the queryables before the token: a hub that sees the token may ask at once
         declared = [self.session.declare_queryable(f"{key}/run", self._on_run),
                     self.session.declare_queryable(f"{key}/stop", self._on_stop),
                     self.session.liveliness().declare_token(key)]
-        self.say(f"agent {self.name}: ready at the hub")
+        self.say(f"agent {self.name}: ready at the hub" + (f" (admitted as {admitted_as})" if admitted_as else ""))
+        # the hub gone for 1 s with no run here: closed now, the next run's hub is joined sooner than
+        # zenoh's own reconnection (backing off) would
+        absent = 0
         try:
-            self._stopping.wait()
+            while not self._stopping.wait(0.5):
+                hub_there = any(True for _ in self.session.info.peers_zid()) or \
+                    any(True for _ in self.session.info.routers_zid())
+                absent = 0 if hub_there or self._running() else absent + 1
+                if absent >= 2:
+                    self.say(f"agent {self.name}: the hub is gone; waiting for the next run")
+                    break
         finally:
-            self._stop_child("the agent stops")
             for item in declared:
-                item.undeclare()
+                try:
+                    item.undeclare()
+                except Exception:  # noqa: BLE001 - a session the hub left
+                    pass
             self.session.close()
-        return 0
+            self.session = None
+
+    def _running(self) -> bool:
+        with self._lock:
+            return self.child is not None and self.child.poll() is None
 
     def stop(self) -> None:
         self._stopping.set()
+
+    def _not_admitted(self) -> None:
+        """Say once why the hub does not admit this agent, when something answers there (a hub
+        that is not up yet is a wait, not an error)."""
+        from iotad.host.admission import diagnose
+
+        refusal = diagnose(self.connect[0], self.tls, self.credentials.user if self.credentials else None)
+        if refusal.listening and refusal.reason != self._refusal:
+            self.say(f"agent {self.name}: not admitted: {refusal.reason}")
+        self._refusal = refusal.reason if refusal.listening else ""
 
     # ------------------------------------------------------------- orders
     def _on_run(self, query) -> None:
@@ -140,6 +210,19 @@ class Agent:
             command = [self.python, "-m", "iotad", "run", str(path), "--host", self.name, "--plain", *args]
             env = dict(os.environ)
             env.update({k: v for k, v in (order.get("env") or {}).items() if isinstance(v, str)})
+            env.pop(ENV, None)
+            given = order.get("credentials") or {}
+            if not isinstance(given, dict) or not all(isinstance(v, str) for v in [*given, *given.values()]):
+                raise AgentError("an order's 'credentials' must map user names to passwords")
+            if given:
+                from iotad.launcher.host_access import launcher_user
+
+                if launcher_user(self.name) not in given:
+                    raise AgentError(f"an order's credentials lack this host's launcher ({launcher_user(self.name)})")
+                self._remove_credentials()
+                # a private folder (0700, files 0600) for the run's launcher and its nodes, removed after it
+                self._store = CredentialStore(list(given), passwords=given)
+                env[ENV] = str(self._store.file_of(launcher_user(self.name)))
             self.child = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                                           env=env, start_new_session=True)
             child = self.child
@@ -152,6 +235,9 @@ class Agent:
         for line in child.stdout:
             self._publish("log", {"line": line.rstrip("\n")})
         code = child.wait()
+        with self._lock:
+            if self.child is child:
+                self._remove_credentials()
         self._publish("exit", {"code": code})
         self.say(f"agent {self.name}: the run exited with {code}")
 
@@ -162,6 +248,11 @@ class Agent:
             self.session.put(f"{agent_key(self.name)}/{part}", json.dumps(payload).encode())
         except Exception:  # noqa: BLE001 - the session is closing: the hub is gone anyway
             pass
+
+    def _remove_credentials(self) -> None:
+        if self._store is not None:
+            self._store.remove()
+            self._store = None
 
     def _stop_child(self, why: str, grace: float = 15.0) -> int | None:
         """SIGINT (the launcher stops its nodes in order), then SIGKILL to the group past `grace`."""
@@ -181,8 +272,8 @@ class Agent:
         return child.wait()
 
 
-def main(name: str, connect: list[str], tls=None, workdir: str | None = None) -> int:
-    agent = Agent(name, connect, tls, workdir)
+def main(name: str, connect: list[str], tls=None, workdir: str | None = None, secret: str | None = None) -> int:
+    agent = Agent(name, connect, tls, workdir, secret=secret)
     previous = {sig: signal.signal(sig, lambda signum, frame: agent.stop()) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
         return agent.serve()

@@ -39,13 +39,15 @@ class Fleet:
         self._changed = threading.Condition()
         self._declared: list = []
 
-    def start(self) -> None:
+    def start(self, access=None) -> None:
         """Wait for every host's agent (up to `start_timeout`) and give each its part; raises
-        `FleetError` naming the hosts that did not take it (the ones that did are stopped)."""
+        `FleetError` naming the hosts that did not take it (the ones that did are stopped).
+        `access` (iotad/launcher/access_control.py): under access control, this session's user
+        and each host's credentials, which go in that host's order only."""
         from iotad.host.transport import open_session
 
         self.session = open_session([], self.hub, mode="client", connect_timeout=self.start_timeout,
-                                    credentials=False, tls=self.tls)
+                                    credentials=access.fleet_credentials() if access else False, tls=self.tls)
         self._declared.append(self.session.liveliness().declare_subscriber(
             f"{AGENT_PREFIX}/*", self._on_agent, history=True))
         for part in ("log", "exit"):
@@ -57,12 +59,18 @@ class Fleet:
         missing = [host for host in self.hosts if host not in self._present]
         if missing:
             self.close()
+            guarded = access is not None and access.fleet_credentials() is not False
             raise FleetError(f"no agent answered for host(s) {', '.join(missing)} within {self.start_timeout:g} s: "
-                             f"start 'iotad agent --name HOST --connect {self.hub[0]}' there (docs/hosts.md)")
+                             f"start 'iotad agent --name HOST --connect {self.hub[0]}' there (docs/hosts.md)"
+                             + ("; this run is under access control: an agent needs --certs DIR with its "
+                                "HOST.secret, and says on its own console why the hub does not admit it"
+                                if guarded else ""))
         refused = []
         for host in self.hosts:
+            # the hub admits only the agent of `host` to serve this key: its credentials go to it alone
             order = json.dumps({"system": self.text, "path": str(self.path), "digest": digest(self.text),
-                                "args": self.args + self.host_args.get(host, []), "env": self.env}).encode()
+                                "args": self.args + self.host_args.get(host, []), "env": self.env,
+                                "credentials": access.host_part(host) if access else {}}).encode()
             answer = self._ask(f"{agent_key(host)}/run", order)
             if answer.get("ok"):
                 self._started.add(host)

@@ -48,10 +48,17 @@ class RecordingOptions:
 @dataclass(frozen=True)
 class AccessOptions:
     """Access control of the hub (docs/access-control.md): on, or off and why (`--insecure`, a
-    system spread over hosts), which the launcher says as a warning."""
+    system spread over hosts whose links have no certificates), which the launcher says as a
+    warning."""
 
     enabled: bool = True
     why_off: str = ""
+    # a system spread over hosts, run through agents: the other hosts, and the certificates'
+    # folder whose authority key gives each host's agent secret (iotad/host/agent_secret.py)
+    hosts: tuple[str, ...] = ()
+    certs: str | None = None
+    # one host's launcher started by its agent: its own credentials file (IOTAD_CREDENTIALS)
+    given: str | None = None
 
     @classmethod
     def off(cls, why: str) -> "AccessOptions":

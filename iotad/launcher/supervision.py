@@ -101,8 +101,7 @@ class Launcher:
         self.run_dir = Path(launch.log_dir) if launch.log_dir else Path(tempfile.mkdtemp(prefix=f"iotad-{system.name}-"))
         self.run_dir.mkdir(parents=True, exist_ok=True)
         # the hub's credentials and rules, made now: `iotad run --view` hands the tools' file to its viewer
-        self.access: AccessControl | None = None if access is None else \
-            AccessControl(system, enabled=access.enabled, why_off=access.why_off)
+        self.access: AccessControl | None = None if access is None else AccessControl.of(system, access)
         self.events: queue.Queue = queue.Queue()
         self.tally = Tally()
         self.alive_paths: set[str] = set()
@@ -143,7 +142,9 @@ class Launcher:
         self._local: list[str] = []      # another host's launcher: where its recorder and nodes reach it
         self._hub_origin: float | None = None  # another host's launcher: the origin the hub answered
         self._clock: dict | None = None        # another host's launcher: its clock offset, as measured
-        if recording is not None:
+        if recording is not None and (system.opens_hub(self.host) or self.access is None or self.access.own is None):
+            # (another host's launcher under access control is a client of the hub, as are its
+            # nodes: the hub records all of them, and nothing here could hear more)
             self.recorder = RecorderSupervisor(
                 system, recording, hub=self.hub, run_dir=self.run_dir,
                 env=self.access.recorder_env() if self.access else None, events=self.events,
@@ -234,6 +235,11 @@ class Launcher:
             if "Address already in use" in text:
                 raise LauncherError(f"the hub endpoint {', '.join(listen)} is taken (another 'iotad run'?); "
                                     "choose another with --port") from None
+            if self.access is not None and self.access.own is not None:  # another host's, under access control
+                from iotad.host.admission import diagnose
+                from iotad.host.certificates import from_env
+
+                text = f"not admitted: {diagnose(connect[0], from_env(), self.access.own.user).reason}"
             raise LauncherError(f"cannot open the hub session (listen {listen}, connect {connect}): {text}") from None
         session = self.session
         if system.opens_hub(self.host):  # with --port 0 this is the only place the port is told
@@ -265,6 +271,7 @@ class Launcher:
         node's `t` counts from one instant; if the hub does not answer, its own (with a warning)."""
         deadline = time.monotonic() + self.system.start_timeout
         key = wire.origin_key(self.system.name)
+        self.view.line(f"waiting up to {self.system.start_timeout:g} s for the hub launcher's clock origin on {key}")
         while time.monotonic() < deadline and not self._stop_asked.is_set():
             for reply in self.session.get(key, timeout=1.0):
                 if reply.ok is not None:
@@ -342,7 +349,7 @@ class Launcher:
 
         self.fleet.say = self.view.line
         try:
-            self.fleet.start()
+            self.fleet.start(self.access)
         except FleetError as exc:
             raise LauncherError(str(exc)) from None
 

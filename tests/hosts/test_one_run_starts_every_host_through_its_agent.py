@@ -27,7 +27,10 @@ def assert_checked(recording: Path) -> None:
     # how many requests fit in the run depends on how long the hosts took to start: at least one
     assert re.search(r"scheduler: \d+ events, [1-9]\d* firings checked", out), out[-3000:]
     assert re.search(r"vision: \d+ events, [1-9]\d* firings checked", out), out[-3000:]
-    assert re.search(r"delivery: (\d+) of \1 messages delivered as sent over 2 links", out), out[-3000:]
+    # a message still in flight when --until stopped the run is not judged, and not lost
+    delivery = re.search(r"delivery: (\d+) of (\d+) messages delivered as sent over 2 links.*?(?:; (\d+) not judged "
+                         r"\(in flight at the end|$)", out, re.M)
+    assert delivery and int(delivery[1]) + int(delivery[3] or 0) == int(delivery[2]), out[-3000:]
 
 
 def iotad(place, *args, timeout=120):
@@ -83,7 +86,9 @@ from iotad.host.transport import open_session
 hub, stranger, own = sys.argv[1], sys.argv[2], sys.argv[3]
 for name, endpoint, files in (("tcp", hub.replace("tls/", "tcp/"), None), ("tls without a certificate", hub, None),
                               ("tls with another authority's", hub, certificates.host_files(stranger, "rogue")),
-                              # the control: the hub is reachable from here, for a host of the system
+                              # a host of the system reaches the hub from here, but the run is under
+                              # access control and it has no credentials (the control that reads with
+                              # them: test_a_third_host_without_credentials_can_neither_command_nor_read)
                               ("tls with the system's", hub, certificates.host_files(own, "guest"))):
     try:
         with open_session([], [endpoint], mode="client", connect_timeout=2, credentials=False, tls=files) as s:
@@ -125,7 +130,7 @@ def test_hosts_linked_by_tls_admit_no_process_without_a_certificate(tmp_path):
             interrupt_then_kill(agent)
         assert run.returncode == 0, output[-3000:]
         assert rogue.stdout.split("\n")[:4] == ["tcp refused", "tls without a certificate refused",
-                                               "tls with another authority's refused", "tls with the system's OPENED"], \
+                                               "tls with another authority's refused", "tls with the system's refused"], \
             rogue.stdout + rogue.stderr
         assert "host arm: its agent runs its nodes" in output and "COMMIT" in output
         assert_checked(tmp_path / "tls.mcap")

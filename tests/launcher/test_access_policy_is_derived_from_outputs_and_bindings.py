@@ -74,17 +74,24 @@ def test_run_check_prints_the_policy(tmp_path):
     assert "node-scheduler (node)" in done.stdout and "iota/figure2/scheduler/mdl_command" in done.stdout
 
 
-def test_run_check_says_access_control_is_off_for_a_system_spread_over_hosts(tmp_path, capsys):
-    # its runs say "access control is OFF": the check must not print a policy no hub enforces
+def test_run_check_prints_the_policy_of_a_system_spread_over_hosts_with_its_launchers_and_agents(tmp_path, capsys):
+    # the nodes keep their one-machine rights; each other host adds a launcher and an agent that
+    # may only serve and publish on its own agent keys, and the hub's side of the agents
     from iotad.cli import main
 
     path = figure2(tmp_path)
     text = path.read_text()
-    for node in ("scheduler", "vision", "manipulation"):  # every node names its host, or none does
+    for node, host in (("scheduler", "brain"), ("vision", "arm"), ("manipulation", "arm")):
         assert text.count(f'name = "{node}"') == 1
-        text = text.replace(f'name = "{node}"', f'name = "{node}"\nhost = "brain"')
+        text = text.replace(f'name = "{node}"', f'name = "{node}"\nhost = "{host}"')
+    text = text.replace("[system]", '[system]\nhub_host = "brain"')
     path.write_text(text)
     assert main(["run", "--check", str(path)]) == 0
     out = capsys.readouterr().out
-    assert "access control of figure2: OFF (not yet for systems spread over hosts" in out
-    assert "default: deny" not in out and "node-scheduler" not in out
+    assert "on when its hub starts the other hosts through their agents over tls/" in out
+    assert "node-scheduler (node)" in out and "iota/figure2/scheduler/mdl_command" in out
+    assert "iotad-launcher-arm (launcher of host arm)" in out and "iotad-launcher-brain" not in out
+    agent = out[out.index("iotad-agent-arm (agent of host arm)"):].split("\n  iotad-", 1)[0]
+    assert "publish:            iota/@agent/arm/log, iota/@agent/arm/exit" in agent
+    assert "answer queries on:  iota/@agent/arm/run, iota/@agent/arm/stop" in agent
+    assert "iota/figure2" not in agent.replace("iota/*/@clock", "")  # no key of the system itself

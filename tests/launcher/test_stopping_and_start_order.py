@@ -45,7 +45,9 @@ to = "sink.inp"
                              "--log-dir", str(tmp_path / "logs")], cwd=ROOT, stdout=subprocess.PIPE,
                             stderr=subprocess.STDOUT, text=True, start_new_session=True)
     try:
-        time.sleep(1.5)  # in _ask_origin: no hub launcher runs
+        for line in proc.stdout:  # in _ask_origin: no hub launcher runs
+            if "for the hub launcher's clock origin" in line:
+                break
         sent = time.monotonic()
         proc.send_signal(signal.SIGTERM)
         out, _ = proc.communicate(timeout=20)

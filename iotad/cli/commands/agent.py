@@ -32,7 +32,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--connect", required=True, type=endpoint, action="append", metavar="ENDPOINT",
                         help="the hub's endpoint, e.g. tcp/10.0.0.1:7447 or tls/10.0.0.1:7447 (repeat for several)")
     parser.add_argument("--certs", metavar="DIR",
-                        help="folder with ca.pem, NAME.pem and NAME.key (iotad certs) for tls/ endpoints")
+                        help="folder with ca.pem, NAME.pem, NAME.key (iotad certs) for tls/ endpoints, and "
+                             "NAME.secret, with which a run under access control admits this agent")
     parser.add_argument("--workdir", metavar="DIR",
                         help="where a system file the hub sends is written when this host lacks it "
                              "(default: a folder under the temporary directory)")
@@ -40,16 +41,24 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    import sys
+
     from iotad.cli import CliError
+    from iotad.host import agent_secret
     from iotad.host.certificates import CertificateError, use
     from iotad.launcher.agent import main
 
-    tls = None
+    tls, secret = None, None
     if args.certs:
         try:
             tls = use(args.certs, args.name)  # the runs it starts (launcher, nodes) use them too
+            secret = agent_secret.read(args.certs, args.name)
         except CertificateError as exc:
-            raise CliError(str(exc)) from None
+            if tls is None:
+                raise CliError(str(exc)) from None
+            # certificates without a secret: admitted only by runs without access control
+            print(f"agent {args.name}: warning: {exc}; only runs without access control will admit this agent",
+                  file=sys.stderr)
     elif any(endpoint.startswith(("tls/", "quic/")) for endpoint in args.connect):
         raise CliError(f"{args.connect[0]} is a TLS endpoint: give --certs DIR with this host's certificate")
-    return main(args.name, args.connect, tls, args.workdir)
+    return main(args.name, args.connect, tls, args.workdir, secret)

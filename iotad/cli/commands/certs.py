@@ -3,19 +3,23 @@ host, for TLS links with mutual authentication (docs/hosts.md)."""
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 ORDER = 29
 
 EPILOG = """\
-examples (once, on the hub's machine; then copy DIR/ca.pem, HOST.pem and HOST.key to each host):
+examples (once, on the hub's machine; then copy DIR/ca.pem, HOST.pem, HOST.key and HOST.secret to each host):
   iotad certs init certs/                           a new authority: certs/ca.pem, certs/ca.key
   iotad certs host brain --dir certs/ --address 10.0.0.1
   iotad certs host arm --dir certs/ --address 10.0.0.2 --address arm.local
   iotad certs show certs/arm.pem
+  iotad certs secret arm --dir certs/               only arm.secret, for a folder made before secrets
 
 Keys are written readable by their owner only. Keep ca.key on one machine: whoever holds it can
 admit a host to the system. A process without a certificate of this authority cannot open a
-session with a host that listens on a tls/ endpoint."""
+session with a host that listens on a tls/ endpoint. HOST.secret is what that host's agent shows
+the hub of a run under access control (derived from ca.key: 'iotad run --certs' needs ca.key, or
+the hosts' .secret files, in its folder)."""
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -32,13 +36,17 @@ def register(sub: argparse._SubParsersAction) -> None:
     init.add_argument("--days", type=_days, default=3650, help="valid for this many days (default: 3650)")
     init.add_argument("--force", action="store_true",
                       help="replace an authority already in DIR (every host certificate it signed stops working)")
-    host = actions.add_parser("host", help="sign a certificate for host NAME (NAME.pem, NAME.key in DIR)")
+    host = actions.add_parser("host", help="sign a certificate for host NAME (NAME.pem, NAME.key, NAME.secret in DIR)")
     host.add_argument("name", metavar="NAME", help="the host's name, as in the system file's [hosts.NAME]")
     host.add_argument("--dir", default="certs", help="the authority's folder (default: certs)")
     host.add_argument("--address", action="append", default=[], metavar="ADDR",
                       help="an IP address or DNS name the host is reached at (repeat for several)")
     host.add_argument("--days", type=_days, default=825, help="valid for this many days (default: 825)")
     host.add_argument("--force", action="store_true", help="replace the host's certificate and key")
+    secret = actions.add_parser("secret", help="write host NAME's agent secret (NAME.secret in DIR) from the "
+                                               "authority's key, without a new certificate")
+    secret.add_argument("name", metavar="NAME", help="the host's name, as in the system file's [hosts.NAME]")
+    secret.add_argument("--dir", default="certs", help="the authority's folder (default: certs)")
     show = actions.add_parser("show", help="say what a certificate holds (names, issuer, expiry)")
     show.add_argument("files", nargs="+", metavar="FILE")
     parser.set_defaults(func=run)
@@ -58,9 +66,21 @@ def run(args: argparse.Namespace) -> int:
             path = certificates.init_authority(args.dir, args.name, args.days, args.force)
             print(f"made a certificate authority: {path} (its key {path.with_name('ca.key')} stays on this machine)")
         elif args.certs_action == "host":
+            from iotad.host import agent_secret
+
             files = certificates.issue_host(args.dir, args.name, args.address, args.days, args.force)
-            print(f"signed {files.certificate} and its key {files.key} for host {args.name!r}; copy them with "
-                  f"{files.authority} to that host")
+            secret = agent_secret.write(args.dir, args.name)  # its agent's proof under access control
+            print(f"signed {files.certificate} and its key {files.key} for host {args.name!r}, and wrote its "
+                  f"agent's secret {secret}; copy them with {files.authority} to that host")
+        elif args.certs_action == "secret":
+            from iotad.host import agent_secret
+            from iotad.host.certificates import AUTHORITY_KEY
+
+            if not (Path(args.dir) / AUTHORITY_KEY).is_file():  # else derive would read the secret it writes
+                raise certificates.CertificateError(f"no authority's key {Path(args.dir) / AUTHORITY_KEY}: "
+                                                    "run this where the authority is")
+            print(f"wrote {agent_secret.write(args.dir, args.name)}: host {args.name!r}'s agent secret; copy it "
+                  "beside that host's key")
         else:
             for path in args.files:
                 print(certificates.describe(path))

@@ -130,11 +130,16 @@ def run(args: argparse.Namespace) -> int:
               f"{inputs} channel bindings, {len(system.external)} external inputs{buses}")
         from iotad.launcher.access_policy import derive
 
-        if any(node.host for node in system.nodes.values()):  # as `access_for` decides for the run
-            print(f"access control of {system.name}: OFF (not yet for systems spread over hosts; "
-                  f"docs/access-control.md)")
-        else:
-            print("\n".join(derive(system).lines()))
+        policy = derive(system)
+        others = list(dict.fromkeys(n.host for n in system.nodes.values() if n.host and n.host != system.hub_host))
+        if others:  # as `access_for` decides for the run
+            from iotad.launcher.host_access import host_grants
+
+            policy.grants += host_grants(system, others)
+            print(f"access control of {system.name}: on when its hub starts the other hosts through their agents "
+                  "over tls/ endpoints with --certs; off with --insecure, --local, --host or tcp/ links "
+                  "(docs/hosts.md)")
+        print("\n".join(policy.lines()))
         return 0
     if args.no_record and args.record_to:
         from iotad.cli import CliError
@@ -231,12 +236,15 @@ def _launch(system, args: argparse.Namespace, record_to: str | None, summary_hoo
     if port == 0:
         port = free_port()
     _use_certificates(system, args)
-    fleet, host = _fleet_for(system, args, port, record_to)
+    access = access_for(system, args)
+    # under access control every other host's launcher and nodes are clients of the hub, which
+    # records all they say: they record nothing of their own (docs/hosts.md, "The recording")
+    fleet, host = _fleet_for(system, args, port, None if access.enabled else record_to)
     launch = LaunchOptions(host=host, port=port, until=args.until, after_live=args.after_live,
                            origin=args.origin, log_dir=args.log_dir, live_table=False if args.plain else None)
     recording = None if args.no_record or record_to is None else RecordingOptions(
         record_to, force=args.force, max_size=args.max_size, max_duration=args.max_duration)
-    launcher = Launcher(system, launch, recording, access_for(system, args), fleet=fleet)
+    launcher = Launcher(system, launch, recording, access, fleet=fleet)
     viewer = None
     try:
         if args.view is not None and system.opens_hub(args.host):
@@ -264,7 +272,7 @@ def _launch(system, args: argparse.Namespace, record_to: str | None, summary_hoo
     print(f"summary of {system.name}" + (where if launcher.host else "") + ":")
     for line in launcher.summary():
         print(line)
-    if fleet is not None and record_to is not None and launcher.recorder is not None:
+    if fleet is not None and fleet.host_args and launcher.recorder is not None:
         from iotad.launcher.host_recording import host_recording_path
 
         others = [str(host_recording_path(record_to, host)) for host in fleet.hosts]
@@ -338,12 +346,45 @@ def _view_port_free(port: int) -> None:
 
 
 def access_for(system, args: argparse.Namespace):
-    """Access control for this run (docs/access-control.md): on unless --insecure; off, with a
-    warning, for a system spread over hosts, whose other launchers could not get credentials."""
+    """Access control for this run (docs/access-control.md): on unless --insecure. A system spread
+    over hosts has it when the hub starts the other hosts through their agents over TLS (the hub
+    hands each agent its host's credentials) and on each host's launcher its agent starts; off,
+    with a warning saying why, where no one could hand the other launchers their credentials."""
+    import os
+
+    from iotad.cli import CliError
+    from iotad.host.agent_secret import derive
+    from iotad.host.certificates import ENV_DIR, CertificateError
+    from iotad.host.credentials import ENV, CredentialsError, load
+    from iotad.launcher.host_access import launcher_user
     from iotad.launcher.options import AccessOptions
 
     if args.insecure:
         return AccessOptions.off("--insecure")
-    if args.host is not None or any(node.host for node in system.nodes.values()):
-        return AccessOptions.off("not yet for systems spread over hosts")
-    return AccessOptions()
+    hosts = [node.host for node in system.nodes.values() if node.host]
+    if not hosts:
+        return AccessOptions()
+    if args.host is not None:
+        given = os.environ.get(ENV)
+        try:
+            own = load(given) if given else None
+        except CredentialsError as exc:
+            raise CliError(str(exc)) from None
+        if own is not None and own.user == launcher_user(args.host):
+            return AccessOptions(given=given)  # started by this host's agent, for the hub's run
+        return AccessOptions.off(f"--host {args.host}: no credentials from the hub, whose run is without access "
+                                 "control or which did not start this launcher through its agent (docs/hosts.md)")
+    if args.local:
+        return AccessOptions.off("--local")
+    certs = args.certs or os.environ.get(ENV_DIR)
+    plain = [endpoint for endpoint in system.listen if not endpoint.startswith(("tls/", "quic/"))]
+    if not certs or plain:
+        return AccessOptions.off("the hosts are linked without TLS (tls/ endpoints and --certs DIR): their agents "
+                                 "cannot be admitted, nor their credentials sent, safely; docs/hosts.md")
+    others = list(dict.fromkeys(host for host in hosts if host != system.hub_host))
+    try:
+        for host in others:
+            derive(certs, host)  # every agent's secret, or one line saying which is missing
+    except CertificateError as exc:
+        raise CliError(str(exc)) from None
+    return AccessOptions(hosts=tuple(others), certs=str(certs))

@@ -1,0 +1,65 @@
+"""Access control across hosts: the users a system spread over hosts adds to the hub's policy
+(each other host's launcher and agent, and the hub's side of the agents' wire), and which
+credentials the hub hands each host's agent (docs/hosts.md, "Access control").
+
+The nodes keep exactly their one-machine rights (`access_policy.derive`). A host's launcher may
+only do what a launcher that does not hold the hub does: publish its events, follow the nodes'
+liveliness, heartbeats and traces, ask the hub's origin and clock, and open its own start gate.
+A host's agent may only serve its own orders and publish its own lines: the hub's `iotad run`
+asks `iota/@agent/<host>/run` with that host's credentials in the order, so no other user can
+declare the queryable that receives them."""
+from __future__ import annotations
+
+from iotad.host import wire
+from iotad.host.agent_secret import agent_user
+from iotad.host.clock_offset import clock_key
+from iotad.launcher.access_policy import Grant, node_user
+from iotad.launcher.agent import AGENT_PREFIX, agent_key
+from iotad.launcher.system_file import System
+
+FLEET_USER = "iotad-fleet"  # the hub launcher's own client session that talks to the agents
+
+
+def launcher_user(host: str) -> str:
+    return f"iotad-launcher-{host}"
+
+
+def host_users(system: System, host: str) -> list[str]:
+    """The users whose credentials `host`'s agent receives: its launcher's and its nodes'."""
+    return [launcher_user(host), *(node_user(node.name) for node in system.nodes_on(host))]
+
+
+def host_grants(system: System, hosts: list[str]) -> list[Grant]:
+    """The grants for the other hosts `hosts` of `system` and for the hub's fleet session."""
+    name = system.name
+    grants = []
+    for host in hosts:
+        grants.append(Grant(
+            launcher_user(host), f"launcher of host {host}",
+            # its launcher events, and the hub's origin on its clock that its nodes follow
+            publish=[wire.launcher_key(name), wire.host_origin_key(name, host)],
+            subscribe=[wire.every_node(name, wire.HEARTBEAT), wire.every_node(name, wire.TRACE)],
+            ask=[wire.origin_key(name), clock_key(name)],
+            tokens=[wire.gate_key(name, host)],
+            watch=[wire.every_node(name, wire.ALIVE)]))
+        key = agent_key(host)
+        grants.append(Grant(
+            agent_user(host), f"agent of host {host}",
+            publish=[f"{key}/log", f"{key}/exit"],
+            serve=[f"{key}/run", f"{key}/stop"],
+            # an agent may measure the hub's clock itself before its launcher starts
+            ask=[clock_key("*")],
+            tokens=[key],
+            declarations=[f"{AGENT_PREFIX}/*/log", f"{AGENT_PREFIX}/*/exit"]))
+    if hosts:
+        every = f"{AGENT_PREFIX}/*"
+        grants.append(Grant(
+            FLEET_USER, "the hub's side of the agents",
+            subscribe=[f"{every}/log", f"{every}/exit"],
+            ask=[f"{every}/run", f"{every}/stop"],
+            watch=[every],
+            declarations=[f"{every}/run", f"{every}/stop"]))
+    return grants
+
+
+__all__ = ["FLEET_USER", "host_grants", "host_users", "launcher_user"]

@@ -1,0 +1,68 @@
+"""Helpers for tests of hosts' agents on loopback: a hub session under user-password
+authentication over TLS, and `iotad agent` run until it says a given line."""
+from __future__ import annotations
+
+import subprocess
+import sys
+import threading
+from pathlib import Path
+
+from launcher_helpers import ROOT
+
+from iotad.host import certificates
+from iotad.host.credentials import Credentials, CredentialStore
+from iotad.host.transport import open_session
+from iotad.launcher.processes import interrupt_then_kill
+
+
+def hub_session(authority: Path, port: int, users: dict[str, str], tmp_path: Path):
+    """A hub under user-password authentication that knows `users`, on tls/127.0.0.1:port."""
+    store = CredentialStore([], parent=str(tmp_path), passwords=users)
+    for user in users:  # the dictionary is what the hub checks against
+        assert user in store.dictionary.read_text()
+    hub = Credentials("iotad-hub", store.hub().password, str(store.dictionary))
+    return open_session([f"tls/127.0.0.1:{port}"], [], credentials=hub,
+                        tls=certificates.host_files(authority, "brain"))
+
+
+class AgentProcess:
+    """`iotad agent --name arm` on loopback with the certificates in `certs`; its lines as they come."""
+
+    def __init__(self, certs: Path, port: int):
+        self.proc = subprocess.Popen([sys.executable, "-m", "iotad", "agent", "--name", "arm", "--connect",
+                                      f"tls/127.0.0.1:{port}", "--certs", str(certs)], stdout=subprocess.PIPE,
+                                     stderr=subprocess.PIPE, text=True, cwd=ROOT, start_new_session=True)
+        self.lines: list[str] = []
+        self.changed = threading.Condition()
+        threading.Thread(target=self._read, daemon=True).start()
+
+    def _read(self) -> None:
+        for line in self.proc.stdout:
+            with self.changed:
+                self.lines.append(line.rstrip("\n"))
+                self.changed.notify_all()
+
+    def wait_for(self, text: str, timeout: float = 40, after: int = 0) -> int:
+        """The index of the first line from `after` on that holds `text` (-1: none within `timeout`)."""
+        def found() -> int:
+            return next((k for k in range(after, len(self.lines)) if text in self.lines[k]), -1)
+
+        with self.changed:
+            self.changed.wait_for(lambda: found() >= 0 or self.proc.poll() is not None, timeout)
+            return found()
+
+    def stop(self) -> str:
+        """Stop it (SIGINT, then SIGKILL); its standard error."""
+        interrupt_then_kill(self.proc)
+        return self.proc.stderr.read()
+
+
+def agent_lines(certs: Path, port: int, until: str, timeout: float = 40) -> tuple[list[str], str]:
+    """`iotad agent --name arm` until one of its lines holds `until` (or `timeout`): its lines and
+    its standard error."""
+    agent = AgentProcess(certs, port)
+    try:
+        agent.wait_for(until, timeout)
+    finally:
+        errors = agent.stop()
+    return agent.lines, errors
