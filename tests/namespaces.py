@@ -13,9 +13,13 @@ import pytest
 
 
 def split_figure2(name: str, hub: str, port: int, hub_host: str, other: str, other_address: str,
-                  scheme: str = "tcp") -> str:
+                  scheme: str = "tcp", scheduler_on: str | None = None, count: int = 2, pause: float = 1.2) -> str:
     """The Figure 2 scheduler on `hub_host` (which holds the hub at `hub`:`port`) and one
-    requester on `other`, bound both ways: the smallest system spread over two hosts."""
+    requester on `other`, bound both ways: the smallest system spread over two hosts.
+    `scheduler_on=other` swaps them (the requester, with the hub, on `hub_host`); the requester
+    makes `count` requests, `pause` s apart."""
+    scheduler_on = scheduler_on or hub_host
+    requester_on = other if scheduler_on == hub_host else hub_host
     from pathlib import Path
     examples = Path(__file__).resolve().parents[1] / "examples"
     return f"""
@@ -32,15 +36,15 @@ listen = ["{scheme}/{other_address}:0"]
 
 [[node]]
 name = "scheduler"
-host = "{hub_host}"
+host = "{scheduler_on}"
 python = "{examples}/scheduler.py:Scheduler"
 params = {{ N = 1, T = 0.5 }}
 
 [[node]]
 name = "vision"
-host = "{other}"
+host = "{requester_on}"
 python = "{examples}/requesters.py:Requester"
-params = {{ priority = 1, epoch = 1.0, timeout = 2.0, start = 0.5, pause = 1.2, count = 2 }}
+params = {{ priority = 1, epoch = 1.0, timeout = 2.0, start = 0.5, pause = {pause}, count = {count} }}
 after = ["scheduler"]
 
 [[bind]]

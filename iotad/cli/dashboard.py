@@ -25,6 +25,7 @@ VIOLATIONS_KEPT = 8
 @dataclass
 class NodeRow:
     path: str
+    host: str | None = None  # from its @spec answer: the system file's host, else the machine's name
     alive: bool = False
     restarts: int = 0
     seen_gone: bool = False
@@ -90,7 +91,9 @@ class Dashboard:
                 row.restarts = restarts
 
     def spec(self, path: str, spec: dict) -> None:
-        """A node's `@spec` answer: names the requesters of a scheduler (req[i] <- node)."""
+        """A node's `@spec` answer: its host, and the requesters of a scheduler (req[i] <- node)."""
+        if isinstance(spec.get("host"), str):
+            self.node(path).host = spec["host"]
         names = {}
         for channel in spec.get("channels") or []:
             if channel.get("name") != "req" or channel.get("direction") != "input":
@@ -167,7 +170,7 @@ class Dashboard:
         for path in sorted(self.nodes):
             row = self.nodes[path]
             age = "-" if row.beat_wall is None else f"{now - row.beat_wall:.1f}s"
-            rows.append((path, "alive" if row.alive else "gone", str(row.restarts), age,
+            rows.append((path, row.host or "?", "alive" if row.alive else "gone", str(row.restarts), age,
                          "-" if row.firings is None else str(row.firings),
                          "-" if row.queue is None else str(row.queue), str(row.violations)))
         return rows
@@ -198,10 +201,10 @@ class Dashboard:
 
         title = f"iotad top: {self.system or 'every system'}"
         nodes = Table(title=title, title_justify="left")
-        for column in ("node", "state", "restarts", "heartbeat", "firings", "queue", "violations"):
-            nodes.add_column(column, justify="left" if column == "node" else "right")
+        for column in ("node", "host", "state", "restarts", "heartbeat", "firings", "queue", "violations"):
+            nodes.add_column(column, justify="left" if column in ("node", "host") else "right")
         for row in self.node_rows():
-            nodes.add_row(*row, style=None if row[1] == "alive" else "red")
+            nodes.add_row(*row, style=None if row[2] == "alive" else "red")
         channels = Table(title="channels (last %gs)" % self.window, title_justify="left")
         for column in ("key", "msg/s", "p99 ms", "total"):
             channels.add_column(column, justify="left" if column == "key" else "right")

@@ -66,6 +66,9 @@ class NodeConfig:
     # measures the clock again (`iota/<system>/@origin/<host>`, a host other than the hub's): the
     # node's clock follows it (iotad/host/clock_correction.py). None: the origin above holds.
     follow_origin: str | None = None
+    # The system file's host of this node (its `host = NAME`), said in its @spec answer so that
+    # `iotad ls` and `iotad top` show where each node runs. None: a system on one machine.
+    host: str | None = None
 
     @property
     def name(self) -> str:
@@ -75,7 +78,7 @@ class NodeConfig:
 
 _KNOWN = {"system", "path", "source", "params", "time_unit", "origin", "listen", "connect", "inputs", "readers",
           "heartbeat_period", "deadline_tolerance", "arrival_tolerance", "trace_period", "policy", "seed", "zenoh", "can",
-          "input_queue", "restarts", "start_gate", "follow_origin"}
+          "input_queue", "restarts", "start_gate", "follow_origin", "host"}
 
 
 def load(path: str | Path) -> NodeConfig:
@@ -142,6 +145,10 @@ def from_dict(data: Any, where: str = "config") -> NodeConfig:
         if data.get("origin") is None:
             raise ConfigError(f"{where}: follow_origin needs an origin to correct")
         config.follow_origin = key
+    if data.get("host") is not None:
+        if not isinstance(data["host"], str) or not _chunks_ok(data["host"]) or "/" in data["host"]:
+            raise ConfigError(f"{where}: host must be a host name of the system file, got {data['host']!r}")
+        config.host = data["host"]
     if "trace_period" in data:
         value = data["trace_period"]
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not (0 <= value <= 1):

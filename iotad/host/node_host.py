@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 import os
+import socket
 import threading
 import time
 from pathlib import Path
@@ -366,7 +367,9 @@ class NodeHost:
         return {"system": config.system, "path": config.path, "source": source, "text": self.text,
                 "params": plain_params(params), "channels": self.table.described,
                 "time_unit": config.time_unit, "origin": self.clock.origin_wall, "pid": os.getpid(),
-                "trace": wire.trace_key(config.system, config.path), "started": time.time()}
+                "trace": wire.trace_key(config.system, config.path), "started": time.time(),
+                # the system file's host, else this machine's name: where the node runs, for ls and top
+                "host": config.host or socket.gethostname()}
 
 
 def _receiver(post, name: str, index: int | None, key: str):

@@ -34,6 +34,15 @@ class Type:
     """Base of all value types. Subclasses override the few methods that differ."""
 
     name = "type"
+    # True where `from_checked_plain` returns its argument itself (an int, a bool, an enum's
+    # name): the engine then delivers the value without the call
+    checked_plain_is_value = False
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        # a subclass that redefines `from_checked_plain` does not inherit the promise
+        if "from_checked_plain" in cls.__dict__ and "checked_plain_is_value" not in cls.__dict__:
+            cls.checked_plain_is_value = False
 
     def check(self, value: Any) -> None:  # pragma: no cover - every type overrides it
         raise NotImplementedError
@@ -167,6 +176,8 @@ class IntType(_Number):
     def default(self) -> int:
         return 0 if self.low is None else int(self.low)
 
+    checked_plain_is_value = True
+
     def from_checked_plain(self, plain: Any) -> Any:
         return plain
 
@@ -225,6 +236,8 @@ class BoolType(Type):
         self.check(value)
         return value
 
+    checked_plain_is_value = True
+
     def from_checked_plain(self, plain: Any) -> Any:
         return plain
 
@@ -256,6 +269,8 @@ class EnumType(Type):
             return value
         self.check(value)
         return value
+
+    checked_plain_is_value = True
 
     def from_checked_plain(self, plain: Any) -> Any:
         return plain

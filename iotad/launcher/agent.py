@@ -5,22 +5,29 @@ hub is gone for longer than the run's own allowance.
 
 Its wire, all under `iota/@agent/<name>` (an '@' chunk, so no system's `**` matches it):
 - a liveliness token on the key itself: the hub's `iotad run` sees the agent, and sees it go;
-- queryable `.../run`: an order (JSON) with the system file's text, its path on the hub, the
-  launcher's arguments and, under access control, this host's credentials (its launcher's and its
-  nodes', written to a private folder for the run and removed after it); the answer is
-  {"ok": true, "pid": N} or {"ok": false, "error": "..."};
+- queryable `.../run`: an order (JSON) with the system file's text, its path on the hub, the files
+  it names (path and sha256), the launcher's arguments and, under access control, this host's
+  credentials (its launcher's and its nodes', written to a private folder for the run and removed
+  after it); the answer is {"ok": true, "pid": N, "fetched": [lines]} ("already": true when it
+  runs that system already) or {"ok": false, "error": "..."};
 - queryable `.../stop`: SIGINT to the child, as Ctrl-C would; answered once it has exited;
 - publications `.../log` (each line the child prints) and `.../exit` ({"code": N}).
 
-A system file names its nodes' code by path. The agent runs the file at the path the hub gave
-when that path holds the same text here (a checkout of the same repository at the same place),
-and otherwise writes the text beside the paths it names (refusing, with the reason, when that
-would differ from the hub's): code travels with the repository, not over the hub."""
+The order names every file the system file names (node code, specs) with its sha256. The agent
+runs the hub's version of each: the file at the hub's path when this machine holds the same
+bytes there, else the bytes fetched from the hub by hash into its cache under `--workdir`
+(iotad/launcher/code_by_hash.py), with a copy of the system file that names them. Bytes that do
+not hash to what the order names are refused, and so is the run.
+
+The run is a child that dies with the agent (the parent-death signal, SIGTERM: its launcher then
+stops its nodes in order): an agent that is killed takes its host's part down with it, and the
+hub reports the host lost and its nodes down."""
 from __future__ import annotations
 
 import hashlib
 import json
 import os
+import queue
 import signal
 import subprocess
 import sys
@@ -31,6 +38,8 @@ from pathlib import Path
 from typing import Callable
 
 from iotad.host.credentials import ENV, CredentialStore
+from iotad.launcher.code_by_hash import CodeCache, CodeError, code_key, localize
+from iotad.launcher.processes import wrapped_argv
 
 AGENT_PREFIX = "iota/@agent"
 
@@ -47,29 +56,24 @@ class AgentError(Exception):
     """An order the agent cannot carry out, said in one line."""
 
 
-def system_file_for(order: dict, workdir: Path) -> Path:
-    """Where this host finds the system file of `order`: the hub's own path when it holds the same
-    text here, else a copy written into `workdir`. Raises `AgentError` when neither works."""
+def system_file_for(order: dict, workdir: Path, fetch: Callable[[str], bytes]) -> tuple[Path, list[str]]:
+    """Where this host finds the system file of `order`, and the lines saying which named files it
+    fetched: the hub's own path when it and every file it names are here with the hub's bytes,
+    else a copy in `workdir` naming the hub's version of each. Raises `AgentError` when neither
+    can be had."""
     text, path = order.get("system"), order.get("path")
     if not isinstance(text, str) or not isinstance(path, str):
         raise AgentError("an order without a system file (expected 'system' text and its 'path')")
     if order.get("digest") not in (None, digest(text)):
         raise AgentError("the system file's text does not match its digest: the order was damaged")
-    here = Path(path)
     try:
-        if here.is_file() and here.read_text(encoding="utf-8") == text:
-            return here
-    except OSError:
-        pass
-    if here.is_file():
-        raise AgentError(f"{path} here differs from the hub's (sha256 {digest(text)[:12]}): "
-                         "run the agent in a checkout of the same revision")
-    # the hub's path does not exist here: the copy runs from the agent's folder, so a relative
-    # path to node code resolves against the same repository layout
-    workdir.mkdir(parents=True, exist_ok=True)
-    copy = workdir / Path(path).name
-    copy.write_text(text, encoding="utf-8")
-    return copy
+        copy, fetched = localize(text, path, order.get("files", []), CodeCache(workdir), fetch,
+                                 workdir / "runs" / digest(text)[:16])
+    except CodeError as exc:
+        raise AgentError(str(exc)) from None
+    except OSError as exc:
+        raise AgentError(f"cannot write the hub's files under {workdir}: {exc.strerror or exc}") from None
+    return (copy or Path(path)), fetched
 
 
 class Agent:
@@ -89,6 +93,10 @@ class Agent:
         self._store = None  # the credentials of the run in progress (a private folder), removed after it
         self.workdir = Path(workdir) if workdir else Path(tempfile.gettempdir()) / f"iotad-agent-{name}"
         self.child: subprocess.Popen | None = None
+        self._digest: str | None = None  # the system file the child runs
+        # runs to spawn, from the threads that take orders: spawned on the thread of serve(), which
+        # lives as long as the agent (the parent-death signal fires when the spawning thread ends)
+        self._spawns: queue.Queue = queue.Queue()
         self._lock = threading.Lock()
         self._stopping = threading.Event()
         self.session = None
@@ -149,7 +157,15 @@ class Agent:
         # zenoh's own reconnection (backing off) would
         absent = 0
         try:
-            while not self._stopping.wait(0.5):
+            next_look = time.monotonic() + 0.5
+            while not self._stopping.is_set():
+                try:
+                    self._spawns.get(timeout=0.2)()  # a run to start, on this thread (see _spawns)
+                except queue.Empty:
+                    pass
+                if time.monotonic() < next_look:
+                    continue
+                next_look = time.monotonic() + 0.5
                 hub_there = any(True for _ in self.session.info.peers_zid()) or \
                     any(True for _ in self.session.info.routers_zid())
                 absent = 0 if hub_there or self._running() else absent + 1
@@ -157,6 +173,9 @@ class Agent:
                     self.say(f"agent {self.name}: the hub is gone; waiting for the next run")
                     break
         finally:
+            while not self._spawns.empty():  # orders taken while the agent stopped: refused
+                self._spawns.get_nowait()(refuse=True)
+            # a run in progress is stopped by serve() as the agent stops; none runs when a hub left
             for item in declared:
                 try:
                     item.undeclare()
@@ -184,51 +203,98 @@ class Agent:
 
     # ------------------------------------------------------------- orders
     def _on_run(self, query) -> None:
+        # not on this zenoh thread: fetching named files asks the hub, whose answers need it
+        threading.Thread(target=self._take_order, args=(query,), daemon=True, name=f"agent-{self.name}-order").start()
+
+    def _take_order(self, query) -> None:
         try:
             order = json.loads(query.payload.to_bytes()) if query.payload is not None else None
             if not isinstance(order, dict):
                 raise AgentError("an order must be a JSON object")
-            pid = self._start(order)
-            answer = {"ok": True, "pid": pid}
+            answer = {"ok": True, **self._start(order)}
         except (AgentError, ValueError, OSError) as exc:
             answer = {"ok": False, "error": str(exc)}
             self.say(f"agent {self.name}: refused a run: {exc}")
+        except Exception as exc:  # noqa: BLE001 - the session closing under a fetch...: the hub hears why
+            answer = {"ok": False, "error": f"{type(exc).__name__}: {exc}"}
+            self.say(f"agent {self.name}: could not take a run: {answer['error']}")
         query.reply(query.key_expr, json.dumps(answer).encode())
 
     def _on_stop(self, query) -> None:
         code = self._stop_child("the hub asked")
         query.reply(query.key_expr, json.dumps({"ok": True, "code": code}).encode())
 
-    def _start(self, order: dict) -> int:
+    def _fetch(self, sha256: str) -> bytes:
+        """A named file's bytes from the hub, by hash (checked by the caller)."""
+        for reply in self.session.get(code_key(sha256), timeout=10.0):
+            if reply.ok is not None:
+                return reply.ok.payload.to_bytes()
+            raise AgentError(f"the hub refused the file sha256 {sha256[:12]}: "
+                             f"{reply.err.payload.to_bytes().decode(errors='replace')}")
+        raise AgentError(f"the hub sent no file for sha256 {sha256[:12]} within 10 s")
+
+    def _start(self, order: dict) -> dict:
         args = order.get("args", [])
         if not isinstance(args, list) or not all(isinstance(a, str) for a in args):
             raise AgentError("an order's 'args' must be a list of strings")
         with self._lock:
-            if self.child is not None and self.child.poll() is None:
-                raise AgentError(f"host {self.name} already runs a system (pid {self.child.pid})")
-            path = system_file_for(order, self.workdir)
-            command = [self.python, "-m", "iotad", "run", str(path), "--host", self.name, "--plain", *args]
-            env = dict(os.environ)
-            env.update({k: v for k, v in (order.get("env") or {}).items() if isinstance(v, str)})
-            env.pop(ENV, None)
-            given = order.get("credentials") or {}
-            if not isinstance(given, dict) or not all(isinstance(v, str) for v in [*given, *given.values()]):
-                raise AgentError("an order's 'credentials' must map user names to passwords")
-            if given:
-                from iotad.launcher.host_access import launcher_user
+            child = self.child
+        if child is not None and child.poll() is None:
+            if self._digest is not None and order.get("digest") == self._digest:
+                # a hub that lost this agent a while (the network) and sees it again: the same run goes on
+                return {"pid": child.pid, "already": True}
+            raise AgentError(f"host {self.name} already runs a system (pid {child.pid})")
+        path, fetched = system_file_for(order, self.workdir, self._fetch)
+        for line in fetched:
+            self.say(f"agent {self.name}: {line}")
+        command = [self.python, "-m", "iotad", "run", str(path), "--host", self.name, "--plain", *args]
+        env = dict(os.environ)
+        env.update({k: v for k, v in (order.get("env") or {}).items() if isinstance(v, str)})
+        env.pop(ENV, None)
+        given = order.get("credentials") or {}
+        if not isinstance(given, dict) or not all(isinstance(v, str) for v in [*given, *given.values()]):
+            raise AgentError("an order's 'credentials' must map user names to passwords")
+        if given:
+            from iotad.launcher.host_access import launcher_user
 
-                if launcher_user(self.name) not in given:
-                    raise AgentError(f"an order's credentials lack this host's launcher ({launcher_user(self.name)})")
+            if launcher_user(self.name) not in given:
+                raise AgentError(f"an order's credentials lack this host's launcher ({launcher_user(self.name)})")
+            with self._lock:
                 self._remove_credentials()
                 # a private folder (0700, files 0600) for the run's launcher and its nodes, removed after it
                 self._store = CredentialStore(list(given), passwords=given)
-                env[ENV] = str(self._store.file_of(launcher_user(self.name)))
-            self.child = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-                                          env=env, start_new_session=True)
-            child = self.child
+            env[ENV] = str(self._store.file_of(launcher_user(self.name)))
+        done = threading.Event()
+        result: dict = {}
+
+        def spawn(refuse: bool = False) -> None:
+            try:
+                with self._lock:
+                    if refuse:
+                        raise AgentError(f"agent {self.name} is stopping")
+                    if self.child is not None and self.child.poll() is None:
+                        raise AgentError(f"host {self.name} already runs a system (pid {self.child.pid})")
+                    self.child = subprocess.Popen(wrapped_argv(command, signal.SIGTERM), stdout=subprocess.PIPE,
+                                                  stderr=subprocess.STDOUT, text=True, env=env,
+                                                  start_new_session=True)
+                    self._digest = order.get("digest")
+                    result["child"] = self.child
+            except (AgentError, OSError) as exc:
+                result["error"] = exc
+            finally:
+                done.set()
+
+        self._spawns.put(spawn)
+        while not done.wait(0.2):
+            if self._stopping.is_set() and self._spawns.empty() and not done.is_set():
+                raise AgentError(f"agent {self.name} is stopping")
+        if "error" in result:
+            error = result["error"]
+            raise error if isinstance(error, AgentError) else AgentError(f"cannot start the run: {error}")
+        child = result["child"]
         self.say(f"agent {self.name}: runs {path} (pid {child.pid})")
         threading.Thread(target=self._relay, args=(child,), daemon=True, name=f"agent-{self.name}-log").start()
-        return child.pid
+        return {"pid": child.pid, "fetched": fetched}
 
     def _relay(self, child: subprocess.Popen) -> None:
         """The child's lines to the hub, then its exit status."""

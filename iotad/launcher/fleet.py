@@ -1,6 +1,8 @@
 """The hub's side of a system spread over hosts: `iotad run SYSTEM.toml` on the hub's machine asks
 the agent of every other host (`iotad agent`, iotad/launcher/agent.py) to run that host's part,
-relays their lines, notices an agent that disappears, and stops them all at the end.
+serves the files the system file names by their sha256 (iotad/launcher/code_by_hash.py), relays
+the agents' lines, notices an agent that disappears (and gives it its part again when it comes
+back during the run), and stops them all at the end.
 
 It talks to the agents through its own client session of the hub, so it starts once the hub
 listens and needs nothing from the launcher but the hub's endpoint."""
@@ -13,6 +15,7 @@ from pathlib import Path
 from typing import Callable
 
 from iotad.launcher.agent import AGENT_PREFIX, agent_key, digest
+from iotad.launcher.code_by_hash import CODE_PREFIX, named_files
 
 
 class FleetError(Exception):
@@ -32,61 +35,110 @@ class Fleet:
         self.env, self.say, self.start_timeout = dict(env or {}), say, start_timeout
         self.session = None
         self.exits: dict[str, int] = {}
-        self.lost: list[str] = []
+        self.lost: list[str] = []  # hosts whose agent is gone now
+        self.returns: dict[str, int] = {}  # host -> how many times it came back after it was lost
+        # told ("lost" | "back", host) from a zenoh thread: the launcher marks that host's nodes
+        self.notify: Callable[[str, str], None] | None = None
+        self._stop = None
+        self._closing = False
+        self._rejoining: set[str] = set()
+        self._ran_on: dict[str, bool] = {}  # host -> its agent said its part was running already
+        # the files the system names, served by hash: the bytes hashed are the bytes served
+        files = named_files(self.path, self.text)
+        self._code = {item["sha256"]: Path(item["path"]).read_bytes() for item in files}
+        self._order_base = {"system": self.text, "path": str(self.path), "digest": digest(self.text),
+                       "files": files, "args": self.args, "env": self.env}
+        self._access = None
         self._asked_to_stop: set[str] = set()  # a host that exits after this was stopped, not failed
         self._present: set[str] = set()
         self._started: set[str] = set()
         self._changed = threading.Condition()
         self._declared: list = []
 
-    def start(self, access=None) -> None:
-        """Wait for every host's agent (up to `start_timeout`) and give each its part; raises
-        `FleetError` naming the hosts that did not take it (the ones that did are stopped).
-        `access` (iotad/launcher/access_control.py): under access control, this session's user
-        and each host's credentials, which go in that host's order only."""
+    def start(self, access=None, stop=None) -> None:
+        """Give each host its part as soon as its agent is there, waiting up to `start_timeout` for
+        them all; raises `FleetError` naming the hosts that did not take it (the ones that did are
+        stopped). `access` (iotad/launcher/access_control.py): under access control, this session's
+        user and each host's credentials, which go in that host's order only. `stop` (a flag with
+        `is_set()`: Ctrl-C) ends the wait at once: the hosts started by then are the caller's to
+        stop (`stop()`), as at the end of a run."""
         from iotad.host.transport import open_session
 
+        self._stop = stop
         self.session = open_session([], self.hub, mode="client", connect_timeout=self.start_timeout,
                                     credentials=access.fleet_credentials() if access else False, tls=self.tls)
+        self._access = access
+        # the named files first: an agent asks for them while it takes its order
+        self._declared.append(self.session.declare_queryable(f"{CODE_PREFIX}/*", self._on_code))
         self._declared.append(self.session.liveliness().declare_subscriber(
             f"{AGENT_PREFIX}/*", self._on_agent, history=True))
         for part in ("log", "exit"):
             self._declared.append(self.session.declare_subscriber(f"{AGENT_PREFIX}/*/{part}", self._on_message))
         deadline = time.monotonic() + self.start_timeout
-        with self._changed:
-            while not set(self.hosts) <= self._present and time.monotonic() < deadline:
-                self._changed.wait(max(0.0, deadline - time.monotonic()))
-        missing = [host for host in self.hosts if host not in self._present]
-        if missing:
-            self.close()
-            guarded = access is not None and access.fleet_credentials() is not False
-            raise FleetError(f"no agent answered for host(s) {', '.join(missing)} within {self.start_timeout:g} s: "
-                             f"start 'iotad agent --name HOST --connect {self.hub[0]}' there (docs/hosts.md)"
-                             + ("; this run is under access control: an agent needs --certs DIR with its "
-                                "HOST.secret, and says on its own console why the hub does not admit it"
-                                if guarded else ""))
-        refused = []
-        for host in self.hosts:
-            # the hub admits only the agent of `host` to serve this key: its credentials go to it alone
-            order = json.dumps({"system": self.text, "path": str(self.path), "digest": digest(self.text),
-                                "args": self.args + self.host_args.get(host, []), "env": self.env,
-                                "credentials": access.host_part(host) if access else {}}).encode()
-            answer = self._ask(f"{agent_key(host)}/run", order)
-            if answer.get("ok"):
-                self._started.add(host)
-                self.say(f"host {host}: its agent runs its nodes (pid {answer.get('pid')})")
-            else:
-                refused.append(f"{host}: {answer.get('error', 'no answer')}")
-        if refused:
+        refused: dict[str, str] = {}
+        while not self._stopped():
+            with self._changed:
+                ready = [h for h in self.hosts if h in self._present and h not in self._started and h not in refused]
+            for host in ready:
+                error = self._order(host)
+                if error is not None:
+                    refused[host] = error
+            waiting = [h for h in self.hosts if h not in self._started and h not in refused]
+            if not waiting or time.monotonic() >= deadline:
+                break
+            with self._changed:  # in slices: a Ctrl-C is seen within 0.1 s
+                self._changed.wait(min(0.1, max(0.0, deadline - time.monotonic())))
+        if self._stopped():
+            return
+        missing = [host for host in self.hosts if host not in self._started and host not in refused]
+        if missing or refused:
             self.stop()
-            raise FleetError("host(s) refused their part: " + "; ".join(refused))
+            self.close()
+            if missing:
+                guarded = access is not None and access.fleet_credentials() is not False
+                raise FleetError(f"no agent answered for host(s) {', '.join(missing)} within {self.start_timeout:g} s: "
+                                 f"start 'iotad agent --name HOST --connect {self.hub[0]}' there (docs/hosts.md)"
+                                 + ("; this run is under access control: an agent needs --certs DIR with its "
+                                    "HOST.secret, and says on its own console why the hub does not admit it"
+                                    if guarded else ""))
+            raise FleetError("host(s) refused their part: " + "; ".join(f"{h}: {e}" for h, e in refused.items()))
 
-    def _ask(self, key: str, payload: bytes | None = None, timeout: float = 10.0) -> dict:
+    def _stopped(self) -> bool:
+        return self._stop is not None and self._stop.is_set()
+
+    def _order(self, host: str, interruptible: bool = True) -> str | None:
+        """Give `host` its part; None when its agent runs it, else why not."""
+        # the hub admits only the agent of `host` to serve this key: its credentials go to it alone
+        order = dict(self._order_base, credentials=self._access.host_part(host) if self._access else {})
+        order["args"] = list(order.get("args", [])) + self.host_args.get(host, [])  # its own recording
+        answer = self._ask(f"{agent_key(host)}/run", json.dumps(order).encode(), interruptible=interruptible)
+        if not answer.get("ok"):
+            return answer.get("error", "no answer")
+        with self._changed:
+            self._started.add(host)
+            self.exits.pop(host, None)  # a host back after it was lost: its earlier run is over
+        self._ran_on[host] = bool(answer.get("already"))
+        how = "already runs its part" if answer.get("already") else "runs its nodes"
+        self.say(f"host {host}: its agent {how} (pid {answer.get('pid')})")
+        for line in answer.get("fetched") or []:
+            self.say(f"host {host}: {line}")
+        return None
+
+    def _on_code(self, query) -> None:
+        """A named file's bytes, by its sha256; nothing else is served."""
+        sha = str(query.key_expr).rsplit("/", 1)[-1]
+        data = self._code.get(sha)
+        if data is None:
+            query.reply_err(f"no file of this run has sha256 {sha}".encode())
+        else:
+            query.reply(query.key_expr, data)
+
+    def _ask(self, key: str, payload: bytes | None = None, timeout: float = 10.0, interruptible: bool = False) -> dict:
         """The agent's answer on `key`. A query that no queryable is known for yet ends at once
         with no reply (the agent's declaration may still be on its way to the hub): asked again
-        until `timeout`."""
+        until `timeout`, or until the run stops when `interruptible`."""
         deadline = time.monotonic() + timeout
-        while True:
+        while not (interruptible and self._stopped()):
             try:
                 for reply in self.session.get(key, payload=payload, timeout=max(0.1, deadline - time.monotonic())):
                     try:
@@ -98,6 +150,7 @@ class Fleet:
             if time.monotonic() >= deadline:
                 return {"ok": False, "error": f"no answer in {timeout:g} s"}
             time.sleep(0.1)
+        return {"ok": False, "error": "the run is stopping"}
 
     def _host_of(self, key: str) -> str:
         return str(key).split("/")[2]
@@ -106,16 +159,45 @@ class Fleet:
         import zenoh
 
         host = self._host_of(sample.key_expr)
+        event = None
         with self._changed:
             if sample.kind == zenoh.SampleKind.PUT:
                 self._present.add(host)
+                if host in self.lost and host not in self._rejoining and not self._closing and not self._stopped():
+                    self._rejoining.add(host)  # its token seen twice (history, live): one new order
+                    event = "back"
             else:
                 self._present.discard(host)
-                if host in self._started and host not in self.exits and host not in self._asked_to_stop:
+                if host in self._started and host not in self.exits and host not in self._asked_to_stop \
+                        and host not in self.lost:
                     self.lost.append(host)
+                    event = "lost"
                     self.say(f"host {host} LOST: its agent is gone (network or machine); its nodes are down "
                              "until it comes back")
             self._changed.notify_all()
+        if event == "back":
+            # its part again, as a local launcher restarts a node; not on this zenoh thread, which
+            # would wait for the agent's answer that only a zenoh thread can deliver
+            threading.Thread(target=self._rejoin, args=(host,), daemon=True, name=f"fleet-{host}-back").start()
+        elif event == "lost" and self.notify is not None:
+            self.notify("lost", host)
+
+    def _rejoin(self, host: str) -> None:
+        self.say(f"host {host}: its agent is back; giving it its part again")
+        error = self._order(host, interruptible=False)
+        with self._changed:
+            self._rejoining.discard(host)
+        if error is not None:
+            self.say(f"host {host}: its agent is back but refused its part: {error}")
+            return
+        with self._changed:
+            if host in self.lost:
+                self.lost.remove(host)
+            self.returns[host] = self.returns.get(host, 0) + 1
+            self._changed.notify_all()
+        if self.notify is not None:
+            # "resumed": an agent cut off a while (the network), whose part ran on meanwhile
+            self.notify("resumed" if self._ran_on.get(host) else "back", host)
 
     def _on_message(self, sample) -> None:
         host = self._host_of(sample.key_expr)
@@ -140,6 +222,7 @@ class Fleet:
 
     def stop(self, grace: float = 20.0) -> dict[str, int]:
         """Ask every host still running to stop (as Ctrl-C would there) and wait for them."""
+        self._closing = True  # an agent that comes back now gets no part
         for host in sorted(self._started - set(self.exits) - set(self.lost)):
             self._asked_to_stop.add(host)
             answer = self._ask(f"{agent_key(host)}/stop", timeout=grace)
@@ -162,7 +245,8 @@ class Fleet:
             return "LOST (its agent disappeared)"
         if code is None:
             return "no exit status (its agent did not answer)"
-        return f"exit {code}" + (" (stopped by this run)" if host in self._asked_to_stop else "")
+        back = f"; lost {self.returns[host]} time(s), back each time" if self.returns.get(host) else ""
+        return f"exit {code}" + (" (stopped by this run" + back + ")" if host in self._asked_to_stop else back)
 
     def close(self) -> None:
         for item in self._declared:

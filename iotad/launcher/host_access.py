@@ -15,6 +15,7 @@ from iotad.host.agent_secret import agent_user
 from iotad.host.clock_offset import clock_key
 from iotad.launcher.access_policy import Grant, node_user
 from iotad.launcher.agent import AGENT_PREFIX, agent_key
+from iotad.launcher.code_by_hash import CODE_PREFIX
 from iotad.launcher.system_file import System
 
 FLEET_USER = "iotad-fleet"  # the hub launcher's own client session that talks to the agents
@@ -47,18 +48,20 @@ def host_grants(system: System, hosts: list[str]) -> list[Grant]:
             agent_user(host), f"agent of host {host}",
             publish=[f"{key}/log", f"{key}/exit"],
             serve=[f"{key}/run", f"{key}/stop"],
-            # an agent may measure the hub's clock itself before its launcher starts
-            ask=[clock_key("*")],
+            # an agent may measure the hub's clock itself before its launcher starts, and fetch
+            # the files its order names by their hash (iotad/launcher/code_by_hash.py)
+            ask=[clock_key("*"), f"{CODE_PREFIX}/*"],
             tokens=[key],
-            declarations=[f"{AGENT_PREFIX}/*/log", f"{AGENT_PREFIX}/*/exit"]))
+            declarations=[f"{AGENT_PREFIX}/*/log", f"{AGENT_PREFIX}/*/exit", f"{CODE_PREFIX}/*"]))
     if hosts:
         every = f"{AGENT_PREFIX}/*"
         grants.append(Grant(
             FLEET_USER, "the hub's side of the agents",
             subscribe=[f"{every}/log", f"{every}/exit"],
             ask=[f"{every}/run", f"{every}/stop"],
+            serve=[f"{CODE_PREFIX}/*"],  # the files the orders name, by hash
             watch=[every],
-            declarations=[f"{every}/run", f"{every}/stop"]))
+            declarations=[f"{every}/run", f"{every}/stop", f"{CODE_PREFIX}/*"]))
     return grants
 
 

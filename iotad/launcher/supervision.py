@@ -348,8 +348,10 @@ class Launcher:
         from iotad.launcher.fleet import FleetError
 
         self.fleet.say = self.view.line
+        # a host lost or back is the loop's to report (its nodes' state, the recording)
+        self.fleet.notify = lambda event, host: self.events.put(("host", event, host))
         try:
-            self.fleet.start(self.access)
+            self.fleet.start(self.access, stop=self._stop_asked)  # Ctrl-C ends the wait for agents at once
         except FleetError as exc:
             raise LauncherError(str(exc)) from None
 
@@ -458,6 +460,25 @@ class Launcher:
                 self.recorder.exited(item[1], item[2])
         elif kind == "clock":
             self._clock_measured(item[1])
+        elif kind == "host":
+            self._host_changed(item[1], item[2])
+
+    def _host_changed(self, event: str, host: str) -> None:
+        """Another host's agent was lost, or came back and runs its part again: its nodes are
+        down (a launcher event each, in the recording) or starting again. Their peers learn of
+        the restart from the nodes' own tokens when they come back (iotad/host/peer_restart.py)."""
+        nodes = [name for name, spec in self.system.nodes.items() if spec.host == host]
+        if event == "lost":
+            for name in nodes:
+                self.view.line(f"{name}: DOWN (host {host} lost)")
+                self._publish({"event": "down", "node": name, "host": host, "pid": None, "code": None,
+                               "t_ns": time.time_ns(), "message": f"host {host} lost"})
+        elif event == "resumed":
+            self._launcher_event("host_back", f"host {host}: back; its nodes ran on while it was cut off "
+                                              f"({', '.join(nodes)})", host=host, resumed=True)
+        else:
+            self._launcher_event("host_back", f"host {host}: back; its nodes start again ({', '.join(nodes)})",
+                                 host=host, resumed=False)
 
     def _exited(self, run: NodeRun, code: int) -> None:
         now = time.monotonic()
@@ -634,7 +655,7 @@ class Launcher:
         if self._publisher is None:
             return
         if self.host is not None:
-            payload["host"] = self.host
+            payload.setdefault("host", self.host)  # a lost host's nodes are named with their own
         try:
             self._publisher.put(wire.encode(payload), attachment=wire.encode_attachment(self._event_seq))
             self._event_seq += 1

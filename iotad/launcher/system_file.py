@@ -166,6 +166,8 @@ class System:
             config["policy"] = spec.policy
         if spec.seed is not None:
             config["seed"] = spec.seed
+        if spec.host is not None:
+            config["host"] = spec.host
         return config
 
     def receivers_of(self, source: Port) -> list[Port]:

@@ -5,6 +5,7 @@ import os
 import pty
 import re
 import select
+import socket
 import struct
 import subprocess
 import sys
@@ -31,10 +32,10 @@ def test_a_token_that_comes_back_is_a_restart_and_a_missing_one_shows_gone():
     board = Dashboard("figure2", clock=FakeClock())
     board.alive("scheduler", True)
     board.alive("scheduler", False)
-    assert board.node_rows()[0][:3] == ("scheduler", "gone", "0")
+    assert board.node_rows()[0][:4] == ("scheduler", "?", "gone", "0")
     board.alive("scheduler", True)
     board.alive("scheduler", True)  # a repeated put is not a restart
-    assert board.node_rows()[0][:3] == ("scheduler", "alive", "1")
+    assert board.node_rows()[0][:4] == ("scheduler", "?", "alive", "1")
 
 
 def test_restarts_before_the_tool_began_come_from_the_heartbeat():
@@ -43,14 +44,14 @@ def test_restarts_before_the_tool_began_come_from_the_heartbeat():
     board = Dashboard("figure2", clock=FakeClock())
     board.alive("vision", True)
     board.heartbeat("vision", {"t": 5.0, "firings": 9, "queue": 0, "restarts": 2})
-    assert board.node_rows()[0][:3] == ("vision", "alive", "2")
+    assert board.node_rows()[0][:4] == ("vision", "?", "alive", "2")
     board.alive("vision", False)
     board.alive("vision", True)
-    assert board.node_rows()[0][2] == "3"
+    assert board.node_rows()[0][3] == "3"
     board.heartbeat("vision", {"t": 6.0, "firings": 1, "queue": 0, "restarts": 2})  # a late one of the old process
     board.heartbeat("vision", {"t": 6.1, "firings": 1, "queue": 0, "restarts": 3})
     board.heartbeat("vision", {"t": 6.2, "firings": 2, "queue": 0, "restarts": True})  # not a count
-    assert board.node_rows()[0][2] == "3"
+    assert board.node_rows()[0][3] == "3"
 
 
 def test_the_holder_follows_schedule_and_commit_and_is_named_from_the_spec():
@@ -134,6 +135,8 @@ def test_iotad_top_in_a_terminal_shows_the_nodes_and_who_holds_the_motors(tmp_pa
                 top.kill()
                 top.wait(5)
             os.close(master)
-    assert re.search(r"scheduler\s*│\s*alive", screen), screen[-2000:]
+    # the host column: a system on one machine shows the machine's name
+    assert re.search(r"scheduler\s*│\s*" + re.escape(socket.gethostname()[:12]) + r"\S*\s*│\s*alive", screen), \
+        screen[-2000:]
     assert re.search(r"motors held by: scheduler: (vision|manipulation)", screen), screen[-2000:]
     assert "scheduler/mdl_command" in screen

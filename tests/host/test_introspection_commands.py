@@ -1,5 +1,6 @@
 """`iotad ls/echo/pub/hz` against a live node process, and their behaviour with no peer."""
 import json
+import socket
 import subprocess
 import sys
 
@@ -34,9 +35,11 @@ def test_ls_lists_the_node_and_its_channels(live):
     assert result.returncode == 0, result.stderr
     (entry,) = [json.loads(line) for line in result.stdout.splitlines()]
     assert entry["path"] == "echo" and entry["pid"] == node.process.pid
+    assert entry["host"] == socket.gethostname()  # a system on one machine: the machine's name
     assert {c["name"]: c["direction"] for c in entry["channels"]} == {"inp": "input", "out": "output"}
     text = iotad("ls", "--connect", hub.endpoint)
     assert "intro/echo" in text.stdout and "iota/intro/echo/out" in text.stdout
+    assert f"intro/echo  host {socket.gethostname()}  pid {node.process.pid}" in text.stdout
 
 
 def echo_while_publishing(live, key: str, count: int, value: str, stdin: str | None = None) -> list[dict]:

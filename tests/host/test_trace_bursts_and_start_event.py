@@ -38,7 +38,9 @@ def test_trace_period_zero_flushes_before_each_block_and_a_flood_flushes_at_once
     buffer = Buffer(pending=1)
     clock = HostClock(heartbeat_period=100.0, flush=buffer.flush, pending=lambda: buffer.pending)
     clock._next_beat = clock.now() + 100.0
-    clock.wait(clock.now() + 0.001)
+    # a deadline still ahead when wait() looks (a 1 ms one had passed on a loaded machine, and a
+    # firing due goes first, unflushed): it blocks until then, flushing first
+    clock.wait(clock.now() + 0.3)
     assert buffer.flushes == 1
     buffer.pending = HostClock.TRACE_BATCH
     clock._trace_due = clock.now() + 100.0

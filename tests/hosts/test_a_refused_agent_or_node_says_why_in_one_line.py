@@ -8,6 +8,7 @@ import os
 import stat
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -69,7 +70,12 @@ def test_an_agent_keeps_its_hosts_credentials_private_for_the_run_and_removes_th
     agent._publish = lambda part, payload: published.append((part, payload))  # no hub in this test
     order = {"system": system.read_text(), "path": str(system), "args": ["--no-record"],
              "credentials": {"iotad-launcher-arm": "p1", "node-vision": "p2"}}
+    # the agent spawns its runs on the thread of serve() (its parent-death signal's thread): here,
+    # with no hub to serve, a thread of the test's takes that one spawn
+    taker = threading.Thread(target=lambda: agent._spawns.get(timeout=30)(), daemon=True)
+    taker.start()
     agent._start(order)
+    taker.join(30)
     agent.child.wait(30)
     deadline = time.monotonic() + 30  # the relay thread publishes the exit once it has read every line
     while not any(part == "exit" for part, _ in published) and time.monotonic() < deadline:

@@ -27,10 +27,12 @@ def assert_checked(recording: Path) -> None:
     # how many requests fit in the run depends on how long the hosts took to start: at least one
     assert re.search(r"scheduler: \d+ events, [1-9]\d* firings checked", out), out[-3000:]
     assert re.search(r"vision: \d+ events, [1-9]\d* firings checked", out), out[-3000:]
-    # a message still in flight when --until stopped the run is not judged, and not lost
-    delivery = re.search(r"delivery: (\d+) of (\d+) messages delivered as sent over 2 links.*?(?:; (\d+) not judged "
-                         r"\(in flight at the end|$)", out, re.M)
-    assert delivery and int(delivery[1]) + int(delivery[3] or 0) == int(delivery[2]), out[-3000:]
+    # every message delivered as sent, but for one the run's end caught in flight (judged as such,
+    # not lost: the last ack may be on its way when --until stops the hosts, on a loaded machine)
+    delivery = re.search(r"delivery: (\d+) of (\d+) messages delivered as sent over 2 links", out)
+    assert delivery, out[-3000:]
+    in_flight = re.search(r"(\d+) not judged \(in flight at the end", out)
+    assert int(delivery[1]) + (int(in_flight[1]) if in_flight else 0) == int(delivery[2]), out[-3000:]
 
 
 def iotad(place, *args, timeout=120):

@@ -64,7 +64,7 @@ def test_a_node_terminated_from_outside_is_restarted_as_a_killed_one(observed_pa
     assert "dst: exit 143 (SIGTERM) after" in proc.output.read_text()
 
 
-def test_kill9_node_is_restarted_and_live_within_a_second(observed_pair):
+def test_kill9_node_is_restarted_after_its_backoff_and_live_again(observed_pair):
     proc, observer = observed_pair()
     pid = node_pid(proc.pid, "dst")
     assert pid is not None
@@ -82,8 +82,8 @@ def test_kill9_node_is_restarted_and_live_within_a_second(observed_pair):
     split = (f"kill -9 -> liveliness token lost after {(lost - killed_at) * 1000:.0f} ms, new process spawned "
              f"after {spawned * 1000:.0f} ms (launcher, 100 ms backoff included), live again after "
              f"{restart_time * 1000:.0f} ms (node start-up {(restart_time - spawned) * 1000:.0f} ms)")
-    print("\n" + split)
-    assert restart_time < 1.0, split
+    print("\n" + split)  # the figures, for a person; a test bounds no wall-clock time
+    assert spawned >= 0.1, split  # the launcher waited out the node's backoff before spawning it again
     new_pid = node_pid(proc.pid, "dst")
     assert new_pid == restart["pid"] and not gone(new_pid)
     # the new process's heartbeats carry the launcher's count, for tools attached later (iotad top)

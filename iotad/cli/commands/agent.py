@@ -13,8 +13,9 @@ examples:
 
 The agent waits at the hub (it keeps trying while no 'iotad run' holds it), then runs what the
 hub's 'iotad run SYSTEM.toml' asks: 'iotad run SYSTEM.toml --host NAME' as its own child, its
-lines relayed to the hub. Run it from a checkout of the same repository revision as the hub's,
-at the same path where you can: the system file names its nodes' code by path. Ctrl-C (or
+lines relayed to the hub. Run it from a checkout of the repository (and its 'make install'): the
+files the system file names (node code, specs) that this machine lacks, or holds at another
+version, come from the hub by their sha256 into --workdir's cache. Ctrl-C (or
 SIGTERM, as systemd sends) stops the agent and whatever it runs. docs/hosts.md has a systemd
 unit for it."""
 
@@ -35,8 +36,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                         help="folder with ca.pem, NAME.pem, NAME.key (iotad certs) for tls/ endpoints, and "
                              "NAME.secret, with which a run under access control admits this agent")
     parser.add_argument("--workdir", metavar="DIR",
-                        help="where a system file the hub sends is written when this host lacks it "
-                             "(default: a folder under the temporary directory)")
+                        help="where the files the hub sends by hash are cached (code/<sha256>/) and the "
+                             "system file copies that name them written (runs/); default: a folder under "
+                             "the temporary directory")
     parser.set_defaults(func=run)
 
 

@@ -13,7 +13,8 @@ examples (with a system running, e.g. 'iotad run examples/figure2.toml' in anoth
   iotad ls                              every live node and its channels
   iotad ls --system figure2 --json      one JSON object per node
 
-Each channel line: <- input or -> output, name, type, switching time s (spec time units) and
+Each node line names its host (the system file's host = NAME, else the machine's name), its pid
+and its code. Each channel line: <- input or -> output, name, type, switching time s (spec time units) and
 its zenoh keys. See also: 'iotad echo KEY', 'iotad hz KEY', 'iotad pub KEY VALUE'."""
 
 
@@ -81,7 +82,8 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         for node in nodes:
             spec = node["spec"] or {}
-            print(json.dumps({"system": node["system"], "path": node["path"], "pid": spec.get("pid"),
+            print(json.dumps({"system": node["system"], "path": node["path"], "host": spec.get("host"),
+                              "pid": spec.get("pid"),
                               "source": spec.get("source"), "params": spec.get("params"),
                               "channels": [{k: c[k] for k in ("name", "direction", "type", "switching_time",
                                                               "keys", "bound")}
@@ -98,7 +100,8 @@ def run(args: argparse.Namespace) -> int:
         source = spec.get("source", {})
         what = source.get("ref") or (f"{source.get('file')}:{source['iota']}" if source.get("iota")
                                      else str(source.get("file")))  # a file's only (or last) iota
-        print(f"{node['system']}/{node['path']}  pid {spec.get('pid')}  {source.get('kind')} {what}")
+        print(f"{node['system']}/{node['path']}  host {spec.get('host') or '?'}  pid {spec.get('pid')}  "
+              f"{source.get('kind')} {what}")
         for channel in spec.get("channels", []):
             arrow = "<-" if channel["direction"] == "input" else "->"
             keys = ", ".join(channel["keys"])

@@ -1,0 +1,195 @@
+"""Code by content hash: an agent runs the hub's version of every file the system file names. A
+file it holds at the hub's path with the same bytes is used there; one it lacks, or holds at
+another version, is fetched from the hub by its sha256 into the agent's cache and the system file
+copy names the cached file; bytes that do not hash to what the order names are refused, with a
+clear error and no run. Checked on the files alone, through a real agent on loopback, and in
+network namespaces where the agent's machine sees a stale checkout."""
+import json
+import re
+import shutil
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+from launcher_helpers import ROOT, free_port
+from namespaces import hosts, split_figure2
+from iotad.launcher.code_by_hash import CodeCache, CodeError, localize, named_files, sha256_of
+from iotad.launcher.processes import interrupt_then_kill
+from iotad.launcher.system_file import load_system
+
+EXAMPLES = ROOT / "examples"
+
+
+def hub_folder(tmp_path: Path) -> Path:
+    """A hub's system file naming its nodes' code relative to itself, as a checkout would."""
+    hub = tmp_path / "hub"
+    (hub / "code").mkdir(parents=True)
+    for name in ("scheduler.py", "requesters.py"):
+        shutil.copy(EXAMPLES / name, hub / "code" / name)
+    return hub
+
+
+def system_text(hub_address: str, arm_address: str) -> str:
+    return split_figure2("split", hub_address, 7625, "brain", "arm", arm_address).replace(f"{EXAMPLES}/", "code/")
+
+
+def test_named_files_are_fetched_by_hash_only_where_this_machine_lacks_the_hubs_version(tmp_path):
+    hub = hub_folder(tmp_path)
+    system = hub / "split.toml"
+    system.write_text(system_text("127.0.0.1", "127.0.0.2"))
+    files = named_files(system, system.read_text())
+    assert {f["written"] for f in files} == {"code/scheduler.py", "code/requesters.py"}
+    served = {f["sha256"]: Path(f["path"]).read_bytes() for f in files}
+    asked = []
+
+    def fetch(sha):
+        asked.append(sha)
+        return served[sha]
+
+    cache = CodeCache(tmp_path / "agent")
+    # the same checkout: nothing fetched, the hub's own file runs
+    assert localize(system.read_text(), str(system), files, cache, fetch, tmp_path / "run") == (None, [])
+    assert asked == []
+    # this machine holds another version of the requester, and no scheduler at all
+    hub_version = (hub / "code/requesters.py").read_bytes()
+    (hub / "code/requesters.py").write_text("raise SystemExit('a stale copy')\n")
+    (hub / "code/scheduler.py").unlink()
+    copy, said = localize(system.read_text(), str(system), files, cache, fetch, tmp_path / "run")
+    assert sorted(asked) == sorted(served) and len(said) == 2
+    assert any(line.startswith("code/requesters.py: another version is at") for line in said), said
+    assert any(line.startswith("code/scheduler.py: no file is at") for line in said), said
+    cached = cache.path_for(sha256_of(hub_version), "requesters.py")
+    assert cached.read_bytes() == hub_version
+    checked = load_system(copy)  # the copy checks: its nodes load from the cache
+    assert checked.nodes["vision"].source["ref"] == f"{cached}:Requester"
+    # once cached, a file is not fetched again
+    asked.clear()
+    assert localize(system.read_text(), str(system), files, cache, fetch, tmp_path / "run")[1] == []
+    assert asked == []
+
+
+def test_bytes_that_do_not_hash_to_the_named_sha256_are_refused(tmp_path):
+    hub = hub_folder(tmp_path)
+    system = hub / "split.toml"
+    system.write_text(system_text("127.0.0.1", "127.0.0.2"))
+    files = named_files(system, system.read_text())
+    elsewhere = tmp_path / "elsewhere" / "split.toml"  # the hub's paths do not exist on this machine
+    files = [dict(f, path=str(tmp_path / "elsewhere" / f["written"])) for f in files]
+    cache = CodeCache(tmp_path / "agent")
+    with pytest.raises(CodeError, match=r"sha256 is [0-9a-f]{12}, not the [0-9a-f]{12} the run names: refused"):
+        localize(system.read_text(), str(elsewhere), files, cache, lambda sha: b"print('not the hub file')\n",
+                 tmp_path / "run")
+    assert not list(cache.folder.rglob("*.py"))  # nothing stored under any hash
+    with pytest.raises(CodeError, match="not a node's .py or .iota file"):
+        localize("", str(elsewhere), [{"written": "..", "path": "/x/..", "sha256": "ab" * 32}], cache,
+                 lambda sha: b"", tmp_path / "run")
+    with pytest.raises(CodeError, match="without its written name, path and sha256"):
+        localize("", str(elsewhere), [{"written": "x.py", "path": "/x.py", "sha256": "../../etc"}], cache,
+                 lambda sha: b"", tmp_path / "run")
+
+
+def test_a_real_agent_refuses_a_run_whose_file_arrives_damaged(tmp_path):
+    """The agent's wire: a hub that serves other bytes than the order's hash gets a refusal that
+    says so, and the agent starts nothing."""
+    from iotad.host.transport import open_session
+    from iotad.launcher.agent import Agent, agent_key, digest
+
+    hub = hub_folder(tmp_path)
+    system = hub / "split.toml"
+    text = system_text("127.0.0.1", "127.0.0.2")
+    system.write_text(text)
+    files = [dict(f, path=str(tmp_path / "gone" / f["written"])) for f in named_files(system, text)]
+    port = free_port()
+    lines = []
+    with open_session([f"tcp/127.0.0.1:{port}"], [], credentials=False) as session:
+        served = session.declare_queryable("iota/@code/*", lambda q: q.reply(q.key_expr, b"# tampered\n"))
+        agent = Agent("arm", [f"tcp/127.0.0.1:{port}"], workdir=tmp_path / "agent", say=lines.append)
+        serving = threading.Thread(target=agent.serve, daemon=True)
+        serving.start()
+        try:
+            order = json.dumps({"system": text, "path": str(tmp_path / "gone" / "split.toml"), "digest": digest(text),
+                                "files": files, "args": []}).encode()
+            answer = None
+            deadline = time.monotonic() + 30
+            while answer is None and time.monotonic() < deadline:
+                for reply in session.get(f"{agent_key('arm')}/run", payload=order, timeout=15):
+                    if reply.ok is not None:
+                        answer = json.loads(reply.ok.payload.to_bytes())
+                if answer is None:
+                    time.sleep(0.2)  # the agent is not at the hub yet
+        finally:
+            agent.stop()
+            serving.join(15)
+            served.undeclare()
+    assert answer is not None and answer["ok"] is False, answer
+    assert "the run names: refused" in answer["error"], answer
+    assert agent.child is None and any("refused a run" in line for line in lines), lines
+
+
+STALE_CHECKOUT = r"""
+set -e
+code="$1"; shift
+mount -t tmpfs tmpfs "$code"
+printf 'raise SystemExit("a stale copy of the scheduler")\n' > "$code/scheduler.py"
+exec "$@"
+"""
+
+
+def test_an_agent_whose_checkout_is_stale_runs_the_hubs_files(tmp_path):
+    """In namespaces: the arm's machine sees the hub's code folder as its own stale checkout (a
+    scheduler.py that would not load, no requesters.py). Its agent fetches both by hash and the
+    split Figure 2 run commits as with a checkout of the same revision."""
+    if shutil.which("unshare") is None:
+        pytest.skip("needs unshare (util-linux) to give the agent a mount namespace of its own")
+    hub = hub_folder(tmp_path)
+    with hosts("brain", "arm", net=206) as net:
+        address = net.addresses[("brain", "arm")]
+        system = hub / "split.toml"
+        system.write_text(system_text(address, net.addresses["arm"]))
+        agent = subprocess.Popen(net.exec("arm", "unshare", "--mount", "--propagation", "private", "sh", "-c",
+                                          STALE_CHECKOUT, "stale", str(hub / "code"), sys.executable, "-m", "iotad",
+                                          "agent", "--name", "arm", "--connect", f"tcp/{address}:7625",
+                                          "--workdir", str(tmp_path / "agent")),
+                                 stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=ROOT,
+                                 start_new_session=True)
+        run = watch = None
+        try:
+            # the scheduler's first answer to the arm's requester (a COMMIT), however long start-up
+            # takes: watched from before the hub opens (the watcher waits for it)
+            watch = subprocess.Popen(net.exec("brain", sys.executable, "-m", "iotad", "echo", "iota/split/scheduler/ack/0",
+                                              "--count", "1", "--timeout", "90", "--connect-timeout", "60",
+                                              "--connect", f"tcp/{address}:7625"),
+                                     stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=ROOT,
+                                     start_new_session=True)
+            log = tmp_path / "run.log"
+            with log.open("w") as out:
+                run = subprocess.Popen(net.exec("brain", sys.executable, "-m", "iotad", "run", str(system), "--plain",
+                                                "--no-record"),
+                                       stdout=out, stderr=subprocess.STDOUT, text=True, cwd=ROOT, start_new_session=True)
+            answered = watch.communicate(timeout=150)[0]
+            code_of_run = interrupt_then_kill(run)
+        finally:
+            for process in (watch, run):
+                if process is not None:
+                    interrupt_then_kill(process)
+            code = interrupt_then_kill(agent)
+            output = agent.stdout.read()
+        stdout = log.read_text()
+        if "mount: " in output and "permission denied" in output.lower():
+            pytest.skip(f"cannot mount in a namespace here: {output[:300]}")
+        assert watch.returncode == 0, answered + stdout[-3000:] + output[-2000:]
+        assert code_of_run == 130, stdout[-3000:]  # stopped by the test's Ctrl-C, after the answer
+        assert "host arm: its agent runs its nodes" in stdout and "COMMIT" in stdout, stdout[-3000:]
+        assert f"host arm: code/scheduler.py: another version is at {hub}/code/scheduler.py here; " \
+               "fetched sha256" in stdout, stdout[-3000:]
+        assert f"host arm: code/requesters.py: no file is at {hub}/code/requesters.py here; " \
+               "fetched sha256" in stdout, stdout[-3000:]
+        assert re.search(r"\[arm\] .*vision: live \(pid", stdout), stdout[-3000:]
+        for name in ("scheduler.py", "requesters.py"):  # cached by hash, the hub's bytes
+            data = (hub / "code" / name).read_bytes()
+            assert (tmp_path / "agent" / "code" / sha256_of(data) / name).read_bytes() == data
+        assert code == 0, output
