@@ -142,11 +142,9 @@ def _same_run(sources: list[Source]) -> None:
         if abs(origins[0] - origins[1]) > ORIGIN_TOLERANCE:
             raise MergeError(f"{first.path} and {other.path} are recordings of different runs of {a.system!r} "
                              f"(they began at {origins[0]:.6f} and {origins[1]:.6f} on the hub's clock)")
-    hosts = Counter(s.host for s in sources)
-    twice = [h for h, n in hosts.items() if n > 1]
-    if twice:
-        names = ", ".join(s.path for s in sources if s.host == twice[0])
-        raise MergeError(f"two recordings of host {twice[0]}: {names}; give each host's once "
+    hubs = [s.path for s in sources if s.hub]
+    if len(hubs) > 1:
+        raise MergeError(f"two recordings of the hub: {', '.join(hubs)}; give the hub's once "
                          "(a split recording: its set file, which reads as one)")
 
 
@@ -234,48 +232,60 @@ class _Join:
 
     def _host_gaps(self, chosen: dict, held: list[set], ordered: list) -> list[dict]:
         """The marked gaps: where a host's events are missing from the hub's recording or from its
-        own, and the hosts whose recording was not given."""
+        own (one file, or several when its launcher was started again during the run), and the
+        hosts whose recording was not given."""
         gaps: list[dict] = []
         hub = next((k for k, s in enumerate(self.sources) if s.hub), None)
         start = ordered[0][0] if ordered else 0
         end = ordered[-1][0] if ordered else 0
+        by_host: dict[str | None, list[int]] = {}
         for si, source in enumerate(self.sources):
-            own = sorted((t, key) for key, (t, _, _, m) in chosen.items()
-                         if self._traced(m) and self.owner(m) == source.host)
-            if hub is not None and si != hub:
+            by_host.setdefault(source.host, []).append(si)
+        for host, indices in by_host.items():
+            mine = set().union(*(held[si] for si in indices))
+            own = sorted((t, key) for key, (t, _, _, m) in chosen.items() if self._traced(m) and self.owner(m) == host)
+            if hub is not None and hub not in indices:
                 # events of this host's nodes that its recording holds and the hub's does not
                 run: list[int] = []
-                for t, key in own:
-                    if key in held[si] and key not in held[hub]:
+                for t, key in [*own, (None, None)]:
+                    if key is not None and key in mine and key not in held[hub]:
                         run.append(t)
                     elif run:
-                        gaps.append(self._gap(source.host, run[0], run[-1], len(run),
+                        gaps.append(self._gap(host, run[0], run[-1], len(run),
                                               f"{len(run)} event(s) of its nodes did not reach the hub's recording "
                                               "(the host's own recording holds them)"))
                         run = []
-                if run:
-                    gaps.append(self._gap(source.host, run[0], run[-1], len(run),
-                                          f"{len(run)} event(s) of its nodes did not reach the hub's recording "
-                                          "(the host's own recording holds them)"))
-            times = [source.to_hub(m.log_time) for m in source.recording.messages]
-            if not times:
-                gaps.append(self._gap(source.host, start, end, 0, f"its recording ({source.name}) holds no message"))
-                continue
-            first, last = min(times), max(times)
-            before = [t for t, key in own if t < first and key not in held[si]]
-            after = [t for t, key in own if t > last and key not in held[si]]
-            if before:
-                gaps.append(self._gap(source.host, before[0], first, len(before),
-                                      f"its recording ({source.name}) began after {len(before)} event(s) of its nodes; "
-                                      "only other recordings hold them"))
-            if not source.recording.complete:
-                gaps.append(self._gap(source.host, last, max(end, last), len(after),
-                                      f"its recording ({source.name}) was cut short "
-                                      f"({source.recording.truncated_reason or 'no footer'})"))
-            elif after:
-                gaps.append(self._gap(source.host, last, after[-1], len(after),
-                                      f"its recording ({source.name}) ended before {len(after)} event(s) of its nodes; "
-                                      "only other recordings hold them"))
+            spans = []  # (first, last, source) of each of its files, on the hub's clock
+            for si in indices:
+                source = self.sources[si]
+                times = [source.to_hub(m.log_time) for m in source.recording.messages]
+                if times:
+                    spans.append((min(times), max(times), source))
+                else:
+                    gaps.append(self._gap(host, start, end, 0, f"its recording ({source.name}) holds no message"))
+            spans.sort(key=lambda span: span[0])
+            outside = [t for t, key in own if key not in mine and not any(a <= t <= b for a, b, _ in spans)]
+            for k in range(len(spans) + 1):
+                low = spans[k - 1][1] if k else -1
+                high = spans[k][0] if k < len(spans) else 1 << 64
+                here = [t for t in outside if low < t < high]
+                after = spans[k - 1] if k else None
+                if after is not None and not after[2].recording.complete:
+                    gaps.append(self._gap(host, after[1], high if k < len(spans) else max(end, after[1]), len(here),
+                                          f"its recording ({after[2].name}) was cut short "
+                                          f"({after[2].recording.truncated_reason or 'no footer'})"))
+                elif here and k == 0:
+                    gaps.append(self._gap(host, here[0], spans[0][0], len(here),
+                                          f"its recording ({spans[0][2].name}) began after {len(here)} event(s) of "
+                                          "its nodes; only other recordings hold them"))
+                elif here and k == len(spans):
+                    gaps.append(self._gap(host, after[1], here[-1], len(here),
+                                          f"its recording ({after[2].name}) ended before {len(here)} event(s) of its "
+                                          "nodes; only other recordings hold them"))
+                elif here:
+                    gaps.append(self._gap(host, here[0], here[-1], len(here),
+                                          f"between its recordings {after[2].name} and {spans[k][2].name}: "
+                                          f"{len(here)} event(s) of its nodes only other recordings hold"))
         given = {s.host for s in self.sources}
         for host in sorted({h for h in self.hosts_of_nodes.values() if h} - given):
             gaps.append(self._gap(host, start, end, 0, "no recording of this host was given: only what reached "

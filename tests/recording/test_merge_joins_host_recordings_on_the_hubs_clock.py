@@ -179,7 +179,7 @@ def test_a_host_recording_begun_late_or_cut_short_is_marked(tmp_path):
     ("system", "recordings of different systems do not merge"),
     ("run", "are recordings of different runs of 'split'"),
     ("text", "hold different system files of 'split'"),
-    ("twice", "two recordings of host arm"),
+    ("two hubs", "two recordings of the hub"),
     ("virtual", "a virtual run's recording"),
     ("no run", "not a host's recording of a run spread over hosts"),
     ("one", "merge joins the recordings of two hosts or more"),
@@ -189,12 +189,12 @@ def test_recordings_that_do_not_belong_together_are_one_clear_error(tmp_path, ca
     hub = write(tmp_path / "split.mcap", "brain", [vision(1.0, 0, True)], hub=True)
     other = {
         "system": dict(system="other"), "run": dict(origin=ORIGIN + 60), "text": dict(text=SYSTEM + "\n# edited\n"),
-        "twice": {}, "virtual": dict(clock="virtual"), "no run": {}, "one": {}, "same file": {},
+        "two hubs": {}, "virtual": dict(clock="virtual"), "no run": {}, "one": {}, "same file": {},
     }[case]
     arm = write(tmp_path / "split.arm.mcap", "arm", [vision(1.0, 0, False)], offset=-AHEAD, **other)
     files = [hub, arm]
-    if case == "twice":
-        files.append(write(tmp_path / "again.arm.mcap", "arm", [vision(1.0, 0, False)], offset=-AHEAD))
+    if case == "two hubs":
+        files.append(write(tmp_path / "again.mcap", "brain", [vision(1.0, 0, True)], hub=True))
     elif case == "no run":  # a recording made by `iotad record` alone: it names no host
         sink = McapSink(tmp_path / "plain.mcap")
         sink.add_metadata("iotad.recording", {"format": FORMAT, "system": "split", "clock": "real"})
@@ -256,3 +256,19 @@ def test_a_host_clock_measured_again_moves_later_times_by_the_newer_offset(tmp_p
     merged = merge([hub, arm])
     times = {m.value["t"]: m.log_time for m in merged.recording.messages if m.topic == VISION}
     assert times == {1.0: ns(1.0) + MS, 3.0: ns(3.0) + MS}
+
+
+def test_a_host_launcher_started_again_in_the_run_records_a_second_file_and_both_merge(tmp_path):
+    """The arm's agent died and a new one took the arm's part again: its launcher recorded the
+    rest to split.arm-2.mcap. Both files are the arm's; the stretch between them that only the
+    hub's recording holds is a gap of the arm, and every event is there once."""
+    hub = write(tmp_path / "split.mcap", "brain", [vision(t, k, True) for k, t in enumerate((1.0, 2.0, 3.0, 4.0))],
+                hub=True)
+    first = write(tmp_path / "split.arm.mcap", "arm", [vision(1.0, 0, False)], offset=-AHEAD)
+    again = write(tmp_path / "split.arm-2.mcap", "arm", [vision(4.0, 3, False)], offset=-AHEAD)
+    merged = merge([hub, first, again])
+    assert sorted(m.value["t"] for m in merged.recording.messages if m.topic == VISION) == [1.0, 2.0, 3.0, 4.0]
+    between = [g for g in merged.gaps if g["host"] == "arm"]
+    assert len(between) == 1 and between[0]["events"] == 2, merged.gaps
+    assert "between its recordings split.arm.mcap and split.arm-2.mcap" in between[0]["reason"]
+    assert between[0]["from_ns"] == ns(2.0) + 2 * MS and between[0]["to_ns"] == ns(3.0) + 2 * MS

@@ -204,7 +204,16 @@ def launch(system, args: argparse.Namespace, summary_hook=None) -> int:
         _view_port_free(args.view)
     record_to = args.record_to
     claimed = None  # the recording's name, created empty here so that no other run takes it
-    if record_to and not args.no_record:
+    if record_to and not args.no_record and not args.force and not system.opens_hub(args.host):
+        # another host's part: a launcher started again in the same run (its agent came back)
+        # records the rest of it beside the first part, never over it; `iotad merge` takes both
+        from iotad.launcher.recording_paths import unused_recording_path
+
+        try:
+            record_to = claimed = str(unused_recording_path(record_to, claim=True))
+        except OSError as exc:
+            raise CliError(f"-o {args.record_to}: cannot create it: {exc.strerror or exc}") from None
+    elif record_to and not args.no_record:
         if claim_recording(record_to, args.force):
             claimed = record_to
     elif not args.no_record and system.opens_hub(args.host):
