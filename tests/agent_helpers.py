@@ -57,6 +57,38 @@ class AgentProcess:
         return self.proc.stderr.read()
 
 
+class Lines:
+    """A process's output, read as it comes: `wait_for(text)` returns once a line holds `text`."""
+
+    def __init__(self, proc: subprocess.Popen):
+        self.proc, self.lines, self.changed = proc, [], threading.Condition()
+        threading.Thread(target=self._read, daemon=True).start()
+
+    def _read(self) -> None:
+        for line in self.proc.stdout:
+            with self.changed:
+                self.lines.append(line)
+                self.changed.notify_all()
+        with self.changed:
+            self.lines.append(None)  # the end
+            self.changed.notify_all()
+
+    def wait_for(self, text: str, timeout: float) -> bool:
+        with self.changed:
+            return self.changed.wait_for(lambda: any(line is None or text in line for line in self.lines)
+                                         , timeout) and any(line and text in line for line in self.lines)
+
+    def text(self) -> str:
+        with self.changed:
+            return "".join(line for line in self.lines if line)
+
+
+def start(command: list[str], **options) -> subprocess.Popen:
+    """`command` in a session of its own, its output (stdout and stderr together) to be read."""
+    return subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=ROOT,
+                            start_new_session=True, **options)
+
+
 def agent_lines(certs: Path, port: int, until: str, timeout: float = 40) -> tuple[list[str], str]:
     """`iotad agent --name arm` until one of its lines holds `until` (or `timeout`): its lines and
     its standard error."""

@@ -38,7 +38,7 @@ from pathlib import Path
 from typing import Callable
 
 from iotad.host.credentials import ENV, CredentialStore
-from iotad.launcher.code_by_hash import CodeCache, CodeError, code_key, localize
+from iotad.launcher.code_by_hash import CODE_PREFIX, CodeCache, CodeError, code_key, localize
 from iotad.launcher.processes import wrapped_argv
 
 AGENT_PREFIX = "iota/@agent"
@@ -226,11 +226,18 @@ class Agent:
 
     def _fetch(self, sha256: str) -> bytes:
         """A named file's bytes from the hub, by hash (checked by the caller)."""
+        asked = time.monotonic()
         for reply in self.session.get(code_key(sha256), timeout=10.0):
             if reply.ok is not None:
                 return reply.ok.payload.to_bytes()
             raise AgentError(f"the hub refused the file sha256 {sha256[:12]}: "
                              f"{reply.err.payload.to_bytes().decode(errors='replace')}")
+        if time.monotonic() - asked < 9.0:
+            # no reply and no wait: the hub knows of nothing this agent may ask at that key, which
+            # under access control is a policy that does not let it, or its run's fleet, have it
+            raise AgentError(f"the hub sent no file for sha256 {sha256[:12]}: nothing there serves "
+                             f"{CODE_PREFIX}/* to this agent (under access control, the hub's policy "
+                             "must let this agent ask it and the run's fleet session serve it)")
         raise AgentError(f"the hub sent no file for sha256 {sha256[:12]} within 10 s")
 
     def _start(self, order: dict) -> dict:

@@ -105,6 +105,7 @@ class Launcher:
         self.events: queue.Queue = queue.Queue()
         self.tally = Tally()
         self.alive_paths: set[str] = set()
+        self._ever_alive: set[str] = set()  # every node path that has shown its token, on any host
         self.runs: dict[str, NodeRun] = {}
         for spec in system.nodes_on(self.host):
             child = Child(spec.name, [], log=self.run_dir / f"{spec.name.replace('/', '.')}.log",
@@ -438,6 +439,8 @@ class Launcher:
         elif kind == "alive":
             _, path, present, when = item
             (self.alive_paths.add if present else self.alive_paths.discard)(path)
+            if present:
+                self._ever_alive.add(path)
             run = self.runs.get(path)
             if run is None:
                 if present and self.host is not None:
@@ -545,10 +548,18 @@ class Launcher:
             return None
         if not self.options.after_live:
             return self._started
-        if self._live_at is None and self._everyone_live():
+        if self._live_at is None and self._everyone_live() and self._other_hosts_live():
             self._live_at = now
             self.view.line(f"every node is live: --until {self.until:g} s counts from now")
         return self._live_at
+
+    def _other_hosts_live(self) -> bool:
+        """A hub that starts the other hosts through their agents: every node of theirs has been
+        live once (they start seconds after this host's, an agent and a launcher later), so that
+        --after-live's seconds are the whole system's. The start gates stay each host's own."""
+        if self.fleet is None:
+            return True
+        return all(name in self._ever_alive for name in self.system.nodes if name not in self.runs)
 
     def _everyone_live(self) -> bool:
         """Every node is live or has ended for good, and one at least is live: a node that failed

@@ -9,8 +9,8 @@ clean. The control: the same script with the tools' credentials opens a session 
 import re
 import subprocess
 import sys
-import threading
 
+from agent_helpers import Lines, start
 from launcher_helpers import ROOT
 from namespaces import hosts, split_figure2
 from recorded_systems import check_of_a_real_run
@@ -54,37 +54,6 @@ time.sleep(0.5)
 print("control saw a rogue sample:", ROGUE in seen)
 control.close()
 """
-
-
-class Lines:
-    """A process's output, read as it comes: `wait_for(text)` returns once a line holds `text`."""
-
-    def __init__(self, proc: subprocess.Popen):
-        self.proc, self.lines, self.changed = proc, [], threading.Condition()
-        threading.Thread(target=self._read, daemon=True).start()
-
-    def _read(self) -> None:
-        for line in self.proc.stdout:
-            with self.changed:
-                self.lines.append(line)
-                self.changed.notify_all()
-        with self.changed:
-            self.lines.append(None)  # the end
-            self.changed.notify_all()
-
-    def wait_for(self, text: str, timeout: float) -> bool:
-        with self.changed:
-            return self.changed.wait_for(lambda: any(line is None or text in line for line in self.lines)
-                                         , timeout) and any(line and text in line for line in self.lines)
-
-    def text(self) -> str:
-        with self.changed:
-            return "".join(line for line in self.lines if line)
-
-
-def start(command: list[str]) -> subprocess.Popen:
-    return subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=ROOT,
-                            start_new_session=True)
 
 
 def test_a_third_namespace_can_neither_command_nor_read_a_system_across_hosts(tmp_path):

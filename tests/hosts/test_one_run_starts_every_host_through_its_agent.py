@@ -118,8 +118,8 @@ def test_hosts_linked_by_tls_admit_no_process_without_a_certificate(tmp_path):
                                           "--connect", f"tls/{hub}:7615", "--certs", str(certs)),
                                  stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=ROOT,
                                  start_new_session=True)
-        run = subprocess.Popen(net.exec("brain", sys.executable, "-m", "iotad", "run", str(path), "--until", "10", "--after-live",
-                                        "--plain", "--certs", str(certs), "-o", str(tmp_path / "tls.mcap")),
+        run = subprocess.Popen(net.exec("brain", sys.executable, "-m", "iotad", "run", str(path), "--until", "10",
+                                        "--after-live", "--plain", "--certs", str(certs), "-o", str(tmp_path / "tls.mcap")),
                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=ROOT,
                                start_new_session=True)
         try:
