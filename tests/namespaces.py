@@ -127,3 +127,25 @@ def hosts(first: str, *others: str, net: int = 200):
     finally:
         for ns in made:
             ip("netns", "del", ns)  # takes its veth ends (and so the pairs) with it
+
+
+@contextmanager
+def agent(net: Hosts, host: str, connect: str, *extra: str, env: tuple[str, ...] = ()):
+    """`iotad agent --name HOST --connect CONNECT` in `host`'s namespace, from the repository's
+    folder (its output on the Popen's stdout), stopped on the way out as Ctrl-C would."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    from iotad.launcher.processes import interrupt_then_kill
+
+    root = Path(__file__).resolve().parents[1]
+    prefix = ("env", *env) if env else ()
+    process = subprocess.Popen(net.exec(host, *prefix, sys.executable, "-m", "iotad", "agent", "--name", host,
+                                        "--connect", connect, *extra),
+                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=root,
+                               start_new_session=True)
+    try:
+        yield process
+    finally:
+        interrupt_then_kill(process)

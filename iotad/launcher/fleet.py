@@ -27,10 +27,11 @@ class Fleet:
 
     def __init__(self, system_path: str | Path, hosts: list[str], hub: list[str], args: list[str], *,
                  tls=None, env: dict[str, str] | None = None, say: Callable[[str], None] = print,
-                 start_timeout: float = 30.0):
+                 start_timeout: float = 30.0, host_args: dict[str, list[str]] | None = None):
         self.path = Path(system_path).resolve()
         self.text = self.path.read_text(encoding="utf-8")
         self.hosts, self.hub, self.args, self.tls = list(hosts), list(hub), list(args), tls
+        self.host_args = {host: list(extra) for host, extra in (host_args or {}).items()}  # one host's own (its recording)
         self.env, self.say, self.start_timeout = dict(env or {}), say, start_timeout
         self.session = None
         self.exits: dict[str, int] = {}
@@ -109,6 +110,7 @@ class Fleet:
         """Give `host` its part; None when its agent runs it, else why not."""
         # the hub admits only the agent of `host` to serve this key: its credentials go to it alone
         order = dict(self._order_base, credentials=self._access.host_part(host) if self._access else {})
+        order["args"] = list(order.get("args", [])) + self.host_args.get(host, [])  # its own recording
         answer = self._ask(f"{agent_key(host)}/run", json.dumps(order).encode(), interruptible=interruptible)
         if not answer.get("ok"):
             return answer.get("error", "no answer")

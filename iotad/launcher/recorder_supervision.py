@@ -12,6 +12,7 @@ its `heartbeat_timeout` (at least RECORDER_STALL s), as a node is judged by its 
 """
 from __future__ import annotations
 
+import json
 import queue
 import signal
 import sys
@@ -59,6 +60,10 @@ class RecorderSupervisor:
         self._frozen = 0.0                        # s of silence of a recorder killed as frozen
         self._stopping = False
         self._since = 0.0                         # time.time() as the recording began
+        # a run spread over hosts: whose recording this is (metadata `run`, for `iotad merge`),
+        # set by the launcher before `start()`, once it knows the run's origin and its clock
+        self.run_info: dict | None = None
+        self.nodes: list[str] | None = None  # another host's recording: only its own nodes
 
     # ------------------------------------------------------------------ allowances
     def start_allowance(self) -> float:
@@ -106,6 +111,10 @@ class RecorderSupervisor:
             argv += ["--max-size", str(options.max_size)]
         if options.max_duration is not None:
             argv += ["--max-duration", repr(float(options.max_duration))]
+        if self.run_info is not None:
+            argv += ["--run", json.dumps(self.run_info)]
+        if self.nodes is not None:
+            argv += ["--nodes", ",".join(self.nodes)]
         for endpoint in self.hub:  # a client of the hub, which relays each node's first sample
             argv += ["--connect", endpoint]
         # If the launcher is killed (-9), the recorder is interrupted, not killed: it writes the

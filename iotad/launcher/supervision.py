@@ -137,9 +137,15 @@ class Launcher:
         self._system_live = False  # every node has been live (or ended) once: the system runs
         from iotad.launcher.status_view import StatusView
         self.view = StatusView(launch.console, launch.live_table, title=f"iotad run {system.file}")
-        # the recorder, where this launcher holds the hub (another host's launcher records nothing)
+        # the recorder: the hub's launcher records what reaches the hub, another host's launcher
+        # what its own nodes do (iotad/launcher/host_recording.py)
         self.recorder: RecorderSupervisor | None = None
-        if recording is not None and system.opens_hub(self.host):
+        self._local: list[str] = []      # another host's launcher: where its recorder and nodes reach it
+        self._hub_origin: float | None = None  # another host's launcher: the origin the hub answered
+        self._clock: dict | None = None        # another host's launcher: its clock offset, as measured
+        if recording is not None and (system.opens_hub(self.host) or self.access is None or self.access.own is None):
+            # (another host's launcher under access control is a client of the hub, as are its
+            # nodes: the hub records all of them, and nothing here could hear more)
             self.recorder = RecorderSupervisor(
                 system, recording, hub=self.hub, run_dir=self.run_dir,
                 env=self.access.recorder_env() if self.access else None, events=self.events,
@@ -218,6 +224,11 @@ class Launcher:
             listen, connect = self.hub, list(system.connect)
         else:
             listen, connect = system.listen_for(self.host), self.hub
+            if self.recorder is not None:  # its recorder and nodes connect here: a known port
+                from iotad.launcher.host_recording import local_endpoints, pinned
+
+                listen = pinned(listen)
+                self._local = local_endpoints(listen)
         try:
             self.session = open_session(listen, connect, **(self.access.hub_options() if self.access else {}))
         except Exception as exc:  # noqa: BLE001 - zenoh says why in its message
@@ -266,7 +277,8 @@ class Launcher:
             for reply in self.session.get(key, timeout=1.0):
                 if reply.ok is not None:
                     self._hub_answered = True
-                    return float(wire.decode(reply.ok.payload.to_bytes())["origin"])
+                    self._hub_origin = float(wire.decode(reply.ok.payload.to_bytes())["origin"])
+                    return self._hub_origin
             self._stop_asked.wait(0.2)
         if self._stop_asked.is_set():
             return wall()  # stopping before anything started: the origin no longer matters
@@ -314,6 +326,16 @@ class Launcher:
         recording that cannot be written (no folder, no space, the recorder fails) is an error
         here, while nothing runs yet: --no-record runs without one."""
         if self.recorder is not None:
+            if self.host is not None:  # a run spread over hosts: whose recording this is (iotad merge)
+                from iotad.launcher.host_recording import run_info
+
+                hub = self.system.opens_hub(self.host)
+                origin = self.origin if hub or self._hub_origin is None else self._hub_origin
+                self.recorder.run_info = run_info(self.host, hub, origin, None if hub else self._clock)
+                if not hub and self._local:
+                    self.recorder.hub = list(self._local)  # the host's own launcher, not the hub
+                if not hub:
+                    self.recorder.nodes = list(self.runs)  # its own nodes (the hub records the others)
             try:
                 self.recorder.start()
             except RecordingError as exc:
@@ -591,7 +613,9 @@ class Launcher:
                 self._kill(run, f"liveliness token gone for {now - run.lost_since:.1f} s")
 
     def _spawn(self, run: NodeRun, event: str) -> None:
-        config = self.system.node_config(run.name, self.origin, self.hub)
+        # another host's recording: its nodes connect to its launcher too, so that its recorder
+        # hears them from their first event and while the hub is out of reach
+        config = self.system.node_config(run.name, self.origin, self.hub + self._local)
         config["restarts"] = run.restarts  # its heartbeats say it: a tool attached later counts them
         if not self.gate_open:  # a node (re)started after the gate opened starts its engine at once
             config["start_gate"] = self.gate_key
@@ -630,6 +654,9 @@ class Launcher:
                         **extra: Any) -> None:
         """An event of the launcher itself (node None): the recorder's fate... `quiet`: recorded,
         not shown."""
+        if event in ("clock", "clock_violation") and self._clock is None and "offset" in extra:
+            # the clock measured at start, for this host's own recording (started after it)
+            self._clock = dict(extra, measured_ns=round(wall() * 1e9))
         if not quiet:
             self.view.line(text)
         self._publish({"event": event, "node": None, "pid": os.getpid(), "code": code,

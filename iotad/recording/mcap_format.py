@@ -10,6 +10,9 @@ A recording carries what replay and check need and nothing else must be found:
 - metadata `iotad.recording`: system name, time unit, clock origin, who wrote it;
 - messages on `@recorder/gaps`: sequence gaps the recorder saw (they survive a kill),
   and metadata `iotad.gaps` with their total at a clean finish;
+- in a recording joined from several hosts' (`iotad merge`, `iotad.recording.merge`): messages on
+  `@merge/gaps`, each a stretch where a host's events are missing from a recording (host,
+  interval), and metadata `iotad.merge` (the files, their clock offsets, the gaps);
 - messages on `@recorder/malformed` (only if any): what came on a `@trace` key that was neither
   an event nor a burst of events, or an element of a burst that was no event (not a map, or a
   map without a finite `t` and string `kind` and `action`: `trace_event_problem`), and an
@@ -34,6 +37,7 @@ SCHEMA_ENCODING = "jsonschema"
 PROFILE = "iotad"
 GAP_TOPIC = "@recorder/gaps"
 MALFORMED_TOPIC = "@recorder/malformed"  # what a recorder got on @trace that is no event (nor burst), etc.
+MERGE_GAP_TOPIC = "@merge/gaps"  # in a merged recording (`iotad merge`): where a host's events are missing
 FORMAT = "iotad-mcap/1"
 SET_METADATA = "iotad.split_set"  # in the set file of a split recording: its member files
 
@@ -49,6 +53,11 @@ GAP_SCHEMA = {
     "title": "iotad sequence gap", "type": "object",
     "properties": {"key": {"type": "string"}, "expected": {"type": "integer"}, "got": {"type": "integer"},
                    "missing": {"type": "integer"}}}
+MERGE_GAP_SCHEMA = {
+    "title": "iotad host gap of a merged recording", "type": "object",
+    "properties": {"host": {"type": ["string", "null"]}, "from_ns": {"type": "integer"}, "to_ns": {"type": "integer"},
+                   "from_t": {"type": "number"}, "to_t": {"type": "number"}, "events": {"type": "integer"},
+                   "reason": {"type": "string"}}}
 MALFORMED_SCHEMA = {
     "title": "iotad malformed trace sample", "type": "object",
     "properties": {"key": {"type": "string"}, "seq": {"type": "integer"}, "message": {"type": "string"},

@@ -48,6 +48,7 @@ from iotad.launcher.recording_paths import continuation_path, unused_recording_p
 from iotad.recording.mcap_format import FORMAT, GAP_TOPIC, MALFORMED_TOPIC, packb, trace_event_problem
 from iotad.recording.mcap_sink import channel_schemas, McapSink, schema_for_topic, write_set_file
 from iotad.host.transport import DEFAULT_LISTEN, open_session
+from iotad.kernel.clock import CLOCK_SKEW_ENV, wall
 from iotad.launcher.declaration import Declaration, SystemFileError, read_declaration
 
 _MAPS = ("/" + wire.LAUNCHER, "/" + wire.HEARTBEAT)
@@ -81,6 +82,19 @@ def yield_cpu(threads: Iterable[int] | None = None, niceness: int = NICENESS) ->
     return done
 
 
+def log_clock() -> Callable[[], int]:
+    """The clock a recorder's log times are on, in ns: the one origins are in (`wall()`), so that a
+    host's recording moves onto the hub's clock by the host's measured offset (`iotad merge`).
+    That is `time.time_ns` itself (no cost in the hot loop) unless a drill makes this host's
+    clock wrong on purpose (IOTAD_CLOCK_SKEW and the like: docs/hosts.md)."""
+    if not any(os.environ.get(name) for name in (CLOCK_SKEW_ENV, "IOTAD_CLOCK_DRIFT")):
+        return time.time_ns
+    return lambda: round(wall() * 1e9)
+
+
+wall_ns = log_clock()
+
+
 def expand_keys(keys: Iterable[str]) -> list[str]:
     """`iota/<sys>/**` does not match `@` chunks in zenoh: widen it to every key of the system."""
     out: list[str] = []
@@ -94,8 +108,12 @@ def expand_keys(keys: Iterable[str]) -> list[str]:
     return out
 
 
-def trace_keys(system: str) -> list[str]:
-    """What a trace-sourced recorder subscribes to: no channel key, so no wake-up per message."""
+def trace_keys(system: str, nodes: list[str] | None = None) -> list[str]:
+    """What a trace-sourced recorder subscribes to: no channel key, so no wake-up per message.
+    `nodes`: only theirs (and the launchers' events), not every node's."""
+    if nodes is not None:
+        return [*(wire.node_key(system, node, suffix) for node in nodes for suffix in (wire.TRACE, wire.HEARTBEAT)),
+                wire.launcher_key(system)]
     return [wire.every_node(system, wire.TRACE), wire.launcher_key(system), wire.every_node(system, wire.HEARTBEAT)]
 
 
@@ -115,7 +133,11 @@ class Recorder:
                  connect: Iterable[str] = (), listen: Iterable[str] | None = None,
                  flush_period: float = 0.05, spec_timeout: float = 0.5, query_specs: bool = True,
                  fifo_capacity: int = 65536, background: bool = False, from_traces: bool = False,
-                 max_size: int | None = None, max_duration: float | None = None, replace: bool = False):
+                 max_size: int | None = None, max_duration: float | None = None, replace: bool = False,
+                 run: dict | None = None, nodes: Iterable[str] | None = None):
+        # a launcher's recorder of a run spread over hosts: whose recording this is (host, hub or
+        # not, the run's origin, the host's clock offset to the hub), for `iotad merge`
+        self.run = dict(run) if run else None
         self.declaration = None if system_file is None else read_system_file(system_file)
         self.system_text = None if self.declaration is None else self.declaration.text
         self.system = None if self.declaration is None else self.declaration.name
@@ -135,7 +157,9 @@ class Recorder:
             if self.system is None or any(expand_keys([k]) != expand_keys(whole) for k in keys):
                 raise ValueError("a trace-sourced recording records one whole system: give 'iota/SYS/**' "
                                  "or a system file, not single keys")
-            self.keys = trace_keys(self.system)
+            # a host's own recording (`nodes`: that host's): only its nodes' traces and beats cross
+            # from the other hosts' links to it; the hub's recording has theirs
+            self.keys = trace_keys(self.system, None if nodes is None else list(nodes))
         # trace-sourced: node paths whose outputs their own traces record (the system file's
         # nodes, every node seen on @trace) and every key a node published an output on
         self._nodes: set[str] = set() if self.declaration is None else set(self.declaration.nodes)
@@ -175,7 +199,7 @@ class Recorder:
         """Open the file, join zenoh, subscribe. With `connect` and no `listen`, while no hub
         answers there: `keep_waiting()` is asked about once a second whether to try again
         (default: fail at once, with zenoh's error)."""
-        self.started_ns = time.time_ns()
+        self.started_ns = wall_ns()
         self._open_file()
         try:
             if self.connect and not self.listen:
@@ -241,6 +265,8 @@ class Recorder:
                 "source": "traces" if self.from_traces else "direct",
                 "clock": "real", "writer": "iotad record",
                 "time_unit": self._system_time_unit()}
+        if self.run is not None:
+            info["run"] = self.run
         if self.split:
             info["split"] = {"set": self._set_id, "index": len(self.files), "set_file": self.output.name,
                              "max_size": self.max_size, "max_duration": self.max_duration}
@@ -269,7 +295,7 @@ class Recorder:
 
     def _finish_file(self) -> None:
         self.sink.add_metadata("iotad.gaps", {"count": self.stats["gaps"], "missing": self.stats["missing"]})
-        self.sink.add_metadata("iotad.stats", dict(self.stats, stopped_ns=time.time_ns(), files=len(self.files)))
+        self.sink.add_metadata("iotad.stats", dict(self.stats, stopped_ns=wall_ns(), files=len(self.files)))
         self.sink.finish()
 
     def _split_due(self, now: float, messages: int) -> bool:
@@ -315,7 +341,9 @@ class Recorder:
         unpack_attachment = msgpack.unpackb
         write = sink.fast_writer()  # one per sink: it sets sink.write_pair and sink.commit
         burst = functools.partial(self._burst, write, sink.write_pair)
-        now_ns, monotonic_ns = time.time_ns, time.monotonic_ns
+        # log times on the clock that origins are in (the same as time.time_ns but in a drill of a
+        # host whose clock is wrong): a host's recording is moved onto the hub's by its offset
+        now_ns, monotonic_ns = wall_ns, time.monotonic_ns
         period_ns = int(self.flush_period * 1e9)
         next_flush = monotonic_ns() + period_ns
         received = written = file_start = 0

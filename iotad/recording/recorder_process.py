@@ -11,6 +11,7 @@ CAN tier runs) that leaves the time unchanged, and a busy recorder looked frozen
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import signal
 import sys
@@ -74,13 +75,18 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--force", action="store_true", help="split: numbered files may replace an earlier run's")
     parser.add_argument("--max-size", type=int, default=None, help="split: bytes per file")
     parser.add_argument("--max-duration", type=float, default=None, help="split: seconds per file")
+    parser.add_argument("--run", type=json.loads, default=None,
+                        help="JSON: whose recording this is in a run spread over hosts (metadata `run`)")
+    parser.add_argument("--nodes", default=None,
+                        help="comma-separated: record only these nodes' traces (a host's own recording)")
     args = parser.parse_args(argv)
     stop = stop_on_signals()
     try:
         recorder = Recorder([f"{wire.PREFIX}/{args.system}/**"], args.output, system_file=args.system_file,
                             connect=args.connect, background=True,  # yield the CPU to the nodes
                             from_traces=True,  # one wake-up per trace burst, not per message
-                            max_size=args.max_size, max_duration=args.max_duration, replace=args.force)
+                            max_size=args.max_size, max_duration=args.max_duration, replace=args.force,
+                            run=args.run, nodes=None if args.nodes is None else args.nodes.split(","))
         recorder.start(lambda: not stop.is_set())  # its hub is up: this waits only for credentials
     except (OSError, ValueError, UnicodeDecodeError) as exc:
         print(f"recorder: error: {exc}", file=sys.stderr, flush=True)

@@ -167,6 +167,7 @@ def run(args: argparse.Namespace) -> int:
     if recording.recovered_from:
         print(f"{args.file}: RECOVERED from {recording.recovered_from}: the run's end is not in it, so only what "
               f"it holds is checked")
+    _merged_notes(recording, args.file)
     # a long recording takes a while per node (about 2 s per 100,000 events): say what is going on
     long = len(recording.messages) > LONG
     from iotad.recording.clock_offsets import widenings
@@ -201,6 +202,21 @@ def run(args: argparse.Namespace) -> int:
         verdict = f"PROBLEMS FOUND ({' and '.join(what)})"
     print(f"check: {verdict} (tolerance {tolerance:g})")
     return 0 if all_ok and not unchecked and whole else 1
+
+
+def _merged_notes(recording, file: str) -> None:
+    """A merged recording (`iotad merge`): each host gap it marks, as a note. What the host's own
+    recording held is in the file; a gap says where one recording alone saw a host's events, or
+    where none of the files may have."""
+    from iotad.recording.merge import describe_gap, merged_gaps
+
+    if not isinstance(recording.info.get("merged"), list):
+        return
+    gaps = merged_gaps(recording)
+    print(f"{file}: merged from {', '.join(map(str, recording.info['merged']))}; "
+          f"{len(gaps)} host gap(s) marked" + (":" if gaps else ""))
+    for gap in gaps:
+        print(f"  note: {describe_gap(gap)}")
 
 
 def _check_node(recording, node: str, args: argparse.Namespace, tolerance: float, long: bool, widen=None):

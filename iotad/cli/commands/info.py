@@ -150,6 +150,19 @@ def _delivery(recording, limit: int) -> None:
             print(f"  {line}")
 
 
+def _host_gaps(recording, limit: int) -> None:
+    """A merged recording's (`iotad merge`): where a host's events are missing, and which files it joined."""
+    from iotad.recording.merge import describe_gap, merged_gaps
+
+    merged = recording.info.get("merged")
+    if not isinstance(merged, list):
+        return
+    gaps = merged_gaps(recording)
+    print(f"  merged from: {', '.join(map(str, merged))}; host gaps: {len(gaps)}")
+    for gap in gaps[:limit]:
+        print(f"    {describe_gap(gap)}")
+
+
 def run(args: argparse.Namespace) -> int:
     from iotad.recording.conformance import describe
 
@@ -196,6 +209,7 @@ def run(args: argparse.Namespace) -> int:
     print(f"  sequence gaps: {len(gaps)} ({sum(g.get('missing', 0) for g in gaps)} messages missing)")
     for gap in gaps[:args.violations]:
         print(f"    {gap['key']}: expected #{gap['expected']}, got #{gap['got']}")
+    _host_gaps(recording, args.violations)
     _delivery(recording, args.violations)
     _clocks(recording)
     launcher = recording.launcher_events()

@@ -204,10 +204,21 @@ def launch(system, args: argparse.Namespace, summary_hook=None) -> int:
         _view_port_free(args.view)
     record_to = args.record_to
     claimed = None  # the recording's name, created empty here so that no other run takes it
-    if record_to and not args.no_record:
+    if record_to and not args.no_record and not args.force and not system.opens_hub(args.host):
+        # another host's part: a launcher started again in the same run (its agent came back)
+        # records the rest of it beside the first part, never over it; `iotad merge` takes both
+        from iotad.launcher.recording_paths import unused_recording_path
+
+        try:
+            record_to = claimed = str(unused_recording_path(record_to, claim=True))
+        except OSError as exc:
+            raise CliError(f"-o {args.record_to}: cannot create it: {exc.strerror or exc}") from None
+    elif record_to and not args.no_record:
         if claim_recording(record_to, args.force):
             claimed = record_to
-    elif not args.no_record:  # a new name: recordings/<system>-<date>-<time>.mcap, -2 in the same second
+    elif not args.no_record and system.opens_hub(args.host):
+        # a new name: recordings/<system>-<date>-<time>.mcap, -2 in the same second (another
+        # host's launcher started by hand records only where -o tells it to)
         import time
 
         from iotad.launcher.recording_paths import unused_recording_path
@@ -234,12 +245,15 @@ def _launch(system, args: argparse.Namespace, record_to: str | None, summary_hoo
     if port == 0:
         port = free_port()
     _use_certificates(system, args)
-    fleet, host = _fleet_for(system, args, port)
+    access = access_for(system, args)
+    # under access control every other host's launcher and nodes are clients of the hub, which
+    # records all they say: they record nothing of their own (docs/hosts.md, "The recording")
+    fleet, host = _fleet_for(system, args, port, None if access.enabled else record_to)
     launch = LaunchOptions(host=host, port=port, until=args.until, after_live=args.after_live,
                            origin=args.origin, log_dir=args.log_dir, live_table=False if args.plain else None)
-    recording = None if args.no_record else RecordingOptions(
+    recording = None if args.no_record or record_to is None else RecordingOptions(
         record_to, force=args.force, max_size=args.max_size, max_duration=args.max_duration)
-    launcher = Launcher(system, launch, recording, access_for(system, args), fleet=fleet)
+    launcher = Launcher(system, launch, recording, access, fleet=fleet)
     viewer = None
     try:
         if args.view is not None and system.opens_hub(args.host):
@@ -267,6 +281,12 @@ def _launch(system, args: argparse.Namespace, record_to: str | None, summary_hoo
     print(f"summary of {system.name}" + (where if launcher.host else "") + ":")
     for line in launcher.summary():
         print(line)
+    if fleet is not None and fleet.host_args and launcher.recorder is not None:
+        from iotad.launcher.host_recording import host_recording_path
+
+        others = [str(host_recording_path(record_to, host)) for host in fleet.hosts]
+        print(f"  each other host recorded its part on its own machine: {', '.join(others)}; "
+              f"join them with: iotad merge {record_to} {' '.join(others)} -o MERGED.mcap")
     if summary_hook is not None:
         code = summary_hook(launcher, code)
     if sys.stdout is not None:  # None when the shell closed it (>&-)
@@ -290,10 +310,11 @@ def _use_certificates(system, args: argparse.Namespace) -> None:
         raise CliError(str(exc)) from None
 
 
-def _fleet_for(system, args: argparse.Namespace, port: int | None):
+def _fleet_for(system, args: argparse.Namespace, port: int | None, record_to: str | None = None):
     """(the agents of the other hosts or None, the host this launcher runs). A system spread over
     hosts, started without --host or --local, runs here as its hub host and everywhere else
-    through each host's agent."""
+    through each host's agent; each of them records its own part beside the hub's recording
+    `record_to` (`host_recording_path`: split.mcap -> split.arm.mcap, on that host)."""
     hosts = [n.host for n in system.nodes.values() if n.host]
     if args.host is not None or args.local or not hosts:
         return None, args.host
@@ -303,8 +324,16 @@ def _fleet_for(system, args: argparse.Namespace, port: int | None):
 
     hub = [reachable(e) for e in (with_port(system.listen, port) if port is not None else system.listen)]
     others = sorted(set(hosts) - {system.hub_host}, key=hosts.index)
-    agent_args = ["--no-record"] + (["--port", str(port)] if port is not None else [])
-    fleet = Fleet(system.path, others, hub, agent_args,
+    agent_args = (["--no-record"] if record_to is None else []) + (["--port", str(port)] if port is not None else [])
+    host_args = {}
+    if record_to is not None:
+        from iotad.launcher.host_recording import host_recording_path
+
+        split = (["--max-size", str(args.max_size)] if args.max_size is not None else []) \
+            + (["--max-duration", repr(float(args.max_duration))] if args.max_duration is not None else [])
+        host_args = {host: ["-o", str(host_recording_path(record_to, host)), *(["--force"] if args.force else []), *split]
+                     for host in others}
+    fleet = Fleet(system.path, others, hub, agent_args, host_args=host_args,
                   start_timeout=args.agent_timeout or system.start_timeout)
     return fleet, system.hub_host
 

@@ -1,0 +1,41 @@
+"""A run spread over hosts records on every host: the hub's `-o split.mcap` becomes `split.arm.mcap`
+for host arm, which the hub's `iotad run` hands to the arm's agent with its part (its --force and
+split options too); the arm's launcher listens on a port it knows, so that its recorder and nodes
+can be told where. No network here: the orders are looked at, not sent."""
+from pathlib import Path
+
+import pytest
+
+from namespaces import split_figure2
+from iotad.cli.commands.run import _fleet_for, defaults, load_checked
+from iotad.launcher.host_recording import host_recording_path, local_endpoints, pinned
+
+
+@pytest.mark.parametrize("given, arm", [
+    ("recordings/split.mcap", "recordings/split.arm.mcap"),
+    ("/data/run.2024.mcap", "/data/run.2024.arm.mcap"),
+    ("plain", "plain.arm.mcap"),
+])
+def test_a_hosts_file_is_the_hubs_with_its_name_before_the_suffix(given, arm):
+    assert host_recording_path(given, "arm") == Path(arm)
+
+
+def test_a_listen_port_0_is_pinned_so_that_the_hosts_recorder_can_be_told_where():
+    endpoints = pinned(["tcp/127.0.0.1:0", "tcp/127.0.0.1:7447", "unixsock-stream//tmp/x"])
+    port = int(endpoints[0].rpartition(":")[2])
+    assert 0 < port < 65536 and endpoints[1:] == ["tcp/127.0.0.1:7447", "unixsock-stream//tmp/x"]
+    assert local_endpoints(["tcp/0.0.0.0:7500", "tcp/10.0.0.2:0"]) == ["tcp/127.0.0.1:7500"]
+
+
+def test_each_agent_is_told_to_record_its_part_beside_the_hubs_recording(tmp_path):
+    path = tmp_path / "split.toml"
+    path.write_text(split_figure2("split", "127.0.0.1", 7625, "brain", "arm", "127.0.0.1"))
+    system = load_checked(str(path))
+    args = defaults(system_file=str(path), force=True, max_duration=60.0)
+    fleet, host = _fleet_for(system, args, None, str(tmp_path / "rec" / "split.mcap"))
+    assert host == "brain" and fleet.hosts == ["arm"]
+    assert fleet.args == [] and fleet.host_args == {
+        "arm": ["-o", str(tmp_path / "rec" / "split.arm.mcap"), "--force", "--max-duration", "60.0"]}
+    # without a recording the agents record nothing either
+    fleet, _ = _fleet_for(system, defaults(system_file=str(path)), None, None)
+    assert fleet.args == ["--no-record"] and fleet.host_args == {}
