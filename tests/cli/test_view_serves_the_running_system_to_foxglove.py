@@ -93,14 +93,16 @@ def test_a_foxglove_client_receives_what_the_recording_holds(tmp_path):
                         received.append(json.loads(message[13:]))
         finally:
             view.terminate()
-            view.wait(10)
+            view_said = view.communicate(timeout=10)[0]
         stop_launcher(proc)  # SIGINT: a clean stop, the recording closed with all it holds
     channel = advertised["/scheduler/mdl_command"]
     assert channel["encoding"] == "json" and json.loads(channel["schema"])["type"] == "object"
     assert advertised["/log"]["schemaName"] == "foxglove.Log"
     recorded = [e["value"] for e in read_recording(recording).trace("scheduler")
                 if e["kind"] == "output" and e["action"] == "mdl_command"]
-    assert len(received) >= 3
+    # what to look at if none came: did the client subscribe, what the viewer and the run said
+    assert len(received) >= 3, (subscribed, len(recorded), sorted(advertised), view_said[-1500:],
+                                proc.output.read_text()[-3000:])
     # what the client got is what the scheduler sent, in order: a run of the recorded values
     start = next(k for k in range(len(recorded)) if recorded[k:k + len(received)] == received)
     assert recorded[start:start + len(received)] == received
