@@ -9,6 +9,7 @@ import math
 import os
 import stat
 import pkgutil
+import signal
 import sys
 import textwrap
 
@@ -247,6 +248,11 @@ def _first_line(exc: BaseException) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
+    if argv is None and signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+        # started with SIGINT ignored (a background job of a non-interactive shell, a test run
+        # started so): Python then installs no KeyboardInterrupt, and a command that waits would
+        # never stop on Ctrl-C. Every iotad command stops on SIGINT, as `iotad run` does.
+        signal.signal(signal.SIGINT, signal.default_int_handler)
     code = _main(argv)
     if argv is None:  # the program itself (`iotad`, `python -m iotad`), not a call from Python
         _leave_stray_threads(code)

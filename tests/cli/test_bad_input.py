@@ -281,8 +281,16 @@ def _iotad(*argv, **kw):
                             stderr=subprocess.PIPE, text=True, **kw)
 
 
-def test_ctrl_c_exits_130_without_traceback():
-    """Ctrl-C (SIGINT) in a command that waits: exit 130, no traceback, no hang."""
+# a tool started with SIGINT ignored, as a background job of a non-interactive shell is: exec keeps
+# the ignoring, and Python then installs no KeyboardInterrupt of its own
+IGNORING = ("import os, signal, sys; signal.signal(signal.SIGINT, signal.SIG_IGN); "
+            "os.execv(sys.executable, [sys.executable, '-m', 'iotad', *sys.argv[1:]])")
+
+
+@pytest.mark.parametrize("started", ["plainly", "with SIGINT ignored"])
+def test_ctrl_c_exits_130_without_traceback(started):
+    """Ctrl-C (SIGINT) in a command that waits: exit 130, no traceback, no hang; also when the
+    command was started with SIGINT ignored (it then waited for ever)."""
     hub = subprocess.Popen([sys.executable, "-c", "import sys, time\nfrom iotad.host.transport import open_session\n"
                             f"s = open_session(['tcp/127.0.0.1:{_port()}'])\nprint('up', flush=True)\n"
                             "sys.stdin.read()\ns.close()"],
@@ -291,8 +299,13 @@ def test_ctrl_c_exits_130_without_traceback():
     try:
         assert hub.stdout.readline().strip() == "up"
         endpoint = f"tcp/127.0.0.1:{_PORT[0]}"
-        tools = [_iotad("echo", "iota/**", "--connect", endpoint),
-                 _iotad("hz", "iota/**", "--connect", endpoint)]
+        if started == "plainly":
+            tools = [_iotad("echo", "iota/**", "--connect", endpoint),
+                     _iotad("hz", "iota/**", "--connect", endpoint)]
+        else:
+            tools = [subprocess.Popen([sys.executable, "-c", IGNORING, tool, "iota/**", "--connect", endpoint],
+                                      cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                     for tool in ("echo", "hz")]
         time.sleep(3)
         for tool in tools:
             tool.send_signal(signal.SIGINT)
