@@ -8,6 +8,9 @@ process of its own could not see them:
     tally  (output, conveyorTally) whenever an object appears, is grasped, placed, missed or dropped
     scene  (output, conveyorScene) with every camera frame: the belt, the bin and the cubes, to draw
 
+Each is stamped with the world's time on the engine's clock (`clock_time`), which vision,
+planning and manipulation compare with their own now() to predict where an object will be.
+
 The tally is ground truth from the simulation: for the record, the plot and the tests; no
 controller reads it (planning works from what vision sees).
 """
@@ -81,7 +84,7 @@ class ConveyorSim(SimulatedOdrives):
 
     def _count(self):
         world = self.plant
-        return TALLY(t=self.sim_time, spawned=sum(c.state != "waiting" for c in world.cubes),
+        return TALLY(t=self.clock_time, spawned=sum(c.state != "waiting" for c in world.cubes),
                      held=int(world.held is not None), placed=world.placed, missed=world.missed,
                      dropped=world.dropped)
 
@@ -93,7 +96,7 @@ class ConveyorSim(SimulatedOdrives):
         forward, up = [m[2], m[5], m[8]], [m[0], m[3], m[6]]
         eye = [p + CAMERA_AHEAD * f for p, f in zip(position, forward)]
         image = world.camera_image(IMAGE_SIZE, IMAGE_SIZE, fov=CAMERA_FOV)
-        return CAMERA_FRAME(t=self.sim_time, rgb=image.tobytes(), fov=CAMERA_FOV, eye=eye, forward=forward, up=up)
+        return CAMERA_FRAME(t=self.clock_time, rgb=image.tobytes(), fov=CAMERA_FOV, eye=eye, forward=forward, up=up)
 
     def _scene(self):
         """The belt, the bin and the cubes now (the newest MAX_SHOWN of those in the world)."""
@@ -102,7 +105,7 @@ class ConveyorSim(SimulatedOdrives):
         centres = [pybullet.getBasePositionAndOrientation(c.body, physicsClientId=world.client)[0] for c in shown]
         pad = [0.0] * (MAX_SHOWN - len(shown))
         return CONVEYOR_SCENE(
-            t=self.sim_time, belt=[world.belt_x, world.belt_length, world.belt_width, world.belt_height],
+            t=self.clock_time, belt=[world.belt_x, world.belt_length, world.belt_width, world.belt_height],
             bin=[*world.bin_position, world.bin_size, world.bin_height], cube_size=world.cube_size,
             count=len(shown), x=[c[0] for c in centres] + pad, y=[c[1] for c in centres] + pad,
             z=[c[2] for c in centres] + pad, colour=[COLOUR_NAMES.index(c.colour) for c in shown] + [0] * len(pad))
