@@ -39,7 +39,7 @@ def test_a_host_clock_50_ms_ahead_and_drifting_is_measured_and_corrected_all_run
                                  stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=ROOT,
                                  start_new_session=True)
         try:
-            done = subprocess.run(net.exec("brain", sys.executable, "-m", "iotad", "run", str(path), "--until", "10", "--after-live",
+            done = subprocess.run(net.exec("brain", sys.executable, "-m", "iotad", "run", str(path), "--insecure", "--until", "10", "--after-live",
                                            "--plain", "-o", str(tmp_path / "drift.mcap")),
                                   capture_output=True, text=True, timeout=120, cwd=ROOT)
         finally:

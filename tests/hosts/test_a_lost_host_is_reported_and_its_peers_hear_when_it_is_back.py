@@ -43,7 +43,7 @@ def test_a_lost_host_is_reported_its_nodes_marked_down_and_its_return_restarts_t
         trace = tmp_path / "vision-trace.jsonl"
         log = tmp_path / "run.log"
         with log.open("w") as out:
-            run = subprocess.Popen(net.exec("brain", sys.executable, "-m", "iotad", "run", str(path), "--plain",
+            run = subprocess.Popen(net.exec("brain", sys.executable, "-m", "iotad", "run", str(path), "--insecure", "--plain",
                                             "-o", str(recording)),
                                    stdout=out, stderr=subprocess.STDOUT, text=True, cwd=ROOT, start_new_session=True)
         try:

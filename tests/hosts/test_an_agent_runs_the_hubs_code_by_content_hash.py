@@ -219,7 +219,7 @@ def test_an_agent_whose_checkout_is_stale_runs_the_hubs_files(tmp_path):
                                      start_new_session=True)
             log = tmp_path / "run.log"
             with log.open("w") as out:
-                run = subprocess.Popen(net.exec("brain", sys.executable, "-m", "iotad", "run", str(system), "--plain",
+                run = subprocess.Popen(net.exec("brain", sys.executable, "-m", "iotad", "run", str(system), "--insecure", "--plain",
                                                 "--no-record"),
                                        stdout=out, stderr=subprocess.STDOUT, text=True, cwd=ROOT, start_new_session=True)
             answered = watch.communicate(timeout=150)[0]

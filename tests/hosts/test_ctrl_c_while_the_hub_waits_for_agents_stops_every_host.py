@@ -38,7 +38,7 @@ def test_ctrl_c_while_waiting_for_an_agent_stops_at_once_and_stops_the_started_h
                                  start_new_session=True)
         log = tmp_path / "run.log"
         with log.open("w") as out:
-            run = subprocess.Popen(net.exec("brain", sys.executable, "-m", "iotad", "run", str(path), "--plain",
+            run = subprocess.Popen(net.exec("brain", sys.executable, "-m", "iotad", "run", str(path), "--insecure", "--plain",
                                             "--no-record", "--agent-timeout", str(AGENT_TIMEOUT)),
                                    stdout=out, stderr=subprocess.STDOUT, text=True, cwd=ROOT, start_new_session=True)
         try:

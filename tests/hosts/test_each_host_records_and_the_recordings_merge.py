@@ -49,7 +49,7 @@ def test_each_host_records_its_part_and_the_merged_recording_holds_both(tmp_path
         system = tmp_path / "split2.toml"
         system.write_text(figure2_over(hub, net.addresses["arm"]))
         with agent(net, "arm", f"tcp/{hub}:7617"):
-            done = iotad("run", system, "--until", "9", "--after-live", "--plain", "-o", tmp_path / "split.mcap",
+            done = iotad("run", system, "--insecure", "--until", "9", "--after-live", "--plain", "-o", tmp_path / "split.mcap",
                          place=lambda *c: net.exec("brain", *c))
     assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-2000:]
     # the arm's launcher said where it records, on its own machine (here: the same folder)

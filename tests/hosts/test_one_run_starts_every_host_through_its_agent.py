@@ -53,7 +53,7 @@ def test_the_hub_starts_the_arm_through_its_agent(tmp_path):
             runs = []
             for k in range(2):  # the same agent serves a second run after the first one's hub closed
                 recording = tmp_path / f"split{k}.mcap"
-                runs.append(iotad(lambda *c: net.exec("brain", *c), "run", str(path), "--until", "8", "--after-live", "--plain",
+                runs.append(iotad(lambda *c: net.exec("brain", *c), "run", str(path), "--insecure", "--until", "8", "--after-live", "--plain",
                                   "-o", str(recording)))
                 done = runs[-1]
                 assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-2000:]
@@ -74,7 +74,7 @@ def test_a_host_without_an_agent_is_one_clear_error(tmp_path):
         hub = net.addresses[("brain", "arm")]
         path = tmp_path / "split.toml"
         path.write_text(system_text(hub, net.addresses["arm"]))
-        done = iotad(lambda *c: net.exec("brain", *c), "run", str(path), "--until", "5", "--no-record", "--plain",
+        done = iotad(lambda *c: net.exec("brain", *c), "run", str(path), "--insecure", "--until", "5", "--no-record", "--plain",
                      "--agent-timeout", "2")
         assert done.returncode == 2, done.stdout + done.stderr
         assert "no agent answered for host(s) arm within 2 s" in done.stderr
@@ -156,7 +156,7 @@ def test_a_host_whose_clock_is_50_ms_ahead_is_measured_and_corrected(tmp_path):
                                  stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=ROOT,
                                  start_new_session=True)
         try:
-            done = iotad(lambda *c: net.exec("brain", *c), "run", str(path), "--until", "8", "--after-live", "--plain",
+            done = iotad(lambda *c: net.exec("brain", *c), "run", str(path), "--insecure", "--until", "8", "--after-live", "--plain",
                          "-o", str(tmp_path / "skew.mcap"))
         finally:
             interrupt_then_kill(agent)

@@ -41,7 +41,7 @@ host = "arm"
 from = "src.out"
 to = "sink.inp"
 """)
-    proc = subprocess.Popen([sys.executable, "-m", "iotad", "run", str(path), "--host", "arm", "--plain",
+    proc = subprocess.Popen([sys.executable, "-m", "iotad", "run", str(path), "--insecure", "--host", "arm", "--plain",
                              "--log-dir", str(tmp_path / "logs")], cwd=ROOT, stdout=subprocess.PIPE,
                             stderr=subprocess.STDOUT, text=True, start_new_session=True)
     try:

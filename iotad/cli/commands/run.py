@@ -79,7 +79,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--no-record", action="store_true", help="run without a recorder (no recording)")
     parser.add_argument("--insecure", action="store_true",
                         help="no access control: any process reaching the hub may publish on any key "
-                             "(default: each node authenticated, writing only its outputs; docs/access-control.md)")
+                             "(default: each node authenticated, writing only its outputs; docs/access-control.md). "
+                             "A system spread over hosts linked without TLS runs only with it (docs/hosts.md)")
     parser.add_argument("-o", "--record-to", metavar="FILE",
                         help="recording file (default recordings/<system>-<time>.mcap); an existing "
                              "recording is kept: see --force")
@@ -137,8 +138,8 @@ def run(args: argparse.Namespace) -> int:
 
             policy.grants += host_grants(system, others)
             print(f"access control of {system.name}: on when its hub starts the other hosts through their agents "
-                  "over tls/ endpoints with --certs; off with --insecure, --local, --host or tcp/ links "
-                  "(docs/hosts.md)")
+                  "over tls/ endpoints with --certs; off with --insecure or --local; tcp/ links, and a --host "
+                  "launcher the hub's agent did not start, are refused without --insecure (docs/hosts.md)")
         print("\n".join(policy.lines()))
         return 0
     if args.no_record and args.record_to:
@@ -248,7 +249,7 @@ def _launch(system, args: argparse.Namespace, record_to: str | None, summary_hoo
     access = access_for(system, args)
     # under access control every other host's launcher and nodes are clients of the hub, which
     # records all they say: they record nothing of their own (docs/hosts.md, "The recording")
-    fleet, host = _fleet_for(system, args, port, None if access.enabled else record_to)
+    fleet, host = _fleet_for(system, args, port, None if access.enabled else record_to, insecure=not access.enabled)
     launch = LaunchOptions(host=host, port=port, until=args.until, after_live=args.after_live,
                            origin=args.origin, log_dir=args.log_dir, live_table=False if args.plain else None)
     recording = None if args.no_record or record_to is None else RecordingOptions(
@@ -310,11 +311,13 @@ def _use_certificates(system, args: argparse.Namespace) -> None:
         raise CliError(str(exc)) from None
 
 
-def _fleet_for(system, args: argparse.Namespace, port: int | None, record_to: str | None = None):
+def _fleet_for(system, args: argparse.Namespace, port: int | None, record_to: str | None = None,
+               insecure: bool = False):
     """(the agents of the other hosts or None, the host this launcher runs). A system spread over
     hosts, started without --host or --local, runs here as its hub host and everywhere else
     through each host's agent; each of them records its own part beside the hub's recording
-    `record_to` (`host_recording_path`: split.mcap -> split.arm.mcap, on that host)."""
+    `record_to` (`host_recording_path`: split.mcap -> split.arm.mcap, on that host). `insecure`:
+    the run is open (--insecure), and so are the launchers the agents start for it."""
     hosts = [n.host for n in system.nodes.values() if n.host]
     if args.host is not None or args.local or not hosts:
         return None, args.host
@@ -324,7 +327,8 @@ def _fleet_for(system, args: argparse.Namespace, port: int | None, record_to: st
 
     hub = [reachable(e) for e in (with_port(system.listen, port) if port is not None else system.listen)]
     others = sorted(set(hosts) - {system.hub_host}, key=hosts.index)
-    agent_args = (["--no-record"] if record_to is None else []) + (["--port", str(port)] if port is not None else [])
+    agent_args = (["--no-record"] if record_to is None else []) + (["--port", str(port)] if port is not None else []) \
+        + (["--insecure"] if insecure else [])
     host_args = {}
     if record_to is not None:
         from iotad.launcher.host_recording import host_recording_path
@@ -357,8 +361,10 @@ def _view_port_free(port: int) -> None:
 def access_for(system, args: argparse.Namespace):
     """Access control for this run (docs/access-control.md): on unless --insecure. A system spread
     over hosts has it when the hub starts the other hosts through their agents over TLS (the hub
-    hands each agent its host's credentials) and on each host's launcher its agent starts; off,
-    with a warning saying why, where no one could hand the other launchers their credentials."""
+    hands each agent its host's credentials) and on each host's launcher its agent starts. Where
+    no one could hand the other launchers their credentials (tcp/ links, no --certs, a launcher
+    started by hand with --host), the run is refused unless --insecure says to run it open: a
+    system on a network is secured by default, not by remembering a flag."""
     import os
 
     from iotad.cli import CliError
@@ -381,15 +387,20 @@ def access_for(system, args: argparse.Namespace):
             raise CliError(str(exc)) from None
         if own is not None and own.user == launcher_user(args.host):
             return AccessOptions(given=given)  # started by this host's agent, for the hub's run
-        return AccessOptions.off(f"--host {args.host}: no credentials from the hub, whose run is without access "
-                                 "control or which did not start this launcher through its agent (docs/hosts.md)")
+        raise CliError(f"--host {args.host}: no credentials from the hub, so this host's nodes would run without "
+                       "access control: start this host through its agent ('iotad agent', started by the hub's "
+                       "'iotad run'; docs/hosts.md), or give --insecure here and to the hub's launcher to run "
+                       "the system open")
     if args.local:
         return AccessOptions.off("--local")
     certs = args.certs or os.environ.get(ENV_DIR)
     plain = [endpoint for endpoint in system.listen if not endpoint.startswith(("tls/", "quic/"))]
     if not certs or plain:
-        return AccessOptions.off("the hosts are linked without TLS (tls/ endpoints and --certs DIR): their agents "
-                                 "cannot be admitted, nor their credentials sent, safely; docs/hosts.md")
+        how = f"listens on {', '.join(plain)}" if plain else "has no --certs DIR"
+        raise CliError(f"{system.name} spreads over hosts and its hub {how}: its agents could be neither admitted "
+                       "nor sent their credentials safely, so access control would be off. Link the hosts by "
+                       "tls/ endpoints and give --certs DIR ('iotad certs'; docs/hosts.md), run every host "
+                       "here with --local, or give --insecure to run the system open")
     others = list(dict.fromkeys(host for host in hosts if host != system.hub_host))
     try:
         for host in others:
