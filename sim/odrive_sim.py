@@ -70,7 +70,7 @@ class SimulatedOdrives(Iota):
     input_mode = Param("PASSTHROUGH")  # at power-up: a name, or {joint: name}
     torque_constant = Param(1.0)    # Nm/A: Set_Limits' Current_Limit times this is the torque limit
     timing_slack = Param(0.005)     # s a step or cyclic frame may be late in real time (window width)
-    max_catch_up = Param(12)        # physics steps one late step may take to catch the clock up
+    max_catch_up = Param(24)        # physics steps one late step may take to catch the clock up (0.1 s)
 
     can_rx = Input(CAN_FRAME, switching=0)
     can_tx = Output(CAN_FRAME, switching=0)
