@@ -98,3 +98,15 @@ def agent_lines(certs: Path, port: int, until: str, timeout: float = 40) -> tupl
     finally:
         errors = agent.stop()
     return agent.lines, errors
+
+
+def authority_for(certs: Path, hosts: dict[str, list[str]]) -> Path:
+    """A system's authority in `certs` with a certificate and an agent secret for each host of
+    `hosts` (name: its addresses), as 'iotad certs init' and 'iotad certs host' make them."""
+    from iotad.host import agent_secret
+
+    certificates.init_authority(certs)
+    for host, addresses in hosts.items():
+        certificates.issue_host(certs, host, addresses)
+        agent_secret.write(certs, host)
+    return certs

@@ -27,6 +27,7 @@ class AccessControl:
         self.policy: Policy | None = derive(system) if enabled else None
         self.store: CredentialStore | None = None
         self.own: Credentials | None = None  # a host's launcher: its own, from its agent
+        self.router = None  # a host's launcher: the router of its nodes (iotad/launcher/host_router.py)
         if self.policy is None:
             return
         if given is not None:
@@ -47,11 +48,22 @@ class AccessControl:
     def off(cls, system: System, why: str) -> "AccessControl":
         return cls(system, enabled=False, why_off=why)
 
+    def route(self, host: str) -> str:
+        """Another host's launcher: its session becomes the router of `host`'s nodes and recorder
+        (iotad/launcher/host_router.py); where they reach it."""
+        from iotad.launcher.host_router import HostRouter
+
+        self.router = HostRouter(self.system, host, self.store, self.own)
+        return self.router.endpoint
+
     def hub_options(self) -> dict[str, Any]:
         """Keyword arguments of `transport.open_session` for the launcher's session: the hub's, or
-        for another host's launcher its own user's (a client of the hub, listening nowhere)."""
+        for another host's launcher the router's of its host (`route`), linked to the hub as its
+        own user, or without a router that user's (a client of the hub, listening nowhere)."""
         if self.store is None:
             return {"credentials": False}
+        if self.router is not None:
+            return self.router.session_options()
         if self.own is not None:
             return {"credentials": self.own}
         return {"credentials": self.store.hub(), "extra": {"access_control": self.policy.acl()}}
@@ -76,7 +88,7 @@ class AccessControl:
         return self.env_for(node_user(path))
 
     def recorder_env(self) -> dict[str, str] | None:
-        return self.env_for(RECORDER_USER)
+        return self.router.recorder_env() if self.router is not None else self.env_for(RECORDER_USER)
 
     def tools_file(self) -> str | None:
         return str(self.store.file_of(TOOLS_USER)) if self.store else None
@@ -100,6 +112,8 @@ class AccessControl:
                 "them; see docs/access-control.md)"]
 
     def close(self) -> None:
+        if self.router is not None:
+            self.router.close()
         if self.store is not None:
             self.store.remove()
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 from iotad.host import wire
 from iotad.host.agent_secret import agent_user
 from iotad.host.clock_offset import clock_key
-from iotad.launcher.access_policy import Grant, node_user
+from iotad.launcher.access_policy import Grant, derive, node_user
 from iotad.launcher.agent import AGENT_PREFIX, agent_key
 from iotad.launcher.code_by_hash import CODE_PREFIX
 from iotad.launcher.system_file import System
@@ -30,19 +30,33 @@ def host_users(system: System, host: str) -> list[str]:
     return [launcher_user(host), *(node_user(node.name) for node in system.nodes_on(host))]
 
 
+def launcher_grant(system: System, host: str) -> Grant:
+    """What `host`'s launcher user may do at the hub: its own part (its launcher events, the hub's
+    origin on its clock that its nodes follow, its start gate, the nodes' liveliness, heartbeats
+    and traces), and, since its session is the router its nodes reach the hub through
+    (iotad/launcher/host_router.py), what each of those nodes may do, nothing more."""
+    name = system.name
+    grant = Grant(
+        launcher_user(host), f"launcher of host {host} (and the router of its nodes)",
+        publish=[wire.launcher_key(name), wire.host_origin_key(name, host)],
+        subscribe=[wire.every_node(name, wire.HEARTBEAT), wire.every_node(name, wire.TRACE)],
+        ask=[wire.origin_key(name), clock_key(name)],
+        tokens=[wire.gate_key(name, host)],
+        watch=[wire.every_node(name, wire.ALIVE)])
+    own = {node_user(node.name) for node in system.nodes_on(host)}
+    for node in derive(system).grants:
+        if node.user in own:
+            for part in ("publish", "subscribe", "serve", "ask", "tokens", "watch", "declarations"):
+                keys = getattr(grant, part)
+                keys.extend(key for key in getattr(node, part) if key not in keys)
+    return grant
+
+
 def host_grants(system: System, hosts: list[str]) -> list[Grant]:
     """The grants for the other hosts `hosts` of `system` and for the hub's fleet session."""
-    name = system.name
     grants = []
     for host in hosts:
-        grants.append(Grant(
-            launcher_user(host), f"launcher of host {host}",
-            # its launcher events, and the hub's origin on its clock that its nodes follow
-            publish=[wire.launcher_key(name), wire.host_origin_key(name, host)],
-            subscribe=[wire.every_node(name, wire.HEARTBEAT), wire.every_node(name, wire.TRACE)],
-            ask=[wire.origin_key(name), clock_key(name)],
-            tokens=[wire.gate_key(name, host)],
-            watch=[wire.every_node(name, wire.ALIVE)]))
+        grants.append(launcher_grant(system, host))
         key = agent_key(host)
         grants.append(Grant(
             agent_user(host), f"agent of host {host}",
@@ -65,4 +79,4 @@ def host_grants(system: System, hosts: list[str]) -> list[Grant]:
     return grants
 
 
-__all__ = ["FLEET_USER", "host_grants", "host_users", "launcher_user"]
+__all__ = ["FLEET_USER", "host_grants", "host_users", "launcher_grant", "launcher_user"]

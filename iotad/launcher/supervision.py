@@ -141,11 +141,13 @@ class Launcher:
         # what its own nodes do (iotad/launcher/host_recording.py)
         self.recorder: RecorderSupervisor | None = None
         self._local: list[str] = []      # another host's launcher: where its recorder and nodes reach it
+        if self.access is not None and self.access.own is not None and not system.opens_hub(self.host):
+            # under access control its session is its host's router, on a private unix socket
+            # (iotad/launcher/host_router.py): its nodes and recorder reach nothing else
+            self._local = [self.access.route(self.host)]
         self._hub_origin: float | None = None  # another host's launcher: the origin the hub answered
         self._clock: dict | None = None        # another host's launcher: its clock offset, as measured
-        if recording is not None and (system.opens_hub(self.host) or self.access is None or self.access.own is None):
-            # (another host's launcher under access control is a client of the hub, as are its
-            # nodes: the hub records all of them, and nothing here could hear more)
+        if recording is not None:
             self.recorder = RecorderSupervisor(
                 system, recording, hub=self.hub, run_dir=self.run_dir,
                 env=self.access.recorder_env() if self.access else None, events=self.events,
@@ -224,7 +226,9 @@ class Launcher:
             listen, connect = self.hub, list(system.connect)
         else:
             listen, connect = system.listen_for(self.host), self.hub
-            if self.recorder is not None:  # its recorder and nodes connect here: a known port
+            if self.access is not None and self.access.router is not None:
+                listen = list(self._local)
+            elif self.recorder is not None:  # its recorder and nodes connect here: a known port
                 from iotad.launcher.host_recording import local_endpoints, pinned
 
                 listen = pinned(listen)
@@ -615,7 +619,9 @@ class Launcher:
     def _spawn(self, run: NodeRun, event: str) -> None:
         # another host's recording: its nodes connect to its launcher too, so that its recorder
         # hears them from their first event and while the hub is out of reach
-        config = self.system.node_config(run.name, self.origin, self.hub + self._local)
+        # (under access control only to its router, which links it to the hub: host_router.py)
+        routed = self.access is not None and self.access.router is not None
+        config = self.system.node_config(run.name, self.origin, self._local if routed else self.hub + self._local)
         config["restarts"] = run.restarts  # its heartbeats say it: a tool attached later counts them
         if not self.gate_open:  # a node (re)started after the gate opened starts its engine at once
             config["start_gate"] = self.gate_key

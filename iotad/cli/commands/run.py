@@ -247,9 +247,9 @@ def _launch(system, args: argparse.Namespace, record_to: str | None, summary_hoo
         port = free_port()
     _use_certificates(system, args)
     access = access_for(system, args)
-    # under access control every other host's launcher and nodes are clients of the hub, which
-    # records all they say: they record nothing of their own (docs/hosts.md, "The recording")
-    fleet, host = _fleet_for(system, args, port, None if access.enabled else record_to, insecure=not access.enabled)
+    # each other host records its own part, under access control too (its launcher is its nodes'
+    # router: iotad/launcher/host_router.py; docs/hosts.md, "The recording")
+    fleet, host = _fleet_for(system, args, port, record_to, insecure=not access.enabled)
     launch = LaunchOptions(host=host, port=port, until=args.until, after_live=args.after_live,
                            origin=args.origin, log_dir=args.log_dir, live_table=False if args.plain else None)
     recording = None if args.no_record or record_to is None else RecordingOptions(

@@ -1,0 +1,91 @@
+"""The zenoh router of one host of a run under access control that is not the hub's: the host's
+launcher session, listening only on a unix socket in a private folder (0700), checks its own
+nodes and recorder against the same credentials and rights as the hub, and is linked to the hub
+over TLS as the host's launcher user (docs/hosts.md, "The recording").
+
+Why: the host's nodes and recorder are its clients, so while the link to the hub is cut they
+still reach each other and the recorder hears everything they do. The hub sees the router's
+link as the launcher user, whose grant holds what the host's nodes may do and nothing more
+(`iotad.launcher.host_access`); the host's recorder may read every key here, but the hub denies
+its wider subscriptions, so only what the host's nodes read crosses the link.
+
+Measured with zenoh 1.10 (two sessions, a unix socket and a TLS link): one `transport/auth/usrpwd`
+section with `user`, `password` and `dictionary_file` authenticates the router's own link to the
+hub and checks the clients that connect to it; the hub enforces the launcher user's rules on
+everything relayed over that link; and on the router the link to the hub needs a subject of its
+own (its certificate's common name, the hub host's name): without one the router's default deny
+drops everything in both directions."""
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+from typing import Any
+
+from iotad.host.credentials import Credentials, CredentialStore, GivenCredentials
+from iotad.launcher.access_policy import RECORDER_USER, Grant, Policy, derive, node_user
+from iotad.launcher.host_access import host_users
+from iotad.launcher.system_file import System
+
+# every kind of message a link carries: the hub's own access control judges them
+_EVERY_MESSAGE = ["put", "delete", "declare_subscriber", "declare_queryable", "query", "reply",
+                  "liveliness_token", "declare_liveliness_subscriber", "liveliness_query"]
+SOCKET = "router.sock"
+
+
+class HostRouter:
+    """Credentials and rules of host `host`'s router: its nodes' and launcher's users as the agent
+    received them (in `given`'s folder), and a user of its own for the host's recorder."""
+
+    def __init__(self, system: System, host: str, given: GivenCredentials, own: Credentials):
+        self.system, self.host, self.own = system, host, own
+        passwords = {user: given.credentials(user).password for user in host_users(system, host)}
+        # a short private path: a unix socket's name holds at most 107 bytes
+        self.store = CredentialStore([RECORDER_USER], passwords=passwords,
+                                     parent=tempfile.gettempdir() if len(tempfile.gettempdir()) < 40 else "/tmp")
+        os.chmod(self.store.folder, 0o700)
+        self.endpoint = f"unixsock-stream/{Path(self.store.folder) / SOCKET}"
+
+    def policy(self) -> Policy:
+        """The host's nodes' grants, exactly as the hub's, and the recorder's."""
+        hub = derive(self.system)
+        users = {node_user(node.name) for node in self.system.nodes_on(self.host)} | {RECORDER_USER}
+        return Policy(self.system.name, [grant for grant in hub.grants if grant.user in users])
+
+    def acl(self) -> dict[str, Any]:
+        """zenoh's `access_control` for the router: the policy for its local clients, and for the
+        link to the hub (the certificate the hub shows, named for the hub's host) every key any of
+        them may use, whatever the message: the hub judges what crosses it."""
+        acl = self.policy().acl()
+        keys = sorted({key for grant in self.policy().grants for key in _keys(grant)} | set(_launcher_keys(self.system, self.host)))
+        acl["rules"].append({"id": "hub-link", "permission": "allow", "flows": ["ingress", "egress"],
+                             "messages": list(_EVERY_MESSAGE), "key_exprs": keys})
+        acl["subjects"].append({"id": "hub", "cert_common_names": [self.system.hub_host]})
+        acl["policies"].append({"id": "hub", "rules": ["hub-link"], "subjects": ["hub"]})
+        return acl
+
+    def session_options(self) -> dict[str, Any]:
+        """Keyword arguments of `transport.open_session` for the launcher's session as the router."""
+        credentials = Credentials(self.own.user, self.own.password, str(self.store.dictionary))
+        return {"credentials": credentials, "extra": {"access_control": self.acl()}}
+
+    def recorder_env(self) -> dict[str, str]:
+        from iotad.host.credentials import ENV
+
+        return {**os.environ, ENV: str(self.store.file_of(RECORDER_USER))}
+
+    def close(self) -> None:
+        self.store.remove()
+
+
+def _keys(grant: Grant) -> list[str]:
+    return [*grant.publish, *grant.subscribe, *grant.serve, *grant.ask, *grant.tokens, *grant.watch, *grant.declarations]
+
+
+def _launcher_keys(system: System, host: str) -> list[str]:
+    from iotad.launcher.host_access import launcher_grant
+
+    return _keys(launcher_grant(system, host))
+
+
+__all__ = ["HostRouter"]
