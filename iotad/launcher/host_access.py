@@ -4,7 +4,9 @@ credentials the hub hands each host's agent (docs/hosts.md, "Access control").
 
 The nodes keep exactly their one-machine rights (`access_policy.derive`). A host's launcher may
 only do what a launcher that does not hold the hub does: publish its events, follow the nodes'
-liveliness, heartbeats and traces, ask the hub's origin and clock, and open its own start gate.
+liveliness, heartbeats and traces, ask the hub's origin and clock, and open its own start gate;
+and, as the router its host's nodes reach the hub through (iotad/launcher/host_router.py), what
+those nodes may do.
 A host's agent may only serve its own orders and publish its own lines: the hub's `iotad run`
 asks `iota/@agent/<host>/run` with that host's credentials in the order, so no other user can
 declare the queryable that receives them."""
@@ -37,7 +39,7 @@ def launcher_grant(system: System, host: str) -> Grant:
     (iotad/launcher/host_router.py), what each of those nodes may do, nothing more."""
     name = system.name
     grant = Grant(
-        launcher_user(host), f"launcher of host {host} (and the router of its nodes)",
+        launcher_user(host), f"launcher of host {host}",
         publish=[wire.launcher_key(name), wire.host_origin_key(name, host)],
         subscribe=[wire.every_node(name, wire.HEARTBEAT), wire.every_node(name, wire.TRACE)],
         ask=[wire.origin_key(name), clock_key(name)],

@@ -40,10 +40,9 @@ class HostRouter:
     def __init__(self, system: System, host: str, given: GivenCredentials, own: Credentials):
         self.system, self.host, self.own = system, host, own
         passwords = {user: given.credentials(user).password for user in host_users(system, host)}
-        # a short private path: a unix socket's name holds at most 107 bytes
-        self.store = CredentialStore([RECORDER_USER], passwords=passwords,
-                                     parent=tempfile.gettempdir() if len(tempfile.gettempdir()) < 40 else "/tmp")
-        os.chmod(self.store.folder, 0o700)
+        # a private folder (0700) that also holds the socket, whose path may be 107 bytes at most
+        parent = tempfile.gettempdir() if len(tempfile.gettempdir()) < 60 else "/tmp"
+        self.store = CredentialStore([RECORDER_USER], passwords=passwords, parent=parent)
         self.endpoint = f"unixsock-stream/{Path(self.store.folder) / SOCKET}"
 
     def policy(self) -> Policy:

@@ -1,0 +1,72 @@
+"""A source on host arm feeding a sink on host brain (the hub), for tests that cut the link between
+them, and what they check afterwards: the arm's own recording kept every event of the source, each
+recorded as it happened, and the merge marks whatever the hub's recording lacks of them."""
+from __future__ import annotations
+
+from launcher_helpers import ROOT
+
+from iotad.recording.mcap_reader import read_recording
+from iotad.recording.merge import merge
+
+
+def source_to_sink(hub: str, arm: str, port: int, scheme: str = "tcp") -> str:
+    """The system file: `source` (one output a second) on arm, `sink` on brain, the hub at `hub`:`port`."""
+    iotas = ROOT / "tests" / "system_iotas.py"
+    return f"""
+[system]
+name = "cut"
+hub_host = "brain"
+[system.endpoints]
+listen = ["{scheme}/{hub}:{port}"]
+[hosts.brain]
+listen = ["{scheme}/{hub}:0"]
+[hosts.arm]
+listen = ["{scheme}/{arm}:0"]
+
+[[node]]
+name = "source"
+host = "arm"
+python = "{iotas}:Source"
+params = {{ period = 1.0 }}
+[[node]]
+name = "sink"
+host = "brain"
+python = "{iotas}:FreeSink"
+
+[[bind]]
+from = "source.out"
+to = "sink.inp"
+"""
+
+
+def outputs(recording) -> dict:
+    """The source's output events by their value n: (t, the message's log time)."""
+    return {m.value["value"]: (m.value["t"], m.log_time) for m in recording.messages
+            if m.topic == "iota/cut/source/@trace" and m.value.get("kind") == "output"}
+
+
+def check_kept_recording(hub_file, arm_file, cut_at: float, healed_at: float) -> None:
+    """The arm's recording holds every event of its source, those of the cut (wall-clock times
+    `cut_at` to `healed_at`) included, each within a second of its `t`; the merge of both files
+    holds them all, and each one the hub's file lacks is inside a gap naming the arm."""
+    own, hubs = read_recording(arm_file), read_recording(hub_file)
+    origin = own.info["run"]["origin"]
+    fired = outputs(own)
+    # every event of the source, one per second from n=0, none missing from its own recording
+    assert sorted(fired) == list(range(len(fired))), fired
+    during = [n for n, (t, _) in fired.items() if cut_at - origin + 0.1 < t < healed_at - origin - 0.1]
+    assert len(during) >= 2, (fired, cut_at - origin, healed_at - origin)
+    # each recorded as it happened (the arm's clock is the hub's here): within a second of its t,
+    # not when the link came back
+    for n in during:
+        t, log_time = fired[n]
+        assert 0 <= log_time / 1e9 - origin - t < 1.0, (n, t, log_time / 1e9 - origin)
+    merged = merge([hub_file, arm_file])
+    joined = outputs(merged.recording)  # log times on the hub's clock
+    assert sorted(joined) == sorted(fired)
+    missed = sorted(n for n in fired if n not in outputs(hubs))
+    gaps = [g for g in merged.gaps if g["host"] == "arm" and "did not reach the hub" in g["reason"]]
+    for n in missed:  # whatever the hub lacks is inside a gap that names the arm
+        t_ns = joined[n][1]
+        assert any(g["from_ns"] <= t_ns <= g["to_ns"] for g in gaps), (n, missed, gaps)
+    assert sum(g["events"] for g in gaps) >= len(missed)
