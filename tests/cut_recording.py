@@ -70,3 +70,17 @@ def check_kept_recording(hub_file, arm_file, cut_at: float, healed_at: float) ->
         t_ns = joined[n][1]
         assert any(g["from_ns"] <= t_ns <= g["to_ns"] for g in gaps), (n, missed, gaps)
     assert sum(g["events"] for g in gaps) >= len(missed)
+
+
+def cut_a_while(net, seconds: float) -> tuple[float, float]:
+    """Cut the link between brain and arm for `seconds` (the partition itself: how long the arm is
+    on its own), then heal it; the wall-clock times of the cut and of the heal."""
+    import time
+
+    net.cut("brain", "arm")
+    cut_at = time.time()
+    try:
+        time.sleep(seconds)
+    finally:
+        net.heal("brain", "arm")
+    return cut_at, time.time()

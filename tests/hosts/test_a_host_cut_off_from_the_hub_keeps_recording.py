@@ -7,7 +7,7 @@ loses nothing at the hub: its events arrive late; tests/recording/ has merges of
 lacks them); the merged recording holds them all once."""
 import time
 
-from cut_recording import check_kept_recording, source_to_sink
+from cut_recording import check_kept_recording, cut_a_while, source_to_sink
 from launcher_helpers import launcher
 from namespaces import hosts
 
@@ -35,13 +35,7 @@ def test_a_host_cut_off_from_the_hub_keeps_recording_and_the_merge_marks_what_th
                           prefix=tuple(net.exec("arm"))) as arm:
                 wait_for(arm.output, "start gate open")
                 wait_for(arm.output, "recording to")
-                net.cut("brain", "arm")
-                cut_at = time.time()
-                try:
-                    time.sleep(CUT)  # the partition itself: how long the arm is on its own
-                finally:
-                    net.heal("brain", "arm")
-                healed_at = time.time()
+                cut_at, healed_at = cut_a_while(net, CUT)
                 arm.send_signal(2)
                 assert arm.wait(30) in (0, 130), arm.output.read_text()[-3000:]
             brain.send_signal(2)

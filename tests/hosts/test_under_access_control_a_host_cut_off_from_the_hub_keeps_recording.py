@@ -8,7 +8,7 @@ import sys
 import time
 
 from agent_helpers import Lines, authority_for, start
-from cut_recording import check_kept_recording, source_to_sink
+from cut_recording import check_kept_recording, cut_a_while, source_to_sink
 from namespaces import hosts
 
 from iotad.launcher.processes import interrupt_then_kill
@@ -36,13 +36,7 @@ def test_under_access_control_a_host_cut_off_keeps_recording_and_the_merge_marks
             while lines.text().count("start gate open") < 2 and time.monotonic() < deadline and run.poll() is None:
                 time.sleep(0.1)
             assert lines.text().count("start gate open") == 2, lines.text()[-4000:]
-            net.cut("brain", "arm")
-            cut_at = time.time()
-            try:
-                time.sleep(CUT)  # the partition itself: how long the arm is on its own
-            finally:
-                net.heal("brain", "arm")
-            healed_at = time.time()
+            cut_at, healed_at = cut_a_while(net, CUT)
             time.sleep(1.0)  # a second of the healed link, for what waited in it
         finally:
             code = interrupt_then_kill(run)
