@@ -18,8 +18,10 @@ own). The bus models a classic CAN bus at `bitrate`:
   deliveries' windows open again for its end. A frame thus costs the engine its deliveries and
   its log, not one more firing for its arbitration.
 - Log: with `log_frames` (the default), every frame the bus carried goes out on `frames` as it
-  ends, a `CAN_BUS_FRAME` (`frame_log.py`: sender station, bit time, the frame, its CAN Simple
-  direction and message name), so a recording holds the bus's frames on one topic.
+  ends, a `CAN_BUS_FRAME` (`frame_log.py`: sender station, bit time, the frame, its direction
+  and its CAN Simple message name; `canopen_frame_log.CanopenCanBus`, the bus of a system with
+  CiA 402 stations, names CANopen families instead), so a recording holds the bus's frames on
+  one topic.
 - Load: `busy_time` (seconds the bus carried frames), `frames`; every `load_period` seconds the
   output `load` reports the fraction of that period the bus was busy (frames counted when they end;
   0 switches it off: the reports never stop, so `engine.run()` needs `until`) and `average_load` is

@@ -14,7 +14,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import lru_cache
-from pathlib import Path
 from typing import Any, Callable
 
 from lark import Lark
@@ -24,7 +23,7 @@ from iotad.kernel.types import BoolType, FloatType, IntType, Type
 from . import codegen
 from . import syntax as S
 from .errors import EspritError, Source
-from .parser import parse_with
+from .parser import lalr_parser, parse_with
 from .runtime import all_of, any_of, c_div, c_mod, fresh_budget, ix, with_budget
 from .static_checks import Checker, _Scope
 from .typesys import describe, is_number
@@ -32,8 +31,7 @@ from .typesys import describe, is_number
 
 @lru_cache(maxsize=1)
 def _expression_parser() -> Lark:
-    grammar = (Path(__file__).with_name("grammar.lark")).read_text(encoding="utf-8")
-    return Lark(grammar, parser="lalr", propagate_positions=True, maybe_placeholders=True, start="expr")
+    return lalr_parser("expr")
 
 
 def parse_expression(text: str, filename: str = "<expression>") -> S.Expr:

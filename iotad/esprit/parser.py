@@ -30,8 +30,38 @@ _TOKEN_NAMES = {
 
 @lru_cache(maxsize=1)
 def _lark() -> Lark:
+    return lalr_parser("start")
+
+
+def lalr_parser(start: str) -> Lark:
+    """The LALR parser of grammar.lark from the rule `start`. Building its tables costs about
+    0.25 s of CPU in every process that reads a spec (each node host, the launcher, the recorder,
+    the tools), so they are kept in a cache file of this user's and loaded in a fiftieth of that;
+    lark checks the grammar's hash in the file and builds them again when the grammar changed."""
     grammar = (Path(__file__).with_name("grammar.lark")).read_text(encoding="utf-8")
-    return Lark(grammar, parser="lalr", propagate_positions=True, maybe_placeholders=True)
+    return Lark(grammar, parser="lalr", propagate_positions=True, maybe_placeholders=True, start=start,
+                cache=_cache_file(start))
+
+
+def _cache_file(start: str) -> str | bool:
+    """Where the tables of `start` are kept: `$XDG_CACHE_HOME/iotad` (default ~/.cache/iotad),
+    made 0700. Lark unpickles the file, so a folder another user could write is not used (False:
+    no cache, the tables are built each time), nor one that cannot be made."""
+    import os
+    import sys
+
+    import lark
+
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    folder = os.path.join(base, "iotad")
+    try:
+        os.makedirs(folder, mode=0o700, exist_ok=True)
+        status = os.stat(folder)
+    except OSError:
+        return False
+    if status.st_uid != os.getuid() or status.st_mode & 0o022:
+        return False
+    return os.path.join(folder, f"esprit-{start}-lark{lark.__version__}-py{sys.version_info[0]}.{sys.version_info[1]}.tables")
 
 
 def _pos(item, children=()) -> S.Pos:
