@@ -5,6 +5,7 @@ socket, with the hub's rights for each of them) and reaches the hub as arm's lau
 records arm's part to secure.arm.mcap on arm. The run says access control is on and where the
 host's file is; `iotad merge` joins the two files into one that holds both hosts' events, and
 `iotad check` finds it clean."""
+import json
 import re
 import subprocess
 import sys
@@ -34,14 +35,25 @@ def test_under_access_control_each_host_records_its_part_and_the_merge_holds_bot
         agent = start(net.exec("arm", sys.executable, "-m", "iotad", "agent", "--name", "arm",
                                "--connect", f"tls/{hub}:{PORT}", "--certs", str(certs)))
         agent_lines = Lines(agent)
+        run = start(net.exec("brain", sys.executable, "-m", "iotad", "run", str(path), "--plain",
+                             "--certs", str(certs), "--until", "7", "--after-live", "-o", str(recording)))
+        lines = Lines(run)
         try:
-            run = subprocess.run(net.exec("brain", sys.executable, "-m", "iotad", "run", str(path), "--plain",
-                                          "--certs", str(certs), "--until", "7", "--after-live", "-o", str(recording)),
-                                 capture_output=True, text=True, timeout=150, cwd=ROOT)
+            assert lines.wait_for("vision: live (on another host)", 90), lines.text()[-4000:]
+            # the hub's tools reach arm's node through arm's router: its spec answers, naming its host
+            listed = subprocess.run(net.exec("brain", "env", f"IOTAD_CERTS={certs}", "IOTAD_CERTS_HOST=brain",
+                                             sys.executable, "-m", "iotad", "ls", "--system", "split", "--json",
+                                             "--connect", f"tls/{hub}:{PORT}"),
+                                    capture_output=True, text=True, timeout=60, cwd=ROOT)
+            code = run.wait(150)
+            lines.wait_for("join them with: iotad merge", 30)  # the summary's last line, or the end of the output
         finally:
+            interrupt_then_kill(run)
             interrupt_then_kill(agent)
-    output = run.stdout + run.stderr
-    assert run.returncode == 0, output[-4000:] + agent_lines.text()[-2000:]
+    output = lines.text()
+    assert code == 0, output[-4000:] + agent_lines.text()[-2000:]
+    hosts_of = {entry["path"]: entry["host"] for entry in map(json.loads, listed.stdout.splitlines())}
+    assert hosts_of == {"scheduler": "brain", "vision": "arm"}, listed.stdout + listed.stderr
     assert "access control: on (" in output and "access control is OFF" not in output, output[-4000:]
     arm_path = tmp_path / "secure.arm.mcap"
     assert f"recording to {arm_path}" in output, output[-4000:]
