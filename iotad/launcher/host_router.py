@@ -22,9 +22,9 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
-from iotad.host.credentials import Credentials, CredentialStore, GivenCredentials
+from iotad.host.credentials import ENV, Credentials, CredentialStore, GivenCredentials
 from iotad.launcher.access_policy import RECORDER_USER, Grant, Policy, derive, node_user
-from iotad.launcher.host_access import host_users
+from iotad.launcher.host_access import host_users, launcher_grant
 from iotad.launcher.system_file import System
 
 # every kind of message a link carries: the hub's own access control judges them
@@ -55,8 +55,9 @@ class HostRouter:
         """zenoh's `access_control` for the router: the policy for its local clients, and for the
         link to the hub (the certificate the hub shows, named for the hub's host) every key any of
         them may use, whatever the message: the hub judges what crosses it."""
-        acl = self.policy().acl()
-        keys = sorted({key for grant in self.policy().grants for key in _keys(grant)} | set(_launcher_keys(self.system, self.host)))
+        policy = self.policy()
+        keys = sorted({key for grant in [*policy.grants, launcher_grant(self.system, self.host)] for key in _keys(grant)})
+        acl = policy.acl()
         acl["rules"].append({"id": "hub-link", "permission": "allow", "flows": ["ingress", "egress"],
                              "messages": list(_EVERY_MESSAGE), "key_exprs": keys})
         acl["subjects"].append({"id": "hub", "cert_common_names": [self.system.hub_host]})
@@ -69,8 +70,6 @@ class HostRouter:
         return {"credentials": credentials, "extra": {"access_control": self.acl()}}
 
     def recorder_env(self) -> dict[str, str]:
-        from iotad.host.credentials import ENV
-
         return {**os.environ, ENV: str(self.store.file_of(RECORDER_USER))}
 
     def close(self) -> None:
@@ -79,12 +78,6 @@ class HostRouter:
 
 def _keys(grant: Grant) -> list[str]:
     return [*grant.publish, *grant.subscribe, *grant.serve, *grant.ask, *grant.tokens, *grant.watch, *grant.declarations]
-
-
-def _launcher_keys(system: System, host: str) -> list[str]:
-    from iotad.launcher.host_access import launcher_grant
-
-    return _keys(launcher_grant(system, host))
 
 
 __all__ = ["HostRouter"]
