@@ -156,6 +156,7 @@ def _probe_netns(setup: str, meaning: str) -> str | None:
 
 
 UML_PROBE_TIMEOUT = 60.0  # a boot takes ~2 s; a loaded machine (a test suite) may take far longer
+UML_BOOT_TIMEOUT = 120.0  # s from the kernel's start to the command's, not counted in a run's timeout
 
 
 def _probe_uml() -> str | None:
@@ -198,7 +199,8 @@ def run(command: list[str], tier_name: str | None = None, *, timeout: float = 12
         env: dict[str, str] | None = None, stream=None, uml_memory: str = "1G") -> TierRun:
     """Run `command` with a CAN bus in tier `tier_name` (default: the best). Its output comes back in
     `TierRun.output` (and is copied to `stream`, a text file, as it comes). TierTimeout after
-    `timeout` seconds, the command and everything it started killed."""
+    `timeout` seconds of the command (user-mode Linux's boot not counted), the command and
+    everything it started killed."""
     if not command:
         raise ValueError("no command to run")
     chosen = best_tier(tier_name)
@@ -244,14 +246,20 @@ def _stop_gently(process: subprocess.Popen, signum: int) -> None:
 
 
 def _run_process(chosen: Tier, command, argv, timeout, cwd, environment, stream, console_of=None,
-                 forward_signals: bool = True) -> TierRun:
+                 forward_signals: bool = True, begins: str | None = None) -> TierRun:
+    """`argv` run until it ends, or killed `timeout` s after it began: after its start, or, given
+    `begins`, after the line that starts with it (user-mode Linux's boot, 2 s here and far longer
+    on a loaded machine, is not the command's time; UML_BOOT_TIMEOUT bounds it)."""
     started = time.monotonic()
     lines: list[str] = []
+    began = threading.Event()
     process = subprocess.Popen(argv, cwd=cwd, env=environment, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
                                stderr=subprocess.STDOUT, start_new_session=True)
-    reader = threading.Thread(target=_pump, args=(process.stdout, lines, stream), daemon=True)
+    reader = threading.Thread(target=_pump, args=(process.stdout, lines, stream, begins, began), daemon=True)
     reader.start()
     try:
+        if begins is not None:
+            _wait_until_begun(process, began, started + UML_BOOT_TIMEOUT)
         returncode = process.wait(timeout=timeout)
     except subprocess.TimeoutExpired:
         _kill_group(process)
@@ -259,7 +267,9 @@ def _run_process(chosen: Tier, command, argv, timeout, cwd, environment, stream,
         run_ = TierRun(chosen, command, -9, "".join(lines), time.monotonic() - started)
         if console_of:
             run_.output, run_.console, _ = console_of(run_.output)
-        raise TierTimeout(f"{shlex.join(command)} ran past {timeout:g} s in tier {chosen.name} and was killed"
+        what = f"ran past {timeout:g} s" if begins is None or began.is_set() else \
+            f"did not begin within {UML_BOOT_TIMEOUT:g} s of the kernel's start"
+        raise TierTimeout(f"{shlex.join(command)} {what} in tier {chosen.name} and was killed"
                           f"\n--- output (tail) ---\n{run_.output[-3000:]}"
                           + (f"\n--- console (tail) ---\n{run_.console[-2000:]}" if run_.console else ""), run_)
     except BaseException as exc:
@@ -277,10 +287,21 @@ def _run_process(chosen: Tier, command, argv, timeout, cwd, environment, stream,
     return TierRun(chosen, command, returncode, "".join(lines), time.monotonic() - started)
 
 
-def _pump(pipe, lines: list[str], stream) -> None:
+def _wait_until_begun(process: subprocess.Popen, began: threading.Event, deadline: float) -> None:
+    """Until the command began (or the process ended before it did); TimeoutExpired past `deadline`."""
+    while not began.wait(0.05):
+        if process.poll() is not None:
+            return
+        if time.monotonic() > deadline:
+            raise subprocess.TimeoutExpired(process.args, UML_BOOT_TIMEOUT)
+
+
+def _pump(pipe, lines: list[str], stream, begins: str | None = None, began: threading.Event | None = None) -> None:
     for raw in iter(pipe.readline, b""):
         line = raw.decode("utf-8", "replace").replace("\r\n", "\n").replace("\r", "")
         lines.append(line)
+        if begins is not None and line.startswith(begins):
+            began.set()
         if stream is not None:
             try:
                 stream.write(line)
@@ -380,7 +401,7 @@ def _run_uml(chosen: Tier, command, timeout, cwd, environment, stream, memory) -
             # a signal to the user-mode kernel would end it at once: the command is killed instead
             run_ = _run_process(chosen, command, argv, timeout, cwd, uml_env,
                                 None if stream is None else _ConsoleFilter(stream), console_of=_split_console,
-                                forward_signals=False)
+                                forward_signals=False, begins=_BEGIN)
         except TierTimeout:
             raise
         output, console, ran = _split_console(run_.output)
