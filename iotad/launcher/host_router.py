@@ -30,6 +30,12 @@ from iotad.launcher.system_file import System
 _EVERY_MESSAGE = ["put", "delete", "declare_subscriber", "declare_queryable", "query", "reply",
                   "liveliness_token", "declare_liveliness_subscriber", "liveliness_query"]
 SOCKET = "router.sock"
+# No gossip from or to the router: a zenoh peer gossips its listeners' locators, and the hub passes
+# them on, so every other host's router learnt this host's unix socket and tried to link to it
+# directly (measured with zenoh 1.10: in vain across machines, and on one file system refused for
+# want of credentials). The router's one link, to the hub, is in its `connect` endpoints, and
+# nothing else is meant to reach the socket but this host's own clients.
+NO_GOSSIP = {"scouting/gossip/enabled": False}
 
 
 class HostRouter:
@@ -70,7 +76,7 @@ class HostRouter:
     def session_options(self) -> dict[str, Any]:
         """Keyword arguments of `transport.open_session` for the launcher's session as the router."""
         credentials = Credentials(self.own.user, self.own.password, str(self.store.dictionary))
-        return {"credentials": credentials, "extra": {"access_control": self.acl()}}
+        return {"credentials": credentials, "extra": {"access_control": self.acl(), **NO_GOSSIP}}
 
     def close(self) -> None:
         self.store.remove()
