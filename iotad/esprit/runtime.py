@@ -3,9 +3,9 @@ fault (index out of range, NULL index, division by zero), which the engine turns
 `runtime_error` violation while the IOTA goes on."""
 from __future__ import annotations
 
-import sys
 from typing import Any
 
+from iotad.kernel.instant import current
 from iotad.kernel.types import INT_MAX, INT_MIN, Record
 
 
@@ -127,54 +127,14 @@ def esprit_now() -> float:
     """`now()`: the time of the firing (or enabling) in progress, in spec time units.
 
     The kernel calls an action's functions as `f(iota, index)` and passes no time: time is the
-    engine's. Every call that can reach a do-block or a time bound comes from an `Engine` method
-    that holds the instant being executed in its local `now` (`_fire`, `_deliver`, `_enable`),
-    so the innermost engine frame on the stack says what time it is; `Engine.now()` (the
-    clock) is the fallback. The static checks keep now() out of preconditions and output
-    values, which the trace checker also evaluates outside any engine firing.
-
-    A frame's code is compared first, its locals read only for the engine's own frame: reading
-    `f_locals` builds a dict per frame (~1 us each), and the modelled CAN bus asks the time for
-    every frame it carries.
+    engine's, which holds the instant it is executing in `iotad.kernel.instant.current` while it
+    runs an IOTA's code. The static checks keep now() out of preconditions and output values,
+    which the trace checker also evaluates outside any engine firing.
     """
-    codes = _ENGINE_CODES or _engine_codes()
-    frame = sys._getframe(1)
-    while frame is not None:
-        if frame.f_code in codes:
-            return _instant_of(frame)
-        frame = frame.f_back
-    # no frame of Engine's own methods: a subclass's, if any (the slow way, every frame's self)
-    from iotad.kernel.engine import Engine
-
-    frame = sys._getframe(1)
-    while frame is not None:
-        if isinstance(frame.f_locals.get("self"), Engine):
-            return _instant_of(frame)
-        frame = frame.f_back
-    raise RuntimeError("now() is defined only while an engine runs the IOTA")
-
-
-def _instant_of(frame: Any) -> float:
-    """The instant an engine frame is executing: its local `now`, else its clock's."""
-    local = frame.f_locals
-    instant = local.get("now")
-    if isinstance(instant, (int, float)) and not isinstance(instant, bool):
-        return float(instant)
-    return float(local["self"].now())
-
-
-_ENGINE_CODES: frozenset = frozenset()
-
-
-def _engine_codes() -> frozenset:
-    """The code objects of `Engine`'s methods (found once)."""
-    global _ENGINE_CODES
-    import types
-
-    from iotad.kernel.engine import Engine
-
-    _ENGINE_CODES = frozenset(value.__code__ for value in vars(Engine).values() if isinstance(value, types.FunctionType))
-    return _ENGINE_CODES
+    instant = current.instant
+    if instant is None:
+        raise RuntimeError("now() is defined only while an engine runs the IOTA")
+    return float(instant)
 
 
 def esprit_reset(iota: Any) -> None:

@@ -19,6 +19,7 @@ from typing import Any, Callable, Iterable
 
 from iotad.kernel.clock import Clock, VirtualClock
 from iotad.kernel.compose import Endpoint, Flat, Leaf, expand, flatten
+from iotad.kernel.instant import current
 from iotad.kernel.model import ALL_STATE, ANY, INDEX, Action, Channel, is_by_state
 from iotad.kernel.policy import Eager
 from iotad.kernel.types import BadValue, same_checks
@@ -275,7 +276,11 @@ class Engine:
             return
         self._started = True
         now = self.clock.now()
-        self._evaluate_all(self.instances, now)
+        outer, current.instant = current.instant, now
+        try:
+            self._evaluate_all(self.instances, now)
+        finally:
+            current.instant = outer
 
     def post(self, path: str | None, channel: str, value: Any = None, index: int | None = None,
              t: float | None = None, meta: Any = None) -> None:
@@ -287,11 +292,19 @@ class Engine:
 
     def run(self, until: float = INF) -> list[dict]:
         """Run until virtual time `until` (inclusive), until nothing is left, or until stopped."""
+        outer = current.instant  # (an engine run inside another's action gives the outer one back its instant)
+        try:
+            self._run(until)
+        finally:
+            current.instant = outer
+        return self.trace
+
+    def _run(self, until: float) -> None:
         self.start()
         clock, heap = self.clock, self._heap
         if clock.__class__ is VirtualClock:
             self._run_virtual(until)
-            return self.trace
+            return
         while not self.halted:
             while heap and heap[0][3].gen != heap[0][2]:
                 heapq.heappop(heap)  # a dropped window
@@ -312,7 +325,6 @@ class Engine:
                 continue
             if clock.virtual or now >= until:
                 break  # the deadline was `until`, or nothing is left to happen
-        return self.trace
 
     def _run_virtual(self, until: float) -> None:
         """`run` under a `VirtualClock` (the class itself), its `wait`, `now` and `_fire_due` done
@@ -364,10 +376,13 @@ class Engine:
         order `run` fires them; returns how many fired. Replay puts a recorded input after the
         firings that came before it at its instant this way (`deliver` then delivers it)."""
         self.start()
+        outer = current.instant
         try:
             return self._fire_due(self.clock.now(), count)
         except Halted:
             return 0
+        finally:
+            current.instant = outer
 
     def next_due(self) -> float:
         """When the next action instance is due (INF: none). Replay steps firing by firing with it."""
@@ -387,7 +402,11 @@ class Engine:
     def deliver(self, path: str | None, channel: str, value: Any = None, index: int | None = None) -> None:
         """An external input at the clock's present time, at once (`post` queues one instead)."""
         self.start()
-        self._external_input((path, channel, index, value, None), self.clock.now())
+        outer = current.instant
+        try:
+            self._external_input((path, channel, index, value, None), self.clock.now())
+        finally:
+            current.instant = outer
 
     def _fire_due(self, now: float, limit: float = INF) -> int:
         heap = self._heap
@@ -423,6 +442,7 @@ class Engine:
 
     def _fire(self, instance: ActionInstance, now: float) -> None:
         # (the instance's leaf, action and index are read only where a branch needs them: a hot path)
+        current.instant = now  # what now() answers in the IOTA's code (iotad.kernel.instant)
         slot = instance.slot
         # A window that the switching time made unreachable was reported then, and fires at the
         # earliest legal time after it: only firing later than that is the process being late.
@@ -483,6 +503,7 @@ class Engine:
                 self._deliver(target, plain, now, checked)
 
     def _external_input(self, item: tuple, now: float) -> None:
+        current.instant = now
         path, channel, index, value, meta = item
         if path is None:
             entry = self.flat.external.get(channel)
@@ -653,7 +674,11 @@ class Engine:
     def fire_instance(self, instance: ActionInstance, now: float) -> None:
         """Fire one enabled action instance at `now`, the time chosen from outside the policy:
         the trace checker (iotad.recording.conformance) replays a recorded firing this way."""
-        self._fire(instance, now)
+        outer = current.instant
+        try:
+            self._fire(instance, now)
+        finally:
+            current.instant = outer
 
     # ---------------------------------------------------------------- events
     def _emit(self, t: float, path: str, channel: str, index: int | None, kind: str, value: Any) -> None:
