@@ -8,8 +8,9 @@ Its wire, all under `iota/@agent/<name>` (an '@' chunk, so no system's `**` matc
 - queryable `.../run`: an order (JSON) with the system file's text, its path on the hub, the files
   it names (path and sha256), the launcher's arguments and, under access control, this host's
   launcher's credentials (written to a private folder for the run and removed after it; the
-  launcher, its host's router, makes its nodes' own: iotad/launcher/host_router.py); the answer is {"ok": true, "pid": N, "fetched": [lines]} ("already": true when it
-  runs that system already) or {"ok": false, "error": "..."};
+  launcher, its host's router, makes its nodes' own: iotad/launcher/host_router.py); the answer
+  is {"ok": true, "pid": N, "fetched": [lines]} ("already": true when it runs that system
+  already) or {"ok": false, "error": "..."};
 - queryable `.../stop`: SIGINT to the child, as Ctrl-C would; answered once it has exited;
 - publications `.../log` (each line the child prints) and `.../exit` ({"code": N}).
 

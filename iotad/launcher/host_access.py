@@ -3,14 +3,15 @@
 hub admits at all (`hub_policy`), and which credentials the hub hands each host's agent
 (docs/hosts.md, "Access control").
 
-The nodes keep exactly their one-machine rights (`access_policy.derive`), but only the hub host's
-own nodes log in to the hub: another host's nodes log in to their host's router
+The nodes keep exactly their one-machine rights (`access_policy.derive`), but only the hub
+host's own nodes log in to the hub: another host's nodes log in to their host's router
 (iotad/launcher/host_router.py), which makes their passwords itself, so the hub neither holds nor
-hands out a password that would let one of them open a session with it directly. A host's launcher may
-only do what a launcher that does not hold the hub does: publish its events, follow the nodes'
-liveliness, heartbeats and traces, ask the hub's origin and clock, and open its own start gate;
-and, as the router its host's nodes reach the hub through (iotad/launcher/host_router.py), what
-those nodes may do.
+hands out a password that would let one of them open a session with it directly.
+
+A host's launcher may only do what a launcher that does not hold the hub does: publish its
+events, follow the nodes' liveliness, heartbeats and traces, ask the hub's origin and clock, and
+open its own start gate; and, as the router its host's nodes reach the hub through, what those
+nodes may do.
 A host's agent may only serve its own orders and publish its own lines: the hub's `iotad run`
 asks `iota/@agent/<host>/run` with that host's credentials in the order, so no other user can
 declare the queryable that receives them."""

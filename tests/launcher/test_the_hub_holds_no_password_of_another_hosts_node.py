@@ -107,14 +107,15 @@ def test_a_node_of_another_host_logs_in_to_its_router_and_is_refused_by_the_hub(
 def test_a_hosts_router_gossips_nothing_so_no_other_router_learns_its_socket(tmp_path, certs):
     """Two hosts' routers linked to one hub: with zenoh's default gossip the hub hands each the
     other's unix socket and they link to each other directly; the routers' setting stops it."""
-    router = AccessControl(split(tmp_path, 7447), given=str(
-        CredentialStore([], passwords={launcher_user("arm"): "p"}).file_of(launcher_user("arm"))))
+    received = CredentialStore([], passwords={launcher_user("arm"): "p"})
+    router = AccessControl(split(tmp_path, 7447), given=str(received.file_of(launcher_user("arm"))))
     router.route("arm")
     try:
         extra = router.hub_options()["extra"]
         assert all(extra[key] == value for key, value in NO_GOSSIP.items())
     finally:
         router.close()
+        received.remove()
 
     def linked_directly(extra: dict, patience: float) -> bool:
         port = free_port()
