@@ -18,6 +18,7 @@ over the base.
 from __future__ import annotations
 
 import argparse
+import os
 import shutil
 import subprocess
 import sys
@@ -46,8 +47,10 @@ def instructions(tree: Path, system: str, seconds: float) -> int:
     """User-space instructions of `iotad run SYSTEM --virtual --until seconds --no-record` in `tree`."""
     command = ["perf", "stat", "-x,", "-e", "instructions:u", sys.executable, "-m", "iotad", "run", system,
                "--virtual", "--until", repr(seconds), "--no-record"]
-    # `python -m iotad` from the tree's root imports the tree's iotad, whatever the venv installed
-    done = subprocess.run(command, cwd=tree, capture_output=True, text=True)
+    # `python -m iotad` from the tree's root imports the tree's iotad, whatever the venv installed;
+    # string hashes fixed, so that sets and dicts of names take the same steps in every run
+    done = subprocess.run(command, cwd=tree, capture_output=True, text=True,
+                          env=dict(os.environ, PYTHONHASHSEED="0"))
     if done.returncode != 0:
         raise SystemExit(f"bench/instructions.py: {' '.join(command[5:])} failed in {tree}:\n{done.stderr[-2000:]}")
     for line in done.stderr.splitlines():
@@ -58,7 +61,10 @@ def instructions(tree: Path, system: str, seconds: float) -> int:
 
 
 def run_instructions(tree: Path, system: str, seconds: float) -> int:
-    """Instructions of the run alone: `seconds` of virtual time less a run that only starts."""
+    """Instructions of the run alone: `seconds` of virtual time less a run that only starts.
+    A first run, not counted, compiles the tree's bytecode (`__pycache__`: a fresh `git archive`
+    has none, and compiling it is some 100 million instructions) and fills the parser cache."""
+    instructions(tree, system, START_ONLY)
     return instructions(tree, system, seconds) - instructions(tree, system, START_ONLY)
 
 
