@@ -13,13 +13,17 @@ import pytest
 
 
 def split_figure2(name: str, hub: str, port: int, hub_host: str, other: str, other_address: str,
-                  scheme: str = "tcp", scheduler_on: str | None = None, count: int = 2, pause: float = 1.2) -> str:
+                  scheme: str = "tcp", scheduler_on: str | None = None, count: int = 2, pause: float = 1.2,
+                  third: tuple[str, str] | None = None) -> str:
     """The Figure 2 scheduler on `hub_host` (which holds the hub at `hub`:`port`) and one
     requester on `other`, bound both ways: the smallest system spread over two hosts.
     `scheduler_on=other` swaps them (the requester, with the hub, on `hub_host`); the requester
-    makes `count` requests, `pause` s apart."""
-    scheduler_on = scheduler_on or hub_host
-    requester_on = other if scheduler_on == hub_host else hub_host
+    makes `count` requests, `pause` s apart. `third` (name, address): a third host, which holds
+    the scheduler, so that the requester on `other` and the scheduler are on two hosts besides
+    the hub's (which then holds no node)."""
+    scheduler_on = third[0] if third else scheduler_on or hub_host
+    requester_on = other if scheduler_on != other else hub_host
+    third_host = f'[hosts.{third[0]}]\nlisten = ["{scheme}/{third[1]}:0"]' if third else ""
     from pathlib import Path
     examples = Path(__file__).resolve().parents[1] / "examples"
     return f"""
@@ -33,6 +37,7 @@ listen = ["{scheme}/{hub}:{port}"]
 listen = ["{scheme}/{hub}:0"]
 [hosts.{other}]
 listen = ["{scheme}/{other_address}:0"]
+{third_host}
 
 [[node]]
 name = "scheduler"

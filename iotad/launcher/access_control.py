@@ -12,7 +12,7 @@ from iotad.host import agent_secret
 from iotad.host.agent_secret import agent_user
 from iotad.host.credentials import ENV, Credentials, CredentialStore, GivenCredentials, load
 from iotad.launcher.access_policy import RECORDER_USER, TOOLS_USER, Policy, derive, node_user
-from iotad.launcher.host_access import FLEET_USER, host_users, hub_policy
+from iotad.launcher.host_access import FLEET_USER, host_users, hub_policy, zenoh_mode
 from iotad.launcher.options import AccessOptions
 from iotad.launcher.system_file import System
 
@@ -68,7 +68,9 @@ class AccessControl:
             return self.router.session_options()
         if self.own is not None:
             return {"credentials": self.own}
-        return {"credentials": self.store.hub(), "extra": {"access_control": self.policy.acl()}}
+        # a router where it relays between two hosts' routers or more (`zenoh_mode`), else a peer
+        return {"credentials": self.store.hub(), "extra": {"access_control": self.policy.acl()},
+                "mode": zenoh_mode(self.system)}
 
     def host_part(self, host: str) -> dict[str, str]:
         """The credentials `host`'s agent receives (user: password): its launcher's, which its

@@ -43,6 +43,27 @@ def routed_users(system: System, host: str) -> list[str]:
     return [node_user(node.name) for node in system.nodes_on(host)]
 
 
+def routed_hosts(system: System) -> list[str]:
+    """The hosts of `system` besides the hub's that hold nodes: under access control each has a
+    router of its own (iotad/launcher/host_router.py)."""
+    return list(dict.fromkeys(node.host for node in system.nodes.values() if node.host and node.host != system.hub_host))
+
+
+def zenoh_mode(system: System) -> str:
+    """The zenoh mode of the hub's session and of every host's router under access control:
+    "router" where two hosts or more besides the hub's each have a router, else "peer".
+
+    Why: a zenoh peer relays between its clients and one peer, but not from one peer to another,
+    and two hosts' routers cannot link to each other (each listens on a unix socket of its own
+    machine), so with the hub and the routers peers what a node on arm sent reached the hub but
+    never a node on base (measured with zenoh 1.10: 20 of 20 at the hub, none on base; the hub a
+    router and the host routers peers: the same, since zenoh 1.9 dropped a router's brokering
+    between peers). Routers route between routers (link state), so with all of them routers the
+    node on base heard 20 of 20, and the hub still dropped what arm's launcher user may not publish.
+    One host besides the hub's (or none) keeps the peer mode it has always run in."""
+    return "router" if len(routed_hosts(system)) >= 2 else "peer"
+
+
 def hub_policy(system: System, hosts: list[str]) -> Policy:
     """What the hub admits: the nodes that reach it directly (the hub host's, or every node of a
     system on one machine), its recorder and tools, and for each other host of `hosts` its launcher
@@ -67,7 +88,11 @@ def launcher_grant(system: System, host: str) -> Grant:
         subscribe=[wire.every_node(name, wire.HEARTBEAT), wire.every_node(name, wire.TRACE)],
         ask=[wire.origin_key(name), clock_key(name)],
         tokens=[wire.gate_key(name, host)],
-        watch=[wire.every_node(name, wire.ALIVE)])
+        watch=[wire.every_node(name, wire.ALIVE)],
+        # told of the hub's clock queryable: as a zenoh router (`zenoh_mode`) the host's launcher
+        # sends a query only toward queryables it knows of (measured with zenoh 1.10: without this
+        # no clock query reached the hub, as a peer every one did)
+        declarations=[clock_key(name)])
     own = set(routed_users(system, host))
     for node in derive(system).grants:
         if node.user in own:
@@ -105,4 +130,4 @@ def host_grants(system: System, hosts: list[str]) -> list[Grant]:
 
 
 __all__ = ["FLEET_USER", "host_grants", "host_users", "hub_policy", "launcher_grant", "launcher_user",
-           "routed_users"]
+           "routed_hosts", "routed_users", "zenoh_mode"]

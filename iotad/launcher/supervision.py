@@ -552,7 +552,10 @@ class Launcher:
             return None
         if not self.options.after_live:
             return self._started
-        if self._live_at is None and self._everyone_live() and self._other_hosts_live():
+        # a hub host that holds no node of its own (only the hub and the recorder) waits for the
+        # other hosts' alone: without this its --until never began
+        here_live = self._everyone_live() or (not self.runs and self.fleet is not None)
+        if self._live_at is None and here_live and self._other_hosts_live():
             self._live_at = now
             self.view.line(f"every node is live: --until {self.until:g} s counts from now")
         return self._live_at
