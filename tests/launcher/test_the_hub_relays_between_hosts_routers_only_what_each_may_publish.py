@@ -90,6 +90,9 @@ def test_the_hub_relays_between_two_hosts_routers_what_each_may_publish_and_noth
         assert wait_until(exchanged, 20), heard
         # the hub dropped each forged answer, while base's on the same key crossed it
         assert forged not in heard["hub"], "the hub took from arm's router what only base's node may publish"
+        # every message between arm and base crossed the hub: their routers never linked to each other
+        assert list(arm_router.info.routers_zid()) == [hub_session.info.zid()]
+        assert list(base_router.info.routers_zid()) == [hub_session.info.zid()]
     finally:
         for session in reversed(sessions):
             session.close()
