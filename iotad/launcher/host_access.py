@@ -89,9 +89,10 @@ def launcher_grant(system: System, host: str) -> Grant:
         ask=[wire.origin_key(name), clock_key(name)],
         tokens=[wire.gate_key(name, host)],
         watch=[wire.every_node(name, wire.ALIVE)],
-        # told of the hub's clock queryable: as a zenoh router (`zenoh_mode`) the host's launcher
-        # sends a query only toward queryables it knows of (measured with zenoh 1.10: without this
-        # no clock query reached the hub, as a peer every one did)
+        # told of the hub's clock queryable: the host's launcher sends a query only toward the
+        # queryables it knows of (measured with zenoh 1.10: without this no clock query of a host's
+        # router reached a hub in router mode, `zenoh_mode`; nor a peer hub whose queryable was
+        # declared after the router had linked)
         declarations=[clock_key(name)])
     own = set(routed_users(system, host))
     for node in derive(system).grants:
