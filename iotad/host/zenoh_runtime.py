@@ -8,7 +8,7 @@ issues 1101, 2718). zenoh receives on 2 threads by default: a process that meshe
 more processes of a host that was cut off has every receive thread blocked at once, and hears
 nothing for up to 10 s, its own host's processes included. The hub's launcher then missed the
 heartbeats of its own nodes and killed them as frozen, and its recorder recorded nothing, while
-the nodes ran on time (tests/hosts/test_a_partition_longer_than_the_lease_...).
+the nodes ran on time (tests/hosts/test_a_partition_longer_than_the_lease_heals_and_both_sides_recorded_it.py).
 
 So every process of such a run gets a receive thread for each zenoh session that may sit on
 another host, and a few more: `ZENOH_RUNTIME` (read by zenoh when a process opens its first
