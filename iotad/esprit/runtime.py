@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from iotad.kernel.instant import current
+from iotad.kernel.instant import running
 from iotad.kernel.types import INT_MAX, INT_MIN, Record
 
 
@@ -127,14 +127,14 @@ def esprit_now() -> float:
     """`now()`: the time of the firing (or enabling) in progress, in spec time units.
 
     The kernel calls an action's functions as `f(iota, index)` and passes no time: time is the
-    engine's, which holds the instant it is executing in `iotad.kernel.instant.current` while it
-    runs an IOTA's code. The static checks keep now() out of preconditions and output values,
-    which the trace checker also evaluates outside any engine firing.
+    engine's: the engine running the IOTA's code in this thread (`iotad.kernel.instant`) says
+    which instant it is executing. The static checks keep now() out of preconditions and output
+    values, which the trace checker also evaluates outside any engine firing.
     """
-    instant = current.instant
-    if instant is None:
+    engine = running.engine
+    if engine is None:
         raise RuntimeError("now() is defined only while an engine runs the IOTA")
-    return float(instant)
+    return float(engine.executing)
 
 
 def esprit_reset(iota: Any) -> None:

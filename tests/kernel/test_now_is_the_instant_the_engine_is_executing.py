@@ -1,8 +1,8 @@
 """`now()` (ESPRIT) and `esprit_now()` (Python IOTAs) answer the instant the engine is executing,
-which the engine keeps in `iotad.kernel.instant.current` while it runs an IOTA's code: in a
-do-block, an input action and a time bound; in the first evaluation at the start time; through
-`fire_due`, `deliver` and `fire_instance`. An engine run inside another's action gives the outer
-one back its instant; outside every run, and in a thread where no engine runs, there is none."""
+which the engine running in this thread says (`iotad.kernel.instant`): in a do-block, an input
+action and a time bound; in the first evaluation at the start time; through `fire_due`, `deliver`
+and `fire_instance`. An engine run inside another's action gives the outer one back its place;
+outside every run, and in a thread where no engine runs, there is none."""
 import threading
 
 import pytest
@@ -10,7 +10,7 @@ import pytest
 from iotad import Engine, Float, Input, Int, Iota, Output
 from iotad.esprit.runtime import esprit_now
 from iotad.kernel.clock import VirtualClock
-from iotad.kernel.instant import current
+from iotad.kernel.instant import running
 
 
 class Stamper(Iota):
@@ -41,7 +41,7 @@ def test_do_blocks_inputs_and_time_bounds_read_the_firings_instant():
     assert engine.iota("s").seen == [("fired", 0.25), ("fired", 0.5), ("poked", 0.6), ("fired", 1.0), ("fired", 1.5)]
     assert [(e["t"], e["value"]) for e in engine.trace if e["kind"] == "output"] == [
         (0.25, 0.0), (0.5, 0.25), (1.0, 0.5), (1.5, 1.0)]
-    assert current.instant is None  # the run is over: no instant is left behind
+    assert running.engine is None  # the run is over: no instant is left behind
 
 
 def test_the_steps_replay_uses_set_the_instant_and_leave_none_behind():
@@ -52,7 +52,7 @@ def test_the_steps_replay_uses_set_the_instant_and_leave_none_behind():
     assert engine.fire_due(1) == 1
     engine.deliver("s", "poke", 3)
     assert engine.iota("s").seen == [("fired", 0.25), ("poked", 0.25)]
-    assert current.instant is None
+    assert running.engine is None
 
 
 class Outer(Iota):

@@ -1,0 +1,113 @@
+"""The robots' virtual runs of a git revision against the working tree's, counted in CPU instructions.
+
+    .venv/bin/python bench/instructions.py [--base main] [--world conveyor] [--seconds 10]
+
+On a machine that others keep busy, seconds move by a third between two runs of one code, and
+even CPU time moves with the load (shared caches, hyperthreads). The instructions a run executes
+do not: `perf stat -e instructions:u` gives the same count within a fraction of a percent
+whatever else the machine does, so a change of a few percent is seen in one run of each.
+Instructions are not time (a cache miss costs no instruction), so the bigger a change the more
+its time should be measured too (bench/worlds.py --cpu).
+
+Each world runs as `iotad run SYSTEM --virtual --until S --no-record` in both trees (the base's
+from `git archive`, run with this checkout's virtualenv), once for `--seconds` and once for a
+thousandth of a second; the difference is the run itself, without start-up (imports, PyBullet's
+worlds, ESPRIT's parsers). Figures: millions of instructions per virtual second, and the tree
+over the base.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import subprocess
+import sys
+import tarfile
+import tempfile
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+# (Figure 2 is left out: its run is so small that start-up's own variation, a few million
+# instructions, is most of its count)
+WORLDS = {"conveyor": "examples/conveyor.toml", "buggy": "examples/buggy.toml"}
+START_ONLY = 0.001  # s of virtual time: the run that counts start-up alone
+
+
+def perf_available() -> str | None:
+    """None if `perf stat` counts user-space instructions here; else why not."""
+    if shutil.which("perf") is None:
+        return "perf is not installed (Debian: apt-get install linux-perf)"
+    probe = subprocess.run(["perf", "stat", "-x,", "-e", "instructions:u", "true"], capture_output=True, text=True)
+    if probe.returncode != 0 or "not supported" in probe.stderr or "<not counted>" in probe.stderr:
+        return f"perf cannot count instructions on this machine: {probe.stderr.strip()[:200]}"
+    return None
+
+
+def instructions(tree: Path, system: str, seconds: float) -> int:
+    """User-space instructions of `iotad run SYSTEM --virtual --until seconds --no-record` in `tree`."""
+    command = ["perf", "stat", "-x,", "-e", "instructions:u", sys.executable, "-m", "iotad", "run", system,
+               "--virtual", "--until", repr(seconds), "--no-record"]
+    # `python -m iotad` from the tree's root imports the tree's iotad, whatever the venv installed;
+    # string hashes fixed, so that sets and dicts of names take the same steps in every run
+    done = subprocess.run(command, cwd=tree, capture_output=True, text=True,
+                          env=dict(os.environ, PYTHONHASHSEED="0"))
+    if done.returncode != 0:
+        raise SystemExit(f"bench/instructions.py: {' '.join(command[5:])} failed in {tree}:\n{done.stderr[-2000:]}")
+    for line in done.stderr.splitlines():
+        fields = line.split(",")
+        if len(fields) > 2 and fields[2].startswith("instructions"):
+            return int(fields[0])
+    raise SystemExit(f"bench/instructions.py: perf printed no instruction count:\n{done.stderr[-1000:]}")
+
+
+def run_instructions(tree: Path, system: str, seconds: float) -> int:
+    """Instructions of the run alone: `seconds` of virtual time less a run that only starts.
+    A first run, not counted, compiles the tree's bytecode (`__pycache__`: a fresh `git archive`
+    has none, and compiling it is some 100 million instructions) and fills the parser cache."""
+    instructions(tree, system, START_ONLY)
+    return instructions(tree, system, seconds) - instructions(tree, system, START_ONLY)
+
+
+def extract(revision: str, into: Path) -> Path:
+    """The tree of `revision`, as `git archive` gives it."""
+    archive = into / "base.tar"
+    with open(archive, "wb") as out:
+        made = subprocess.run(["git", "-C", str(ROOT), "archive", revision], stdout=out, stderr=subprocess.PIPE,
+                              text=True)
+    if made.returncode != 0:
+        raise SystemExit(f"bench/instructions.py: no revision {revision!r}: {made.stderr.strip()}")
+    tree = into / "base"
+    with tarfile.open(archive) as tar:
+        tar.extractall(tree, filter="data")
+    return tree
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--base", default="main", help="the git revision to compare with (default: main)")
+    parser.add_argument("--world", action="append", choices=sorted(WORLDS),
+                        help="a world to run (repeatable; default: conveyor and buggy)")
+    parser.add_argument("--seconds", type=float, default=10.0, help="virtual seconds per run (default: 10)")
+    args = parser.parse_args(argv)
+    if not args.seconds > START_ONLY:
+        parser.error(f"--seconds must be more than {START_ONLY}")
+    why = perf_available()
+    if why:
+        print(f"bench/instructions.py: {why}", file=sys.stderr)
+        return 2
+    worlds = args.world or ["conveyor", "buggy"]
+    with tempfile.TemporaryDirectory(prefix="iotad-bench-") as folder:
+        base = extract(args.base, Path(folder))
+        print(f"user-space instructions of {args.seconds:g} s of virtual time, start-up taken off "
+              f"(`iotad run --virtual --no-record`); base {args.base}, tree {ROOT}")
+        print(f"  {'world':10} {'base M/s':>10} {'tree M/s':>10} {'tree/base':>10}")
+        for world in worlds:
+            counts = {name: run_instructions(tree, WORLDS[world], args.seconds) / args.seconds / 1e6
+                      for name, tree in (("base", base), ("tree", ROOT))}
+            print(f"  {world:10} {counts['base']:10.1f} {counts['tree']:10.1f} {counts['tree'] / counts['base']:9.3f}x")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
