@@ -15,6 +15,9 @@ import sys
 import time
 from collections import Counter
 
+import pytest
+
+from agent_helpers import authority_for
 from cut_recording import cut_a_while
 from launcher_helpers import IOTAS, ROOT, wait_until
 from namespaces import agent, hosts
@@ -28,7 +31,7 @@ PERIOD = 0.02   # s between two outputs of a pulse
 AFTER_HEAL = 4.0  # s the run goes on once the hub has the host back: for traffic across the link again
 
 
-def system_text(hub: str, arm: str) -> str:
+def system_text(hub: str, arm: str, scheme: str) -> str:
     """tick (a pulse on brain) -> far (on arm); beat (a pulse on arm) -> near (on brain)."""
     nodes = [("tick", "brain", "Pulse", f"params = {{ period = {PERIOD} }}"), ("near", "brain", "FreeSink", ""),
              ("beat", "arm", "Pulse", f"params = {{ period = {PERIOD} }}"), ("far", "arm", "FreeSink", "")]
@@ -37,11 +40,11 @@ def system_text(hub: str, arm: str) -> str:
 name = "long"
 hub_host = "brain"
 [system.endpoints]
-listen = ["tcp/{hub}:{PORT}"]
+listen = ["{scheme}/{hub}:{PORT}"]
 [hosts.brain]
-listen = ["tcp/{hub}:0"]
+listen = ["{scheme}/{hub}:0"]
 [hosts.arm]
-listen = ["tcp/{arm}:0"]
+listen = ["{scheme}/{arm}:0"]
 """
     for name, host, iota, params in nodes:
         text += f'\n[[node]]\nname = "{name}"\nhost = "{host}"\npython = "{IOTAS}:{iota}"\n{params}\n'
@@ -65,15 +68,22 @@ def received_after(recording, node: str, kind: str, when: float) -> int:
                and m.value.get("kind") == kind and m.log_time / 1e9 > when)
 
 
-def test_a_partition_longer_than_the_lease_heals_and_both_sides_recorded_it(tmp_path):
+@pytest.mark.parametrize("secure", [False, True], ids=["open", "under access control"])
+def test_a_partition_longer_than_the_lease_heals_and_both_sides_recorded_it(tmp_path, secure):
+    """An open run (tcp/, --insecure: every node a peer, meshed across the hosts) and one under
+    access control (tls/, --certs: each host's nodes clients of its launcher, one link between)."""
     hub_file, arm_file = tmp_path / "long.mcap", tmp_path / "long.arm.mcap"
-    with hosts("brain", "arm", net=211) as net:
-        hub = net.addresses[("brain", "arm")]
+    with hosts("brain", "arm", net=213 if secure else 211) as net:
+        hub, arm = net.addresses[("brain", "arm")], net.addresses["arm"]
+        scheme = "tls" if secure else "tcp"
         path = tmp_path / "long.toml"
-        path.write_text(system_text(hub, net.addresses["arm"]))
+        path.write_text(system_text(hub, arm, scheme))
+        certs = authority_for(tmp_path / "certs", {"brain": [hub], "arm": [arm]}) if secure else None
+        access = ("--certs", str(certs)) if secure else ("--insecure",)
         log = tmp_path / "run.log"
-        with agent(net, "arm", f"tcp/{hub}:{PORT}") as arm_agent, log.open("w") as out:
-            run = subprocess.Popen(net.exec("brain", sys.executable, "-m", "iotad", "run", str(path), "--insecure",
+        with agent(net, "arm", f"{scheme}/{hub}:{PORT}", *(("--certs", str(certs)) if secure else ())) as arm_agent, \
+                log.open("w") as out:
+            run = subprocess.Popen(net.exec("brain", sys.executable, "-m", "iotad", "run", str(path), *access,
                                             "--plain", "--until", "120", "-o", str(hub_file)),
                                    stdout=out, stderr=subprocess.STDOUT, text=True, cwd=ROOT, start_new_session=True)
             try:
