@@ -4,11 +4,12 @@ heal the hosts find each other again (`host_back`) and traffic flows both ways.
 
 Brain (the hub) and arm in network namespaces, started as a person would: an agent on arm, one
 `iotad run -o` on brain. A pulse on each host feeds a sink on the other, 50 outputs a second. The
-link is cut for CUT s. Each host's recording shows its own pulse's outputs every second of the
-cut, as many as before it, received as they were sent: before the fix every process's zenoh
-stopped receiving once the lease ran out (it closed the cut links on both of its receive threads,
-each held 10 s by SO_LINGER; iotad/host/zenoh_runtime.py), the hub's recorder recorded nothing
-for seconds and its launcher killed its own nodes as frozen."""
+link is cut for CUT s. Each host's recording shows its own pulse's outputs in every second of the
+cut, received as they were sent: before the fix a process meshed with the other host stopped
+receiving once the lease ran out (zenoh closed the cut links on both of its receive threads, each
+held up to 10 s by SO_LINGER; iotad/host/zenoh_runtime.py), the hub's recorder recorded nothing
+for seconds and its launcher killed its own nodes as frozen (the open run; under access control
+only the launchers link the hosts, and the test passed before the fix too)."""
 import signal
 import subprocess
 import sys
@@ -118,7 +119,8 @@ def test_a_partition_longer_than_the_lease_heals_and_both_sides_recorded_it(tmp_
         assert stale == [], stale
 
     # each side kept running and recording on time through the whole cut: its own pulse's outputs
-    # reached its own recorder every second of it, at the rate of the seconds before it
+    # reached its own recorder in every second of it, as in the seconds before it (50 a second; a
+    # fifth of that allows for a loaded machine, where the stall gave none for seconds on end)
     nominal = round(1 / PERIOD)
     for recording, pulse in ((hubs, "tick"), (own, "beat")):
         before = per_second(recording, pulse, "output", cut_at - 2.0, cut_at)
