@@ -176,6 +176,11 @@ def test_a_host_whose_clock_is_50_ms_ahead_is_measured_and_corrected(tmp_path):
             unjudged = [f.message for f in report.notes if f.link == label]
             assert link.delivered >= 1 and link.lost == 0 and link.unjudged <= 1, (link, unjudged)
             assert link.delivered + link.unjudged == link.sent, (link, unjudged)
-            p50, p99, most = link.latency()
-            # on one timeline: received after it was sent, and far sooner than the skew
-            assert 0 <= p50 <= most < 0.02, (label, p50, most)
+            # On one timeline: each message received after it was sent (within what the offset's
+            # measurement allows), most far sooner than the skew. Uncorrected, one direction would
+            # arrive ~50 ms before it was sent (the earliest shows it) and the other ~50 ms late
+            # (the median shows it). Not the latest: a loaded machine may hold back a message or
+            # two for tens of ms, which makes it late, never early, and says nothing of the clocks.
+            earliest, p50 = min(link.latencies), link.latency()[0]
+            allowed = max(m["bound"] for m in measured)
+            assert -allowed <= earliest <= p50 < 0.02, (label, earliest, p50, allowed, link.latency())
