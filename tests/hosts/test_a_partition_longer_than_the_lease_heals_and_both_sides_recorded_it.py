@@ -26,13 +26,16 @@ from namespaces import agent, hosts
 from iotad.launcher.processes import interrupt_then_kill
 from iotad.recording.mcap_reader import read_recording
 
-PORT = 7661
+# a port of each run's own: a run under access control advertises its tools' credentials by port
+# (iotad.host.credentials.for_endpoints), and an open run's recorder on the same port, even in
+# other namespaces, would take them and not be let in
+PORTS = {False: 7661, True: 7663}
 CUT = 12.0      # s: just over the lease (10 s), so that zenoh declares the other host gone
 PERIOD = 0.02   # s between two outputs of a pulse
 AFTER_HEAL = 4.0  # s the run goes on once the hub has the host back: for traffic across the link again
 
 
-def system_text(hub: str, arm: str, scheme: str) -> str:
+def system_text(hub: str, arm: str, scheme: str, port: int) -> str:
     """tick (a pulse on brain) -> far (on arm); beat (a pulse on arm) -> near (on brain)."""
     nodes = [("tick", "brain", "Pulse", f"params = {{ period = {PERIOD} }}"), ("near", "brain", "FreeSink", ""),
              ("beat", "arm", "Pulse", f"params = {{ period = {PERIOD} }}"), ("far", "arm", "FreeSink", "")]
@@ -41,7 +44,7 @@ def system_text(hub: str, arm: str, scheme: str) -> str:
 name = "long"
 hub_host = "brain"
 [system.endpoints]
-listen = ["{scheme}/{hub}:{PORT}"]
+listen = ["{scheme}/{hub}:{port}"]
 [hosts.brain]
 listen = ["{scheme}/{hub}:0"]
 [hosts.arm]
@@ -78,11 +81,11 @@ def test_a_partition_longer_than_the_lease_heals_and_both_sides_recorded_it(tmp_
         hub, arm = net.addresses[("brain", "arm")], net.addresses["arm"]
         scheme = "tls" if secure else "tcp"
         path = tmp_path / "long.toml"
-        path.write_text(system_text(hub, arm, scheme))
+        path.write_text(system_text(hub, arm, scheme, PORTS[secure]))
         certs = authority_for(tmp_path / "certs", {"brain": [hub], "arm": [arm]}) if secure else None
         access = ("--certs", str(certs)) if secure else ("--insecure",)
         log = tmp_path / "run.log"
-        with agent(net, "arm", f"{scheme}/{hub}:{PORT}", *(("--certs", str(certs)) if secure else ())) as arm_agent, \
+        with agent(net, "arm", f"{scheme}/{hub}:{PORTS[secure]}", *(("--certs", str(certs)) if secure else ())) as arm_agent, \
                 log.open("w") as out:
             run = subprocess.Popen(net.exec("brain", sys.executable, "-m", "iotad", "run", str(path), *access,
                                             "--plain", "--until", "120", "-o", str(hub_file)),
