@@ -12,7 +12,7 @@ from iotad.host import agent_secret
 from iotad.host.agent_secret import agent_user
 from iotad.host.credentials import ENV, Credentials, CredentialStore, GivenCredentials, load
 from iotad.launcher.access_policy import RECORDER_USER, TOOLS_USER, Policy, derive, node_user
-from iotad.launcher.host_access import FLEET_USER, host_grants, host_users
+from iotad.launcher.host_access import FLEET_USER, host_users, hub_policy
 from iotad.launcher.options import AccessOptions
 from iotad.launcher.system_file import System
 
@@ -22,7 +22,8 @@ class AccessControl:
                  certs: str | None = None, given: str | None = None):
         """`hosts`: the other hosts of a system spread over hosts, whose agents and launchers become
         users too (their agents' passwords derived from the authority in `certs`). `given`: this
-        launcher runs one host's part, with the credentials file its agent received for it."""
+        launcher runs one host's part, with the credentials file its agent received for it (its
+        launcher user's alone: its router makes its nodes' and recorder's, `route`)."""
         self.enabled, self.why_off, self.system = enabled, why_off, system
         self.policy: Policy | None = derive(system) if enabled else None
         self.store: CredentialStore | None = None
@@ -34,7 +35,8 @@ class AccessControl:
             self.store = GivenCredentials(Path(given).parent)
             self.own = load(given)
             return
-        self.policy.grants += host_grants(system, list(hosts))
+        # only who logs in here: the other hosts' nodes log in to their own host's router
+        self.policy = hub_policy(system, list(hosts))
         agents = {agent_user(host): agent_secret.derive(certs, host) for host in hosts}
         # the tools' file says where they may publish: `iotad pub` refuses the rest itself
         self.store = CredentialStore(self.policy.users(), passwords=agents,
@@ -53,7 +55,7 @@ class AccessControl:
         (iotad/launcher/host_router.py); where they reach it."""
         from iotad.launcher.host_router import HostRouter
 
-        self.router = HostRouter(self.system, host, self.store, self.own)
+        self.router = HostRouter(self.system, host, self.own)
         return self.router.endpoint
 
     def hub_options(self) -> dict[str, Any]:
@@ -69,7 +71,8 @@ class AccessControl:
         return {"credentials": self.store.hub(), "extra": {"access_control": self.policy.acl()}}
 
     def host_part(self, host: str) -> dict[str, str]:
-        """The credentials `host`'s agent receives for its launcher and nodes (user: password)."""
+        """The credentials `host`'s agent receives (user: password): its launcher's, which its
+        router shows the hub; the router makes its nodes' passwords itself."""
         if self.store is None or self.own is not None:
             return {}
         return {user: self.store.credentials(user).password for user in host_users(self.system, host)}
@@ -79,16 +82,18 @@ class AccessControl:
         return False if self.store is None or self.own is not None else self.store.credentials(FLEET_USER)
 
     def env_for(self, user: str) -> dict[str, str] | None:
-        """A child's environment: the launcher's plus where its credentials are."""
+        """A child's environment: the launcher's plus where its credentials are (on another host,
+        those its router made)."""
         if self.store is None:
             return None
-        return {**os.environ, ENV: str(self.store.file_of(user))}
+        store = self.router.store if self.router is not None else self.store
+        return {**os.environ, ENV: str(store.file_of(user))}
 
     def node_env(self, path: str) -> dict[str, str] | None:
         return self.env_for(node_user(path))
 
     def recorder_env(self) -> dict[str, str] | None:
-        return self.router.recorder_env() if self.router is not None else self.env_for(RECORDER_USER)
+        return self.env_for(RECORDER_USER)
 
     def tools_file(self) -> str | None:
         return str(self.store.file_of(TOOLS_USER)) if self.store else None

@@ -92,9 +92,9 @@ class Policy:
         return {"enabled": True, "default_permission": "deny", "rules": rules, "subjects": subjects,
                 "policies": policies}
 
-    def lines(self) -> list[str]:
-        """The policy for a person (`iotad run --check`)."""
-        out = [f"access control of {self.system} (default: deny; the hub enforces it):"]
+    def lines(self, enforcer: str = "the hub") -> list[str]:
+        """The policy for a person (`iotad run --check`), as `enforcer` enforces it."""
+        out = [f"access control of {self.system} (default: deny; {enforcer} enforces it):"]
         for grant in self.grants:
             out.append(f"  {grant.user} ({grant.role})")
             for label, keys in (("publish", grant.publish), ("subscribe", grant.subscribe),

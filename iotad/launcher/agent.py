@@ -7,9 +7,10 @@ Its wire, all under `iota/@agent/<name>` (an '@' chunk, so no system's `**` matc
 - a liveliness token on the key itself: the hub's `iotad run` sees the agent, and sees it go;
 - queryable `.../run`: an order (JSON) with the system file's text, its path on the hub, the files
   it names (path and sha256), the launcher's arguments and, under access control, this host's
-  credentials (its launcher's and its nodes', written to a private folder for the run and removed
-  after it); the answer is {"ok": true, "pid": N, "fetched": [lines]} ("already": true when it
-  runs that system already) or {"ok": false, "error": "..."};
+  launcher's credentials (written to a private folder for the run and removed after it; the
+  launcher, its host's router, makes its nodes' own: iotad/launcher/host_router.py); the answer
+  is {"ok": true, "pid": N, "fetched": [lines]} ("already": true when it runs that system
+  already) or {"ok": false, "error": "..."};
 - queryable `.../stop`: SIGINT to the child, as Ctrl-C would; answered once it has exited;
 - publications `.../log` (each line the child prints) and `.../exit` ({"code": N}).
 
@@ -267,10 +268,12 @@ class Agent:
 
             if launcher_user(self.name) not in given:
                 raise AgentError(f"an order's credentials lack this host's launcher ({launcher_user(self.name)})")
+            launcher = {launcher_user(self.name): given[launcher_user(self.name)]}
             with self._lock:
                 self._remove_credentials()
-                # a private folder (0700, files 0600) for the run's launcher and its nodes, removed after it
-                self._store = CredentialStore(list(given), passwords=given)
+                # a private folder (0700, files 0600) for the run's launcher, removed after it; any
+                # other user an order names is not written: the launcher makes its nodes' own
+                self._store = CredentialStore([], passwords=launcher)
             env[ENV] = str(self._store.file_of(launcher_user(self.name)))
         done = threading.Event()
         result: dict = {}

@@ -1,12 +1,17 @@
 """Access control across hosts: the users a system spread over hosts adds to the hub's policy
-(each other host's launcher and agent, and the hub's side of the agents' wire), and which
-credentials the hub hands each host's agent (docs/hosts.md, "Access control").
+(each other host's launcher and agent, and the hub's side of the agents' wire), which users the
+hub admits at all (`hub_policy`), and which credentials the hub hands each host's agent
+(docs/hosts.md, "Access control").
 
-The nodes keep exactly their one-machine rights (`access_policy.derive`). A host's launcher may
-only do what a launcher that does not hold the hub does: publish its events, follow the nodes'
-liveliness, heartbeats and traces, ask the hub's origin and clock, and open its own start gate;
-and, as the router its host's nodes reach the hub through (iotad/launcher/host_router.py), what
-those nodes may do.
+The nodes keep exactly their one-machine rights (`access_policy.derive`), but only the hub
+host's own nodes log in to the hub: another host's nodes log in to their host's router
+(iotad/launcher/host_router.py), which makes their passwords itself, so the hub neither holds nor
+hands out a password that would let one of them open a session with it directly.
+
+A host's launcher may only do what a launcher that does not hold the hub does: publish its
+events, follow the nodes' liveliness, heartbeats and traces, ask the hub's origin and clock, and
+open its own start gate; and, as the router its host's nodes reach the hub through, what those
+nodes may do.
 A host's agent may only serve its own orders and publish its own lines: the hub's `iotad run`
 asks `iota/@agent/<host>/run` with that host's credentials in the order, so no other user can
 declare the queryable that receives them."""
@@ -15,7 +20,7 @@ from __future__ import annotations
 from iotad.host import wire
 from iotad.host.agent_secret import agent_user
 from iotad.host.clock_offset import clock_key
-from iotad.launcher.access_policy import Grant, derive, node_user
+from iotad.launcher.access_policy import Grant, Policy, derive, node_user
 from iotad.launcher.agent import AGENT_PREFIX, agent_key
 from iotad.launcher.code_by_hash import CODE_PREFIX
 from iotad.launcher.system_file import System
@@ -28,8 +33,26 @@ def launcher_user(host: str) -> str:
 
 
 def host_users(system: System, host: str) -> list[str]:
-    """The users whose credentials `host`'s agent receives: its launcher's and its nodes'."""
-    return [launcher_user(host), *(node_user(node.name) for node in system.nodes_on(host))]
+    """The users whose credentials `host`'s agent receives from the hub: its launcher's alone (its
+    router makes its nodes' own: `routed_users`)."""
+    return [launcher_user(host)]
+
+
+def routed_users(system: System, host: str) -> list[str]:
+    """The node users that log in to `host`'s router, never to the hub."""
+    return [node_user(node.name) for node in system.nodes_on(host)]
+
+
+def hub_policy(system: System, hosts: list[str]) -> Policy:
+    """What the hub admits: the nodes that reach it directly (the hub host's, or every node of a
+    system on one machine), its recorder and tools, and for each other host of `hosts` its launcher
+    and agent, and the hub's fleet session. Another host's nodes are absent: their launcher user
+    holds their rights (`launcher_grant`), and the hub knows no password of theirs."""
+    policy = derive(system)
+    elsewhere = {user for host in hosts for user in routed_users(system, host)}
+    policy.grants = [grant for grant in policy.grants if grant.user not in elsewhere]
+    policy.grants += host_grants(system, hosts)
+    return policy
 
 
 def launcher_grant(system: System, host: str) -> Grant:
@@ -45,7 +68,7 @@ def launcher_grant(system: System, host: str) -> Grant:
         ask=[wire.origin_key(name), clock_key(name)],
         tokens=[wire.gate_key(name, host)],
         watch=[wire.every_node(name, wire.ALIVE)])
-    own = {node_user(node.name) for node in system.nodes_on(host)}
+    own = set(routed_users(system, host))
     for node in derive(system).grants:
         if node.user in own:
             for part in ("publish", "subscribe", "serve", "ask", "tokens", "watch", "declarations"):
@@ -81,4 +104,5 @@ def host_grants(system: System, hosts: list[str]) -> list[Grant]:
     return grants
 
 
-__all__ = ["FLEET_USER", "host_grants", "host_users", "launcher_grant", "launcher_user"]
+__all__ = ["FLEET_USER", "host_grants", "host_users", "hub_policy", "launcher_grant", "launcher_user",
+           "routed_users"]

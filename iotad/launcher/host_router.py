@@ -17,39 +17,48 @@ own (its certificate's common name, the hub host's name): without one the router
 drops everything in both directions."""
 from __future__ import annotations
 
-import os
 import tempfile
 from pathlib import Path
 from typing import Any
 
-from iotad.host.credentials import ENV, Credentials, CredentialStore, GivenCredentials
-from iotad.launcher.access_policy import RECORDER_USER, Grant, Policy, derive, node_user
-from iotad.launcher.host_access import host_users, launcher_grant
+from iotad.host.credentials import Credentials, CredentialStore
+from iotad.launcher.access_policy import RECORDER_USER, Grant, Policy, derive
+from iotad.launcher.host_access import launcher_grant, routed_users
 from iotad.launcher.system_file import System
 
 # every kind of message a link carries: the hub's own access control judges them
 _EVERY_MESSAGE = ["put", "delete", "declare_subscriber", "declare_queryable", "query", "reply",
                   "liveliness_token", "declare_liveliness_subscriber", "liveliness_query"]
 SOCKET = "router.sock"
+# No gossip from or to the router: a zenoh peer gossips its listeners' locators, and the hub passes
+# them on, so every other host's router learnt this host's unix socket and tried to link to it
+# directly (measured with zenoh 1.10: in vain across machines, and on one file system refused for
+# want of credentials). The router's one link, to the hub, is in its `connect` endpoints, and
+# nothing else is meant to reach the socket but this host's own clients.
+NO_GOSSIP = {"scouting/gossip/enabled": False}
 
 
 class HostRouter:
-    """Credentials and rules of host `host`'s router: its nodes' and launcher's users as the agent
-    received them (in `given`'s folder), and a user of its own for the host's recorder."""
+    """Credentials and rules of host `host`'s router: a user for each of the host's nodes and one
+    for its recorder, with passwords made here, on the host. The hub never learns them (its
+    `dictionary.txt` does not hold these users), so none of them opens a session with the hub;
+    `own` (the launcher user the agent received) is what the router shows the hub."""
 
-    def __init__(self, system: System, host: str, given: GivenCredentials, own: Credentials):
+    def __init__(self, system: System, host: str, own: Credentials):
         self.system, self.host, self.own = system, host, own
-        passwords = {user: given.credentials(user).password for user in host_users(system, host)}
         # a private folder (0700) that also holds the socket, whose path may be 107 bytes at most
         parent = tempfile.gettempdir() if len(tempfile.gettempdir()) < 60 else "/tmp"
-        self.store = CredentialStore([RECORDER_USER], passwords=passwords, parent=parent)
+        self.store = CredentialStore([*routed_users(system, host), RECORDER_USER], parent=parent)
         self.endpoint = f"unixsock-stream/{Path(self.store.folder) / SOCKET}"
 
+    @staticmethod
+    def policy_of(system: System, host: str) -> Policy:
+        """The host's nodes' grants, exactly as the hub's would be, and the recorder's."""
+        users = {*routed_users(system, host), RECORDER_USER}
+        return Policy(system.name, [grant for grant in derive(system).grants if grant.user in users])
+
     def policy(self) -> Policy:
-        """The host's nodes' grants, exactly as the hub's, and the recorder's."""
-        hub = derive(self.system)
-        users = {node_user(node.name) for node in self.system.nodes_on(self.host)} | {RECORDER_USER}
-        return Policy(self.system.name, [grant for grant in hub.grants if grant.user in users])
+        return self.policy_of(self.system, self.host)
 
     def acl(self) -> dict[str, Any]:
         """zenoh's `access_control` for the router: the policy for its local clients, and for the
@@ -67,10 +76,7 @@ class HostRouter:
     def session_options(self) -> dict[str, Any]:
         """Keyword arguments of `transport.open_session` for the launcher's session as the router."""
         credentials = Credentials(self.own.user, self.own.password, str(self.store.dictionary))
-        return {"credentials": credentials, "extra": {"access_control": self.acl()}}
-
-    def recorder_env(self) -> dict[str, str]:
-        return {**os.environ, ENV: str(self.store.file_of(RECORDER_USER))}
+        return {"credentials": credentials, "extra": {"access_control": self.acl(), **NO_GOSSIP}}
 
     def close(self) -> None:
         self.store.remove()

@@ -54,6 +54,7 @@ print(json.dumps({{"user": json.load(open(path))["user"], "folder": os.path.dirn
                   "modes": sorted({{oct(stat.S_IMODE(os.stat(os.path.join(os.path.dirname(path), f)).st_mode))
                                    for f in os.listdir(os.path.dirname(path))}}),
                   "folder_mode": oct(stat.S_IMODE(os.stat(os.path.dirname(path)).st_mode)),
+                  "files": sorted(os.listdir(os.path.dirname(path))),
                   "args": sys.argv[1:]}}), flush=True)
 """
 
@@ -68,6 +69,8 @@ def test_an_agent_keeps_its_hosts_credentials_private_for_the_run_and_removes_th
     agent = Agent("arm", ["tcp/127.0.0.1:1"], say=lines.append, python=str(fake), workdir=tmp_path / "work")
     published = []
     agent._publish = lambda part, payload: published.append((part, payload))  # no hub in this test
+    # a node's password in an order (a hub from before the hosts' routers made their nodes' own)
+    # is not written: only the launcher's is kept
     order = {"system": system.read_text(), "path": str(system), "args": ["--no-record"],
              "credentials": {"iotad-launcher-arm": "p1", "node-vision": "p2"}}
     # the agent spawns its runs on the thread of serve() (its parent-death signal's thread): here,
@@ -83,6 +86,7 @@ def test_an_agent_keeps_its_hosts_credentials_private_for_the_run_and_removes_th
     seen = json.loads(next(payload["line"] for part, payload in published if part == "log"))
     assert seen["user"] == "iotad-launcher-arm" and seen["args"][-1] == "--no-record"
     assert seen["folder_mode"] == "0o700" and seen["modes"] == ["0o600"]
+    assert "iotad-launcher-arm.json" in seen["files"] and "node-vision.json" not in seen["files"], seen["files"]
     assert not Path(seen["folder"]).exists()  # removed once the run ended
     for bad, why in (({"node-vision": "p2"}, "lack this host's launcher"), ({"x": 1}, "map user names")):
         with pytest.raises(AgentError, match=why):

@@ -1,11 +1,12 @@
-"""Access control holds across hosts: the Figure 2 split over two namespaces, started by one
-`iotad run --certs` on brain through arm's agent over TLS, runs with access control on (arm's
-launcher and node get their credentials from the hub through the agent). A third namespace tries
-to open a session, publish on the scheduler's motor command and a requester's output bound to the
-scheduler, and read every channel: without a certificate, with another authority's, and with a
-certificate of the system's own authority but no credentials, or with a guessed password. Each is
-refused, nothing of it reaches a subscriber or the recording, and the run commits and checks
-clean. The control: the same script with the tools' credentials opens a session and reads."""
+"""Access control holds across hosts: the Figure 2 split over two namespaces, started by
+one `iotad run --certs` on brain through arm's agent over TLS, runs with access control on
+(arm's launcher gets its credentials from the hub through the agent, its node from arm's
+router). A third namespace tries to open a session, publish on the scheduler's motor command
+and a requester's output bound to the scheduler, and read every channel: without a
+certificate, with another authority's, and with a certificate of the system's own authority
+but no credentials, or with a guessed password. Each is refused, nothing of it reaches a
+subscriber or the recording, and the run commits and checks clean. The control: the same
+script with the tools' credentials opens a session and reads."""
 import re
 import subprocess
 import sys

@@ -1,8 +1,8 @@
 """The router of a host that is not the hub's (iotad/launcher/host_router.py) enforces access
 control for its local clients as the hub does: on its private unix socket it admits arm's node
-and arm's recorder with the credentials the agent received, refuses a wrong password and a user of
-another host, and drops what arm's node may not publish (another node's output) while the
-recorder hears what it may. The hub's policy grants arm's launcher user exactly what arm's nodes
+and arm's recorder with the passwords it made for them on arm (the agent receives only the
+launcher's), refuses a wrong password and a user of another host, and drops what arm's node may
+not publish (another node's output) while the recorder hears what it may. The hub's policy grants arm's launcher user exactly what arm's nodes
 may do, and no more."""
 import os
 import stat
@@ -32,8 +32,9 @@ def system(tmp_path):
 
 def test_the_host_router_checks_its_clients_like_the_hub(system):
     received = CredentialStore(host_users(system, "arm"))  # what arm's agent wrote for the run
+    assert host_users(system, "arm") == [launcher_user("arm")]
     given = GivenCredentials(received.folder)
-    router = HostRouter(system, "arm", given, load(given.file_of(launcher_user("arm"))))
+    router = HostRouter(system, "arm", load(given.file_of(launcher_user("arm"))))
     sessions = []
     try:
         socket_dir = Path(router.endpoint.partition("/")[2]).parent
@@ -48,7 +49,7 @@ def test_the_host_router_checks_its_clients_like_the_hub(system):
         recorder = client(load(router.store.file_of(RECORDER_USER)))
         heard = []
         recorder.declare_subscriber("iota/split/**", lambda sample: heard.append(str(sample.key_expr)))
-        vision = client(given.credentials(node_user("vision")))
+        vision = client(load(router.store.file_of(node_user("vision"))))
         time.sleep(0.5)
         own, other = wire.channel_key("split", "vision", "req"), wire.channel_key("split", "scheduler", "ack", 0)
         deadline = time.monotonic() + 10

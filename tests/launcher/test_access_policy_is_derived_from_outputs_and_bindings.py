@@ -89,7 +89,11 @@ def test_run_check_prints_the_policy_of_a_system_spread_over_hosts_with_its_laun
     assert main(["run", "--check", str(path)]) == 0
     out = capsys.readouterr().out
     assert "on when its hub starts the other hosts through their agents over tls/" in out
-    assert "node-scheduler (node)" in out and "iota/figure2/scheduler/mdl_command" in out
+    # the hub admits brain's node; arm's log in to arm's router, which enforces their rights
+    hub, router = out.split("access control of figure2 (default: deny; the router of host arm enforces it):")
+    assert "node-scheduler (node)" in hub and "iota/figure2/scheduler/mdl_command" in hub
+    assert "node-vision" not in hub and "node-manipulation" not in hub
+    assert "node-vision (node)" in router and "node-manipulation (node)" in router and "node-scheduler" not in router
     assert "iotad-launcher-arm (launcher of host arm)" in out and "iotad-launcher-brain" not in out
     agent = out[out.index("iotad-agent-arm (agent of host arm)"):].split("\n  iotad-", 1)[0]
     assert "publish:            iota/@agent/arm/log, iota/@agent/arm/exit" in agent

@@ -129,18 +129,17 @@ def run(args: argparse.Namespace) -> int:
         buses = f", {len(system.buses)} CAN bus(es)" if system.buses else ""
         print(f"{system.file}: ok: system {system.name!r}, {len(system.nodes)} nodes, "
               f"{inputs} channel bindings, {len(system.external)} external inputs{buses}")
-        from iotad.launcher.access_policy import derive
+        from iotad.launcher.host_access import hub_policy
+        from iotad.launcher.host_router import HostRouter
 
-        policy = derive(system)
         others = list(dict.fromkeys(n.host for n in system.nodes.values() if n.host and n.host != system.hub_host))
         if others:  # as `access_for` decides for the run
-            from iotad.launcher.host_access import host_grants
-
-            policy.grants += host_grants(system, others)
             print(f"access control of {system.name}: on when its hub starts the other hosts through their agents "
                   "over tls/ endpoints with --certs; off with --insecure or --local; tcp/ links, and a --host "
                   "launcher the hub's agent did not start, are refused without --insecure (docs/hosts.md)")
-        print("\n".join(policy.lines()))
+        print("\n".join(hub_policy(system, others).lines()))
+        for host in others:  # another host's nodes log in to its router only, with the same rights
+            print("\n".join(HostRouter.policy_of(system, host).lines(f"the router of host {host}")))
         return 0
     if args.no_record and args.record_to:
         from iotad.cli import CliError
