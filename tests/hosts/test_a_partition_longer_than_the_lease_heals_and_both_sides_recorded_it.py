@@ -26,9 +26,9 @@ from namespaces import agent, hosts
 from iotad.launcher.processes import interrupt_then_kill
 from iotad.recording.mcap_reader import read_recording
 
-# a port of each run's own: a run under access control advertises its tools' credentials by port
-# (iotad.host.credentials.for_endpoints), and an open run's recorder on the same port, even in
-# other namespaces, would take them and not be let in
+# a port of each run's own, so that the two cases can run side by side in other namespaces (an
+# open run no longer takes the credentials a secured one advertised for its port:
+# tests/launcher/test_an_open_run_takes_no_credentials_another_run_advertised.py)
 PORTS = {False: 7661, True: 7663}
 CUT = 12.0      # s: just over the lease (10 s), so that zenoh declares the other host gone
 PERIOD = 0.02   # s between two outputs of a pulse
