@@ -44,6 +44,20 @@ class Source(Iota):
         self.n += 1
 
 
+class Pulse(Iota):
+    """An output every `period` s, at any rate (switching 0): a node's periodic output whose count
+    per second shows whether it kept its timing."""
+    period = Param(0.02)
+    out = Output(Int, switching=0)
+
+    def init(self):
+        self.n = 0
+
+    @out.action(value=lambda self: self.n, after="period")
+    def sent(self):
+        self.n += 1
+
+
 class FastSource(Iota):
     out = Output(Int, switching=0.5)
 

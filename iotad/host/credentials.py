@@ -87,11 +87,12 @@ def _port(endpoint: str) -> str | None:
 
 
 def for_endpoints(endpoints: Iterable[str]) -> Credentials | None:
-    """A tool's credentials for a hub at `endpoints`: `IOTAD_CREDENTIALS` when set, else the ones
-    `iotad run` advertised for that port (only from a private directory of this user)."""
-    found = from_env()
-    if found is not None:
-        return found
+    """A tool's credentials for a hub at `endpoints`: `IOTAD_CREDENTIALS` when set (set but empty:
+    none, as the launcher of an open run tells its processes), else the ones a running `iotad run`
+    advertised for that port (only from a private directory of this user; the pointer of a run
+    whose launcher is gone, killed before it could remove it, is ignored)."""
+    if ENV in os.environ:
+        return from_env()
     folder = user_dir()
     if not _private_dir(folder):
         return None
@@ -100,13 +101,36 @@ def for_endpoints(endpoints: Iterable[str]) -> Credentials | None:
         pointer = folder / f"hub-{port}"
         if port is None or not pointer.is_file():
             continue
-        target = Path(pointer.read_text().strip())
+        try:
+            target, owner = _read_pointer(pointer)
+        except OSError:
+            continue
+        if owner is not None and not _alive(owner):
+            continue  # a run killed before it took its pointer back: its hub is gone or another's
         if _private_dir(target.parent) and target.is_file():
             try:
                 return load(target)
             except CredentialsError:
                 continue
     return None
+
+
+def _read_pointer(pointer: Path) -> tuple[Path, int | None]:
+    """A pointer's credentials file and the pid of the launcher that wrote it (None in a pointer
+    written before the pid was kept)."""
+    lines = pointer.read_text().splitlines()
+    owner = lines[1].strip() if len(lines) > 1 else ""
+    return Path(lines[0].strip() if lines else ""), int(owner) if owner.isdigit() else None
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True  # someone else's process: alive, and not this user's run (the folder check says so)
+    return True
 
 
 class CredentialStore:
@@ -161,7 +185,7 @@ class CredentialStore:
             pointer = folder / f"hub-{port}"
             temporary = folder / f".hub-{port}.{os.getpid()}"
             temporary.unlink(missing_ok=True)
-            self._write(temporary, str(self.file_of(user)))
+            self._write(temporary, f"{self.file_of(user)}\n{os.getpid()}\n")
             os.replace(temporary, pointer)
             self.pointer = pointer
             return
@@ -169,7 +193,7 @@ class CredentialStore:
     def remove(self) -> None:
         if self.pointer is not None:
             try:
-                if self.pointer.read_text().strip().startswith(str(self.folder)):
+                if str(_read_pointer(self.pointer)[0]).startswith(str(self.folder)):
                     self.pointer.unlink()
             except OSError:
                 pass

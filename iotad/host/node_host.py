@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 import os
 import socket
+import sys
 import threading
 import time
 from pathlib import Path
@@ -27,6 +28,7 @@ from iotad.host.channel_table import ChannelTable, build, plain_params
 from iotad.host.host_clock import HostClock, RawInput
 from iotad.host.node_config import ConfigError, NodeConfig
 from iotad.host.peer_restart import PEER_RESTART, watch_for_host
+from iotad.host.session_close import close_session
 from iotad.kernel.model import param_values
 from iotad.kernel.policy import make_policy
 from iotad.host.transport import open_session
@@ -261,7 +263,11 @@ class NodeHost:
         self._declared.clear()
         if self.session is not None:
             session, self.session = self.session, None
-            session.close()
+            # peers on a host that is cut off are not waited for: the node stops in time for
+            # its launcher's SIGINT patience, and exits cleanly
+            problem = close_session(session)
+            if problem:
+                print(f"{self.config.path}: {problem}", file=sys.stderr, flush=True)
 
     # ------------------------------------------------------------------ engine-thread work
     def _publish_output(self, event: dict) -> None:

@@ -85,9 +85,11 @@ class AccessControl:
 
     def env_for(self, user: str) -> dict[str, str] | None:
         """A child's environment: the launcher's plus where its credentials are (on another host,
-        those its router made)."""
+        those its router made). In an open run, set but empty: none, and no looking for the ones
+        another run advertised for the same port (a run in another network namespace, or one
+        killed before it took its pointer back), which an open hub would refuse."""
         if self.store is None:
-            return None
+            return {**os.environ, ENV: ""}
         store = self.router.store if self.router is not None else self.store
         return {**os.environ, ENV: str(store.file_of(user))}
 

@@ -39,6 +39,7 @@ from pathlib import Path
 from typing import Callable
 
 from iotad.host.credentials import ENV, CredentialStore
+from iotad.host.session_close import close_session
 from iotad.launcher.code_by_hash import CODE_PREFIX, CodeCache, CodeError, code_key, localize
 from iotad.launcher.processes import wrapped_argv
 
@@ -182,7 +183,7 @@ class Agent:
                     item.undeclare()
                 except Exception:  # noqa: BLE001 - a session the hub left
                     pass
-            self.session.close()
+            close_session(self.session)  # a hub that is cut off is not waited for
             self.session = None
 
     def _running(self) -> bool:

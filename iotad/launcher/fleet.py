@@ -256,5 +256,7 @@ class Fleet:
                 pass
         self._declared.clear()
         if self.session is not None:
-            self.session.close()
+            from iotad.host.session_close import close_session
+
+            close_session(self.session)  # an agent that is cut off is not waited for
             self.session = None

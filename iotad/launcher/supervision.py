@@ -741,8 +741,12 @@ class Launcher:
                 pass
         self._declared.clear()
         if self.session is not None:
+            from iotad.host.session_close import close_session
+
             session, self.session = self.session, None
-            session.close()
+            problem = close_session(session)  # never waits on a host that is cut off
+            if problem:
+                print(problem, flush=True)
         if self._own_dir and not any(r.state in (NodeState.FAILED, NodeState.DOWN) for r in self.runs.values()):
             shutil.rmtree(self.run_dir, ignore_errors=True)
         if self.access is not None:

@@ -318,7 +318,9 @@ class Recorder:
 
     def _close_session(self) -> None:
         if self._session is not None:
-            self._session.close()
+            from iotad.host.session_close import close_session
+
+            close_session(self._session)  # the file is finished by then; a cut-off host is not waited for
             self._session = None
 
     def _system_time_unit(self) -> float:

@@ -45,8 +45,10 @@ def test_a_host_clock_50_ms_ahead_and_drifting_is_measured_and_corrected_all_run
         finally:
             interrupt_then_kill(agent)
         assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-2000:]
-        # by the time the arm's launcher starts, its clock has already lost some of the 50 ms
-        assert re.search(r"\[arm\] .*host arm: clock offset to the hub -[1-5]\d\.\d+ ms \+-\d+\.\d+ ms "
+        # by the time the arm's launcher starts, its clock has already lost some of the 50 ms: how
+        # much depends on how long the start took (on a loaded machine, 10 s: all of it), so the
+        # value is judged below against the drift at the instant it was measured
+        assert re.search(r"\[arm\] .*host arm: clock offset to the hub [-+]?\d+\.\d+ ms \+-\d+\.\d+ ms "
                          r"\(\d+ round trips\); corrected", done.stdout), done.stdout[-3000:]
 
     recording = read_recording(tmp_path / "drift.mcap")
@@ -73,9 +75,12 @@ def test_a_host_clock_50_ms_ahead_and_drifting_is_measured_and_corrected_all_run
     links = {link.label: link for link in check_delivery(recording, tolerance=0.01).links}
     back = links["scheduler.ack[0] -> vision.ack"]  # from the hub's host to the slow clock
     assert back.delivered >= 2 and back.lost == back.altered == 0, back  # the last may be cut off by the stop
-    # the arm's clock lags at most a period's drift (2.5 ms) before a measurement steps it forward:
-    # uncorrected, the last acks would arrive 30 ms or more "before" they were sent
-    assert min(back.latencies) >= -(abs(DRIFT) * PERIOD + 0.002), back.latencies
+    # the arm's clock lags at most the drift since the last measurement before a measurement
+    # steps it forward: a period's (2.5 ms) when they come on time, more when a loaded machine
+    # holds one back; uncorrected, the last acks would arrive 30 ms or more "before" they were sent
+    times = sorted(e["t"] for e in events)
+    longest_gap = max(later - earlier for earlier, later in zip(times, times[1:]))
+    assert min(back.latencies) >= -(abs(DRIFT) * max(PERIOD, longest_gap) + 0.002), (back.latencies, longest_gap)
     out = check_of_a_real_run(tmp_path / "drift.mcap")
     assert re.search(r"vision: .*\n  windows of host arm widened by [\d.]+ to [\d.]+ ms, the bound at each time "
                      r"\(clock bound; \d+ measurement\(s\)", out), out[-3000:]

@@ -241,6 +241,12 @@ def _launch(system, args: argparse.Namespace, record_to: str | None, summary_hoo
     from iotad.launcher.options import LaunchOptions, RecordingOptions
     from iotad.launcher.supervision import Launcher, LauncherError
 
+    if not args.local:
+        from iotad.host.zenoh_runtime import use_for
+
+        # before this process's first session, and inherited by its nodes and recorder: a host
+        # cut off longer than zenoh's lease must not leave them without a thread to receive on
+        use_for(system, args.host or system.hub_host)
     port = args.port
     if port == 0:
         port = free_port()
