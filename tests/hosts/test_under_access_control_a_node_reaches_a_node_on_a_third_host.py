@@ -25,7 +25,7 @@ PORT = 7634
 
 
 def test_a_node_on_arm_reaches_a_node_on_base_through_the_hub(tmp_path):
-    with hosts("brain", "arm", "base", net=212) as net:
+    with hosts("brain", "arm", "base", net=214) as net:
         hub, arm, base = net.addresses[("brain", "arm")], net.addresses["arm"], net.addresses["base"]
         # base reaches the hub's address on arm's link through its default route to brain
         certs = authority_for(tmp_path / "certs", {"brain": [hub], "arm": [arm], "base": [base]})
