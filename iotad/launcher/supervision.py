@@ -552,10 +552,7 @@ class Launcher:
             return None
         if not self.options.after_live:
             return self._started
-        # a hub host that holds no node of its own (only the hub and the recorder) waits for the
-        # other hosts' alone: without this its --until never began
-        here_live = self._everyone_live() or (not self.runs and self.fleet is not None)
-        if self._live_at is None and here_live and self._other_hosts_live():
+        if self._live_at is None and self._here_live() and self._other_hosts_live():
             self._live_at = now
             self.view.line(f"every node is live: --until {self.until:g} s counts from now")
         return self._live_at
@@ -567,6 +564,12 @@ class Launcher:
         if self.fleet is None:
             return True
         return all(name in self._ever_alive for name in self.system.nodes if name not in self.runs)
+
+    def _here_live(self) -> bool:
+        """This host's nodes are all live (`_everyone_live`); a hub host that holds no node of its
+        own (only the hub and the recorder) has none to wait for: without this its --until never
+        began and its recorder was judged as starting all run."""
+        return self._everyone_live() or (not self.runs and self.fleet is not None)
 
     def _everyone_live(self) -> bool:
         """Every node is live or has ended for good, and one at least is live: a node that failed
@@ -590,7 +593,8 @@ class Launcher:
 
     def _supervise(self, now: float) -> None:
         system = self.system
-        self._system_live = self._system_live or self._everyone_live()
+        self._system_live = self._system_live or self._everyone_live() or \
+            (not self.runs and self.fleet is not None and self._other_hosts_live())
         if self.recorder is not None:
             self.recorder.supervise(system_starting=not self._system_live)
         self._open_gate()
