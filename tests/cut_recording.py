@@ -4,6 +4,7 @@ recorded as it happened, and the merge marks whatever the hub's recording lacks 
 from __future__ import annotations
 
 from launcher_helpers import ROOT
+from namespaces import hosts_header
 
 from iotad.recording.mcap_reader import read_recording
 from iotad.recording.merge import merge
@@ -12,16 +13,7 @@ from iotad.recording.merge import merge
 def source_to_sink(hub: str, arm: str, port: int, scheme: str = "tcp") -> str:
     """The system file: `source` (one output a second) on arm, `sink` on brain, the hub at `hub`:`port`."""
     iotas = ROOT / "tests" / "system_iotas.py"
-    return f"""
-[system]
-name = "cut"
-hub_host = "brain"
-[system.endpoints]
-listen = ["{scheme}/{hub}:{port}"]
-[hosts.brain]
-listen = ["{scheme}/{hub}:0"]
-[hosts.arm]
-listen = ["{scheme}/{arm}:0"]
+    return hosts_header("cut", hub, port, "brain", "arm", arm, scheme) + f"""
 
 [[node]]
 name = "source"

@@ -12,6 +12,24 @@ from contextlib import contextmanager
 import pytest
 
 
+def hosts_header(name: str, hub: str, port: int, hub_host: str, other: str, other_address: str,
+                 scheme: str = "tcp") -> str:
+    """The `[system]` and `[hosts]` tables of a system spread over `hub_host` (which holds the hub
+    at `hub`:`port`) and `other`, each listening on an address of its own namespace."""
+    return f"""
+[system]
+name = "{name}"
+hub_host = "{hub_host}"
+[system.endpoints]
+listen = ["{scheme}/{hub}:{port}"]
+
+[hosts.{hub_host}]
+listen = ["{scheme}/{hub}:0"]
+[hosts.{other}]
+listen = ["{scheme}/{other_address}:0"]
+"""
+
+
 def split_figure2(name: str, hub: str, port: int, hub_host: str, other: str, other_address: str,
                   scheme: str = "tcp", scheduler_on: str | None = None, count: int = 2, pause: float = 1.2,
                   third: tuple[str, str] | None = None) -> str:
@@ -26,18 +44,7 @@ def split_figure2(name: str, hub: str, port: int, hub_host: str, other: str, oth
     third_host = f'[hosts.{third[0]}]\nlisten = ["{scheme}/{third[1]}:0"]' if third else ""
     from pathlib import Path
     examples = Path(__file__).resolve().parents[1] / "examples"
-    return f"""
-[system]
-name = "{name}"
-hub_host = "{hub_host}"
-[system.endpoints]
-listen = ["{scheme}/{hub}:{port}"]
-
-[hosts.{hub_host}]
-listen = ["{scheme}/{hub}:0"]
-[hosts.{other}]
-listen = ["{scheme}/{other_address}:0"]
-{third_host}
+    return hosts_header(name, hub, port, hub_host, other, other_address, scheme) + f"""{third_host}
 
 [[node]]
 name = "scheduler"

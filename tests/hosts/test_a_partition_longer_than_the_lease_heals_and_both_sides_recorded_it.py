@@ -21,7 +21,7 @@ import pytest
 from agent_helpers import authority_for
 from cut_recording import cut_a_while
 from launcher_helpers import IOTAS, ROOT, wait_until
-from namespaces import agent, hosts
+from namespaces import agent, hosts, hosts_header
 
 from iotad.launcher.processes import interrupt_then_kill
 from iotad.recording.mcap_reader import read_recording
@@ -39,17 +39,7 @@ def system_text(hub: str, arm: str, scheme: str, port: int) -> str:
     """tick (a pulse on brain) -> far (on arm); beat (a pulse on arm) -> near (on brain)."""
     nodes = [("tick", "brain", "Pulse", f"params = {{ period = {PERIOD} }}"), ("near", "brain", "FreeSink", ""),
              ("beat", "arm", "Pulse", f"params = {{ period = {PERIOD} }}"), ("far", "arm", "FreeSink", "")]
-    text = f"""
-[system]
-name = "long"
-hub_host = "brain"
-[system.endpoints]
-listen = ["{scheme}/{hub}:{port}"]
-[hosts.brain]
-listen = ["{scheme}/{hub}:0"]
-[hosts.arm]
-listen = ["{scheme}/{arm}:0"]
-"""
+    text = hosts_header("long", hub, port, "brain", "arm", arm, scheme)
     for name, host, iota, params in nodes:
         text += f'\n[[node]]\nname = "{name}"\nhost = "{host}"\npython = "{IOTAS}:{iota}"\n{params}\n'
     return text + '\n[[bind]]\nfrom = "tick.out"\nto = "far.inp"\n[[bind]]\nfrom = "beat.out"\nto = "near.inp"\n'
