@@ -3,6 +3,8 @@ them, and what they check afterwards: the arm's own recording kept every event o
 recorded as it happened, and the merge marks whatever the hub's recording lacks of them."""
 from __future__ import annotations
 
+from collections import Counter
+
 from launcher_helpers import ROOT
 from namespaces import hosts_header
 
@@ -76,3 +78,21 @@ def cut_a_while(net, seconds: float) -> tuple[float, float]:
     finally:
         net.heal("brain", "arm")
     return cut_at, time.time()
+
+
+def per_second(recording, system: str, node: str, kind: str, since: float, until: float) -> dict[int, int]:
+    """How many `kind` events of `node` (of the system named `system`) the recording received in
+    each whole second from `since` to `until` (wall-clock times; receipt times, not the events' own)."""
+    counts = Counter({second: 0 for second in range(int(until - since))})
+    for m in recording.messages:
+        if m.topic == f"iota/{system}/{node}/@trace" and m.value.get("kind") == kind:
+            second = int(m.log_time / 1e9 - since)
+            if 0 <= m.log_time / 1e9 - since and second in counts:
+                counts[second] += 1
+    return dict(sorted(counts.items()))
+
+
+def received_after(recording, system: str, node: str, kind: str, when: float) -> int:
+    """How many `kind` events of `node` the recording received after the wall-clock time `when`."""
+    return sum(1 for m in recording.messages if m.topic == f"iota/{system}/{node}/@trace"
+               and m.value.get("kind") == kind and m.log_time / 1e9 > when)

@@ -79,16 +79,17 @@ def find(events, **fields):
     return next(k for k, e in enumerate(events) if all(e.get(f) == v for f, v in fields.items()))
 
 
-def check_of_a_real_run(path) -> str:
+def check_of_a_real_run(path, *options: str) -> str:
     """`iotad check --all` of a recording of real processes, asserted to find nothing but lateness;
     returns its report. Processes on a loaded machine (two cores, the test suite beside them) can
     fire some ms past a window: check rightly finds it, `late`, but that is the machine's load,
     not the system, and the tests that run real processes are about what the system did. Any
     other finding (a wrong value, an expired window, an action not enabled, a message not
-    delivered as sent, a node not checked) fails, as does a pass that is not whole."""
+    delivered as sent, a node not checked) fails, as does a pass that is not whole. `options`: more
+    of `iotad check`'s options (`--no-delivery` for a run whose delivery the test judges itself)."""
     report = io.StringIO()
     with contextlib.redirect_stdout(report):
-        code = main(["check", str(path), "--all"])
+        code = main(["check", str(path), "--all", *options])
     out = report.getvalue()
     verdict = out.strip().splitlines()[-1]
     if code == 0:

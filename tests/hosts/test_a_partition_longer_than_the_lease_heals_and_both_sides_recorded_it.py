@@ -14,12 +14,11 @@ import signal
 import subprocess
 import sys
 import time
-from collections import Counter
 
 import pytest
 
 from agent_helpers import authority_for
-from cut_recording import cut_a_while
+from cut_recording import cut_a_while, per_second, received_after
 from launcher_helpers import IOTAS, ROOT, wait_until
 from namespaces import agent, hosts, hosts_header
 
@@ -43,23 +42,6 @@ def system_text(hub: str, arm: str, scheme: str, port: int) -> str:
     for name, host, iota, params in nodes:
         text += f'\n[[node]]\nname = "{name}"\nhost = "{host}"\npython = "{IOTAS}:{iota}"\n{params}\n'
     return text + '\n[[bind]]\nfrom = "tick.out"\nto = "far.inp"\n[[bind]]\nfrom = "beat.out"\nto = "near.inp"\n'
-
-
-def per_second(recording, node: str, kind: str, since: float, until: float) -> dict[int, int]:
-    """How many `kind` events of `node` the recording received in each whole second from `since`
-    to `until` (wall-clock times; receipt times, not the events' own)."""
-    counts = Counter({second: 0 for second in range(int(until - since))})
-    for m in recording.messages:
-        if m.topic == f"iota/long/{node}/@trace" and m.value.get("kind") == kind:
-            second = int(m.log_time / 1e9 - since)
-            if 0 <= m.log_time / 1e9 - since and second in counts:
-                counts[second] += 1
-    return dict(sorted(counts.items()))
-
-
-def received_after(recording, node: str, kind: str, when: float) -> int:
-    return sum(1 for m in recording.messages if m.topic == f"iota/long/{node}/@trace"
-               and m.value.get("kind") == kind and m.log_time / 1e9 > when)
 
 
 @pytest.mark.parametrize("secure", [False, True], ids=["open", "under access control"])
@@ -116,9 +98,9 @@ def test_a_partition_longer_than_the_lease_heals_and_both_sides_recorded_it(tmp_
     # fifth of that allows for a loaded machine, where the stall gave none for seconds on end)
     nominal = round(1 / PERIOD)
     for recording, pulse in ((hubs, "tick"), (own, "beat")):
-        before = per_second(recording, pulse, "output", cut_at - 2.0, cut_at)
-        during = per_second(recording, pulse, "output", cut_at, healed_at)
+        before = per_second(recording, "long", pulse, "output", cut_at - 2.0, cut_at)
+        during = per_second(recording, "long", pulse, "output", cut_at, healed_at)
         assert all(n >= nominal // 5 for n in [*before.values(), *during.values()]), (pulse, before, during)
     # after the heal, traffic flows both ways: each host's sink took the other host's pulse again
-    assert received_after(hubs, "near", "input", healed_at) > 0, per_second(hubs, "near", "input", cut_at, time.time())
-    assert received_after(own, "far", "input", healed_at) > 0, per_second(own, "far", "input", cut_at, time.time())
+    assert received_after(hubs, "long", "near", "input", healed_at) > 0, per_second(hubs, "long", "near", "input", cut_at, time.time())
+    assert received_after(own, "long", "far", "input", healed_at) > 0, per_second(own, "long", "far", "input", cut_at, time.time())
