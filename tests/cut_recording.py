@@ -3,9 +3,11 @@ them, and what they check afterwards: the arm's own recording kept every event o
 recorded as it happened, and the merge marks whatever the hub's recording lacks of them."""
 from __future__ import annotations
 
+import signal
+import time
 from collections import Counter
 
-from launcher_helpers import ROOT
+from launcher_helpers import ROOT, wait_until
 from namespaces import hosts_header
 
 from iotad.recording.mcap_reader import read_recording
@@ -78,6 +80,24 @@ def cut_a_while(net, seconds: float) -> tuple[float, float]:
     finally:
         net.heal("brain", "arm")
     return cut_at, time.time()
+
+
+def cut_arm_while_running(net, log, run, hosts: int, recordings: list, cut: float, after_heal: float) -> tuple:
+    """The middle of a partition test, the hub's `iotad run` started as `run` writing `log`: once
+    `hosts` hosts' engines run (each its start gate) and every file of `recordings` is being
+    written, 2 s of outputs to compare the cut with, arm's link cut for `cut` s, the hub's word
+    that arm is back, `after_heal` s more of traffic across the healed link, then Ctrl-C.
+    (cut_at, healed_at, the run's exit status)."""
+    assert wait_until(lambda: log.read_text().count("start gate open") == hosts
+                      and all(f"recording to {path}" in log.read_text() for path in recordings), 90), \
+        log.read_text()[-3000:]
+    time.sleep(2.0)  # outputs before the cut, to compare the cut with
+    cut_at, healed_at = cut_a_while(net, cut)
+    back = "host arm: back; its nodes ran on while it was cut off"
+    assert wait_until(lambda: back in log.read_text(), 60), log.read_text()[-3000:]
+    time.sleep(after_heal)
+    run.send_signal(signal.SIGINT)
+    return cut_at, healed_at, run.wait(60)
 
 
 def per_second(recording, system: str, node: str, kind: str, since: float, until: float) -> dict[int, int]:

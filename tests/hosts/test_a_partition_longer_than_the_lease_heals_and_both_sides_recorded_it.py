@@ -10,7 +10,6 @@ receiving once the lease ran out (zenoh closed the cut links on both of its rece
 held up to 10 s by SO_LINGER; iotad/host/zenoh_runtime.py), the hub's recorder recorded nothing
 for seconds and its launcher killed its own nodes as frozen (the open run; under access control
 only the launchers link the hosts, and the test passed before the fix too)."""
-import signal
 import subprocess
 import sys
 import time
@@ -18,8 +17,8 @@ import time
 import pytest
 
 from agent_helpers import authority_for
-from cut_recording import cut_a_while, per_second, received_after
-from launcher_helpers import IOTAS, ROOT, wait_until
+from cut_recording import cut_arm_while_running, per_second, received_after
+from launcher_helpers import IOTAS, ROOT
 from namespaces import agent, hosts, hosts_header
 
 from iotad.launcher.processes import interrupt_then_kill
@@ -63,16 +62,7 @@ def test_a_partition_longer_than_the_lease_heals_and_both_sides_recorded_it(tmp_
                                             "--plain", "--until", "120", "-o", str(hub_file)),
                                    stdout=out, stderr=subprocess.STDOUT, text=True, cwd=ROOT, start_new_session=True)
             try:
-                # both hosts' engines run (each host's start gate), each host records
-                assert wait_until(lambda: log.read_text().count("start gate open") == 2
-                                  and f"recording to {arm_file}" in log.read_text(), 90), log.read_text()[-3000:]
-                time.sleep(2.0)  # outputs before the cut, to compare the cut with
-                cut_at, healed_at = cut_a_while(net, CUT)
-                back = "host arm: back; its nodes ran on while it was cut off"
-                assert wait_until(lambda: back in log.read_text(), 60), log.read_text()[-3000:]
-                time.sleep(AFTER_HEAL)
-                run.send_signal(signal.SIGINT)
-                code = run.wait(60)
+                cut_at, healed_at, code = cut_arm_while_running(net, log, run, 2, [arm_file], CUT, AFTER_HEAL)
             finally:
                 interrupt_then_kill(run)
         agent_output = arm_agent.stdout.read()

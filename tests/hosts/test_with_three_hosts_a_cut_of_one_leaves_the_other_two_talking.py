@@ -17,7 +17,6 @@ closed is lost, not late (docs/hosts.md, section 8), and nothing between brain a
 At 50 outputs a second each the same run fails (an expected failure, strict: HEAVY says why), as
 it did in every run tried: the hub stalls on the queue toward the cut host and kills its own
 host's nodes as frozen."""
-import signal
 import subprocess
 import sys
 import time
@@ -25,8 +24,8 @@ import time
 import pytest
 
 from agent_helpers import authority_for
-from cut_recording import cut_a_while, per_second, received_after
-from launcher_helpers import IOTAS, ROOT, wait_until
+from cut_recording import cut_arm_while_running, per_second, received_after
+from launcher_helpers import IOTAS, ROOT
 from namespaces import agent, hosts, hosts_header
 from recorded_systems import check_of_a_real_run
 
@@ -90,17 +89,8 @@ def test_with_three_hosts_a_cut_of_one_leaves_the_other_two_talking(tmp_path, pe
                                             "--plain", "--until", "120", "-o", str(files["brain"])),
                                    stdout=out, stderr=subprocess.STDOUT, text=True, cwd=ROOT, start_new_session=True)
             try:
-                # the three hosts' engines run (each host's start gate), each host records
-                assert wait_until(lambda: log.read_text().count("start gate open") == 3
-                                  and all(f"recording to {files[h]}" in log.read_text() for h in ("arm", "base")), 90), \
-                    log.read_text()[-3000:]
-                time.sleep(2.0)  # outputs before the cut, to compare the cut with
-                cut_at, healed_at = cut_a_while(net, CUT)
-                back = "host arm: back; its nodes ran on while it was cut off"
-                assert wait_until(lambda: back in log.read_text(), 60), log.read_text()[-3000:]
-                time.sleep(AFTER_HEAL)
-                run.send_signal(signal.SIGINT)
-                code = run.wait(60)
+                cut_at, healed_at, code = cut_arm_while_running(net, log, run, 3, [files["arm"], files["base"]],
+                                                                CUT, AFTER_HEAL)
             finally:
                 interrupt_then_kill(run)
         agents = {"arm": arm_agent.stdout.read(), "base": base_agent.stdout.read()}
