@@ -12,7 +12,8 @@ from iotad.host import agent_secret
 from iotad.host.agent_secret import agent_user
 from iotad.host.credentials import ENV, Credentials, CredentialStore, GivenCredentials, load
 from iotad.launcher.access_policy import RECORDER_USER, TOOLS_USER, Policy, derive, node_user
-from iotad.launcher.host_access import FLEET_USER, host_users, hub_policy, zenoh_mode
+from iotad.launcher.host_access import (FLEET_USER, across_hosts_qos, host_users, hub_policy, launcher_user, router_zid,
+                                        zenoh_mode)
 from iotad.launcher.options import AccessOptions
 from iotad.launcher.system_file import System
 
@@ -29,6 +30,7 @@ class AccessControl:
         self.store: CredentialStore | None = None
         self.own: Credentials | None = None  # a host's launcher: its own, from its agent
         self.router = None  # a host's launcher: the router of its nodes (iotad/launcher/host_router.py)
+        self.hosts = tuple(hosts)
         if self.policy is None:
             return
         if given is not None:
@@ -68,8 +70,12 @@ class AccessControl:
             return self.router.session_options()
         if self.own is not None:
             return {"credentials": self.own}
-        # a router where it relays between two hosts' routers or more (`zenoh_mode`), else a peer
-        return {"credentials": self.store.hub(), "extra": {"access_control": self.policy.acl()},
+        # a router where it relays between two hosts' routers or more (`zenoh_mode`), else a peer;
+        # what it forwards to another host's router goes with DROP: one cut host must not hold the
+        # hub's receive tasks (`host_access.across_hosts_qos`)
+        zids = [router_zid(self.store.credentials(launcher_user(host)).password) for host in self.hosts]
+        return {"credentials": self.store.hub(),
+                "extra": {"access_control": self.policy.acl(), "qos/network": across_hosts_qos(zids)},
                 "mode": zenoh_mode(self.system)}
 
     def host_part(self, host: str) -> dict[str, str]:

@@ -17,6 +17,8 @@ asks `iota/@agent/<host>/run` with that host's credentials in the order, so no o
 declare the queryable that receives them."""
 from __future__ import annotations
 
+import hashlib
+
 from iotad.host import wire
 from iotad.host.agent_secret import agent_user
 from iotad.host.clock_offset import clock_key
@@ -62,6 +64,37 @@ def zenoh_mode(system: System) -> str:
     node on base heard 20 of 20, and the hub still dropped what arm's launcher user may not publish.
     One host besides the hub's (or none) keeps the peer mode it has always run in."""
     return "router" if len(routed_hosts(system)) >= 2 else "peer"
+
+
+def router_zid(password: str) -> str:
+    """The zenoh id of a host's router, derived from its launcher user's password: the hub made that
+    password and the host received it, so both know the id before the router links to the hub, and
+    the hub can name the router's link in its own config (`across_hosts_qos`). The password is 24
+    random bytes, so its hash tells nothing of it; zenoh wants lowercase hex without a leading 0."""
+    digest = hashlib.sha256(b"iotad host router id\0" + password.encode()).hexdigest()[:32]
+    return digest.lstrip("0") or "1"
+
+
+def across_hosts_qos(zids: list[str] | None = None) -> list[dict]:
+    """zenoh's `qos/network` for a session that routes between hosts (the hub, a host's router):
+    what it forwards toward another host goes with congestion control DROP, toward the routers
+    `zids` (the hub's), or on every TLS link (a host's router, whose one TLS link is the hub's).
+
+    Why: zenoh keeps a message's congestion control on every hop, and the nodes publish with BLOCK
+    so that their own host's recorder loses nothing. A router that forwards such a message to a
+    host cut off from it pushes it onto that link's queue on the receive task of the link it came
+    in on; once the queue is full (the cut link's socket buffer full behind it) the task waits,
+    up to `wait_before_close` (5 s) a message, until the lease closes the cut link. Every link
+    whose traffic also goes to the cut host then stalls: with three hosts the hub heard nothing
+    from its own host's nodes for seconds, killed them as frozen, and brain and base stopped
+    hearing each other (docs/hosts.md, section 8). With DROP the message waits at most
+    `wait_before_drop` (1 ms) for room in that queue, and none once zenoh found it congested; the
+    other links' traffic, the local recorder's included, keeps BLOCK and goes on. What is dropped is
+    what a host that cannot be reached would have lost anyway once the lease closed its links."""
+    item: dict = {"id": "across-hosts-drop", "messages": ["put", "delete", "query"], "flows": ["egress"],
+                  "overwrite": {"congestion_control": "drop"}}
+    item.update({"zids": list(zids)} if zids is not None else {"link_protocols": ["tls"]})
+    return [item] if zids is None or zids else []
 
 
 def hub_policy(system: System, hosts: list[str]) -> Policy:
@@ -130,5 +163,5 @@ def host_grants(system: System, hosts: list[str]) -> list[Grant]:
     return grants
 
 
-__all__ = ["FLEET_USER", "host_grants", "host_users", "hub_policy", "launcher_grant", "launcher_user",
-           "routed_hosts", "routed_users", "zenoh_mode"]
+__all__ = ["FLEET_USER", "across_hosts_qos", "host_grants", "host_users", "hub_policy", "launcher_grant", "launcher_user",
+           "routed_hosts", "routed_users", "router_zid", "zenoh_mode"]

@@ -23,7 +23,7 @@ from typing import Any
 
 from iotad.host.credentials import Credentials, CredentialStore
 from iotad.launcher.access_policy import RECORDER_USER, Grant, Policy, derive
-from iotad.launcher.host_access import launcher_grant, routed_users, zenoh_mode
+from iotad.launcher.host_access import across_hosts_qos, launcher_grant, router_zid, routed_users, zenoh_mode
 from iotad.launcher.system_file import System
 
 # every kind of message a link carries: the hub's own access control judges them
@@ -76,9 +76,13 @@ class HostRouter:
     def session_options(self) -> dict[str, Any]:
         """Keyword arguments of `transport.open_session` for the launcher's session as the router."""
         credentials = Credentials(self.own.user, self.own.password, str(self.store.dictionary))
-        # a router, as the hub is, where the hub relays between hosts' routers (`zenoh_mode`)
-        return {"credentials": credentials, "extra": {"access_control": self.acl(), **NO_GOSSIP},
-                "mode": zenoh_mode(self.system)}
+        # a router, as the hub is, where the hub relays between hosts' routers (`zenoh_mode`); its
+        # id is the one the hub knows it by, and what it forwards to the hub goes with DROP, so that
+        # a cut link to the hub never holds the receive tasks of this host's own nodes' links, and
+        # its recorder goes on hearing them (`host_access.across_hosts_qos`)
+        extra = {"access_control": self.acl(), **NO_GOSSIP, "id": router_zid(self.own.password),
+                 "qos/network": across_hosts_qos()}
+        return {"credentials": credentials, "extra": extra, "mode": zenoh_mode(self.system)}
 
     def close(self) -> None:
         self.store.remove()
