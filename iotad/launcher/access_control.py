@@ -12,7 +12,7 @@ from iotad.host import agent_secret
 from iotad.host.agent_secret import agent_user
 from iotad.host.credentials import ENV, Credentials, CredentialStore, GivenCredentials, load
 from iotad.launcher.access_policy import RECORDER_USER, TOOLS_USER, Policy, derive, node_user
-from iotad.launcher.host_access import (FLEET_USER, across_hosts_qos, host_users, hub_policy, launcher_user, router_zid,
+from iotad.launcher.host_access import (FLEET_USER, across_hosts_settings, host_users, hub_policy, launcher_user, router_zid,
                                         zenoh_mode)
 from iotad.launcher.options import AccessOptions
 from iotad.launcher.system_file import System
@@ -72,10 +72,10 @@ class AccessControl:
             return {"credentials": self.own}
         # a router where it relays between two hosts' routers or more (`zenoh_mode`), else a peer;
         # what it forwards to another host's router goes with DROP: one cut host must not hold the
-        # hub's receive tasks (`host_access.across_hosts_qos`)
+        # hub's receive tasks (`host_access.across_hosts_settings`)
         zids = [router_zid(self.store.credentials(launcher_user(host)).password) for host in self.hosts]
         return {"credentials": self.store.hub(),
-                "extra": {"access_control": self.policy.acl(), "qos/network": across_hosts_qos(zids)},
+                "extra": {"access_control": self.policy.acl(), **across_hosts_settings(zids)},
                 "mode": zenoh_mode(self.system)}
 
     def host_part(self, host: str) -> dict[str, str]:

@@ -23,7 +23,7 @@ from typing import Any
 
 from iotad.host.credentials import Credentials, CredentialStore
 from iotad.launcher.access_policy import RECORDER_USER, Grant, Policy, derive
-from iotad.launcher.host_access import across_hosts_qos, launcher_grant, router_zid, routed_users, zenoh_mode
+from iotad.launcher.host_access import across_hosts_settings, launcher_grant, router_zid, routed_users, zenoh_mode
 from iotad.launcher.system_file import System
 
 # every kind of message a link carries: the hub's own access control judges them
@@ -79,9 +79,9 @@ class HostRouter:
         # a router, as the hub is, where the hub relays between hosts' routers (`zenoh_mode`); its
         # id is the one the hub knows it by, and what it forwards to the hub goes with DROP, so that
         # a cut link to the hub never holds the receive tasks of this host's own nodes' links, and
-        # its recorder goes on hearing them (`host_access.across_hosts_qos`)
+        # its recorder goes on hearing them (`host_access.across_hosts_settings`)
         extra = {"access_control": self.acl(), **NO_GOSSIP, "id": router_zid(self.own.password),
-                 "qos/network": across_hosts_qos()}
+                 **across_hosts_settings()}
         return {"credentials": credentials, "extra": extra, "mode": zenoh_mode(self.system)}
 
     def close(self) -> None:

@@ -15,7 +15,7 @@ lost, those from the cut until its messages got through again: what arm sent whi
 closed is lost, not late (docs/hosts.md, section 8), and nothing between brain and base is.
 
 At 50 outputs a second each as at 10: before the hub forwarded to other hosts with congestion
-control DROP (`host_access.across_hosts_qos`), the hub stalled at 50 a second on the queue toward
+control DROP (`host_access.across_hosts_settings`), the hub stalled at 50 a second on the queue toward
 the cut host, heard nothing for 10 s, and killed its own host's nodes as frozen."""
 import subprocess
 import sys

@@ -3,7 +3,7 @@ stopped, SIGSTOP, so that the link's buffers fill) does not stall the hub. The h
 node publishes its trace with congestion control BLOCK, as nodes do, and the router subscribes to
 it (as every host's launcher does), so the hub forwards each message toward the stopped router
 too. Once that link's queue is full, what the hub forwards there is dropped
-(`host_access.across_hosts_qos`): the hub's own recorder hears every message while the router is
+(`host_access.across_hosts_settings`): the hub's own recorder hears every message while the router is
 stopped, and the hub keeps its link to the router. Before, the message that found the queue full
 waited on it on the hub's receive task of the node's link, and everything behind it with it, for
 as long as zenoh's `wait_before_close` (docs/hosts.md, section 8): with it a minute long here, as
