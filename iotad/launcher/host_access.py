@@ -75,39 +75,37 @@ def router_zid(password: str) -> str:
     return digest.lstrip("0") or "1"
 
 
-# How long a message forwarded to another host waits for room in that link's queue before it is
-# dropped. zenoh's 1 ms lost messages between two hosts that were both up: with three pulses at 50
-# a second, the hub (or the machine) held for about 90 ms on this loaded 2-core machine, its queue
-# toward base (two batches; an express message takes one of its own) filled, and 3 outputs of
-# brain's pulse never reached base. Half a second rides out such a hold, as BLOCK did; a link
-# that stays full costs it once: zenoh then drops at once what finds the queue still full
-# (measured with zenoh 1.10: 4000 messages toward a stopped router, one wait of 0.5 s in all).
-# The hub's launcher takes a node for frozen after 3 s without its heartbeats.
-WAIT_BEFORE_DROP_US = 500_000
-
-
 def across_hosts_settings(zids: list[str] | None = None) -> dict:
     """zenoh settings for a session that forwards between hosts (the hub, a host's router): what it
-    forwards toward another host goes with congestion control DROP (zenoh's `qos/network`
-    overwrite, on egress), toward the routers `zids` (the hub's), or on every TLS link (a host's
-    router, whose one TLS link is the hub's); it waits at most WAIT_BEFORE_DROP_US for room.
+    forwards toward another host goes with congestion control DROP and batched (not express), by
+    zenoh's `qos/network` overwrite on egress, toward the routers `zids` (the hub's), or on every
+    TLS link (a host's router, whose one TLS link is the hub's).
 
-    Why: zenoh keeps a message's congestion control on every hop, and the nodes publish with BLOCK
-    so that their own host's recorder loses nothing. A router that forwards such a message to a
-    host cut off from it pushes it onto that link's queue on the receive task of the link it came
-    in on; once the queue is full (the cut link's socket buffer full behind it) the task waited,
+    Why DROP: zenoh keeps a message's congestion control on every hop, and the nodes publish with
+    BLOCK so that their own host's recorder loses nothing. A router that forwards such a message to
+    a host cut off from it pushes it onto that link's queue on the receive task of the link it came
+    in on; once the queue was full (the cut link's socket buffer full behind it) the task waited,
     and every task behind it, until the lease closed the cut link: with three hosts the hub heard
     nothing from its own host's nodes nor from base for 10 s, killed its nodes as frozen, and
     brain and base stopped hearing each other (docs/hosts.md, section 8). Now such a message waits
-    at most WAIT_BEFORE_DROP_US once, then what finds the queue full is dropped: what a host that
-    cannot be reached would have lost anyway once the lease closed its links. What stays on one
-    host, the recorder's traffic included, keeps BLOCK. None for a hub without other hosts."""
+    at most zenoh's `wait_before_drop` (1 ms) once, and what then finds the queue still full is
+    dropped at once: what a host that cannot be reached would have lost anyway once the lease closed
+    its links. What stays on one host, the recorder's traffic included, keeps BLOCK.
+
+    Why batched: an express message takes a batch of its own, and a link's queue holds two a
+    priority, so with DROP alone a hold of the hub (or of the machine) of about 90 ms, on this
+    loaded 2-core machine, filled the queue toward base, both up, and 3 of brain's outputs to base
+    were lost with three pulses at 50 a second. Batched, the same queue holds two 64 KB batches of
+    messages, seconds of such traffic. zenoh sends a batch at once when its link is idle; it holds
+    one back for more (up to 1 ms) only while the link is busy.
+
+    None for a hub without other hosts."""
     if zids is not None and not zids:
         return {}
     item: dict = {"id": "across-hosts-drop", "messages": ["put", "delete", "query"], "flows": ["egress"],
-                  "overwrite": {"congestion_control": "drop"}}
+                  "overwrite": {"congestion_control": "drop", "express": False}}
     item.update({"zids": list(zids)} if zids is not None else {"link_protocols": ["tls"]})
-    return {"qos/network": [item], "transport/link/tx/queue/congestion_control/drop/wait_before_drop": WAIT_BEFORE_DROP_US}
+    return {"qos/network": [item]}
 
 
 def hub_policy(system: System, hosts: list[str]) -> Policy:
@@ -176,5 +174,5 @@ def host_grants(system: System, hosts: list[str]) -> list[Grant]:
     return grants
 
 
-__all__ = ["FLEET_USER", "WAIT_BEFORE_DROP_US", "across_hosts_settings", "host_grants", "host_users", "hub_policy", "launcher_grant", "launcher_user",
+__all__ = ["FLEET_USER", "across_hosts_settings", "host_grants", "host_users", "hub_policy", "launcher_grant", "launcher_user",
            "routed_hosts", "routed_users", "router_zid", "zenoh_mode"]
