@@ -15,10 +15,11 @@ import json
 import math
 import sys
 from array import array
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Callable
 
 from iotad.host import wire
+from iotad.recording.clock_offsets import widenings
 from iotad.recording.mcap_format import packb, unpackb
 from iotad.recording.mcap_reader import RecordedMessage, Recording
 from iotad.recording.recorded_system import RecordedSystem
@@ -242,6 +243,14 @@ class Accounts:
     wire: dict[str, list[RecordedMessage]]      # key -> the messages recorded on it
     life: dict[str, Life]
     gaps: dict[str, list[tuple[int, int]]]      # key -> the recorder's sequence gaps (expected, got)
+    # node -> the bound of its host's clock offset to the hub's over time (spec units), for the
+    # nodes of the hosts whose clocks were measured (iotad/recording/clock_offsets.py)
+    widen: dict[str, Any] = field(default_factory=dict)
+
+    def clock_bound(self, node: str, t: float) -> float:
+        """How far `node`'s time at `t` may be off the hub's timeline (spec units; 0: exact)."""
+        widening = self.widen.get(node)
+        return widening(t) if widening is not None else 0.0
 
     def on_wire(self, key: str) -> list[OnWire]:
         """The messages recorded on `key`, with their time on the sender's clock where it can be
@@ -325,7 +334,8 @@ def read_accounts(recording: Recording, system: RecordedSystem, tolerance: float
         # spec units; in virtual time a binding delivers at the instant of the firing
         0.0 if virtual else (GRACE if grace is None else grace) / unit,
         recording.specs, info.get("origin_ns") if virtual else None,
-        reading.events, reading.claims, reading.wire, reading.lives(recording.specs), gaps)
+        reading.events, reading.claims, reading.wire, reading.lives(recording.specs), gaps,
+        {} if virtual else widenings(recording))
 
 
 class _Reading:
