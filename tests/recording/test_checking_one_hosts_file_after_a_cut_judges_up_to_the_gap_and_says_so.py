@@ -188,3 +188,14 @@ def test_without_the_gap_every_node_is_judged_whole(tmp_path, capsys):
     assert code == 0, out
     assert "GAP" not in out and "JUDGED ONLY" not in out, out
     assert "beat: 24 events, 24 firings checked, 0 problem(s)" in out.splitlines(), out
+
+
+def test_replay_goes_up_to_the_gap_and_says_so(hub_file, capsys):
+    code = main(["replay", str(hub_file), "--node", "beat"])
+    out = capsys.readouterr().out
+    # before the fix: "replay diverges at output event #6: the replay never produced output out=13 at t=7"
+    assert code == 0, out
+    assert out.splitlines() == [
+        "beat: replay agrees: 6 output events, every value computed again, each firing at its recorded time",
+        "  GAP t=3..7: 7 event(s) of its trace are not in this recording (host arm lost: its nodes down at t=5.5, "
+        "back at t=8); replayed up to the gap, the 11 event(s) recorded after it not"], out
