@@ -287,13 +287,18 @@ class Recording:
         for message in self.messages:
             if message.topic in keys:
                 on_key[message.topic].append(message)
+        # per key: where its sequence numbers jump, by the number jumped to (MCAP keeps 32 bits)
+        jumps_to: dict[str, dict[int, list[int]]] = {}
+        for key, messages in on_key.items():
+            found = jumps_to[key] = {}
+            for k in range(1, len(messages)):
+                if messages[k].sequence != (messages[k - 1].sequence + 1) & 0xFFFFFFFF:
+                    found.setdefault(messages[k].sequence, []).append(k)
         for log_ns, key, gap in noted:
             messages = on_key[key]
-            got = gap["got"] & 0xFFFFFFFF  # MCAP keeps 32 bits of a sequence number
             # the message whose sequence number jumped to `got`: the one the recorder noticed it
             # on (its receipt time), else the first (a merge moves receipt times onto the hub's clock)
-            jumps = [k for k in range(1, len(messages)) if messages[k].sequence == got
-                     and messages[k - 1].sequence != (got - 1) & 0xFFFFFFFF]
+            jumps = jumps_to[key].get(gap["got"] & 0xFFFFFFFF)
             if not jumps:
                 continue
             at = next((k for k in jumps if messages[k].log_time == log_ns), jumps[0])
@@ -304,14 +309,15 @@ class Recording:
             if all(isinstance(t, (int, float)) and not isinstance(t, bool) for t in times):
                 out.append({"position": at, "missing": gap["got"] - gap["expected"], "from_t": float(times[0]),
                             "to_t": float(times[1]), "log_ns": log_ns})
+        launcher = self.launcher_events() if out else []
         for gap in out:
-            gap["why"] = self._why_missed(node, gap["from_t"], gap["to_t"])
+            gap["why"] = self._why_missed(node, gap["from_t"], gap["to_t"], launcher)
         return sorted(out, key=lambda gap: gap["position"])
 
-    def _why_missed(self, node: str, from_t: float, to_t: float) -> str:
+    def _why_missed(self, node: str, from_t: float, to_t: float, events: list[dict]) -> str:
         """Why a trace misses events between `from_t` and `to_t` (spec units, the node's clock), as
-        the launcher's events tell: its host lost (a `down` event naming the host, and `host_back`
-        when it came back), or else the recorder's word only."""
+        the launcher's `events` tell: its host lost (a `down` event naming the host, and
+        `host_back` when it came back), or else the recorder's word only."""
         origin = (self.specs.get(node) or {}).get("origin")
         if not isinstance(origin, (int, float)):
             return "its sequence numbers jumped: the recorder never got them"
@@ -321,7 +327,6 @@ class Recording:
             ns = event.get("t_ns")
             return (ns / 1e9 - origin) / unit if isinstance(ns, int) else None
 
-        events = self.launcher_events()
         for down in events:
             t = t_of(down)
             host = down.get("host")

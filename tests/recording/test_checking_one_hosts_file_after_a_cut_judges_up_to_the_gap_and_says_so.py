@@ -69,11 +69,12 @@ def ns(t: float) -> int:
     return round((ORIGIN + t) * 1e9)
 
 
-def hubs_file(tmp_path, cut=CUT):
+def hubs_file(tmp_path, cut=CUT, lost=True):
     """The hub's recording of 12 s: every node's trace as a node host publishes it (a start
     record, then each event; outputs and inputs with the message's key, seq and send time), each
     output on its key, all received 1 ms after; arm's events inside `cut` left out, with the
-    recorder's note of each sequence gap that left, and the launcher's `down` and `host_back`."""
+    recorder's note of each sequence gap that left, and (`lost`) the launcher's `down` and
+    `host_back`."""
     virtual = tmp_path / "virtual.mcap"
     record_run(Composite("long", Pulse("tick", period=0.5), FreeSink("near"), Pulse("beat", period=0.5),
                          FreeSink("far"), bind=[("tick.out", "far.inp"), ("beat.out", "near.inp")]),
@@ -111,12 +112,13 @@ def hubs_file(tmp_path, cut=CUT):
             if event["kind"] == "output":
                 messages.append((event["key"], received, ns(t), event["seq"], event["value"]))
     launcher = wire.launcher_key("long")
-    for node in ARM:
+    for node in ARM if lost else ():
         messages.append((launcher, ns(LOST), ns(LOST), 0, {"event": "down", "node": node, "host": "arm", "pid": None,
                                                           "code": None, "t_ns": ns(LOST), "message": "host arm lost"}))
-    messages.append((launcher, ns(BACK), ns(BACK), 0,
-                     {"event": "host_back", "node": None, "host": "arm", "pid": 1, "code": None, "t_ns": ns(BACK),
-                      "message": "host arm: back; its nodes ran on while it was cut off (beat, far)", "resumed": True}))
+    messages += [(launcher, ns(BACK), ns(BACK), 0,
+                  {"event": "host_back", "node": None, "host": "arm", "pid": 1, "code": None, "t_ns": ns(BACK),
+                   "message": "host arm: back; its nodes ran on while it was cut off (beat, far)", "resumed": True})
+                 ] if lost else []
     path = tmp_path / "long.mcap"
     sink = McapSink(path)
     sink.add_metadata("iotad.recording", {"format": FORMAT, "system": "long", "clock": "real", "source": "traces",
@@ -199,3 +201,11 @@ def test_replay_goes_up_to_the_gap_and_says_so(hub_file, capsys):
         "beat: replay agrees: 6 output events, every value computed again, each firing at its recorded time",
         "  GAP t=3..7: 7 event(s) of its trace are not in this recording (host arm lost: its nodes down at t=5.5, "
         "back at t=8); replayed up to the gap, the 11 event(s) recorded after it not"], out
+
+
+def test_a_gap_with_no_host_lost_is_said_as_the_recorders_and_judged_the_same(tmp_path, capsys):
+    # the recorder missed the events (it fell behind) and no host was lost: said as such
+    code, out = check(hubs_file(tmp_path, lost=False), capsys, "--no-delivery")
+    assert code == 1 and "[wrong_value]" not in out, out
+    assert ("  GAP t=3..7: 7 event(s) of its trace are not in this recording (its sequence numbers jumped: the "
+            "recorder never got them); the 11 event(s) recorded after the gap") in out, out
