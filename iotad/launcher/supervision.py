@@ -704,7 +704,7 @@ class Launcher:
         if self.clock_watch is not None:
             self.clock_watch.close()  # no measurement of a hub that is going away
         if self.fleet is not None:
-            self.fleet.stop()
+            self.fleet.stop(hurry=self._hurry)  # a second Ctrl-C ends its wait too
             self.fleet.close()
         if self.recorder is not None:
             self.recorder.stopping()  # its silence and its exit are the stop's now

@@ -10,9 +10,11 @@ receiving once the lease ran out (zenoh closed the cut links on both of its rece
 held up to 10 s by SO_LINGER; iotad/host/zenoh_runtime.py), the hub's recorder recorded nothing
 for seconds and its launcher killed its own nodes as frozen (the open run; under access control
 only the launchers link the hosts, and the test passed before the fix too)."""
+import re
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import pytest
 
@@ -38,7 +40,10 @@ def system_text(hub: str, arm: str, scheme: str, port: int) -> str:
     """tick (a pulse on brain) -> far (on arm); beat (a pulse on arm) -> near (on brain)."""
     nodes = [("tick", "brain", "Pulse", f"params = {{ period = {PERIOD} }}"), ("near", "brain", "FreeSink", ""),
              ("beat", "arm", "Pulse", f"params = {{ period = {PERIOD} }}"), ("far", "arm", "FreeSink", "")]
-    text = hosts_header("long", hub, port, "brain", "arm", arm, scheme)
+    # arm measures the hub's clock every 2 s: a measurement falls in the cut, and its warning is a
+    # line arm's launcher prints while the hub cannot hear it
+    text = hosts_header("long", hub, port, "brain", "arm", arm, scheme).replace(
+        'hub_host = "brain"', 'hub_host = "brain"\nclock_period = 2.0')
     for name, host, iota, params in nodes:
         text += f'\n[[node]]\nname = "{name}"\nhost = "{host}"\npython = "{IOTAS}:{iota}"\n{params}\n'
     return text + '\n[[bind]]\nfrom = "tick.out"\nto = "far.inp"\n[[bind]]\nfrom = "beat.out"\nto = "near.inp"\n'
@@ -75,6 +80,15 @@ def test_a_partition_longer_than_the_lease_heals_and_both_sides_recorded_it(tmp_
     assert "host arm: exit 130 (stopped by this run; lost 1 time(s), back each time)" in output, output[-3000:]
     assert "no heartbeat" not in output and "restarted" not in output, output[-3000:]
     assert "agent arm: the run exited with 130" in agent_output, agent_output
+    # every line arm's run printed reached the hub's console, in order, once: those of the cut
+    # (zenoh dropped them) afterwards from its agent, marked late
+    kept = re.search(r"agent arm: the run's lines go to the hub and to (\S+)", agent_output)
+    assert kept, agent_output
+    printed = Path(kept.group(1)).read_text().splitlines()
+    relayed = [re.sub(r"^\[arm\] (\(late\) )?", "", line) for line in re.findall(r"\] (\[arm\] .*)", output)]
+    assert relayed == printed, (relayed, printed)
+    late = [line for line in output.splitlines() if "[arm] (late) " in line]
+    assert any("answered no clock query" in line for line in late), output[-3000:]
 
     hubs, own = read_recording(hub_file), read_recording(arm_file)
     events = hubs.launcher_events()
