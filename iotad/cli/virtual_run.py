@@ -235,6 +235,9 @@ def _run_composed(system, args: argparse.Namespace, writer, root, leaves: dict, 
           f"{counts['input']} inputs, {counts['violation']} violations")
     for line in examples.lines():
         print(f"  violation {line}")
+    more = examples.more(str(output) if output is not None else None)
+    if more:
+        print(f"  {more}")
     if engine.halted:
         print("  engine halted: a loop of actions enabled itself without time passing (see the zeno violation)")
     if output is not None:

@@ -12,7 +12,11 @@ Its wire, all under `iota/@agent/<name>` (an '@' chunk, so no system's `**` matc
   is {"ok": true, "pid": N, "fetched": [lines]} ("already": true when it runs that system
   already) or {"ok": false, "error": "..."};
 - queryable `.../stop`: SIGINT to the child, as Ctrl-C would; answered once it has exited;
-- publications `.../log` (each line the child prints) and `.../exit` ({"code": N}).
+- publications `.../log` (each line the child prints: {"line": text, "n": its number in the run,
+  "run": the child's pid}) and `.../exit` ({"code": N, "lines": how many it printed, "run": pid});
+- queryable `.../lines?after=N`: the lines numbered past N that it still keeps (the last
+  `agent_lines.KEPT`), for a hub that did not hear them live (a network cut): {"run": pid,
+  "first": the first number kept, "count": lines printed, "lines": [[n, text], ...]}.
 
 The order names every file the system file names (node code, specs) with its sha256. The agent
 runs the hub's version of each: the file at the hub's path when this machine holds the same
@@ -40,10 +44,12 @@ from typing import Callable
 
 from iotad.host.credentials import ENV, CredentialStore
 from iotad.host.session_close import close_session
+from iotad.launcher.agent_lines import KeptLines
 from iotad.launcher.code_by_hash import CODE_PREFIX, CodeCache, CodeError, code_key, localize
 from iotad.launcher.processes import wrapped_argv
 
 AGENT_PREFIX = "iota/@agent"
+RUN_LOGS_KEPT = 20  # the lines of this many runs are kept under the work folder's logs/
 
 
 def agent_key(name: str) -> str:
@@ -96,6 +102,7 @@ class Agent:
         self.workdir = Path(workdir) if workdir else Path(tempfile.gettempdir()) / f"iotad-agent-{name}"
         self.child: subprocess.Popen | None = None
         self._digest: str | None = None  # the system file the child runs
+        self._lines = KeptLines()  # the child's lines, numbered, for a hub that missed some (a cut)
         # runs to spawn, from the threads that take orders: spawned on the thread of serve(), which
         # lives as long as the agent (the parent-death signal fires when the spawning thread ends)
         self._spawns: queue.Queue = queue.Queue()
@@ -153,6 +160,7 @@ class Agent:
         # the queryables before the token: a hub that sees the token may ask at once
         declared = [self.session.declare_queryable(f"{key}/run", self._on_run),
                     self.session.declare_queryable(f"{key}/stop", self._on_stop),
+                    self.session.declare_queryable(f"{key}/lines", self._on_lines),
                     self.session.liveliness().declare_token(key)]
         self.say(f"agent {self.name}: ready at the hub" + (f" (admitted as {admitted_as})" if admitted_as else ""))
         # the hub gone for 1 s with no run here: closed now, the next run's hub is joined sooner than
@@ -226,6 +234,13 @@ class Agent:
         code = self._stop_child("the hub asked")
         query.reply(query.key_expr, json.dumps({"ok": True, "code": code}).encode())
 
+    def _on_lines(self, query) -> None:
+        try:
+            after = int(query.parameters.get("after") or 0)
+        except (TypeError, ValueError):
+            after = 0  # a malformed question gets every line kept
+        query.reply(query.key_expr, json.dumps(self._lines.after(after)).encode())
+
     def _fetch(self, sha256: str) -> bytes:
         """A named file's bytes from the hub, by hash (checked by the caller)."""
         asked = time.monotonic()
@@ -289,6 +304,7 @@ class Agent:
                                                   stderr=subprocess.STDOUT, text=True, env=env,
                                                   start_new_session=True)
                     self._digest = order.get("digest")
+                    self._lines.start(self.child.pid)
                     result["child"] = self.child
             except (AgentError, OSError) as exc:
                 result["error"] = exc
@@ -304,18 +320,45 @@ class Agent:
             raise error if isinstance(error, AgentError) else AgentError(f"cannot start the run: {error}")
         child = result["child"]
         self.say(f"agent {self.name}: runs {path} (pid {child.pid})")
-        threading.Thread(target=self._relay, args=(child,), daemon=True, name=f"agent-{self.name}-log").start()
+        log = self._log_file(child.pid)
+        threading.Thread(target=self._relay, args=(child, log), daemon=True, name=f"agent-{self.name}-log").start()
         return {"pid": child.pid, "fetched": fetched}
 
-    def _relay(self, child: subprocess.Popen) -> None:
-        """The child's lines to the hub, then its exit status."""
+    def _log_file(self, pid: int):
+        """The file this host keeps its run's lines in (the hub gets them too, but not during a
+        cut longer than the agent keeps lines for); None, said once, if it cannot be written."""
+        path = self.workdir / "logs" / f"run-{pid}.log"
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            kept = sorted(path.parent.glob("run-*.log"), key=lambda p: p.stat().st_mtime)
+            for old in kept[:-(RUN_LOGS_KEPT - 1)]:  # the last runs' only: a host runs many
+                old.unlink(missing_ok=True)
+            log = path.open("w", encoding="utf-8", buffering=1)  # line by line: a killed agent loses none
+        except OSError as exc:
+            self.say(f"agent {self.name}: cannot keep the run's lines in {path}: {exc.strerror or exc}")
+            return None
+        self.say(f"agent {self.name}: the run's lines go to the hub and to {path}")
+        return log
+
+    def _relay(self, child: subprocess.Popen, log=None) -> None:
+        """The child's lines to the hub (and to `log`), then its exit status."""
+        printed = 0
         for line in child.stdout:
-            self._publish("log", {"line": line.rstrip("\n")})
+            text = line.rstrip("\n")
+            printed = self._lines.add(text)
+            if log is not None:
+                try:
+                    log.write(text + "\n")
+                except OSError:
+                    log = None  # a full disk: the hub still gets them
+            self._publish("log", {"line": text, "n": printed, "run": child.pid})
+        if log is not None:
+            log.close()
         code = child.wait()
         with self._lock:
             if self.child is child:
                 self._remove_credentials()
-        self._publish("exit", {"code": code})
+        self._publish("exit", {"code": code, "lines": printed, "run": child.pid})
         self.say(f"agent {self.name}: the run exited with {code}")
 
     def _publish(self, part: str, payload: dict) -> None:

@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Callable
 
 from iotad.launcher.agent import AGENT_PREFIX, agent_key, digest
+from iotad.launcher.agent_lines import KEPT, HeardLines
 from iotad.launcher.code_by_hash import CODE_PREFIX, named_files
 
 
@@ -54,6 +55,7 @@ class Fleet:
         self._started: set[str] = set()
         self._changed = threading.Condition()
         self._declared: list = []
+        self._heard: dict[str, HeardLines] = {host: HeardLines() for host in self.hosts}
 
     def start(self, access=None, stop=None) -> None:
         """Give each host its part as soon as its agent is there, waiting up to `start_timeout` for
@@ -198,6 +200,8 @@ class Fleet:
         if self.notify is not None:
             # "resumed": an agent cut off a while (the network), whose part ran on meanwhile
             self.notify("resumed" if self._ran_on.get(host) else "back", host)
+        if self._ran_on.get(host) and self._heard.setdefault(host, HeardLines()).want_tail(None, None):
+            self._catch_up(host)  # what its run printed while it was cut off (on this thread of its own)
 
     def _on_message(self, sample) -> None:
         host = self._host_of(sample.key_expr)
@@ -205,12 +209,60 @@ class Fleet:
             payload = json.loads(sample.payload.to_bytes())
         except ValueError:
             return
+        if not isinstance(payload, dict):
+            return
+        heard = self._heard.setdefault(host, HeardLines())
         if str(sample.key_expr).endswith("/log"):
-            self.say(f"[{host}] {payload.get('line', '')}")
+            lines, ask = heard.live(payload.get("run"), payload.get("n"), str(payload.get("line", "")))
+            self._print(host, lines)
+            if ask:  # lines before this one were not heard (a cut): the agent keeps them
+                self._catching_up(host)
+        elif heard.want_tail(payload.get("run"), payload.get("lines")):
+            # the exit counts lines not heard: they are printed before the exit is taken
+            self._catching_up(host, then=lambda: self._exited(host, payload))
         else:
-            with self._changed:
-                self.exits[host] = int(payload.get("code", -1))
-                self._changed.notify_all()
+            self._exited(host, payload)
+
+    def _exited(self, host: str, payload: dict) -> None:
+        try:
+            code = int(payload.get("code", -1))
+        except (TypeError, ValueError):
+            code = -1
+        with self._changed:
+            self.exits[host] = code
+            self._changed.notify_all()
+
+    def _print(self, host: str, lines: list[tuple[str, bool]]) -> None:
+        for text, late in lines:
+            self.say(f"[{host}] (late) {text}" if late else f"[{host}] {text}")
+
+    def _catching_up(self, host: str, then: Callable[[], None] | None = None) -> None:
+        # not on this zenoh thread: the agent's answer needs it
+        threading.Thread(target=self._catch_up, args=(host, then), daemon=True, name=f"fleet-{host}-lines").start()
+
+    def _catch_up(self, host: str, then: Callable[[], None] | None = None) -> None:
+        """The lines of `host`'s run that were not heard live, from its agent, in their order."""
+        heard = self._heard.setdefault(host, HeardLines())
+        try:
+            while True:
+                answer = self._ask(f"{agent_key(host)}/lines?after={heard.after()}", timeout=5.0)
+                if not isinstance(answer.get("lines"), list):
+                    lines, missing = heard.unanswered()
+                    self._print(host, lines)
+                    if missing:
+                        self.say(f"[{host}] ({missing} line(s) before these were not heard: sent while it was "
+                                 f"cut off, and its agent did not give them: {answer.get('error', 'no answer')})")
+                    return
+                lines, dropped, again = heard.answered(answer)
+                if dropped:
+                    self.say(f"[{host}] ({dropped} line(s) sent while it was cut off are lost: its agent keeps "
+                             f"the last {KEPT})")
+                self._print(host, lines)
+                if not again:
+                    return
+        finally:
+            if then is not None:
+                then()
 
     def wait(self, timeout: float) -> dict[str, int]:
         """Until every started host's run has exited (or `timeout`): their exit statuses."""
@@ -220,15 +272,31 @@ class Fleet:
                 self._changed.wait(max(0.0, deadline - time.monotonic()))
         return dict(self.exits)
 
-    def stop(self, grace: float = 20.0) -> dict[str, int]:
-        """Ask every host still running to stop (as Ctrl-C would there) and wait for them."""
+    def stop(self, grace: float = 20.0, hurry: threading.Event | None = None) -> dict[str, int]:
+        """Ask every host still running to stop (as Ctrl-C would there) and wait for them: all
+        at once, each until its agent answers, its agent is gone (a host cut off: its agent
+        stops its part when it finds the hub gone), `grace` s pass, or `hurry` is set (a second
+        Ctrl-C)."""
         self._closing = True  # an agent that comes back now gets no part
-        for host in sorted(self._started - set(self.exits) - set(self.lost)):
-            self._asked_to_stop.add(host)
+        hosts = sorted(self._started - set(self.exits) - set(self.lost))
+        answered: set[str] = set()
+
+        def ask(host: str) -> None:
             answer = self._ask(f"{agent_key(host)}/stop", timeout=grace)
-            if answer.get("ok") and answer.get("code") is not None:
-                with self._changed:
+            with self._changed:
+                if answer.get("ok") and answer.get("code") is not None:
                     self.exits.setdefault(host, int(answer["code"]))
+                answered.add(host)
+                self._changed.notify_all()
+
+        for host in hosts:
+            self._asked_to_stop.add(host)
+            threading.Thread(target=ask, args=(host,), daemon=True, name=f"fleet-{host}-stop").start()
+        deadline = time.monotonic() + grace
+        with self._changed:
+            while time.monotonic() < deadline and not (hurry is not None and hurry.is_set()) and \
+                    any(h not in answered and h not in self.exits and h in self._present for h in hosts):
+                self._changed.wait(0.1)
         return self.wait(2.0)
 
     def failures(self) -> list[str]:

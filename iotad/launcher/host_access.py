@@ -156,7 +156,7 @@ def host_grants(system: System, hosts: list[str]) -> list[Grant]:
         grants.append(Grant(
             agent_user(host), f"agent of host {host}",
             publish=[f"{key}/log", f"{key}/exit"],
-            serve=[f"{key}/run", f"{key}/stop"],
+            serve=[f"{key}/run", f"{key}/stop", f"{key}/lines"],
             # an agent may measure the hub's clock itself before its launcher starts, and fetch
             # the files its order names by their hash (iotad/launcher/code_by_hash.py)
             ask=[clock_key("*"), f"{CODE_PREFIX}/*"],
@@ -167,10 +167,10 @@ def host_grants(system: System, hosts: list[str]) -> list[Grant]:
         grants.append(Grant(
             FLEET_USER, "the hub's side of the agents",
             subscribe=[f"{every}/log", f"{every}/exit"],
-            ask=[f"{every}/run", f"{every}/stop"],
+            ask=[f"{every}/run", f"{every}/stop", f"{every}/lines"],
             serve=[f"{CODE_PREFIX}/*"],  # the files the orders name, by hash
             watch=[every],
-            declarations=[f"{every}/run", f"{every}/stop", f"{CODE_PREFIX}/*"]))
+            declarations=[f"{every}/run", f"{every}/stop", f"{every}/lines", f"{CODE_PREFIX}/*"]))
     return grants
 
 

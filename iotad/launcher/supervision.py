@@ -704,7 +704,7 @@ class Launcher:
         if self.clock_watch is not None:
             self.clock_watch.close()  # no measurement of a hub that is going away
         if self.fleet is not None:
-            self.fleet.stop()
+            self.fleet.stop(hurry=self._hurry)  # a second Ctrl-C ends its wait too
             self.fleet.close()
         if self.recorder is not None:
             self.recorder.stopping()  # its silence and its exit are the stop's now
@@ -762,6 +762,8 @@ class Launcher:
         with self.tally.lock:
             values = {k: Counter(v) for k, v in self.tally.values.items()}
             violations, examples = Counter(self.tally.violations), self.tally.examples.lines()
+            recordings = self.recorder.recordings if self.recorder is not None else []
+            more = self.tally.examples.more(str(recordings[0]) if recordings else None)
         for node in system.nodes.values():
             for channel in node.channels.values():
                 if channel.direction != "output":
@@ -780,7 +782,7 @@ class Launcher:
                                  f"{total:>4} events{': ' + shown if shown else ''}")
         lines.append(f"  violations: {sum(violations.values())}"
                      + (" (" + ", ".join(f"{p} x{n}" for p, n in sorted(violations.items())) + ")" if violations else ""))
-        lines += [f"    {example}" for example in examples]
+        lines += [f"    {example}" for example in examples] + ([f"    {more}"] if more else [])
         never_live = self.never_live()
         for run in self.runs.values():
             if run.restarts:

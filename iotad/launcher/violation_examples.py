@@ -23,11 +23,13 @@ class ViolationExamples:
     def __init__(self, limit: int = LIMIT):
         self.limit = limit
         self._groups: dict[str, _Group] = {}
+        self.unshown = 0  # violations whose line came after `limit` others: counted, not shown
 
     def add(self, line: str, index: object = None) -> None:
         group = self._groups.get(line)
         if group is None:
             if len(self._groups) >= self.limit:
+                self.unshown += 1
                 return
             group = self._groups[line] = _Group()
         group.count += 1
@@ -39,6 +41,15 @@ class ViolationExamples:
 
     def lines(self) -> list[str]:
         return [line + _repeats(group) for line, group in self._groups.items()]
+
+    def more(self, recording: str | None) -> str | None:
+        """The line that says how many violations `lines()` leaves out, and where they are; None
+        when it shows them all."""
+        if not self.unshown:
+            return None
+        where = (f"'iotad info {recording} --violations N' lists them" if recording
+                 else "a recording (-o FILE) would hold them")
+        return f"... and {self.unshown} more, not shown here: {where}"
 
 
 def _repeats(group: _Group) -> str:

@@ -96,17 +96,29 @@ class CheckReport:
     tolerance: float = 0.0
     restarts: list[float] = field(default_factory=list)  # when later processes of the node started
     widened: str = ""  # how its windows were widened beyond the tolerance, said in the report ("": not)
+    # Where its trace misses events the recording never heard (`Recording.trace_gaps`): one line
+    # each, and how many recorded events after them were not judged
+    gaps: list[str] = field(default_factory=list)
+    unjudged: int = 0
 
     @property
     def ok(self) -> bool:
         return not self.findings
 
+    @property
+    def partial(self) -> bool:
+        """Judged only up to a gap in its trace: no problem found is no pass for the rest."""
+        return bool(self.gaps)
+
     def lines(self, limit: int = 20) -> list[str]:
         head = (f"{self.node}: {self.events} events, {self.firings} firings checked, "
-                f"{len(self.findings)} problem(s)" + ("" if self.ok else f"; first: {self.findings[0]}"))
+                f"{len(self.findings)} problem(s)" + ("" if self.ok else f"; first: {self.findings[0]}")
+                + (f"; JUDGED ONLY UP TO A GAP in its trace ({self.unjudged} event(s) after it not judged)"
+                   if self.partial else ""))
         out = [head]
         if self.widened:
             out.append(f"  {self.widened}")
+        out += [f"  {gap}" for gap in self.gaps]
         if self.restarts:
             out.append(f"  restarted at t={', t='.join(f'{t:.6g}' for t in self.restarts)}: each run of its "
                        f"process is checked from its own start")
@@ -251,7 +263,16 @@ class TraceChecker:
         mapping = align_paths((e.get("iota", "") for e in events), self._leaf_paths)
         report = self.report
         latest = -INF  # the latest time recorded so far: a node's trace never goes back in time
+        judged = events
         for position, event in enumerate(events):
+            if event.get("missed") is not None:
+                # events of the node that the recording never heard (`Recording.trace_gaps`): its
+                # spec's state after them is unknown (a counter, a mode), so every event after
+                # them would be judged against the wrong state: wrong values, late and expired
+                # windows that the node never had. Judged up to the gap; the rest is said, not judged.
+                self._gap(event["missed"], len(events) - position)
+                judged, until = events[:position], None
+                break
             report.events += 1
             leaf = mapping.get(event.get("iota", ""), self._leaf_paths[0])
             t = float(event["t"])
@@ -281,11 +302,23 @@ class TraceChecker:
             else:
                 self._find(t, "unknown_event", f"{describe(event)}: unknown kind {kind!r}", position)
             self._engine_violations(t, position)
-        end = until if until is not None else (float(events[-1]["t"]) if events else 0.0)
+        # without a known end, windows are judged up to the last event judged: a window that
+        # closes after it may have fired in what the recording lacks (or after the recording ends)
+        end = until if until is not None else (float(judged[-1]["t"]) if judged else 0.0)
         self._advance(end, -1, None, None)
         return report
 
     # -- steps
+    def _gap(self, missed: dict, after: int) -> None:
+        """The report's line for a gap in the trace, and the events after it, not judged."""
+        report = self.report
+        report.unjudged += after
+        why = f" ({missed['why']})" if missed.get("why") else ""
+        report.gaps.append(
+            f"GAP t={missed.get('from_t', 0):.6g}..{missed.get('to_t', 0):.6g}: {missed.get('missing', '?')} event(s) "
+            f"of its trace are not in this recording{why}; the {after} event(s) recorded after the gap "
+            f"(this run of its process) are not judged, since the state of its spec after the missing "
+            f"events is unknown")
     def _slack(self, t: float) -> float:
         return tolerance_at(self.tolerance, self._widen, t)
 
@@ -448,6 +481,8 @@ def check_runs(build: Callable[[], Any], events: list[dict], *, node: str = "", 
         merged.firings += report.firings
         merged.findings += report.findings
         merged.recorded_violations += report.recorded_violations
+        merged.gaps += report.gaps
+        merged.unjudged += report.unjudged
         for label, slack in report.slack.items():
             total = merged.slack.setdefault(label, Slack(label))
             total.count += slack.count

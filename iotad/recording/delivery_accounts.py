@@ -243,6 +243,9 @@ class Accounts:
     wire: dict[str, list[RecordedMessage]]      # key -> the messages recorded on it
     life: dict[str, Life]
     gaps: dict[str, list[tuple[int, int]]]      # key -> the recorder's sequence gaps (expected, got)
+    # node -> where its trace misses events the recording never heard: (from_t, to_t, why), the
+    # times of the events heard either side (`Recording.trace_gaps`)
+    trace_gaps: dict[str, list[tuple[float, float, str]]] = field(default_factory=dict)
     # node -> the bound of its host's clock offset to the hub's over time (spec units), for the
     # nodes of the hosts whose clocks were measured (iotad/recording/clock_offsets.py)
     widen: dict[str, Any] = field(default_factory=dict)
@@ -290,6 +293,11 @@ class Accounts:
     def trace_gap(self, node: str) -> bool:
         return bool(self.gaps.get(wire.trace_key(self.system.name, node)))
 
+    def unheard(self, node: str, t: float) -> tuple[float, float, str] | None:
+        """The gap in `node`'s trace where a message sent at `t` may have reached it unheard by the
+        recording (it arrives at `t` or, within the grace, after), or None."""
+        return next((gap for gap in self.trace_gaps.get(node, ()) if gap[0] - self.grace < t < gap[1]), None)
+
     def node_t(self, node: str, ns: int) -> float | None:
         origin = (self.specs.get(node) or {}).get("origin")
         if not isinstance(origin, (int, float)):
@@ -325,6 +333,11 @@ def read_accounts(recording: Recording, system: RecordedSystem, tolerance: float
     for gap in recording.gaps():
         if isinstance(gap, dict) and isinstance(gap.get("key"), str):
             gaps.setdefault(gap["key"], []).append((int(gap.get("expected", 0)), int(gap.get("got", 0))))
+    trace_gaps = {}
+    for key in gaps:
+        parsed = wire.parse_key(key)
+        if parsed is not None and parsed[1] and parsed[2] == wire.TRACE:
+            trace_gaps[parsed[1]] = [(g["from_t"], g["to_t"], g["why"]) for g in recording.trace_gaps(parsed[1])]
     return Accounts(
         recording, system, virtual, "virtual" if virtual else str(info.get("source") or "unknown"), unit,
         # a time read off the file (a message's log or publish time) is whole nanoseconds, while
@@ -334,7 +347,7 @@ def read_accounts(recording: Recording, system: RecordedSystem, tolerance: float
         # spec units; in virtual time a binding delivers at the instant of the firing
         0.0 if virtual else (GRACE if grace is None else grace) / unit,
         recording.specs, info.get("origin_ns") if virtual else None,
-        reading.events, reading.claims, reading.wire, reading.lives(recording.specs), gaps,
+        reading.events, reading.claims, reading.wire, reading.lives(recording.specs), gaps, trace_gaps,
         {} if virtual else widenings(recording))
 
 

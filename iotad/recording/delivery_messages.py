@@ -285,6 +285,12 @@ def _untaken(acc: Accounts, rows: Rows, bound: _Target) -> None:
         link = bound.links[claim.key]
         verdict, reason = acc.life[target.node].judge(claim.t, acc.grace, target.node) \
             if target.node in acc.life else ("unjudged", f"{target.node} is not in this recording")
+        unheard = acc.unheard(target.node, claim.t)
+        if verdict == "lost" and unheard is not None:
+            # the receiver's events of then never reached the recording: it may have taken it
+            verdict, reason = "unjudged", (f"sent while {target.node}'s trace misses events this recording never "
+                                           f"heard (t={unheard[0]:.6g}..{unheard[1]:.6g}: {unheard[2]}): it may "
+                                           f"have taken it then")
         if verdict == "lost":
             link.lost += 1
             rows.finding(link, "lost", claim.t, f"{claim.label} ({short(claim.value)}) sent at t={claim.t:.6g} "

@@ -231,6 +231,10 @@ class Recording:
         and put after the events of the processes before it (before the first event recorded
         after the new process was spawned)."""
         events = self.trace(node, starts=True)
+        for gap in self.trace_gaps(node):
+            # the first event heard after the gap carries it: a checker stops there (positions
+            # are those of `trace`, before the launcher's start records go in below)
+            events[gap.pop("position")]["missed"] = gap
         starts = [e for e in events if e.get("kind") == wire.START_KIND]
         value = starts[0].get("value") if starts else None
         if not isinstance(value, dict) or not isinstance(value.get("wall"), (int, float)):
@@ -252,6 +256,88 @@ class Recording:
             at = next((k for k, e in enumerate(events) if float(e["t"]) > since), len(events))
             events.insert(at, made)
         return events
+
+    def trace_gaps(self, node: str) -> list[dict]:
+        """Where `node`'s trace misses events that this recording never heard: the recorder's
+        sequence gaps on the node's `@trace` key (a host cut off from the recorder's for longer
+        than zenoh's lease, whose events were sent into closed links; a recorder that fell
+        behind), each placed in the trace. In trace order: {"position": the index, in
+        `trace(node, starts=True)`, of the first event heard after the gap, "missing": how many
+        events it lacks, "from_t" / "to_t": the `t` of the events heard either side of it,
+        "log_ns": when the recorder noticed it, "why": what the recording says of it}. A merged
+        recording keeps only the gaps that no host's file filled."""
+        noted = []
+        for message in self.messages:
+            if message.topic != GAP_TOPIC:
+                continue
+            try:
+                gap = message.value
+            except RecordingError:
+                continue
+            key = gap.get("key") if isinstance(gap, dict) else None
+            parsed = wire.parse_key(key) if isinstance(key, str) else None
+            if parsed is not None and parsed[1] == node and parsed[2] == wire.TRACE \
+                    and isinstance(gap.get("got"), int) and isinstance(gap.get("expected"), int):
+                noted.append((message.log_time, key, gap))
+        if not noted:
+            return []
+        out = []
+        keys = {key for _, key, _ in noted}
+        on_key: dict[str, list[RecordedMessage]] = {key: [] for key in keys}
+        for message in self.messages:
+            if message.topic in keys:
+                on_key[message.topic].append(message)
+        # per key: where its sequence numbers jump, by the number jumped to (MCAP keeps 32 bits)
+        jumps_to: dict[str, dict[int, list[int]]] = {}
+        for key, messages in on_key.items():
+            found = jumps_to[key] = {}
+            for k in range(1, len(messages)):
+                if messages[k].sequence != (messages[k - 1].sequence + 1) & 0xFFFFFFFF:
+                    found.setdefault(messages[k].sequence, []).append(k)
+        for log_ns, key, gap in noted:
+            messages = on_key[key]
+            # the message whose sequence number jumped to `got`: the one the recorder noticed it
+            # on (its receipt time), else the first (a merge moves receipt times onto the hub's clock)
+            jumps = jumps_to[key].get(gap["got"] & 0xFFFFFFFF)
+            if not jumps:
+                continue
+            at = next((k for k in jumps if messages[k].log_time == log_ns), jumps[0])
+            try:
+                times = [messages[k].value.get("t") for k in (at - 1, at)]
+            except (RecordingError, AttributeError):
+                continue  # no trace events: `trace` names the damage
+            if all(isinstance(t, (int, float)) and not isinstance(t, bool) for t in times):
+                out.append({"position": at, "missing": gap["got"] - gap["expected"], "from_t": float(times[0]),
+                            "to_t": float(times[1]), "log_ns": log_ns})
+        launcher = self.launcher_events() if out else []
+        for gap in out:
+            gap["why"] = self._why_missed(node, gap["from_t"], gap["to_t"], launcher)
+        return sorted(out, key=lambda gap: gap["position"])
+
+    def _why_missed(self, node: str, from_t: float, to_t: float, events: list[dict]) -> str:
+        """Why a trace misses events between `from_t` and `to_t` (spec units, the node's clock), as
+        the launcher's `events` tell: its host lost (a `down` event naming the host, and
+        `host_back` when it came back), or else the recorder's word only."""
+        origin = (self.specs.get(node) or {}).get("origin")
+        if not isinstance(origin, (int, float)):
+            return "its sequence numbers jumped: the recorder never got them"
+        unit = self.time_unit
+
+        def t_of(event: dict) -> float | None:
+            ns = event.get("t_ns")
+            return (ns / 1e9 - origin) / unit if isinstance(ns, int) else None
+
+        for down in events:
+            t = t_of(down)
+            host = down.get("host")
+            if down.get("event") != "down" or down.get("node") != node or down.get("pid") is not None \
+                    or not isinstance(host, str) or t is None or not from_t <= t <= to_t:
+                continue
+            back = next((b for b in events if b.get("event") == "host_back" and b.get("host") == host
+                         and (t_of(b) or -math.inf) >= t), None)
+            return (f"host {host} lost: its nodes down at t={t:.6g}, "
+                    + (f"back at t={t_of(back):.6g}" if back is not None else "not back by the recording's end"))
+        return "its sequence numbers jumped: the recorder never got them"
 
     def restart_times(self, node: str) -> list[float]:
         """When each process after the first that ran `node` started its engine (spec units, the

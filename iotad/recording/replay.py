@@ -38,6 +38,9 @@ class ReplayResult:
     # free replay of a real-time recording: firings the process made later than the tolerance
     # after the replay had them due, each replayed at its recorded time: (recorded event, due)
     late: list = field(default_factory=list)
+    # where a run's trace misses events the recording never heard (`Recording.trace_gaps`): the
+    # run is replayed up to there, as its state after them is unknown; one line each
+    gaps: list[str] = field(default_factory=list)
 
     @property
     def ok(self) -> bool:
@@ -47,12 +50,12 @@ class ReplayResult:
         if self.ok:
             if self.guided:
                 return [f"{self.node}: replay agrees: {len(self.recorded)} {'/'.join(self.kinds)} events, every "
-                        f"value computed again, each firing at its recorded time"] + self._lateness()
+                        f"value computed again, each firing at its recorded time"] + self._lateness() + self._gaps()
             order = (f"; {self.reordered} in another order than the replay's, within the tolerance"
                      if self.reordered else "")
             return [f"{self.node}: replay agrees: {len(self.recorded)} {'/'.join(self.kinds)} events, "
                     f"largest time difference {self.max_time_error:.3g} (tolerance {self.tolerance:g}){order}"] \
-                + self._lateness()
+                + self._lateness() + self._gaps()
         k = self.divergence
         out = [f"{self.node}: replay diverges at {'/'.join(self.kinds)} event #{k}: {self.reason}"]
         lo = max(0, k - context)
@@ -63,7 +66,7 @@ class ReplayResult:
                 out.append(f"   {mark} #{j} {describe(events[j])}")
             if k >= len(events):
                 out.append(f"   >> #{k} (none: the {title} run ends here)")
-        out += self._lateness()
+        out += self._lateness() + self._gaps()
         if self.guided:
             out.append(f"  (each firing at its recorded time; 'iotad check FILE --node {self.node}' says which "
                        f"rule of the spec it breaks)")
@@ -73,6 +76,9 @@ class ReplayResult:
                        "docs/checking.md)")
         return out
 
+
+    def _gaps(self) -> list[str]:
+        return [f"  {gap}" for gap in self.gaps]
 
     def _lateness(self) -> list[str]:
         """The firings the process made later than the tolerance (up to the divergence): guided,
@@ -146,9 +152,18 @@ def replay_node(recording: Recording, node: str, tolerance: float = 0.01,
     # after the node's last recorded event and by then is an event the recording lacks (a node
     # cut short). A real-time recording says no such thing of a node.
     run_end = None if real_time else recording.run_end
-    recorded, replayed, late = [], [], []
+    recorded, replayed, late, gaps = [], [], [], []
     for number, (begun, run) in enumerate(runs):
         last = number == len(runs) - 1
+        at = next((k for k, e in enumerate(run) if e.get("missed") is not None), None)
+        if at is not None:
+            # events the recording never heard: the spec's state after them is unknown (what
+            # `iotad check` says too), so the run is replayed up to them, and to no known end
+            missed = run[at]["missed"]
+            gaps.append(f"GAP t={missed.get('from_t', 0):.6g}..{missed.get('to_t', 0):.6g}: {missed.get('missing', '?')} "
+                        f"event(s) of its trace are not in this recording ({missed.get('why', '')}); replayed up to "
+                        f"the gap, the {len(run) - at} event(s) recorded after it not")
+            run, last = run[:at], False
         mine = [e for e in run if e.get("kind") in kinds]
         root = node_root(recording, node)
         if guided:
@@ -170,7 +185,7 @@ def replay_node(recording: Recording, node: str, tolerance: float = 0.01,
         recorded += mine
         replayed += again
     result = ReplayResult(node, recorded, replayed, tolerance, kinds=kinds, real_time=real_time, guided=guided,
-                          late=late)
+                          late=late, gaps=gaps)
     for k in range(max(len(recorded), len(replayed))):
         if reorder and k < min(len(recorded), len(replayed)) and _moved_forward(recorded[k], replayed, k,
                                                                                  tolerance):

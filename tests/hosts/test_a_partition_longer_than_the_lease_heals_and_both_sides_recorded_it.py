@@ -10,9 +10,11 @@ receiving once the lease ran out (zenoh closed the cut links on both of its rece
 held up to 10 s by SO_LINGER; iotad/host/zenoh_runtime.py), the hub's recorder recorded nothing
 for seconds and its launcher killed its own nodes as frozen (the open run; under access control
 only the launchers link the hosts, and the test passed before the fix too)."""
+import re
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import pytest
 
@@ -21,6 +23,7 @@ from cut_recording import cut_arm_while_running, per_second, received_after
 from launcher_helpers import IOTAS, ROOT
 from namespaces import agent, hosts, hosts_header
 
+from iotad.cli import main
 from iotad.launcher.processes import interrupt_then_kill
 from iotad.recording.mcap_reader import read_recording
 
@@ -37,14 +40,17 @@ def system_text(hub: str, arm: str, scheme: str, port: int) -> str:
     """tick (a pulse on brain) -> far (on arm); beat (a pulse on arm) -> near (on brain)."""
     nodes = [("tick", "brain", "Pulse", f"params = {{ period = {PERIOD} }}"), ("near", "brain", "FreeSink", ""),
              ("beat", "arm", "Pulse", f"params = {{ period = {PERIOD} }}"), ("far", "arm", "FreeSink", "")]
-    text = hosts_header("long", hub, port, "brain", "arm", arm, scheme)
+    # arm measures the hub's clock every 2 s: a measurement falls in the cut, and its warning is a
+    # line arm's launcher prints while the hub cannot hear it
+    text = hosts_header("long", hub, port, "brain", "arm", arm, scheme).replace(
+        'hub_host = "brain"', 'hub_host = "brain"\nclock_period = 2.0')
     for name, host, iota, params in nodes:
         text += f'\n[[node]]\nname = "{name}"\nhost = "{host}"\npython = "{IOTAS}:{iota}"\n{params}\n'
     return text + '\n[[bind]]\nfrom = "tick.out"\nto = "far.inp"\n[[bind]]\nfrom = "beat.out"\nto = "near.inp"\n'
 
 
 @pytest.mark.parametrize("secure", [False, True], ids=["open", "under access control"])
-def test_a_partition_longer_than_the_lease_heals_and_both_sides_recorded_it(tmp_path, secure):
+def test_a_partition_longer_than_the_lease_heals_and_both_sides_recorded_it(tmp_path, secure, capsys):
     """An open run (tcp/, --insecure: every node a peer, meshed across the hosts) and one under
     access control (tls/, --certs: each host's nodes clients of its launcher, one link between)."""
     hub_file, arm_file = tmp_path / "long.mcap", tmp_path / "long.arm.mcap"
@@ -74,6 +80,15 @@ def test_a_partition_longer_than_the_lease_heals_and_both_sides_recorded_it(tmp_
     assert "host arm: exit 130 (stopped by this run; lost 1 time(s), back each time)" in output, output[-3000:]
     assert "no heartbeat" not in output and "restarted" not in output, output[-3000:]
     assert "agent arm: the run exited with 130" in agent_output, agent_output
+    # every line arm's run printed reached the hub's console, in order, once: those of the cut
+    # (zenoh dropped them) afterwards from its agent, marked late
+    kept = re.search(r"agent arm: the run's lines go to the hub and to (\S+)", agent_output)
+    assert kept, agent_output
+    printed = Path(kept.group(1)).read_text().splitlines()
+    relayed = [re.sub(r"^\[arm\] (\(late\) )?", "", line) for line in re.findall(r"\] (\[arm\] .*)", output)]
+    assert relayed == printed, (relayed, printed)
+    late = [line for line in output.splitlines() if "[arm] (late) " in line]
+    assert any("answered no clock query" in line for line in late), output[-3000:]
 
     hubs, own = read_recording(hub_file), read_recording(arm_file)
     events = hubs.launcher_events()
@@ -94,3 +109,13 @@ def test_a_partition_longer_than_the_lease_heals_and_both_sides_recorded_it(tmp_
     # after the heal, traffic flows both ways: each host's sink took the other host's pulse again
     assert received_after(hubs, "long", "near", "input", healed_at) > 0, per_second(hubs, "long", "near", "input", cut_at, time.time())
     assert received_after(own, "long", "far", "input", healed_at) > 0, per_second(own, "long", "far", "input", cut_at, time.time())
+
+    # `iotad check` of the hub's file alone: beat is judged up to the stretch the hub never heard,
+    # which the report names with its cause, and nothing after it (its counter there is unknown
+    # to the file: before the fix every output after the heal was `wrong_value`, the first late)
+    code = main(["check", str(hub_file), "--no-delivery", "--all"])
+    report = capsys.readouterr().out
+    assert code == 1 and "[wrong_value]" not in report and "[expired]" not in report, report
+    beat = next(line for line in report.splitlines() if line.startswith("beat: "))
+    assert "JUDGED ONLY UP TO A GAP in its trace" in beat, report
+    assert "event(s) of its trace are not in this recording (host arm lost: its nodes down at t=" in report, report

@@ -68,3 +68,45 @@ def test_the_virtual_runs_summary_groups_them_too(tmp_path, capsys):
     lines = [line for line in out.splitlines() if "division by zero" in line]
     assert len(lines) == 1, out
     assert lines[0].endswith(" x6 (i=0..5)"), out
+
+
+def test_violations_past_the_lines_shown_are_counted_and_the_summary_says_where_they_are(tmp_path):
+    run = a_launcher(tmp_path)
+    for k in range(8):  # eight distinct lines: five shown
+        run.tally.trace("motor", dict(MISS, t=30.0 + k, index=None))
+    run.tally.trace("motor", dict(MISS, t=37.0, index=None))  # the last one again: not shown either
+    summary = run.summary()
+    shown = [line for line in summary if "after its deadline" in line]
+    assert len(shown) == 5, summary
+    assert "    ... and 4 more, not shown here: a recording (-o FILE) would hold them" in summary, summary
+    assert any("violations: 9 (motor x9)" in line for line in summary), summary
+
+
+MANY = '''
+from iotad import Int, Iota, Output
+
+class Loud(Iota):
+    """An output out of its range once a second: a distinct violation line each time."""
+    out = Output(Int(0, 5))
+
+    out.fires(value=lambda self: 10, within=(1, 1))
+'''
+
+
+def test_the_virtual_runs_summary_says_how_many_it_did_not_show_and_where_they_are(tmp_path, capsys):
+    (tmp_path / "loud.py").write_text(MANY)
+    path = tmp_path / "loud.toml"
+    path.write_text(f'[system]\nname = "loud"\n[[node]]\nname = "n"\npython = "{tmp_path / "loud.py"}:Loud"\n')
+    recording = tmp_path / "loud.mcap"
+    assert main(["run", str(path), "--virtual", "--until", "8.5", "-o", str(recording)]) == 0
+    out = capsys.readouterr().out
+    assert len([line for line in out.splitlines() if line.startswith("  violation ")]) == 5, out
+    assert f"  ... and 3 more, not shown here: 'iotad info {recording} --violations N' lists them" in out, out
+    assert "8 violations" in out, out
+    # ... and it does: each by its action and time, code and message (not the violation's dict)
+    assert main(["info", str(recording), "--violations", "8"]) == 0
+    listed = [line for line in capsys.readouterr().out.splitlines() if ": bad_value: " in line]
+    assert listed == [f"    n: out at t={t}: bad_value: out: output value rejected: 10 outside range [0, 5]"
+                      for t in range(1, 9)], listed
+    assert main(["info", str(recording), "--violations", "2"]) == 0
+    assert "    ... 6 more (--violations N lists more)" in capsys.readouterr().out

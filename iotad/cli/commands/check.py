@@ -172,12 +172,18 @@ def run(args: argparse.Namespace) -> int:
     long = len(recording.messages) > LONG
     from iotad.recording.clock_offsets import widenings
     widened = widenings(recording)  # the nodes of hosts whose clocks were measured against the hub's
+    partial = []  # nodes judged only up to a gap in their trace (events the recording never heard)
     for node in nodes:
         report = _check_node(recording, node, args, tolerance, long, widened.get(node))
         if report is None:
             unchecked.append(node)
             continue
         all_ok &= report.ok
+        if report.partial:
+            partial.append(node)
+            if _one_hosts_file(recording):
+                report.gaps.append("the recording of its own host holds what this one lacks: join every host's "
+                                   "recording with 'iotad merge' and check the merged file")
         print("\n".join(report.lines(limit=limit)))
     conforms = all_ok
     delivered = None
@@ -190,18 +196,27 @@ def run(args: argparse.Namespace) -> int:
         if delivery.checked:
             delivered = delivery.ok
             all_ok &= delivery.ok
-    whole = recording.complete and not recording.run_error and not recording.recovered_from
+    # a node judged only up to a gap is no pass, as a recording cut short is none: what it did
+    # after the gap was not judged
+    whole = recording.complete and not recording.run_error and not recording.recovered_from and not partial
     if all_ok and not unchecked and whole:
         verdict = "every node conforms to its spec" + (", every message was delivered as sent" if delivered else "")
     else:
         what = [w for w, bad in (("conformance", not conforms), ("delivery", delivered is False),
                                  (f"{len(unchecked)} node(s) not checked", unchecked),
+                                 (f"{', '.join(partial)} judged only up to a gap in the trace", partial),
                                  ("the recording is incomplete", not recording.complete),
                                  ("it was recovered from a cut recording", recording.recovered_from),
                                  ("the run broke off", recording.run_error)) if bad]
         verdict = f"PROBLEMS FOUND ({' and '.join(what)})"
     print(f"check: {verdict} (tolerance {tolerance:g})")
     return 0 if all_ok and not unchecked and whole else 1
+
+
+def _one_hosts_file(recording) -> bool:
+    """Whether `recording` is one host's recording of a run over hosts (not their merge)."""
+    run = recording.info.get("run")
+    return isinstance(run, dict) and bool(run.get("host")) and not isinstance(recording.info.get("merged"), list)
 
 
 def _merged_notes(recording, file: str) -> None:

@@ -164,8 +164,6 @@ def _host_gaps(recording, limit: int) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from iotad.recording.conformance import describe
-
     recording = load(args.file)
     info = recording.info
     state = "complete" if recording.complete else f"INCOMPLETE (no footer: {recording.truncated_reason or 'cut short'}; " \
@@ -203,12 +201,20 @@ def run(args: argparse.Namespace) -> int:
     violations = [event for event in trace if event.get("kind") == "violation"]
     print(f"  violations: {len(violations)}")
     for event in violations[:args.violations]:
-        value = event.get("value") or {}
-        print(f"    {event['node']}: {describe(event)}: {value.get('violation')}: {value.get('message')}")
+        value = event.get("value") if isinstance(event.get("value"), dict) else {}
+        # the action and the time, not `describe`'s value: a violation's value is its code and message
+        index = "" if event.get("index") is None else f"[{event['index']}]"
+        when = f" at t={event['t']:.6g}" if isinstance(event.get("t"), (int, float)) else ""
+        print(f"    {event.get('node')}: {event.get('action')}{index}{when}: {value.get('violation')}: "
+              f"{value.get('message')}")
+    if len(violations) > args.violations:
+        print(f"    ... {len(violations) - args.violations} more (--violations N lists more)")
     gaps = recording.gaps()
     print(f"  sequence gaps: {len(gaps)} ({sum(g.get('missing', 0) for g in gaps)} messages missing)")
     for gap in gaps[:args.violations]:
         print(f"    {gap['key']}: expected #{gap['expected']}, got #{gap['got']}")
+    if len(gaps) > args.violations:
+        print(f"    ... {len(gaps) - args.violations} more (--violations N lists more)")
     _host_gaps(recording, args.violations)
     _delivery(recording, args.violations)
     _clocks(recording)
