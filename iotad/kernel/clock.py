@@ -57,11 +57,36 @@ def _drifting_monotonic() -> float:
 monotonic: Callable[[], float] = _drifting_monotonic if _DRIFT else time.monotonic
 
 
+# How close together the two readings of `wall_and_monotonic` must be to be taken at once.
+PAIRED = 50e-6
+
+
+def wall_and_monotonic() -> tuple[float, float]:
+    """`wall()` and `monotonic()` read at one instant, to within PAIRED where the machine allows:
+    the pair anchors a clock that counts wall time by the monotonic clock, and every process of a
+    host must anchor the same clock. Read one after the other, another thread could take the GIL
+    between them (its switch interval is 5 ms): a loaded host's launcher once anchored its clock
+    6 ms behind its nodes', and a merge of the hosts' recordings then had each of base's messages
+    to brain received 5 to 6 ms before it was sent. So the wall is read between two monotonic
+    readings, again until they are close (at most 20 tries; the closest pair otherwise), and paired
+    with their midpoint."""
+    best: tuple[float, float, float] | None = None
+    for _ in range(20):
+        before = monotonic()
+        now = wall()
+        after = monotonic()
+        if best is None or after - before < best[0]:
+            best = (after - before, now, (before + after) / 2)
+        if after - before <= PAIRED:
+            break
+    return best[1], best[2]
+
+
 def steady_wall() -> Callable[[], float]:
     """A wall clock that reads `wall()` now and then advances by `monotonic()`, as a `RealClock`
     does: a step of the system clock (an administrator, NTP) after this call does not move it.
     Clock offsets between hosts are measured on these, the clocks node times are counted on."""
-    start_wall, start = wall(), monotonic()
+    start_wall, start = wall_and_monotonic()
     return lambda: start_wall + (monotonic() - start)
 
 
@@ -119,7 +144,7 @@ class RealClock(Clock):
         """`origin` is a wall-clock time (`time.time()`) that is t=0, so that nodes started by
         one launcher share a timeline; time then advances by the monotonic clock."""
         self.time_unit = time_unit
-        mono, now = monotonic(), wall()
+        now, mono = wall_and_monotonic()  # anchored as its host's launcher anchors its clock
         self._origin = mono if origin is None else mono - (now - origin)
         self.origin_wall = now if origin is None else origin
         self._inbox: queue.Queue = queue.Queue()
