@@ -140,12 +140,21 @@ fields = {{ name = {{ value = ["drive", "turn"] }}, velocity = "velocity_ff" }}
     assert all(e["value"]["velocity_ff"] == [0.0, 0.0] for e in trace if e["node"] == "buggy"
                and e["action"] == "setpoints" and e["t"] < first)  # standing until the first Twist
     # /level every 0.2 s into an input that takes one a second: most are refused at the bridge,
-    # each one recorded as a switching_time violation; those taken reach slow.level
+    # each one recorded as a switching_time violation; the bridge forwards the others a second
+    # apart or more, and each reaches slow.level
     refused = [e for e in trace if e["node"] == "ros2" and e["kind"] == "violation" and e["action"] == "ros_1"]
     assert refused and all(e["value"]["violation"] == "switching_time" for e in refused)
+    forwarded = [e["t"] for e in trace if e["node"] == "ros2" and e["kind"] == "output" and e["action"] == "in_1"]
+    assert forwarded and all(b - a >= 1.0 - 1e-9 for a, b in zip(forwarded, forwarded[1:])), forwarded
     taken = [e for e in trace if e["node"] == "slow" and e["kind"] == "input" and e["action"] == "level"]
     assert taken and all(e["value"] == 0.75 for e in taken)
-    assert not [e for e in trace if e["node"] == "slow" and e["kind"] == "violation"]
+    # slow judges the second by when each arrives: a forward held up on a loaded machine more
+    # than its successor (over 2 ms, the system's arrival_tolerance) arrives sooner than a
+    # second after it, and is refused there and recorded as such; none is lost (the last may
+    # still be on its way as the run ends)
+    early = [e for e in trace if e["node"] == "slow" and e["kind"] == "violation"]
+    assert all(e["value"]["violation"] == "switching_time" for e in early), early
+    assert len(forwarded) - 1 <= len(taken) + len(early) <= len(forwarded), (forwarded, taken, early)
     assert len(refused) > len(taken)
 
 
