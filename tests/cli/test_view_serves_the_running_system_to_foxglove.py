@@ -72,7 +72,7 @@ def test_a_foxglove_client_receives_what_the_recording_holds(tmp_path):
             with websockets_client.connect(f"ws://127.0.0.1:{ws_port}", subprotocols=["foxglove.sdk.v1"]) as ws:
                 info = json.loads(ws.recv(timeout=10))
                 assert info["op"] == "serverInfo"
-                subscribed = False
+                subscribed, refused = False, 0
                 deadline = time.monotonic() + 60
                 while time.monotonic() < deadline and len(received) < 3:
                     try:
@@ -83,6 +83,13 @@ def test_a_foxglove_client_receives_what_the_recording_holds(tmp_path):
                         body = json.loads(message)
                         if body["op"] == "advertise":
                             advertised.update({c["topic"]: c for c in body["channels"]})
+                        elif body["op"] == "status" and body.get("level") == 2:  # an error: the server says why
+                            # foxglove-sdk may refuse a subscription sent the instant a channel is
+                            # advertised ("Unknown channel ID: N"; under load about 1 in 20, see
+                            # docs/watching.md): the channel is advertised and stays so, subscribe again
+                            channel_id = advertised.get("/scheduler/mdl_command", {}).get("id")
+                            assert subscribed and body["message"] == f"Unknown channel ID: {channel_id}", body
+                            refused, subscribed = refused + 1, False
                         if "/scheduler/mdl_command" in advertised and not subscribed:
                             ws.send(json.dumps({"op": "subscribe", "subscriptions": [
                                 {"id": 7, "channelId": advertised["/scheduler/mdl_command"]["id"]}]}))
@@ -101,7 +108,7 @@ def test_a_foxglove_client_receives_what_the_recording_holds(tmp_path):
     recorded = [e["value"] for e in read_recording(recording).trace("scheduler")
                 if e["kind"] == "output" and e["action"] == "mdl_command"]
     # what to look at if none came: did the client subscribe, what the viewer and the run said
-    assert len(received) >= 3, (subscribed, len(recorded), sorted(advertised), view_said[-1500:],
+    assert len(received) >= 3, (subscribed, refused, len(recorded), sorted(advertised), view_said[-1500:],
                                 proc.output.read_text()[-3000:])
     # what the client got is what the scheduler sent, in order: a run of the recorded values
     start = next(k for k in range(len(recorded)) if recorded[k:k + len(received)] == received)
