@@ -169,6 +169,7 @@ def partition_figures(cuts: int, quiet: float, load: int) -> None:
         try:
             arm.start()
             arm.wait_moving(timeout=180)
+            arm.wait_recorded(timeout=30)
             quiet_from = time.time_ns()
             time.sleep(quiet)  # the motion goes on uncut: the part whose setpoint gaps are measured
             quiet_to = time.time_ns()

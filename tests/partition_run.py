@@ -261,6 +261,23 @@ class SplitArm(SplitRun):
                     "--connect", self.endpoint, "--listen", f"tcp/{self.net.addresses['arm']}:0",
                     "-o", str(self.recording), "--quiet")
 
+    def wait_recorded(self, timeout: float) -> None:
+        """Until the arm's own recorder has written the motor node's frames: it hears the arm's
+        nodes, so a cut from now on is in its recording (it links to them through the hub)."""
+        from iotad.recording.mcap_reader import RecordingError, read_recording
+
+        def heard() -> bool:
+            try:  # a file being written reads as one cut short: what its closed chunks hold
+                recording = read_recording(self.recording, salvage=True)
+            except (RecordingError, OSError):
+                return False
+            return any(m.topic == f"iota/{self.name}/motor/can_tx" for m in recording.messages)
+
+        deadline = time.monotonic() + timeout
+        while not heard():
+            assert time.monotonic() < deadline, f"the arm's recorder wrote no frame of the motor node in {timeout:g} s"
+            time.sleep(0.2)
+
     def wait_moving(self, timeout: float, by: float = 0.1) -> None:
         """Until joint1 is `by` rad away from where the watcher first saw it: the arm is moving."""
         states = "motor/joint_states"

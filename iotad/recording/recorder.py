@@ -54,6 +54,9 @@ from iotad.launcher.declaration import Declaration, SystemFileError, read_declar
 _MAPS = ("/" + wire.LAUNCHER, "/" + wire.HEARTBEAT)
 _TRACE = "/" + wire.TRACE  # the end of every node's @trace key  # keys whose payload every reader takes for a msgpack map
 NICENESS = 10  # a tenth of a normal process's CPU share when both want the CPU
+# zenoh's retries of a `connect` endpoint: every 100 ms, so that a recorder started before its
+# system's hub joins it as soon as the hub listens, before the nodes start talking
+CONNECT_RETRY = {"connect/retry": {"period_init_ms": 100, "period_max_ms": 100, "period_increase_factor": 1.0}}
 _UNDECODABLE = object()  # what `_decoded` gives for a payload that is no msgpack
 _NEVER = 1 << 62  # the next `seq` of a stream whose last burst could not be counted: no gap is seen
 
@@ -208,7 +211,11 @@ class Recorder:
                 # would miss what a (re)started node says first: its start record.
                 self._session = self._open_client(keep_waiting)
             else:
-                self._session = open_session(self.listen or DEFAULT_LISTEN, self.connect)
+                # a peer retries its `connect` in the background: every 100 ms too, not zenoh's
+                # 1 s doubling to 4 s, which left a recorder started a few seconds before its hub
+                # (a loaded machine) unlinked for the first seconds of the run it was to record
+                self._session = open_session(self.listen or DEFAULT_LISTEN, self.connect,
+                                             extra=CONNECT_RETRY if self.connect else None)
             # Samples wait in zenoh's own (Rust) FIFO until the writer thread takes them: no
             # Python callback on zenoh's threads, no GIL hand-off per sample. A full FIFO makes
             # zenoh push back on the senders (BLOCK) rather than lose.
@@ -226,9 +233,7 @@ class Recorder:
         return self
 
     def _open_client(self, keep_waiting: Callable[[], bool] | None):
-        # zenoh retries within each attempt; every 100 ms (not its default 1 s, then slower) so
-        # that a recorder waiting for a system's hub joins it before the nodes start talking
-        retry = {"connect/retry": {"period_init_ms": 100, "period_max_ms": 100, "period_increase_factor": 1.0}}
+        # zenoh retries within each attempt (CONNECT_RETRY)
         while True:
             # Credentials are read as an attempt begins. A hub that `iotad run` guards lets no
             # one in without them, and the run writes them only as it starts: until they are
@@ -236,7 +241,7 @@ class Recorder:
             # it came in after them, and a recording without the nodes' starts cannot be checked)
             timeout = 1.0 if for_endpoints(self.connect) is not None else 0.2
             try:
-                return open_session((), self.connect, mode="client", connect_timeout=timeout, extra=retry)
+                return open_session((), self.connect, mode="client", connect_timeout=timeout, extra=CONNECT_RETRY)
             except zenoh.ZError:
                 if keep_waiting is None or not keep_waiting():
                     raise

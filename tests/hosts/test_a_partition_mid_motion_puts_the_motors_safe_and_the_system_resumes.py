@@ -23,6 +23,7 @@ def test_a_partition_mid_motion_puts_the_motors_safe_and_the_system_resumes(tmp_
         try:
             arm.start()
             arm.wait_moving(timeout=120)
+            arm.wait_recorded(timeout=30)  # the arm's own recording, which the cut is judged from, has begun
             cut = arm.cut()
             time.sleep(HOLD)  # the partition's length, the stimulus (nothing to wait on: brain hears nothing)
             heal = arm.heal()
