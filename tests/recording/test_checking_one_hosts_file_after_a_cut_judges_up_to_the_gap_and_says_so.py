@@ -20,22 +20,14 @@ from iotad.recording.engine_sink import record_run
 from iotad.recording.mcap_format import FORMAT, GAP_TOPIC, packb
 from iotad.recording.mcap_reader import read_recording
 from iotad.recording.mcap_sink import McapSink
+from namespaces import hosts_header
 from system_iotas import FreeSink, Pulse
 
 ORIGIN = 1_700_000_000.0
 CUT = (3.0, 7.0)    # s of the run: arm's events strictly inside it never reached the hub's recorder
 LOST, BACK = 5.5, 8.0  # the hub's launcher: host arm lost (its nodes down), then back
 ARM = ("beat", "far")
-SYSTEM = """
-[system]
-name = "long"
-hub_host = "brain"
-[system.endpoints]
-listen = ["tcp/10.0.0.1:7447"]
-[hosts.brain]
-listen = ["tcp/10.0.0.1:0"]
-[hosts.arm]
-listen = ["tcp/10.0.0.2:0"]
+SYSTEM = hosts_header("long", "10.0.0.1", 7447, "brain", "arm", "10.0.0.2") + """
 
 [[node]]
 name = "tick"
