@@ -217,7 +217,7 @@ class Fleet:
             self._print(host, lines)
             if ask:  # lines before this one were not heard (a cut): the agent keeps them
                 self._catching_up(host)
-        elif heard.want_tail(payload.get("run"), payload.get("lines")):
+        elif isinstance(payload.get("lines"), int) and heard.want_tail(payload.get("run"), payload["lines"]):
             # the exit counts lines not heard: they are printed before the exit is taken
             self._catching_up(host, then=lambda: self._exited(host, payload))
         else:

@@ -62,7 +62,9 @@ def test_a_partition_longer_than_the_lease_heals_and_both_sides_recorded_it(tmp_
         certs = authority_for(tmp_path / "certs", {"brain": [hub], "arm": [arm]}) if secure else None
         access = ("--certs", str(certs)) if secure else ("--insecure",)
         log = tmp_path / "run.log"
-        with agent(net, "arm", f"{scheme}/{hub}:{PORTS[secure]}", *(("--certs", str(certs)) if secure else ())) as arm_agent, \
+        # a work folder of its own: the run's log file it keeps is this test's alone
+        with agent(net, "arm", f"{scheme}/{hub}:{PORTS[secure]}", "--workdir", str(tmp_path / "agent"),
+                   *(("--certs", str(certs)) if secure else ())) as arm_agent, \
                 log.open("w") as out:
             run = subprocess.Popen(net.exec("brain", sys.executable, "-m", "iotad", "run", str(path), *access,
                                             "--plain", "--until", "120", "-o", str(hub_file)),
