@@ -56,6 +56,9 @@ class Fleet:
         self._changed = threading.Condition()
         self._declared: list = []
         self._heard: dict[str, HeardLines] = {host: HeardLines() for host in self.hosts}
+        # taken from deciding which lines to print to printing them: a live line must not come
+        # out between the lines of an answer it follows
+        self._printing = threading.Lock()
 
     def start(self, access=None, stop=None) -> None:
         """Give each host its part as soon as its agent is there, waiting up to `start_timeout` for
@@ -213,8 +216,9 @@ class Fleet:
             return
         heard = self._heard.setdefault(host, HeardLines())
         if str(sample.key_expr).endswith("/log"):
-            lines, ask = heard.live(payload.get("run"), payload.get("n"), str(payload.get("line", "")))
-            self._print(host, lines)
+            with self._printing:
+                lines, ask = heard.live(payload.get("run"), payload.get("n"), str(payload.get("line", "")))
+                self._print(host, lines)
             if ask:  # lines before this one were not heard (a cut): the agent keeps them
                 self._catching_up(host)
         elif isinstance(payload.get("lines"), int) and heard.want_tail(payload.get("run"), payload["lines"]):
@@ -246,18 +250,19 @@ class Fleet:
         try:
             while True:
                 answer = self._ask(f"{agent_key(host)}/lines?after={heard.after()}", timeout=5.0)
-                if not isinstance(answer.get("lines"), list):
-                    lines, missing = heard.unanswered()
+                with self._printing:
+                    if not isinstance(answer.get("lines"), list):
+                        lines, missing = heard.unanswered()
+                        if missing:
+                            self.say(f"[{host}] ({missing} line(s) here were not heard: sent while it was cut off, "
+                                     f"and its agent did not give them: {answer.get('error', 'no answer')})")
+                        self._print(host, lines)
+                        return
+                    lines, dropped, again = heard.answered(answer)
+                    if dropped:
+                        self.say(f"[{host}] ({dropped} line(s) sent while it was cut off are lost: its agent keeps "
+                                 f"the last {KEPT})")
                     self._print(host, lines)
-                    if missing:
-                        self.say(f"[{host}] ({missing} line(s) before these were not heard: sent while it was "
-                                 f"cut off, and its agent did not give them: {answer.get('error', 'no answer')})")
-                    return
-                lines, dropped, again = heard.answered(answer)
-                if dropped:
-                    self.say(f"[{host}] ({dropped} line(s) sent while it was cut off are lost: its agent keeps "
-                             f"the last {KEPT})")
-                self._print(host, lines)
                 if not again:
                     return
         finally:
