@@ -332,8 +332,16 @@ def read_partition(recording: Path, system: str, cut_ns: int, heal_ns: int) -> P
         idle = [t for t, n, cmd, data in frames if n == node and cmd == SET_AXIS_STATE and cut_ns <= t < heal_ns
                 and data[0] == IDLE]
         states = [data[0] for t, n, cmd, data in frames if n == node and cmd == SET_AXIS_STATE and t < cut_ns]
+        # what the axis itself said last before the cut, after the last state it was told
+        told_at = max([t for t, n, cmd, data in frames if n == node and cmd == SET_AXIS_STATE and t < cut_ns],
+                      default=0)
+        said = [data[4] for t, n, cmd, data in frames if n == node and cmd == HEARTBEAT and told_at < t < cut_ns]
         if states and states[-1] == IDLE:
             safe[node] = 0.0  # told IDLE before the cut (a trip of the link watch) and not armed since
+        elif said and said[-1] == IDLE:
+            # IDLE by itself before the cut, and not armed since: its own watchdog or an error
+            # disarmed it (a loaded machine's late setpoint), so there was nothing to tell it
+            safe[node] = 0.0
         else:
             safe[node] = (idle[0] - cut_ns) / 1e9 if idle else None
     last_idle = cut_ns + int(max([s for s in safe.values() if s is not None], default=0.0) * 1e9)
