@@ -1,7 +1,7 @@
 """The arm over CAN split over two namespace hosts, for partitions: the trajectory (the setpoints'
 source) on `brain` with the hub, the simulated ODrives, the CAN motor node and their bus on `arm`.
-`SplitArm` starts it as a person would (an agent on arm, one `iotad run` on brain), records on
-the arm host (an `iotad record` peer there, which still hears the arm's nodes while brain is cut
+`SplitArm` starts it as a person would (an agent on arm, one `iotad run -o` on brain), records on
+the arm host (that host's own recorder, which still hears the arm's nodes while brain is cut
 off), watches the motor node's outputs from brain, and cuts and heals the link between them.
 `read_partition` reads, from the arm's own recording, how long after a cut each axis was told IDLE.
 Shared by tests/hosts/ and bench/hosts.py."""
@@ -241,25 +241,26 @@ class SplitRun:
 
 
 class SplitArm(SplitRun):
-    """The split arm (`split_arm_system`), recorded on the arm host by an `iotad record` peer there,
-    which still hears the arm's nodes while brain is cut off; the watcher prints the motor
-    node's joint states and status reports."""
+    """The split arm (`split_arm_system`), recorded by the run (`-o`) and so on the arm host by
+    that host's own recorder, which still hears the arm's nodes while brain is cut off; the
+    watcher prints the motor node's joint states and status reports."""
 
     def __init__(self, net, folder: Path, port: int, extra: str = "", legs: int = 3):
         name = "armsplit"
+        # each host records its part beside the hub's recording: the arm's is NAME.arm.mcap. (A
+        # separate `iotad record` peer on arm, linked to the arm's nodes through the hub's gossip,
+        # now and then heard none of them under a loaded suite.)
         super().__init__(net, folder, port, name, split_arm_system(name, net.addresses[("brain", "arm")], port,
                                                                    net.addresses["arm"], extra, legs),
-                         watch=("motor/joint_states", "motor/joint_status/*"))
+                         watch=("motor/joint_states", "motor/joint_status/*"),
+                         run_args=("-o", str(folder / f"{name}.mcap")))
 
     @property
     def recording(self) -> Path:
-        return self.folder / "arm.mcap"
+        return self.folder / f"{self.name}.arm.mcap"
 
     def before_run(self) -> None:
         multicast_on_loopback(self.net.names["arm"])
-        self._spawn("recorder", "arm", sys.executable, "-m", "iotad", "record", f"iota/{self.name}/**",
-                    "--connect", self.endpoint, "--listen", f"tcp/{self.net.addresses['arm']}:0",
-                    "-o", str(self.recording), "--quiet")
 
     def wait_recorded(self, timeout: float) -> None:
         """Until the arm's own recorder has written the motor node's frames: it hears the arm's
