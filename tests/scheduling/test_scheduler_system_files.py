@@ -95,7 +95,12 @@ def test_a_composite_node_over_zenoh_keeps_its_parts_deliveries_to_itself(tmp_pa
     assert "(outside)" not in report, report
     assert "wander.out -> arbiter.level3" in report and "explore.out -> arbiter.level2" in report, report
     # the four behaviours' links, every message delivered (how many: as the processes' clocks fell)
-    assert re.search(r"delivery: (\d+) of \1 messages delivered as sent over 4 links", report), report
+    # every message delivered as sent, but one the run's end caught on its way (the receiver had
+    # stopped: "not judged", as the check says)
+    counted = re.search(r"delivery: (\d+) of (\d+) messages delivered as sent over 4 links", report)
+    assert counted, report
+    unjudged = re.search(r"; (\d+) not judged \(in flight at the end", report)
+    assert int(counted[1]) + (int(unjudged[1]) if unjudged else 0) == int(counted[2]), report
 
 
 @pytest.mark.parametrize("name, node", [("resume", "scheduler"), ("fusion", "scheduler"), ("subsumption", "arbiter/s0_3")])
