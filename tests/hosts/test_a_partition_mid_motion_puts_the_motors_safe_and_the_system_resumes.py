@@ -2,8 +2,8 @@
 arm, its setpoints' source (the trajectory) and the hub on host brain, network namespaces joined
 by a veth pair. While the arm moves, the link is cut for 1.5 s, then healed.
 
-Measured on the frames the arm host itself recorded (an `iotad record` there, which the cut does
-not separate from the arm's nodes): the motor node, its setpoints gone for the link_timeout the
+Measured on the frames the arm host itself recorded (its own recorder, as `iotad run -o` gives
+each host, which the cut does not separate from the arm's nodes): the motor node, its setpoints gone for the link_timeout the
 launcher gave it (it is fed from another host), tells every axis IDLE, 60-80 ms after the cut
 on a machine not overloaded (printed; on its own clock, link_timeout and a tick after the last
 setpoint it took, asserted);
