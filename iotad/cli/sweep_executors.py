@@ -9,6 +9,7 @@ import multiprocessing
 import os
 import signal
 import tempfile
+import threading
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
@@ -55,10 +56,25 @@ def _pool(tasks: list[dict], jobs: int, done: Done) -> list[dict]:
     lost: list[dict] = []
     pool = ProcessPoolExecutor(max_workers=max(1, min(jobs, len(tasks))), mp_context=context,
                                initializer=_worker_start)
+    # Ctrl-C noted, not raised wherever it lands: raised inside `wait`, whose futures' locks it
+    # holds, it once left one released twice ("RuntimeError: release unlocked lock" instead of
+    # the sweep's clean stop); the loop raises it itself between two waits
+    interrupted = threading.Event()
+    previous = (signal.signal(signal.SIGINT, lambda signum, frame: interrupted.set())
+                if threading.current_thread() is threading.main_thread() else None)
+
+    def restore() -> None:
+        nonlocal previous
+        if previous is not None:
+            signal.signal(signal.SIGINT, previous)  # a second Ctrl-C during the stop: as before
+            previous = None
+
     try:
         pending = {pool.submit(run_one, task): task for task in tasks}
         while pending:
-            finished, _ = wait(pending, return_when=FIRST_COMPLETED)
+            if interrupted.is_set():
+                raise KeyboardInterrupt
+            finished, _ = wait(pending, timeout=0.1, return_when=FIRST_COMPLETED)
             for future in finished:
                 task = pending.pop(future)
                 try:
@@ -68,11 +84,14 @@ def _pool(tasks: list[dict], jobs: int, done: Done) -> list[dict]:
                     continue
                 done(task, row)
     except KeyboardInterrupt:
+        restore()
         for child in multiprocessing.active_children():  # a Ctrl-C sent to the sweep alone: to its runs too
             with contextlib.suppress(OSError):
                 os.kill(child.pid, signal.SIGINT)
         pool.shutdown(wait=True, cancel_futures=True)
         raise
+    finally:
+        restore()
     pool.shutdown(wait=True)
     return sorted(lost, key=lambda t: t["run"])
 
