@@ -245,6 +245,14 @@ def _run_composed(system, args: argparse.Namespace, writer, root, leaves: dict, 
         print(f"  recording: {output}{where}  (iotad info|check|plot {output})")
     if interrupted:
         return 130
+    if getattr(args, "strict", False) or system.strict:
+        from iotad.launcher.strict_verdict import strict_failures
+
+        failures = strict_failures(counts["violation"], [])
+        for line in failures:
+            print(f"  strict: {line}")
+        if failures:
+            return 1
     return 1 if engine.halted or raised else 0
 
 

@@ -34,6 +34,14 @@ from iotad.kernel.policy import make_policy
 from iotad.host.transport import open_session
 
 
+def _log_fault(event: dict) -> None:
+    """An exception of the node's own code, with its traceback, in the node's log (its stderr)."""
+    value = event.get("value")
+    if event["kind"] == "violation" and isinstance(value, dict) and value.get("traceback"):
+        print(f"t={event['t']:.4f} {event['iota']}.{event['action']}: {value.get('message')}\n"
+              f"{value['traceback'].rstrip()}", file=sys.stderr, flush=True)
+
+
 class SpecLoadError(Exception):
     """The IOTA named by the config could not be loaded or instantiated; `str()` says why."""
 
@@ -66,8 +74,11 @@ def load_root(config: NodeConfig) -> tuple[Any, str]:
     try:
         root = factory(config.name, **config.params)
     except Exception as exc:  # noqa: BLE001
+        from iotad.kernel.code_fault import fault_text, fault_traceback
+
+        # the line that raised, and its traceback, in the node's log: init() is the user's code
         raise SpecLoadError(f"{ref}: cannot instantiate with params {config.params}: "
-                            f"{type(exc).__name__}: {exc}") from None
+                            f"{fault_text(exc)}\n{fault_traceback(exc).rstrip()}") from None
     if not (hasattr(root, "iota_spec") or isinstance(root, Composite)):
         raise SpecLoadError(f"{ref}: {type(root).__name__} is not an IOTA")
     return root, _python_text(ref, factory)
@@ -104,7 +115,7 @@ class NodeHost:
                                trace_period=config.trace_period, input_queue=config.input_queue,
                                on_overflow=self._overflow)
         self.engine = Engine(root, self.clock, make_policy(config.policy, config.seed), record=False,
-                             sinks=[self._publish_output, self._trace_buffer.append],
+                             sinks=[self._publish_output, self._trace_buffer.append, _log_fault],
                              deadline_tolerance=config.deadline_tolerance / config.time_unit,
                              input_tolerance=config.arrival_tolerance / config.time_unit)
         self.session: zenoh.Session | None = None
@@ -118,6 +129,8 @@ class NodeHost:
         self.can: CanPort | None = None
         self._can_source = None  # the engine (path, channel, index) of the root's can_tx
         if config.can is not None:
+            if hasattr(root, "can_bus_name"):  # a station that names its bus in what it reports
+                root.can_bus_name = config.can["bus"]
             self._can_source = next((p.source for p in self.table.outputs if p.name == CAN_TX), None)
             listen_only = bool(config.can.get("listen_only"))  # a bus logger: it hears, never sends
             if (self._can_source is None and not listen_only) or not any(p.name == "can_rx" for p in self.table.inputs):

@@ -579,8 +579,7 @@ class Engine:
             try:
                 slot.do(value)
             except (Exception, SystemExit) as exc:  # noqa: BLE001
-                self._violation(now, leaf.path, channel.name, index, "runtime_error",
-                                f"{action.label}: {type(exc).__name__}: {exc}")
+                self._fault(now, leaf.path, channel.name, index, f"{action.label}", exc)
         affects = slot.affects
         if affects is None:
             affects = slot.affects = self._affected(leaf, action.writes, index)
@@ -696,8 +695,20 @@ class Engine:
         self._emit(t, path, channel, index, "violation", {"violation": code, "message": message})
 
     def _runtime_error(self, t: float, instance: ActionInstance, part: str, exc: Exception) -> None:
-        self._violation(t, instance.leaf.path, instance.action.channel, instance.index, "runtime_error",
-                        f"{instance.action.label} ({part}): {type(exc).__name__}: {exc}")
+        self._fault(t, instance.leaf.path, instance.action.channel, instance.index,
+                    f"{instance.action.label} ({part})", exc)
+
+    def _fault(self, t: float, path: str, channel: str, index: int | None, label: str, exc: BaseException) -> None:
+        """An exception of the node's own code: a runtime_error violation naming the file and line
+        that raised, with the traceback in its value (the recording keeps both)."""
+        from iotad.kernel.code_fault import NodeViolation, fault_text, fault_traceback, fault_where
+
+        if isinstance(exc, NodeViolation):  # the node found it and says what it is
+            self._violation(t, path, channel, index, exc.code, str(exc))
+            return
+        self._emit(t, path, channel, index, "violation",
+                   {"violation": "runtime_error", "message": f"{label}: {fault_text(exc)}",
+                    "where": fault_where(exc) or "", "traceback": fault_traceback(exc)})
 
     # ---------------------------------------------------------------- views
     def external_trace(self, events: Iterable[dict] | None = None) -> list[dict]:

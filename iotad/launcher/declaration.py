@@ -41,7 +41,7 @@ _SYSTEM_NAME = re.compile(r"^[A-Za-z_][\w-]*$")
 
 _SYSTEM_KEYS = {"name", "time_unit", "endpoints", "hub_host", "heartbeat_period", "heartbeat_timeout",
                 "start_timeout", "clock_bound", "clock_period", "link_timeout", "external", "deadline_tolerance", "arrival_tolerance", "input_queue", "debug",
-                "start_gate"}
+                "start_gate", "strict"}
 # In TOML a key written after a [[node]] or [[bind]] table belongs to that table.
 TABLE_HINT = {"external": " (a top-level key must come before the first table; or put it in [system])"}
 _NODE_KEYS = {"name", "spec", "iota", "python", "params", "restart", "max_restarts", "backoff", "host",
@@ -150,6 +150,8 @@ class Declaration:
     # real time: the engines start together once every node is live (false: each as soon as its
     # own node is live, as `after` orders them; docs/internals.md "Start gate")
     start_gate: bool = True
+    # any violation, a node's exception or a node never live ends the run non-zero (iotad run --strict)
+    strict: bool = False
     nodes: Mapping[str, NodeDecl] = field(default_factory=lambda: MappingProxyType({}))
     binds: tuple[Bind, ...] = ()
     # (where, value as written): external = [...] at the top and in [system]
@@ -283,6 +285,7 @@ class _Parser:
                     self.error(entry, f"{key} must be a positive number of seconds, got {value!r}")
         self.take(raw, "link_timeout", system, entry, lambda v: not isinstance(v, bool) and (v == 0 or _positive(v)), "seconds >= 0 (0: off)")
         self.take(raw, "start_gate", system, entry, _flag, "true or false")
+        self.take(raw, "strict", system, entry, _flag, "true or false")
         self.take(raw, "input_queue", system, entry, _queue_size, "a whole number of inputs >= 1")
         period = system.get("heartbeat_period", Declaration.heartbeat_period)
         timeout = system.get("heartbeat_timeout", Declaration.heartbeat_timeout)

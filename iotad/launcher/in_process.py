@@ -19,7 +19,8 @@ def compose(system: System) -> Composite:
 
     # a bus's real-time logger (bus_logger.py) is left out: here the bus model logs its frames,
     # as the [[can]] entry's `log` says (false: no log in either way of running the file)
-    components: list[Any] = [instantiate(node) for node in system.nodes.values() if not is_bus_logger(system, node.name)]
+    built = {node.name: instantiate(node) for node in system.nodes.values() if not is_bus_logger(system, node.name)}
+    components: list[Any] = list(built.values())
     binds = [(str(b.source), str(b.target)) for b in system.bindings]
     for bus in system.buses.values():
         params = dict(stations=len(bus.stations), bitrate=bus.bitrate, log_frames=bus.log)
@@ -32,6 +33,8 @@ def compose(system: System) -> Composite:
         else:
             components.append(CanBus(bus.name, **params))
         for k, station in enumerate(bus.stations):
+            if hasattr(built.get(station), "can_bus_name"):  # a station that names its bus in what it reports
+                built[station].can_bus_name = bus.name
             binds.append((f"{station}.{CAN_TX}", f"{bus.name}.tx[{k}]"))
             binds.append((f"{bus.name}.rx[{k}]", f"{station}.{CAN_RX}"))
     return Composite(system.name, *components, bind=binds)

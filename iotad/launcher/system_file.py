@@ -233,6 +233,10 @@ class _Checker:
                     self.can_claims[node.name] = claims()
             except Exception as exc:  # noqa: BLE001 - whatever the spec raises is the user's message
                 message = str(exc).strip() or type(exc).__name__
+                from iotad.kernel.code_fault import fault_where
+                where = fault_where(exc)  # the node's own code raised (its init()): at which line
+                if where and node.source["kind"] == "python":
+                    message = f"{type(exc).__name__}: {message} (at {where})"
                 if "\n" in message:  # an ESPRIT error: keep its caret picture, indented
                     first, rest = message.split("\n", 1)
                     message = first + "\n" + "\n".join("    " + line for line in rest.splitlines())
@@ -383,6 +387,17 @@ class _Checker:
                     what = "answered by two devices" if role == "device" else "commanded by two hosts"
                     self.error(bus.entry, f"CAN node id {node_id} is {what}: {first[0]} ({first[1]}) and "
                                           f"{station} ({label}); every axis on a bus needs a node id of its own")
+        # A joint commanded on a bus of simulated drives that no drive serves never answers: its
+        # motor node waits for it forever, and a joint_states that waits for every joint stops
+        # the whole robot. Only where the bus's drives are all declared here (a simulated bus):
+        # a real drive is no station and is not known to the check.
+        served = {node_id for (role, node_id) in claimed if role == "device"}
+        if served:
+            for (role, node_id), (station, label) in sorted(claimed.items(), key=lambda item: item[0][1]):
+                if role == "host" and node_id not in served:
+                    self.error(bus.entry, f"{station}: joint {label!r} is commanded on CAN node id {node_id}, "
+                                          f"which no simulated drive on bus {bus.name!r} serves (served: "
+                                          f"{', '.join(str(i) for i in sorted(served))})")
 
     def check_inputs_covered(self, system: System) -> None:
         bound = {b.target for b in system.bindings}

@@ -46,6 +46,7 @@ from iotad.can.frame import CAN_FRAME, Frame, FrameError
 from iotad.can.odrive import (AXIS_STATE, CONTROL_MODE, INPUT_MODE, MESSAGES, EncodeError, MalformedFrame,
                               UnknownFrame, decode, encode, node_id_of, request, undefined_values)
 from iotad.kernel.api import Input, Internal, Iota, Output, Param
+from iotad.kernel.code_fault import NodeViolation
 from iotad.kernel.types import Bool
 
 from .cia402_link import Cia402Link
@@ -158,6 +159,9 @@ class CanMotor(Iota):
         self.reports: list[list[tuple]] = [[] for _ in self.joint_map]  # (event, requested, applied)
         self.tx: deque[Frame] = deque()
         self.bad: list = []
+        self.strangers: dict[int, int] = {}  # node id -> frames from it, for no joint of this map
+        self.silence_said: set[int] = set()  # axes whose silence was reported (drive_silent)
+        self.can_bus_name = getattr(self, "can_bus_name", "")  # set by the launcher, where it knows
         self.estopped = False
         self.ticks = 0
         self.setpoints_tick = -1 << 62  # the tick of the last setpoints message (none yet)
@@ -209,6 +213,9 @@ class CanMotor(Iota):
             self.links[i].abandon()
         self.axes[i].phase = UNARMED
         self.reports[i].append(("ARM_TIMEOUT", 0.0, 0.0))
+        if not self.axes[i].heard and i not in self.silence_said:
+            self.silence_said.add(i)  # once per axis: a recorded violation, by the joint's name
+            raise NodeViolation("drive_silent", _silent_drive(self, i))
 
     # Restarted by every heartbeat: `beat` is true from a heartbeat until its report is out.
     @heartbeat_lost.action(when=lambda self, i: not self.axes[i].beat and not self.axes[i].lost,
@@ -332,6 +339,8 @@ class CanMotor(Iota):
                 return
         i = self.by_node.get(node_id_of(frame.id))
         if i is None:
+            stranger = node_id_of(frame.id)
+            self.strangers[stranger] = self.strangers.get(stranger, 0) + 1
             self._bad("UNKNOWN_NODE", value)
             return
         try:
@@ -606,6 +615,17 @@ class CanMotor(Iota):
 
     def _bad(self, reason: str, value) -> None:
         self.bad.append(BAD_FRAME(reason=reason, frame=value))
+
+
+def _silent_drive(node: CanMotor, i: int) -> str:
+    """The drive_silent violation's words: the joint by name, its node id, the bus, and who talks
+    on the bus instead (node ids this node has no joint for)."""
+    joint = node.joint_map[i]
+    bus = f"bus {node.can_bus_name!r}" if node.can_bus_name else "its bus"
+    others = ", ".join(f"node id {k} ({n} frames)" for k, n in sorted(node.strangers.items()))
+    return (f"joint {joint.name!r}: its drive (CAN node id {joint.node_id}) on {bus} never answered its arming "
+            f"in {node.arm_timeout:g} s; " + (f"talking instead: {others}, which no joint of this node uses"
+                                               if others else "nothing else on the bus talks either"))
 
 
 _HANDLERS = {"Heartbeat": CanMotor._on_heartbeat, "Get_Encoder_Estimates": CanMotor._on_encoder_estimates,

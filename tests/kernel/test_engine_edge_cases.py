@@ -2,6 +2,7 @@
 property tests (a run continued equals one long run; the engine's own traces pass the checker)."""
 import math
 import sys
+from pathlib import Path
 import threading
 import time
 
@@ -320,5 +321,8 @@ def test_sys_exit_in_a_do_block_is_a_recorded_fault_not_the_end_of_the_run():
     engine.post(None, "inp", 7, t=1.5)
     engine.run(2.5)  # returns: the process (a CLI, a node host) is not ended by a spec
     assert fired(engine) == [(1.0, "q", "out", None, 1), (2.0, "q", "out", None, 1)]
+    here = Path(__file__)
+    line = {n: here.read_text().splitlines().index(f"        sys.exit({n})") + 1 for n in ("x", "4")}
     assert [(e["t"], e["value"]["message"]) for e in engine.trace if e["kind"] == "violation"] == [
-        (1.0, "out (do): SystemExit: 4"), (1.5, "inp(x): SystemExit: 7"), (2.0, "out (do): SystemExit: 4")]
+        (1.0, f"out (do): SystemExit: 4 (at {here}:{line['4']})"), (1.5, f"inp(x): SystemExit: 7 (at {here}:{line['x']})"),
+        (2.0, f"out (do): SystemExit: 4 (at {here}:{line['4']})")]

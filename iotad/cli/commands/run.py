@@ -107,6 +107,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--seed", type=seed, default=None, metavar="N",
                         help="with --virtual: fire at random times within each window (policy random(N)); default: "
                              "every action at the earliest time its window allows (eager)")
+    parser.add_argument("--strict", action="store_true",
+                        help="end the run non-zero (exit 1) on any violation (a node's exception included) or a "
+                             "node that never went live, as [system] strict = true does")
     parser.set_defaults(func=run)
 
 
@@ -295,6 +298,14 @@ def _launch(system, args: argparse.Namespace, record_to: str | None, summary_hoo
               f"join them with: iotad merge {record_to} {' '.join(others)} -o MERGED.mcap")
     if summary_hook is not None:
         code = summary_hook(launcher, code)
+    if getattr(args, "strict", False) or system.strict:
+        from iotad.launcher.strict_verdict import strict_failures
+
+        failures = strict_failures(sum(launcher.tally.violations.values()),
+                                   [r.name for r in launcher.runs.values() if not r.went_live])
+        for line in failures:
+            print(f"  strict: {line}")
+        code = code or (1 if failures else 0)
     if sys.stdout is not None:  # None when the shell closed it (>&-)
         sys.stdout.flush()
     return code
