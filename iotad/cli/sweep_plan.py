@@ -40,11 +40,17 @@ class Range:
 
 @dataclass(frozen=True)
 class Run:
-    """One run: its name (`run-0007`: its place in the plan), the parameter values and the seed."""
+    """One run: its name (`run-0007`: its place in the plan), the parameter values and the seed
+    (None: the run fires under the system's own policy, eager unless stated, as `iotad run
+    --virtual` does without --seed)."""
 
     name: str
     values: dict[str, Any]
-    seed: int
+    seed: int | None
+
+    def policy(self, plan: "Plan") -> str:
+        """The firing policy of this run, as the table names it: `eager`, or `random(K)`."""
+        return "eager" if self.seed is None or plan.seed_param else f"random({self.seed})"
 
 
 @dataclass
@@ -59,6 +65,9 @@ class Plan:
     timeout: float | None = None                 # wall seconds a run may take before it is a failed row
     metrics: str | None = None                   # the hook, "file.py:function" or "module:function"
     seed_param: str | None = None                # "node.param[.key...]" the seed goes into, if not the policy
+    # False (no --seeds, no seeds in the sweep file): each point runs once under the system's own
+    # policy, exactly as `iotad run --virtual` runs it; True: seeds 0..seeds-1 of `random`
+    random: bool = True
     runs: list[Run] = field(default_factory=list)
 
     def describe(self) -> dict:
@@ -66,7 +75,9 @@ class Plan:
         return {"system": self.system, "until": self.until, "seeds": self.seeds,
                 "set": {name: (str(v) if isinstance(v, Range) else v) for name, v in self.swept.items()},
                 "sample": self.sample, "sample_seed": self.sample_seed, "timeout": self.timeout,
-                "metrics": self.metrics, "seed_param": self.seed_param, "runs": [asdict(run) for run in self.runs]}
+                "metrics": self.metrics, "seed_param": self.seed_param,
+                "policy": "random" if self.random and not self.seed_param else "eager",
+                "runs": [asdict(run) for run in self.runs]}
 
 
 def parse_value(text: str) -> Any:
@@ -170,7 +181,8 @@ def make_runs(plan: Plan) -> list[Run]:
     runs = []
     for point in points:
         for seed in range(plan.seeds):
-            runs.append(Run(f"run-{len(runs):0{width}d}", point, seed))
+            chosen = seed if plan.random or plan.seed_param else None
+            runs.append(Run(f"run-{len(runs):0{width}d}", point, chosen))
     return runs
 
 

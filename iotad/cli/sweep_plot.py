@@ -16,7 +16,7 @@ def _number(value) -> bool:
 
 def metrics_of(rows: list[dict], params: list[str]) -> list[str]:
     """The numeric metrics of the table's ok rows, in column order."""
-    fixed = {"run", "seed", "status", "error", *params}
+    fixed = {"run", "seed", "policy", "status", "error", *params}
     names: list[str] = []
     for row in rows:
         names += [name for name in row if name not in fixed and name not in names]

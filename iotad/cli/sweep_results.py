@@ -17,7 +17,7 @@ from iotad.cli.sweep_plan import Plan, same_plan
 
 FORMAT = "iotad-sweep/1"
 TABLE = "results.csv"
-FIXED = ["run", "seed", "status", "error"]
+FIXED = ["run", "seed", "policy", "status", "error"]
 
 
 class SweepFolder:
@@ -87,13 +87,14 @@ class SweepFolder:
             kept = self.row(run.name)
             if kept is None:
                 continue
-            rows.append({"run": run.name, **run.values, "seed": run.seed, "status": kept.get("status", "failed"),
+            rows.append({"run": run.name, **run.values, "seed": "" if run.seed is None else run.seed,
+                         "policy": run.policy(plan), "status": kept.get("status", "failed"),
                          "error": kept.get("error", ""), **kept.get("metrics", {})})
         return rows
 
     def write_table(self, plan: Plan) -> Path:
         rows = self.table(plan)
-        columns = ["run", *plan.swept, "seed", "status", "error"]
+        columns = ["run", *plan.swept, "seed", "policy", "status", "error"]
         for row in rows:
             columns += [name for name in row if name not in columns]
         text = io.StringIO()

@@ -41,7 +41,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                         help="a swept parameter and its values (a grid); NODE.PARAM=LOW..HIGH with --sample; "
                              "a nested parameter as NODE.TABLE.KEY; repeat for each parameter")
     parser.add_argument("--seeds", type=positive_int, metavar="N",
-                        help="runs per point, seeds 0..N-1 of the random policy (iotad run --seed; default 1)")
+                        help="runs per point, seeds 0..N-1 of the random firing policy (iotad run --seed); "
+                             "default: each point once under the system's own policy (eager), as iotad run --virtual")
     parser.add_argument("--seed-param", metavar="NODE.PARAM",
                         help="put each run's seed into this node parameter (a world's seed), the policy eager, "
                              "instead of seeding the random firing policy")
@@ -79,11 +80,14 @@ def plan_from(args: argparse.Namespace):
     if not isinstance(until, (int, float)) or isinstance(until, bool) or until <= 0:
         raise CliError("--until SECONDS is needed (virtual seconds per run), or until = S in the sweep file")
     seeds = args.seeds if args.seeds is not None else table.get("seeds", 1)
+    # without seeds asked for, each point once under the system's own policy (what `iotad run
+    # --virtual` gives); the random policy only when seeds say so
+    randomised = args.seeds is not None or "seeds" in table
     plan = Plan(system=str(system.path), until=float(until), seeds=int(seeds), swept=swept, sample=sample,
                 sample_seed=args.sample_seed if args.sample_seed is not None else table.get("sample_seed", 0),
                 timeout=args.timeout if args.timeout is not None else table.get("timeout"),
                 metrics=table.get("metrics") or system.sweep_metrics,
-                seed_param=args.seed_param or table.get("seed_param"))
+                seed_param=args.seed_param or table.get("seed_param"), random=randomised)
     check_against(plan, system)
     where = (plan.metrics or "").rpartition(":")[0]
     if where.endswith(".py") and not Path(where).is_file():
@@ -164,8 +168,14 @@ def run(args: argparse.Namespace) -> int:
               file=sys.stderr)
     jobs = args.jobs or cores()
     progress = Progress(args.plain)
-    print(f"sweep of {system.name}: {len(plan.runs)} runs ({len(plan.runs) // plan.seeds} points x {plan.seeds} "
-          f"seeds), {plan.until:g} s virtual each, into {folder.folder}", file=sys.stderr)
+    if plan.seed_param:
+        how_fired = f"{plan.seeds} seeds into {plan.seed_param}, eager policy"
+    elif plan.random:
+        how_fired = f"{plan.seeds} seeds of the random firing policy"
+    else:
+        how_fired = "1 run each under the system's own policy (eager); --seeds N for the random policy"
+    print(f"sweep of {system.name}: {len(plan.runs)} runs ({len(plan.runs) // plan.seeds} points x {how_fired}), "
+          f"{plan.until:g} s virtual each, into {folder.folder}", file=sys.stderr)
     try:
         how = sweep(plan, folder, jobs, args.ray, progress)
     except KeyboardInterrupt:
