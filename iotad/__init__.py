@@ -26,4 +26,13 @@ __version__ = "0.1.0"
 
 __all__ = ["Array", "Bool", "Composite", "Eager", "Engine", "Enum", "Float", "Input", "Int", "Internal",
            "Iota", "IotaSpec", "Output", "Param", "Random", "RealClock", "SpecError", "Struct",
-           "VirtualClock", "run_script", "__version__"]
+           "VirtualClock", "open_recording", "run_script", "__version__"]
+
+
+def __getattr__(name: str):
+    # `iotad.open_recording` on first use: reading recordings loads MCAP and zenoh's wire module,
+    # which a node (or `import iotad` alone) does not need
+    if name == "open_recording":
+        from .recording.open_recording import open_recording
+        return open_recording
+    raise AttributeError(f"module 'iotad' has no attribute {name!r}")

@@ -445,6 +445,14 @@ class _Parser:
         recorded copy, which has no folder (its files are not looked up)."""
         if self.base is None:
             return written
+        from iotad.launcher.package_files import is_package_ref, package_file
+
+        if is_package_ref(written):  # "nodes.scheduler:program_scheduler.iota": from any folder
+            try:
+                return str(package_file(written))
+            except ValueError as exc:
+                self.error(entry, f"{what} {written!r}: {exc}")
+                return None
         file = (self.base / written).resolve()
         if not file.is_file():
             found = f"is a folder; name the {suffix} file in it" if file.is_dir() else "not found"

@@ -64,6 +64,14 @@ class Recording:
     header_library: str = ""
     # a split recording read as one (`read_recording` of its set file): the member files, in order
     files: list[str] = field(default_factory=list)
+    # made by a reader (this module, a merge), never by hand: `Recording("x.mcap")` would read
+    # nothing and answer every question with an empty list, so it is refused (`__post_init__`)
+    built: bool = field(default=False, repr=False, compare=False, kw_only=True)
+
+    def __post_init__(self):
+        if not self.built:
+            raise TypeError(f"Recording({self.path!r}) reads nothing: open a recording with "
+                            "iotad.open_recording(path) (or iotad.recording.mcap_reader.read_recording(path))")
 
     # -- what it holds
     @property
@@ -414,7 +422,7 @@ PROGRESS_EVERY = 2.0  # s between `progress` calls while a file is read
 
 def _read_file(path: Path, progress: Callable[[str, int, int], None] | None = None) -> Recording:
     """`progress(file, bytes read, bytes in all)`, if given, every PROGRESS_EVERY s of reading."""
-    recording = Recording(str(path))
+    recording = Recording(str(path), built=True)
     size = path.stat().st_size
     next_report = time.monotonic() + PROGRESS_EVERY
     with open(path, "rb") as stream:
@@ -470,7 +478,7 @@ def iter_messages(path: str | Path) -> Iterator[RecordedMessage]:
     for a recording too big to hold in memory. Stops quietly where a killed writer stopped."""
     for file in set_files(path):
         channels: dict[int, str] = {}
-        scratch = Recording(str(file))
+        scratch = Recording(str(file), built=True)
         with open(file, "rb") as stream:
             for record in _records(stream, scratch):
                 if isinstance(record, Message):
@@ -486,7 +494,7 @@ def iter_messages(path: str | Path) -> Iterator[RecordedMessage]:
 
 def _read_head(path: Path) -> Recording:
     """The records before the first message or chunk: enough to tell a set file from a recording."""
-    recording = Recording(str(path))
+    recording = Recording(str(path), built=True)
     if not path.is_file():
         raise RecordingError(f"{path}: no such file")
     with open(path, "rb") as stream:
@@ -514,7 +522,7 @@ def _read_set(index: Recording, path: Path, progress: Callable[[str, int, int], 
     last member that has it (`iotad.recording`: the first's; `iotad.split_set`: the set file's)."""
     names = _member_names(path, index.metadata[SET_METADATA])
     set_id = index.metadata[SET_METADATA].get("set")
-    out = Recording(str(path), complete=index.complete, truncated_reason=index.truncated_reason,
+    out = Recording(str(path), built=True, complete=index.complete, truncated_reason=index.truncated_reason,
                     header_library=index.header_library)
     out.metadata[SET_METADATA] = index.metadata[SET_METADATA]
     schema_ids: dict[tuple, int] = {}

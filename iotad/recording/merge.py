@@ -322,7 +322,7 @@ class _Join:
     # ------------------------------------------------------------- the file
     def _recording(self, messages: list[RecordedMessage], gaps: list[dict],
                    recorder_gaps: list[tuple[int, dict]]) -> Recording:
-        merged = Recording(path="merged")
+        merged = Recording(path="merged", built=True)
         merged.complete = True
         schema_ids: dict[tuple, int] = {}
         topics: dict[str, int] = {}
