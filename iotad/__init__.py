@@ -9,6 +9,7 @@ The package is layered; each layer imports only the layers before it (tests/test
     iotad.host       one IOTA as one process on zenoh (and its CAN bus): wire, transport, node host
     iotad.launcher   system files, process supervision, the status view (`iotad run`)
     iotad.recording  MCAP recordings: recorder, reading, replay, conformance checks, export, plots
+    iotad.scaffold   `iotad new`: a working robot's files from a few choices
     iotad.cli        the `iotad` command line, one module per command
 
 The names below are the public Python API (README.md).

@@ -7,7 +7,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 FOLDERS = ["iotad/kernel", "iotad/esprit", "iotad/can", "iotad/ros2", "iotad/host", "iotad/launcher", "iotad/recording",
-           "iotad/cli", "channels"]
+           "iotad/scaffold", "iotad/cli", "channels"]
 
 
 def listed(folder: str) -> set[str]:

@@ -20,11 +20,11 @@ from . import commands
 # `iotad --help` lists the commands in the order of the work: specify, run, record and examine,
 # then watch a live system. A command module not named here is listed under "other".
 GROUPS = (
-    ("try it", ("demo",)),
+    ("try it", ("demo", "new")),
     ("specify and simulate an IOTA (virtual time, one process)", ("spec",)),
     ("run a system (one process per IOTA, over zenoh), or sweep it in virtual time", ("run", "agent", "certs", "sweep")),
     ("record and examine a recording (MCAP)", ("record", "info", "replay", "check", "plot", "export", "recover",
-                                               "candump")),
+                                               "candump", "cat")),
     ("watch a running system", ("top", "view", "ls", "echo", "pub", "hz")),
     ("bring up a CAN bus", ("can",)),
 )

@@ -136,6 +136,7 @@ class Bridge:
         self.sent = 0
 
     def describe(self, spec: dict) -> None:
+        self.scene.learn(spec)  # a URDF the drives load, the joint names of a joint map
         for channel in spec.get("channels") or []:
             for key in channel.get("keys") or []:
                 self.types[key] = channel.get("type_name")

@@ -406,6 +406,9 @@ class _Parser:
         if not isinstance(params, dict):
             self.error(entry, "params must be a table, e.g. params = { N = 2 }")
         else:
+            if self.base is not None:  # a robot's URDF named relative to this file (a world's `urdf`)
+                from iotad.kernel.package_files import absolute_files
+                params = absolute_files(params, self.base)
             node["params"] = params
         restart = raw.get("restart", NodeDecl.restart)
         if restart not in RESTART_MODES:
@@ -445,7 +448,7 @@ class _Parser:
         recorded copy, which has no folder (its files are not looked up)."""
         if self.base is None:
             return written
-        from iotad.launcher.package_files import is_package_ref, package_file
+        from iotad.kernel.package_files import is_package_ref, package_file
 
         if is_package_ref(written):  # "nodes.scheduler:program_scheduler.iota": from any folder
             try:

@@ -39,6 +39,8 @@ def export_json(recording: Recording, output: str | Path, extra_metadata: dict[s
         ids: dict[str, tuple[int, bool]] = {}
         schema_ids: dict[tuple, int] = {}
         scene = SceneWriter(sink.writer)
+        for spec in recording.specs.values():  # the robot's URDF and joint names, as the system gives them
+            scene.tracker.learn(spec)
         count = 0
         for message in recording.messages:
             entry = ids.get(message.topic)

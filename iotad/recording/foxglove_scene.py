@@ -21,6 +21,7 @@ path so far, whether the model went out). What it recognises, by shape:
 from __future__ import annotations
 
 import math
+from pathlib import Path
 from typing import Any
 
 from iotad.recording import robot_model
@@ -47,13 +48,30 @@ class SceneTracker:
         self.model_sent = False
         self.landmarks: dict[tuple[str, int], dict] = {}
         self.path: list[tuple[float, float]] = []
+        from iotad.recording.urdf_robot import RobotsOfSystem
+
+        self.robots = RobotsOfSystem()
+
+    def learn(self, spec: Any) -> None:
+        """One node's spec (live `@spec`, or a recording's): a URDF its simulated drives load,
+        the joint names its joint map gives; the robot is then drawn from them."""
+        self.robots.learn(spec)
 
     def feed(self, key: str, value: Any, stamp_ns: int) -> list[tuple[str, Any]]:
         if not isinstance(value, dict):
             return []
         out: list[tuple[str, Any]] = []
         positions = value.get("position")
-        if isinstance(positions, list) and len(positions) >= len(robot_model.ARM_JOINTS) \
+        named = self._named_robot(key, positions)
+        if named is not None:
+            robot, names = named
+            self.arm_key = key
+            if not self.model_sent:
+                self.model_sent = True
+                out += [(ROBOT_DESCRIPTION, {"data": robot.text}), (ARM_MODEL, urdf_model(robot, self.embed, stamp_ns))]
+            out += [(TRANSFORMS, urdf_transforms(robot, dict(zip(names, (float(p) for p in positions))), stamp_ns)),
+                    (ARM_JOINTS, joint_states(value, stamp_ns, names))]
+        elif isinstance(positions, list) and len(positions) >= len(robot_model.ARM_JOINTS) \
                 and all(_number(p) for p in positions) and self.arm_key in (None, key):
             self.arm_key = key
             if not self.model_sent:
@@ -76,6 +94,21 @@ class SceneTracker:
                 out.append((PATH, path(self.path, stamp_ns)))
             out.append((POSE, pose_in_frame(x, y, float(yaw), stamp_ns)))
         return out
+
+    def _named_robot(self, key: str, positions: Any):
+        """(the URDF robot, the joint names) when this is a joint-states value of a node whose
+        joint map names its joints and the system's drives load a URDF with those joints."""
+        robot = self.robots.urdf
+        if robot is None or not isinstance(positions, list) or not all(_number(p) for p in positions) \
+                or self.arm_key not in (None, key):
+            return None
+        from iotad.host import wire
+
+        parsed = wire.parse_key(key)
+        names = self.robots.names_for(parsed[1], len(positions)) if parsed else None
+        if not names or not set(names) & set(robot.movable):
+            return None
+        return robot, names
 
     def arm_model(self, stamp_ns: int) -> Any:
         from foxglove.messages import ModelPrimitive, SceneEntity, SceneUpdate, Vector3
@@ -106,11 +139,63 @@ def transforms(positions: list, stamp_ns: int) -> Any:
         for parent, child, t, r in robot_model.link_transforms(named)])
 
 
-def joint_states(value: dict, stamp_ns: int) -> Any:
+def urdf_transforms(robot: Any, positions: dict[str, float], stamp_ns: int) -> Any:
+    """Frames of a URDF robot's links for joint positions by name, from `world` on."""
+    from foxglove.messages import FrameTransform, FrameTransforms, Quaternion, Vector3
+
+    links = robot.link_transforms(positions)
+    root = robot.root_link()
+    if root != WORLD:
+        links.insert(0, (WORLD, root, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0)))
+    return FrameTransforms(transforms=[
+        FrameTransform(timestamp=_stamp(stamp_ns), parent_frame_id=parent, child_frame_id=child,
+                       translation=Vector3(x=t[0], y=t[1], z=t[2]), rotation=Quaternion(x=r[0], y=r[1], z=r[2], w=r[3]))
+        for parent, child, t, r in links])
+
+
+def urdf_model(robot: Any, embed: bool, stamp_ns: int) -> Any:
+    """A URDF robot's visuals, each locked to its link's frame: its boxes, cylinders and spheres,
+    and its meshes (embedded from the files beside the URDF in an export; by URL live)."""
+    from foxglove.messages import (CubePrimitive, CylinderPrimitive, ModelPrimitive, SceneEntity, SceneUpdate,
+                                   SpherePrimitive, Vector3)
+
+    entities = []
+    for number, shape in enumerate(robot.shapes):
+        pose, color = _pose(shape.xyz, shape.rotation), _color(*shape.rgba)
+        if shape.kind == "box":
+            size = Vector3(x=shape.size[0], y=shape.size[1], z=shape.size[2])
+            primitive = {"cubes": [CubePrimitive(pose=pose, size=size, color=color)]}
+        elif shape.kind == "cylinder":
+            d = 2 * shape.size[0]
+            primitive = {"cylinders": [CylinderPrimitive(pose=pose, size=Vector3(x=d, y=d, z=shape.size[1]),
+                                                         bottom_scale=1.0, top_scale=1.0, color=color)]}
+        else:
+            d = 2 * shape.size[0]
+            primitive = {"spheres": [SpherePrimitive(pose=pose, size=Vector3(x=d, y=d, z=d), color=color)]}
+        entities.append(SceneEntity(timestamp=_stamp(stamp_ns), frame_id=shape.link, id=f"urdf/{number}/{shape.link}",
+                                    frame_locked=True, **primitive))
+    folder = Path(robot.path).parent
+    for number, visual in enumerate(robot.meshes):
+        file = folder / visual.mesh if "://" not in visual.mesh else None
+        if embed:
+            if file is None or not file.is_file():
+                continue
+            media = "model/obj" if file.suffix.lower() == ".obj" else "model/stl"
+            source = {"data": file.read_bytes(), "media_type": media}
+        else:
+            source = {"url": file.as_uri() if file is not None else visual.mesh}
+        entities.append(SceneEntity(
+            timestamp=_stamp(stamp_ns), frame_id=visual.link, id=f"urdf/mesh/{number}/{visual.link}", frame_locked=True,
+            models=[ModelPrimitive(pose=_pose(visual.xyz, visual.rotation), scale=Vector3(x=1.0, y=1.0, z=1.0),
+                                   color=_color(0.85, 0.85, 0.9, 1.0), **source)]))
+    return SceneUpdate(entities=entities)
+
+
+def joint_states(value: dict, stamp_ns: int, names: list[str] | None = None) -> Any:
     from foxglove.messages import JointState, JointStates
 
     joints = []
-    for k, name in enumerate(robot_model.ARM_JOINTS):
+    for k, name in enumerate(names or robot_model.ARM_JOINTS):
         fields = {"position": float(value["position"][k])}
         for field in ("velocity", "effort"):
             series = value.get(field)

@@ -30,12 +30,15 @@ class RosbagExportError(Exception):
     """The bag cannot be written (its folder exists, a value does not fit its message)."""
 
 
-def joint_state_fields(value: Any) -> dict[str, Any] | None:
-    """A JointState's fields for a joint-states value (position, velocity, effort arrays), else None."""
+def joint_state_fields(value: Any, names: list[str] | None = None) -> dict[str, Any] | None:
+    """A JointState's fields for a joint-states value (position, velocity, effort arrays), else
+    None; its joints named `names` (the joint map's), else joint1, joint2..."""
     if not isinstance(value, dict) or not all(isinstance(value.get(k), list) for k in ("position", "velocity", "effort")):
         return None
     count = len(value["position"])
-    return {"name": [f"joint{i + 1}" for i in range(count)], "position": value["position"],
+    if names is None or len(names) != count:
+        names = [f"joint{i + 1}" for i in range(count)]
+    return {"name": list(names), "position": value["position"],
             "velocity": value["velocity"], "effort": value["effort"]}
 
 
@@ -82,6 +85,11 @@ def export_rosbag(recording: Recording, output: str | Path,
             out_by_key.setdefault(key, []).append(mapping)
         else:
             in_by_key[mapping.key] = mapping.reversed()
+    from iotad.recording.urdf_robot import joint_names_of
+
+    # each motor node's joint names, as its joint map gives them (the recording holds its params)
+    names = {spec.get("path", node): found for node, spec in recording.specs.items()
+             if (found := joint_names_of(spec.get("params"))) is not None}
     counts: dict[str, int] = {}
     store = messages.typestore()
     try:
@@ -103,11 +111,10 @@ def export_rosbag(recording: Recording, output: str | Path,
                 progress(number)
             topic, stamp = message.topic, message.log_time
             mapped = out_by_key.get(topic)
-            if mapped is not None:
+            if mapped is not None:  # and beside it, a joint state or pose on /iotad/... below
                 value = message.value
                 for mapping in mapped:
                     write(mapping.topic, mapping.ros_type, _converted(mapping, value, stamp), stamp)
-                continue
             inbound = in_by_key.get(topic)
             if inbound is not None:
                 write(inbound.topic, inbound.ros_type, _converted(inbound, message.value, stamp), stamp)
@@ -116,7 +123,7 @@ def export_rosbag(recording: Recording, output: str | Path,
             if parsed is None or parsed[0] != system or parsed[1] == NODE_NAME or parsed[2].startswith("@"):
                 continue
             value = message.value
-            fields = joint_state_fields(value)
+            fields = joint_state_fields(value, names.get(parsed[1]))
             ros_type = JOINT_STATE
             if fields is None:
                 fields, ros_type = pose_fields(value), POSE

@@ -5,7 +5,8 @@
     find_world("sim")                         # ... by sensors composed in the same process
 
 Names: "arm" (xArm6 with gripper), "kuka" (KUKA iiwa), "conveyor" (the xArm6 at a belt, a bin
-and an end-effector camera), "buggy" (Buggy's arena). Options are the world class's keyword
+and an end-effector camera), "buggy" (Buggy's arena), "urdf" (any robot from its URDF, option
+`urdf`: its movable joints by the URDF's names). Options are the world class's keyword
 arguments (`time_step` included).
 """
 from __future__ import annotations
@@ -21,7 +22,8 @@ from .plant import Plant
 # name -> (module, class, fixed arguments); a class is imported on use: `iotad run --check` opens no world
 _CLASSES: dict[str, tuple[str, str, dict[str, Any]]] = {
     "arm": (".arm", "ArmWorld", {"robot": "xarm6"}), "kuka": (".arm", "ArmWorld", {"robot": "kuka_iiwa"}),
-    "conveyor": (".conveyor", "ConveyorWorld", {}), "buggy": (".buggy", "BuggyWorld", {})}
+    "conveyor": (".conveyor", "ConveyorWorld", {}), "buggy": (".buggy", "BuggyWorld", {}),
+    "urdf": (".urdf_world", "UrdfWorld", {})}
 WORLDS = tuple(_CLASSES)
 
 

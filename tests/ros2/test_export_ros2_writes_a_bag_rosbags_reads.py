@@ -46,9 +46,12 @@ def test_the_mapped_joint_states_are_a_bag_with_every_value(arm_recording, tmp_p
     with Reader(bag) as reader:
         types = {c.topic: c.msgtype for c in reader.connections}
         counts = {c.topic: c.msgcount for c in reader.connections}
-        assert reader.message_count == 2 * len(recorded)
-    assert types == {"/joint_states": "sensor_msgs/msg/JointState", "/arm/joint1": "std_msgs/msg/Float64"}
-    assert counts == {"/joint_states": len(recorded), "/arm/joint1": len(recorded)} and len(recorded) == 300
+        assert reader.message_count == 3 * len(recorded)
+    # the mapped topics, and beside them the channel's own /iotad/<node>/<channel> (docs/ros2.md)
+    assert types == {"/joint_states": "sensor_msgs/msg/JointState", "/arm/joint1": "std_msgs/msg/Float64",
+                     "/iotad/arm/joint_states": "sensor_msgs/msg/JointState"}
+    assert counts == {"/joint_states": len(recorded), "/arm/joint1": len(recorded),
+                      "/iotad/arm/joint_states": len(recorded)} and len(recorded) == 300
     found = bag_messages(bag)
     for message, (stamp, joint_state), (_, joint1) in zip(recorded, found["/joint_states"], found["/arm/joint1"]):
         assert stamp == message.log_time

@@ -32,3 +32,27 @@ def package_file(written: str) -> Path:
             return file
     raise ValueError(f"package {package!r} has no file {name!r} (looked in "
                      f"{', '.join(str(f) for f in found.submodule_search_locations)})")
+
+
+FILE_SUFFIXES = (".urdf",)  # parameters naming such a file name it as the system file does
+
+
+def absolute_files(params, base: Path):
+    """`params` with every string that names a robot description (`.urdf`) made an absolute path:
+    a relative one is relative to the system file's folder `base`, and `package:file` is the file
+    in that package's folder, so the node finds its robot whatever folder it runs in. Other
+    values, and names of files that do not exist, are left as written (the node says what is wrong)."""
+    if isinstance(params, dict):
+        return {key: absolute_files(value, base) for key, value in params.items()}
+    if isinstance(params, list):
+        return [absolute_files(value, base) for value in params]
+    if isinstance(params, str) and params.endswith(FILE_SUFFIXES):
+        if is_package_ref(params):
+            try:
+                return str(package_file(params))
+            except ValueError:
+                return params
+        file = (base / params).resolve()
+        if file.is_file():
+            return str(file)
+    return params
