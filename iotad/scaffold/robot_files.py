@@ -145,7 +145,7 @@ def behaviour_node(behaviour: BehaviourPlan, k: int, joints: list[JointPlan]) ->
         atoms = [("minimum_jerk", pose, 1.5) for pose in poses]
     else:
         joint = joints[(k - 1) % len(joints)]
-        lines += ["epoch = 0.8", "timeout = 6.0", f"start = {_num(1.5 + 2.5 * k)}", "pause = 3.0", "count = 3"]
+        lines += ["epoch = 0.8", "timeout = 6.0", f"start = {_num(1.0 + 1.5 * k)}", "pause = 3.0", "count = 3"]
         atoms = [("minimum_jerk", {joint.name: _at(joint, 0.9 if k % 2 else 0.1)}, 0.6),
                  ("hold", {}, 0.3)]
     lines += ["", "[node.params.program]", f"id = {_q(behaviour.name)}", "",
