@@ -58,8 +58,9 @@ def system_file(plan: RobotPlan, urdf: str = "robot.urdf") -> str:
         "#",
         "#   iotad run robot.toml --virtual --until 12 -o run.mcap     # one process, virtual time",
         "#   iotad check run.mcap                                     # every node kept to its spec",
-        "#   iotad view --recording run.mcap    or   iotad run robot.toml --virtual --until 12 --view",
+        "#   iotad export --json run.mcap -o run-foxglove.mcap       # open it in Foxglove: the robot in 3D",
         "#   python -m iotad.can.tiers run -- iotad run robot.toml --until 12 --after-live -o rt.mcap",
+        "#   IOTAD_CAN_INTERFACE=socketcan IOTAD_CAN_CHANNEL=can0 iotad run robot.toml --view   # live, in Foxglove",
         "",
         "[system]",
         f'name = "{plan.system_name}"',
@@ -145,7 +146,7 @@ def behaviour_node(behaviour: BehaviourPlan, k: int, joints: list[JointPlan]) ->
         atoms = [("minimum_jerk", pose, 1.5) for pose in poses]
     else:
         joint = joints[(k - 1) % len(joints)]
-        lines += ["epoch = 0.8", "timeout = 6.0", f"start = {_num(1.0 + 1.5 * k)}", "pause = 3.0", "count = 3"]
+        lines += ["epoch = 0.8", "timeout = 6.0", f"start = {_num(1.5 * k)}", "pause = 3.0", "count = 3"]
         atoms = [("minimum_jerk", {joint.name: _at(joint, 0.9 if k % 2 else 0.1)}, 0.6),
                  ("hold", {}, 0.3)]
     lines += ["", "[node.params.program]", f"id = {_q(behaviour.name)}", "",
@@ -243,15 +244,17 @@ iotad run robot.toml --check                                   # the wiring, bef
 iotad run robot.toml --virtual --until 12 -o run.mcap          # one process, virtual time
 iotad check run.mcap                                           # every node kept to its spec
 iotad cat run.mcap 'iota/{plan.system_name}/scheduler/ack/*'   # who got the motors, when
-iotad run robot.toml --virtual --until 12 --view               # watch it in Foxglove (ws://127.0.0.1:8765)
+iotad export --json run.mcap -o run-foxglove.mcap               # open it in Foxglove: the robot in 3D
 python -m iotad.can.tiers run -- iotad run robot.toml --until 12 --after-live -o rt.mcap   # real time, a CAN bus
 pytest test_robot.py                                           # its tests: extend them as it grows
 ```
 
 `--strict` (or `strict = true` in `[system]`) makes any violation, exception or node that never
 went live fail the run. In real time every node is a process and the bus is the CAN tier's
-(`interface = "env"`); on a machine with a CAN card,
-`IOTAD_CAN_INTERFACE=socketcan IOTAD_CAN_CHANNEL=can0 iotad run robot.toml`.
+(`interface = "env"`); on a machine with a CAN card (or a vcan0 of its own),
+`IOTAD_CAN_INTERFACE=socketcan IOTAD_CAN_CHANNEL=can0 iotad run robot.toml --view` runs it and
+serves it live to Foxglove (`iotad view`, ws://127.0.0.1:8765). A run inside a CAN tier is in a
+private network namespace: watch it from there (docs/first-robot.md, "Watching inside a CAN tier").
 
 ## Change it
 

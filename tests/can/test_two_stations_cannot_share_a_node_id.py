@@ -54,8 +54,13 @@ to = "motor2.setpoints"
 def test_two_stations_claiming_one_node_id_are_refused(tmp_path, extra, stations, said):
     with pytest.raises(SystemFileError) as caught:
         load_system(_arm_can(tmp_path, extra, stations))
-    assert caught.value.errors == [
-        f"arm_can.toml: [[can]] #1 (name=\"arm_bus\"): {said}; every axis on a bus needs a node id of its own"]
+    first, *others = caught.value.errors
+    assert first == f"arm_can.toml: [[can]] #1 (name=\"arm_bus\"): {said}; every axis on a bus needs a node id of its own"
+    # motor2's other joints (ids 22..26) are served by no simulated drive: refused too, each by name
+    assert others == ([] if "motor2" not in stations else [
+        f"arm_can.toml: [[can]] #1 (name=\"arm_bus\"): motor2: joint {name!r} is commanded on CAN node id {i}, "
+        "which no simulated drive on bus 'arm_bus' serves (served: 1, 2, 3, 4, 5, 6)"
+        for name, i in zip("bcdef", range(22, 27))])
 
 
 def test_stations_with_ids_of_their_own_share_a_bus(tmp_path):

@@ -60,8 +60,9 @@ def system_variant(folder: Path, *, segment: float | None = None, odrives: dict 
         block = block if n else f"{key} = {value}\n{block}"
     text = f"{head}[node.params]\n{block}[[node.params.joints]]{rest}"
     if bus is not None:
-        text = text.replace('interface = "socketcan"\nchannel = "vcan0"',
-                            f'interface = "{bus[0]}"\nchannel = "{bus[1]}"')
+        text, n = re.subn(r'interface = "[^"]*"[^\n]*\n(channel = "[^"]*"\n)?',
+                          f'interface = "{bus[0]}"\nchannel = "{bus[1]}"\n', text)
+        assert n == 1
     if port is not None:
         text = text.replace("tcp/127.0.0.1:7447", f"tcp/127.0.0.1:{port}")
     if backoff is not None:

@@ -24,8 +24,8 @@ def system_variant(folder: Path, *, cube_count: int = 2, cube_interval: float = 
     assert n == 1, "the example's world_options changed: update tests/conveyor/conveyor_variant.py"
     if bus is not None:
         interface, channel = bus
-        text, n = re.subn(r'interface = "[^"]*"\nchannel = "[^"]*"',
-                          f'interface = "{interface}"\nchannel = "{channel}"', text)
+        text, n = re.subn(r'interface = "[^"]*"[^\n]*\n(channel = "[^"]*"\n)?',
+                          f'interface = "{interface}"\nchannel = "{channel}"\n', text)
         assert n == 1
     path = folder / "conveyor.toml"
     path.write_text(text)
