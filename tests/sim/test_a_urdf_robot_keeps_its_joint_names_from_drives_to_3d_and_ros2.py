@@ -111,3 +111,32 @@ def test_the_ros2_export_names_the_joints_as_the_joint_map_does(robot, tmp_path)
         states = [store.deserialize_cdr(data, c.msgtype) for c, _, data in reader.messages()
                   if c.topic == "/iotad/motor/joint_states"]
     assert states and all(list(s.name) == names for s in states)
+
+
+def test_the_live_view_draws_the_same_robot_from_the_nodes_specs(robot):
+    """`iotad view`'s bridge learns the robot from each node's @spec (as the recording keeps
+    them) and sends the URDF and the named joints for each joint-states message."""
+    from iotad.cli.foxglove_bridge import Bridge
+
+    urdf, names, recording = robot
+    opened = iotad.open_recording(recording)
+    bridge = Bridge()
+    sent: dict[str, list] = {}
+
+    class Channel:
+        def __init__(self, topic):
+            self.topic = topic
+
+        def log(self, message, log_time=None):
+            sent.setdefault(self.topic, []).append(message)
+
+    bridge._scene_channel = lambda topic, message: Channel(topic)
+    for spec in opened.raw.specs.values():
+        bridge.describe(spec)
+    states = opened.values("iota/robot/motor/joint_states")
+    for sample in states[:5]:
+        bridge.message(sample.key, sample.value, sample.send_ns)
+    assert sent["/robot_description"] == [{"data": urdf.read_text()}]
+    shown = [decoded(m.get_schema(), m.encode()) for m in sent["/scene/arm_joints"]]
+    assert [[j.name for j in m.joints] for m in shown] == [names] * 5
+    assert [[j.position for j in m.joints] for m in shown] == [s.value["position"] for s in states[:5]]
