@@ -65,6 +65,8 @@ def test_a_drive_that_never_answers_is_a_recorded_violation_naming_joint_id_bus_
     assert len(silent) == 1, silent  # once, not at every arming retry
     assert silent[0]["iota"].endswith("motor") and silent[0]["index"] == 5
     assert said in silent[0]["value"]["message"]
+    assert main(["info", str(out)]) == 0  # and iotad info names the joint, not only its index
+    assert "joint(s) 5 (joint6) UNARMED and LOST" in capsys.readouterr().out
 
 
 @pytest.mark.parametrize("strict", ["--strict", "file"])

@@ -104,7 +104,7 @@ def _clocks(recording) -> None:
               f"bound {least * 1e3:.3f} to {most * 1e3:.3f} ms, {violations.get(host, 0)} clock violation(s)")
 
 
-def _joints_at_the_end(trace: list[dict], unit: float) -> list[str]:
+def _joints_at_the_end(trace: list[dict], unit: float, names: dict[str, list[str]] | None = None) -> list[str]:
     """Where each joint of a motor node (a node with `joint_status[i]` outputs: the CAN motor
     node's) was when the recording ends: a robot whose axes went to FAULT and stayed there (a
     controller restarted, a trip) stops, with no violation to say so; this says it."""
@@ -132,7 +132,9 @@ def _joints_at_the_end(trace: list[dict], unit: float) -> list[str]:
                 continue
             first = min(since[node][j][0] for j in members)
             causes = sorted({str(since[node][j][1]) for j in members})  # the events that brought them there
-            parts.append(f"joint(s) {', '.join(str(j) for j in members)} {state} since t={first:.3f} s "
+            known = (names or {}).get(node) or []  # by the joint map's names where the recording has them
+            shown = [f"{j} ({known[j]})" if isinstance(j, int) and j < len(known) else str(j) for j in members]
+            parts.append(f"joint(s) {', '.join(shown)} {state} since t={first:.3f} s "
                          f"({'/'.join(causes)})")
         lines.append(f"  joints at the end: {node}: {'; '.join(parts)}")
     return lines
@@ -196,7 +198,11 @@ def run(args: argparse.Namespace) -> int:
     for topic, count in sorted(recording.topics().items()):
         schema = recording.schema_of(topic)
         print(f"    {topic:<48} {count:>8}  {schema.name if schema else '-'}")
-    for line in _joints_at_the_end(trace, recording.time_unit):
+    from iotad.recording.urdf_robot import joint_names_of
+
+    joint_names = {node: found for node, spec in recording.specs.items()
+                   if (found := joint_names_of(spec.get("params"))) is not None}
+    for line in _joints_at_the_end(trace, recording.time_unit, joint_names):
         print(line)
     violations = [event for event in trace if event.get("kind") == "violation"]
     print(f"  violations: {len(violations)}")
