@@ -88,3 +88,20 @@ def test_a_node_that_never_goes_live_fails_a_strict_real_time_run(tmp_path, caps
     assert code == 1, printed
     assert "strict: node ticker never went live" in printed
     assert time.monotonic() - started < 30, "the run ended by --until, not by a start timeout"
+
+
+def test_in_real_time_the_exception_and_its_traceback_are_in_the_nodes_log_and_strict_fails(tmp_path, capsys):
+    path = system(tmp_path, fail_at=2)
+    logs = tmp_path / "logs"
+    out = tmp_path / "rt.mcap"
+    code = main(["run", str(path), "--until", "4", "--after-live", "--port", "0", "--plain", "--strict",
+                 "--log-dir", str(logs), "-o", str(out)])
+    printed = capsys.readouterr().out
+    assert code == 1, printed
+    line = NODES.splitlines().index("            self.n = self.n / 0") + 1
+    log = (logs / "ticker.log").read_text()
+    assert f"ZeroDivisionError: division by zero (at {tmp_path / 'ticker.py'}:{line})" in log
+    assert "Traceback (most recent call last):" in log and "self.n = self.n / 0" in log
+    [fault] = [e for e in read_recording(out).trace("ticker") if e["kind"] == "violation"]
+    assert fault["value"]["where"] == f"{tmp_path / 'ticker.py'}:{line}" and "Traceback" in fault["value"]["traceback"]
+    assert "strict: 1 violation(s)" in printed
