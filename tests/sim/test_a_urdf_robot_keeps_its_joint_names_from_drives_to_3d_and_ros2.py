@@ -4,6 +4,7 @@ URDF with the joint map's names, its links where PyBullet puts them; `iotad expo
 the joints as the joint map does, and writes the `/iotad/...` joint states beside mapped topics.
 With the shipped pan-tilt head (2 joints) and pybullet_data's KUKA iiwa (7)."""
 import json
+import re
 import math
 import random
 from pathlib import Path
@@ -140,3 +141,16 @@ def test_the_live_view_draws_the_same_robot_from_the_nodes_specs(robot):
     shown = [decoded(m.get_schema(), m.encode()) for m in sent["/scene/arm_joints"]]
     assert [[j.name for j in m.joints] for m in shown] == [names] * 5
     assert [[j.position for j in m.joints] for m in shown] == [s.value["position"] for s in states[:5]]
+
+
+@pytest.mark.parametrize("options, said", [
+    ({}, "needs the option urdf"),
+    ({"urdf": "/no/such/robot.urdf"}, "no URDF file '/no/such/robot.urdf'"),
+    ({"urdf": "sim.robots:nothing.urdf"}, "has no file 'nothing.urdf'"),
+    ({"urdf": "sim.robots:pan_tilt.urdf", "home": [0.1]}, "home needs 2 joint positions (pan, tilt), got 1"),
+])
+def test_a_urdf_world_that_cannot_be_built_says_why(options, said):
+    from sim.worlds import make_world
+
+    with pytest.raises(ValueError, match=re.escape(said)):
+        make_world("urdf", **options)

@@ -84,7 +84,7 @@ def test_home_pose_points_the_tool_down(xarm):
 
 
 def test_worlds_by_name_and_the_process_registry():
-    assert set(WORLDS) == {"arm", "kuka", "conveyor", "buggy"}
+    assert set(WORLDS) == {"arm", "kuka", "conveyor", "buggy", "urdf"}
     with pytest.raises(ValueError, match="unknown world 'moon'"):
         make_world("moon")
     with pytest.raises(ValueError, match="world 'buggy'"):
