@@ -108,7 +108,7 @@ def system_file(plan: RobotPlan, urdf: str = "robot.urdf") -> str:
         lines += [f"node_id = {joint.node_id}", f"position_min = {_num(joint.lower)}",
                   f"position_max = {_num(joint.upper)}", "velocity_limit = 3.0", "current_limit = 10.0",
                   'out_of_range = "clamp"', ""]
-    ids = ", ".join(f"{j.name} = {j.node_id}" for j in joints)
+    ids = ", ".join(f"{_key(j.name)} = {j.node_id}" for j in joints)
     world = f'world = "urdf", world_options = {{ urdf = {_q(urdf)} }}'
     if family == "odrive":
         lines += ["[[node]]", 'name = "drives"', 'python = "sim.odrive_sim:SimulatedOdrives"',
@@ -154,7 +154,7 @@ def behaviour_node(behaviour: BehaviourPlan, k: int, joints: list[JointPlan]) ->
     for kind, target, seconds in atoms:
         lines.append("[[node.params.program.behaviours.atoms]]")
         if target:
-            pose = ", ".join(f"{name} = {_num(value)}" for name, value in target.items())
+            pose = ", ".join(f"{_key(name)} = {_num(value)}" for name, value in target.items())
             lines.append(f'u = {{ kind = "{kind}", target = {{ {pose} }} }}')
         else:
             lines.append(f'u = {{ kind = "{kind}" }}')
@@ -169,6 +169,13 @@ def _at(joint: JointPlan, fraction: float) -> float:
 def _num(value: float) -> str:
     text = repr(float(value))
     return text[:-2] if text.endswith(".0") and "e" not in text else text
+
+
+def _key(name: str) -> str:
+    """A TOML key: bare where it can be (a URDF's joint names may hold dots or spaces)."""
+    import re
+
+    return name if re.fullmatch(r"[A-Za-z0-9_-]+", name) else _q(name)
 
 
 def _q(text: str) -> str:

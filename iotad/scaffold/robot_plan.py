@@ -98,7 +98,11 @@ def urdf_joints(urdf: str) -> list[tuple[str, float, float]]:
         limit = joint.find("limit")
         lower = float(limit.get("lower", "-3.14")) if limit is not None and kind != "continuous" else -3.14
         upper = float(limit.get("upper", "3.14")) if limit is not None and kind != "continuous" else 3.14
-        found.append((joint.get("name"), lower, upper))
+        name = joint.get("name") or ""
+        if not re.fullmatch(r"[A-Za-z0-9_.:-]{1,64}", name):  # a key of MDL targets and of the joint map
+            raise PlanError(f"--urdf {urdf}: joint name {name!r} is not usable as a joint's name "
+                            "(1..64 letters, digits, _ . : -)")
+        found.append((name, lower, upper))
     if not found:
         raise PlanError(f"--urdf {urdf}: it has no revolute, continuous or prismatic joint to drive")
     return found
