@@ -104,3 +104,16 @@ def test_choices_that_cannot_work_are_one_line(options, said, tmp_path, capsys):
     assert main(["new", "bot", "--in", str(tmp_path), *options]) == 2
     assert said in capsys.readouterr().err
     assert not (tmp_path / "bot").exists()
+
+
+def test_urdf_joint_names_that_are_no_bare_key_are_quoted_and_unusable_ones_refused(tmp_path, capsys):
+    text = (ROOT / "sim/robots/pan_tilt.urdf").read_text()
+    dotted = tmp_path / "dotted.urdf"
+    dotted.write_text(text.replace('name="pan"', 'name="head.pan"'))
+    assert main(["new", "dots", "--in", str(tmp_path), "--urdf", str(dotted)]) == 0
+    assert main(["run", str(tmp_path / "dots" / "robot.toml"), "--virtual", "--until", "2", "--no-record",
+                 "--strict", "--plain"]) == 0
+    spaced = tmp_path / "spaced.urdf"
+    spaced.write_text(text.replace('name="pan"', 'name="the pan"'))
+    assert main(["new", "spaces", "--in", str(tmp_path), "--urdf", str(spaced)]) == 2
+    assert "joint name 'the pan' is not usable as a joint's name" in capsys.readouterr().err
