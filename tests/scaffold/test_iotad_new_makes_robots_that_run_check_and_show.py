@@ -117,3 +117,23 @@ def test_urdf_joint_names_that_are_no_bare_key_are_quoted_and_unusable_ones_refu
     spaced.write_text(text.replace('name="pan"', 'name="the pan"'))
     assert main(["new", "spaces", "--in", str(tmp_path), "--urdf", str(spaced)]) == 2
     assert "joint name 'the pan' is not usable as a joint's name" in capsys.readouterr().err
+
+
+def test_the_default_robot_is_viewed_live_in_real_time_on_a_can_tier(tmp_path):
+    """`iotad run robot.toml --view` on the tier's bus, and a Foxglove client in the same network
+    namespace: the 3D scene's joint states carry the robot's joint names."""
+    from iotad.can.tiers import TierBus, TierUnavailable
+    from iotad.host.transport import free_port
+
+    try:
+        bus = TierBus("udp_multicast")
+    except TierUnavailable as exc:
+        pytest.skip(f"no udp_multicast CAN tier: {exc}")
+    assert main(["new", "head", "--in", str(tmp_path)]) == 0
+    done = bus.run([sys.executable, str(Path(__file__).with_name("view_in_a_tier.py")), str(tmp_path / "head"),
+                    str(free_port()), str(free_port())], timeout=200, cwd=str(ROOT))
+    line = next((l for l in done.output.splitlines() if l.startswith("VIEWED ")), None)
+    assert line is not None, done.output[-3000:]
+    viewed = json.loads(line[len("VIEWED "):])
+    assert viewed.get("names") == ["pan", "tilt"], done.output[-3000:]
+    assert all(-2.6 <= p <= 2.6 for p in viewed["positions"])
