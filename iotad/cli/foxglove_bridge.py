@@ -159,7 +159,12 @@ class Bridge:
                     channel = table[topic] = maker(topic)
                 stamp = Timestamp(stamp_ns // 1_000_000_000, stamp_ns % 1_000_000_000)
                 if kind == "joints":
-                    typed = JointStates(timestamp=stamp, joints=[JointState(**j) for j in message["joints"]])
+                    joints = message["joints"]
+                    parsed = key.split("/")  # iota/<system>/<path...>/<channel>: the joint map's names if known
+                    names = self.scene.robots.names_for("/".join(parsed[2:-1]), len(joints))
+                    if names:
+                        joints = [dict(j, name=name) for j, name in zip(joints, names)]
+                    typed = JointStates(timestamp=stamp, joints=[JointState(**j) for j in joints])
                 else:
                     typed = PoseInFrame(timestamp=stamp, frame_id="world", pose=Pose(
                         position=Vector3(x=message["x"], y=message["y"], z=message["z"]),

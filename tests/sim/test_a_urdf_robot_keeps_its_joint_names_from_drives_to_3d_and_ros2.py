@@ -132,6 +132,8 @@ def test_the_live_view_draws_the_same_robot_from_the_nodes_specs(robot):
             sent.setdefault(self.topic, []).append(message)
 
     bridge._scene_channel = lambda topic, message: Channel(topic)
+    # the channel's own joint-states view too
+    bridge._kinds["joints"] = (bridge._joints, lambda topic: Channel(topic))
     for spec in opened.raw.specs.values():
         bridge.describe(spec)
     states = opened.values("iota/robot/motor/joint_states")
@@ -140,6 +142,8 @@ def test_the_live_view_draws_the_same_robot_from_the_nodes_specs(robot):
     assert sent["/robot_description"] == [{"data": urdf.read_text()}]
     shown = [decoded(m.get_schema(), m.encode()) for m in sent["/scene/arm_joints"]]
     assert [[j.name for j in m.joints] for m in shown] == [names] * 5
+    plain = [decoded(m.get_schema(), m.encode()) for m in sent["/motor/joint_states/joints"]]
+    assert [[j.name for j in m.joints] for m in plain] == [names] * 5
     assert [[j.position for j in m.joints] for m in shown] == [s.value["position"] for s in states[:5]]
 
 
