@@ -11,13 +11,16 @@ branch of Jazzy and later) specifies:
   <namespace>/<node>[/<topic>/<type>/<hash>/<qos>]`, every name "mangled" (`/` -> `%`), kinds NN
   (node), MP (publisher), MS (subscription);
 - attachment: sequence number (int64 little-endian), source timestamp (int64 ns since the UNIX
-  epoch, little-endian), one byte holding the GID's length (16), the 16-byte GID.
+  epoch, little-endian), one byte holding the GID's length (16), the 16-byte GID;
+- GID: XXH3-128 of the entity's liveliness token, as rmw_zenoh's `Entity` computes it for every
+  entity, remote ones included (its low 64 bits, then its high 64 bits, each little-endian).
 """
 from __future__ import annotations
 
-import hashlib
 import struct
 from dataclasses import dataclass
+
+import xxhash
 
 ADMIN_SPACE = "@ros2_lv"
 NODE, PUBLISHER, SUBSCRIPTION = "NN", "MP", "MS"
@@ -96,10 +99,11 @@ class Node:
 
 
 def gid_of(token: str) -> bytes:
-    """A 16-byte GID for the entity with this liveliness token. rmw_zenoh hashes the token with
-    XXH3-128; any 16 bytes unique to the entity serve (a GID is compared, never decoded), so the
-    standard library's BLAKE2b stands in."""
-    return hashlib.blake2b(token.encode(), digest_size=GID_SIZE).digest()
+    """The 16-byte GID of the entity with this liveliness token, as rmw_zenoh makes it: XXH3-128 of
+    the token, the 128-bit value's low half then its high half, each copied from memory on a
+    little-endian machine, i.e. the whole value little-endian. A ROS 2 program compares the GID in
+    a message's attachment with the one its graph cache computed from the publisher's token."""
+    return xxhash.xxh3_128_intdigest(token.encode()).to_bytes(GID_SIZE, "little")
 
 
 def encode_attachment(sequence: int, timestamp_ns: int, gid: bytes) -> bytes:
