@@ -9,7 +9,7 @@ ORDER = 29
 
 EPILOG = """\
 examples (once, on the hub's machine; then copy DIR/ca.pem, HOST.pem, HOST.key and HOST.secret to each host):
-  iotad certs init certs/                           a new authority: certs/ca.pem, certs/ca.key
+  iotad certs init certs/ --system split.toml       a new authority, named after system split: certs/ca.pem, certs/ca.key
   iotad certs host brain --dir certs/ --address 10.0.0.1
   iotad certs host arm --dir certs/ --address 10.0.0.2 --address arm.local
   iotad certs show certs/arm.pem
@@ -32,7 +32,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     actions = parser.add_subparsers(dest="certs_action", metavar="ACTION", required=True)
     init = actions.add_parser("init", help="make a certificate authority in DIR (ca.pem, ca.key)")
     init.add_argument("dir", metavar="DIR")
-    init.add_argument("--name", default="iotad", help="the authority's name (default: iotad)")
+    named = init.add_mutually_exclusive_group()
+    named.add_argument("--system", metavar="FILE", help="name the authority after this system file's [system] name")
+    named.add_argument("--name", help="the system the authority is named after (default: the folder DIR is in)")
     init.add_argument("--days", type=_days, default=3650, help="valid for this many days (default: 3650)")
     init.add_argument("--force", action="store_true",
                       help="replace an authority already in DIR (every host certificate it signed stops working)")
@@ -57,14 +59,35 @@ def _days(text: str) -> int:
     return positive_int(text)
 
 
+def _authority_name(args: argparse.Namespace) -> str:
+    """The system an authority is named after: the system file's name, the one given, or the
+    folder that holds DIR (a project's `certs/` folder sits in the project)."""
+    if args.name:
+        return args.name
+    if args.system:
+        import tomllib
+
+        from iotad.cli import CliError
+        try:
+            name = tomllib.loads(Path(args.system).read_text()).get("system", {}).get("name")
+        except (OSError, tomllib.TOMLDecodeError) as exc:
+            raise CliError(f"certs init: {args.system}: {exc}") from None
+        if not isinstance(name, str) or not name:
+            raise CliError(f"certs init: {args.system} has no [system] name")
+        return name
+    return Path(args.dir).resolve().parent.name or "iotad"
+
+
 def run(args: argparse.Namespace) -> int:
     from iotad.cli import CliError
     from iotad.host import certificates
 
     try:
         if args.certs_action == "init":
-            path = certificates.init_authority(args.dir, args.name, args.days, args.force)
-            print(f"made a certificate authority: {path} (its key {path.with_name('ca.key')} stays on this machine)")
+            name = _authority_name(args)
+            path = certificates.init_authority(args.dir, name, args.days, args.force)
+            print(f"made a certificate authority, {certificates.authority_name(name)!r}: {path} "
+                  f"(its key {path.with_name('ca.key')} stays on this machine)")
         elif args.certs_action == "host":
             from iotad.host import agent_secret
 
