@@ -30,6 +30,28 @@ _ATTACHMENT = struct.Struct("<qqB")
 # profile). rmw_zenoh writes a field only where it differs from its own defaults; the design
 # document's listener on `chatter`, with exactly this profile, carries "::,10:,:,:,,".
 DEFAULT_QOS = "::,10:,:,:,,"
+# A transient-local entity: durability 1 (RMW_QOS_POLICY_DURABILITY_TRANSIENT_LOCAL; rmw_zenoh's
+# default is volatile, 2, so it is written) and keep last 1, as robot_state_publisher and tf2's
+# static broadcaster declare theirs: a late subscriber gets the latest message.
+LATCHED_QOS = ":1:,1:,:,:,,"
+LATCHED_DEPTH = 1
+
+
+def qos_token(transient_local: bool) -> str:
+    return LATCHED_QOS if transient_local else DEFAULT_QOS
+
+
+def cache_queryable_key(session_id: str, key: str) -> str:
+    """Where a transient-local publisher's cache answers: rmw_zenoh's publication cache takes the
+    session id as its queryable prefix, `<session id>/<data key>`; its subscribers ask `*/<data key>`
+    when they start and `<session id>/<data key>` when a new publisher's token appears, and accept
+    replies on the data key itself."""
+    return f"{session_id}/{key}"
+
+
+def cache_query_key(key: str) -> str:
+    """What a transient-local subscriber asks as it starts: every publication cache of the key."""
+    return f"*/{key}"
 
 
 class Ros2NameError(ValueError):

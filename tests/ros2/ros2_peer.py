@@ -11,6 +11,12 @@ Prints one JSON object a line: {"ready": ...} once subscribed; {"topic", "key", 
 "attachment": [seq, stamp_ns, gid_hex]} per message heard, until --seconds pass or messages have
 stopped for --idle seconds; {"tokens": [...]} at the end, the
 rmw_zenoh liveliness tokens seen in domain 0.
+
+--latched TOPIC=TYPE subscribes as rmw_zenoh's transient-local subscription does (Jazzy's
+rmw_subscription_data.cpp, ze_declare_querying_subscriber): a subscriber on the data key, and at
+once a query of `*/<data key>`, target ALL, no consolidation, accepting replies on any key, which
+every publication cache of the topic (queryable prefix: its session id) answers with what it
+holds. Such a message's line says "via": "query" (from a cache) or "put" (published live).
 """
 import argparse
 import json
@@ -61,6 +67,7 @@ def main() -> int:
     parser.add_argument("--connect", required=True)
     parser.add_argument("--seconds", type=float, default=5.0)
     parser.add_argument("--listen", action="append", default=[], help="TOPIC=TYPE")
+    parser.add_argument("--latched", action="append", default=[], help="TOPIC=TYPE, transient local")
     parser.add_argument("--publish", action="append", default=[], help="TOPIC=TYPE=JSON")
     parser.add_argument("--every", type=float, default=0.5, help="seconds between publications")
     parser.add_argument("--idle", type=float, default=2.0,
@@ -80,19 +87,33 @@ def main() -> int:
 
     with zenoh.open(config) as session:
         declared = []
+
+        def on_sample(sample, topic, ros_type, via=None):
+            raw = sample.attachment.to_bytes() if sample.attachment is not None else b""
+            seq, stamp, size = struct.unpack_from("<qqB", raw)
+            gid = raw[17:17 + size]
+            message = STORE.deserialize_cdr(sample.payload.to_bytes(), ros_type)
+            say({"topic": topic, "key": str(sample.key_expr), "message": plain(message),
+                 "attachment": [seq, stamp, gid.hex()], "header": sample.payload.to_bytes()[:4].hex(),
+                 **({} if via is None else {"via": via})})
+            with lock:
+                last[0] = time.monotonic()
+
         for spec in args.listen:
             topic, ros_type = spec.split("=", 1)
+            declared.append(session.declare_subscriber(
+                key_of(topic, ros_type), lambda sample, t=topic, r=ros_type: on_sample(sample, t, r)))
+        for spec in args.latched:
+            topic, ros_type = spec.split("=", 1)
+            key = key_of(topic, ros_type)
+            declared.append(session.declare_subscriber(
+                key, lambda sample, t=topic, r=ros_type: on_sample(sample, t, r, "put")))
 
-            def on_sample(sample, topic=topic, ros_type=ros_type):
-                raw = sample.attachment.to_bytes() if sample.attachment is not None else b""
-                seq, stamp, size = struct.unpack_from("<qqB", raw)
-                gid = raw[17:17 + size]
-                message = STORE.deserialize_cdr(sample.payload.to_bytes(), ros_type)
-                say({"topic": topic, "key": str(sample.key_expr), "message": plain(message),
-                     "attachment": [seq, stamp, gid.hex()], "header": sample.payload.to_bytes()[:4].hex()})
-                with lock:
-                    last[0] = time.monotonic()
-            declared.append(session.declare_subscriber(key_of(topic, ros_type), on_sample))
+            def on_reply(reply, t=topic, r=ros_type):
+                if reply.ok is not None:
+                    on_sample(reply.ok, t, r, "query")
+            session.get(f"*/{key}", on_reply, target=zenoh.QueryTarget.ALL,
+                        consolidation=zenoh.ConsolidationMode.NONE, accept_replies=zenoh.ReplyKeyExpr.ANY)
 
         def on_token(sample):
             if sample.kind == zenoh.SampleKind.PUT:
