@@ -15,6 +15,7 @@ from iotad.launcher.access_policy import RECORDER_USER, TOOLS_USER, Policy, deri
 from iotad.launcher.host_access import (FLEET_USER, across_hosts_settings, host_users, hub_policy, launcher_user, router_zid,
                                         zenoh_mode)
 from iotad.launcher.options import AccessOptions
+from iotad.launcher.ros2_peers import peer_grants
 from iotad.launcher.system_file import System
 
 
@@ -40,8 +41,11 @@ class AccessControl:
         # only who logs in here: the other hosts' nodes log in to their own host's router
         self.policy = hub_policy(system, list(hosts))
         agents = {agent_user(host): agent_secret.derive(certs, host) for host in hosts}
+        # the ROS 2 machines that `iotad certs ros2` admitted in `certs`, with the [[ros2]] tables' rights
+        peers, peer_passwords = peer_grants(system, certs)
+        self.policy.grants += peers
         # the tools' file says where they may publish: `iotad pub` refuses the rest itself
-        self.store = CredentialStore(self.policy.users(), passwords=agents,
+        self.store = CredentialStore(self.policy.users(), passwords={**agents, **peer_passwords},
                                      may_publish={TOOLS_USER: self.policy.grant(TOOLS_USER).publish})
 
     @classmethod

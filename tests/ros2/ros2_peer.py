@@ -17,6 +17,11 @@ rmw_subscription_data.cpp, ze_declare_querying_subscriber): a subscriber on the 
 once a query of `*/<data key>`, target ALL, no consolidation, accepting replies on any key, which
 every publication cache of the topic (queryable prefix: its session id) answers with what it
 holds. Such a message's line says "via": "query" (from a cache) or "put" (published live).
+
+--config FILE opens the session from a zenoh configuration file, as rmw_zenoh does with
+ZENOH_SESSION_CONFIG_URI (what `iotad certs ros2` writes), instead of --connect's plain one;
+--put KEY=TEXT puts raw bytes on any key (what a rogue would try). A session the hub does not
+let in prints {"refused": reason} and exits with status 3.
 """
 import argparse
 import json
@@ -64,7 +69,9 @@ def build(ros_type: str, fields: dict):
 
 def main() -> int:
     parser = argparse.ArgumentParser()
-    parser.add_argument("--connect", required=True)
+    parser.add_argument("--connect")
+    parser.add_argument("--config", help="a zenoh session configuration file (ZENOH_SESSION_CONFIG_URI)")
+    parser.add_argument("--put", action="append", default=[], help="KEY=TEXT, raw")
     parser.add_argument("--seconds", type=float, default=5.0)
     parser.add_argument("--listen", action="append", default=[], help="TOPIC=TYPE")
     parser.add_argument("--latched", action="append", default=[], help="TOPIC=TYPE, transient local")
@@ -74,18 +81,28 @@ def main() -> int:
                         help="stop once messages stop for this long, after the first (the system ended)")
     args = parser.parse_args()
 
-    config = zenoh.Config()
-    config.insert_json5("mode", '"peer"')
-    config.insert_json5("connect/endpoints", json.dumps([args.connect]))
-    config.insert_json5("listen/endpoints", '["tcp/127.0.0.1:0"]')
+    if args.config:
+        config = zenoh.Config.from_file(args.config)
+    else:
+        config = zenoh.Config()
+        config.insert_json5("mode", '"peer"')
+        config.insert_json5("connect/endpoints", json.dumps([args.connect]))
+        config.insert_json5("listen/endpoints", '["tcp/127.0.0.1:0"]')
     config.insert_json5("scouting/multicast/enabled", "false")
+    config.insert_json5("connect/timeout_ms", "5000")  # not let in: say so, rather than retry forever
+    config.insert_json5("connect/exit_on_failure", "true")
     lock, last, tokens = threading.Lock(), [None], set()
 
     def say(obj):
         with lock:
             print(json.dumps(obj), flush=True)
 
-    with zenoh.open(config) as session:
+    try:
+        session = zenoh.open(config)
+    except zenoh.ZError as exc:
+        say({"refused": str(exc)})
+        return 3
+    with session:
         declared = []
 
         def on_sample(sample, topic, ros_type, via=None):
@@ -125,6 +142,7 @@ def main() -> int:
         for spec in args.publish:
             topic, ros_type, fields = spec.split("=", 2)
             publishers.append((session.declare_publisher(key_of(topic, ros_type)), ros_type, json.loads(fields)))
+        raw_puts = [spec.split("=", 1) for spec in args.put]
         say({"ready": True})
         deadline = time.monotonic() + args.seconds
         seq = 0
@@ -135,8 +153,10 @@ def main() -> int:
             for publisher, ros_type, fields in publishers:
                 data = bytes(STORE.serialize_cdr(build(ros_type, fields), ros_type))
                 publisher.put(data, attachment=struct.pack("<qqB", seq, time.time_ns(), 16) + gid)
+            for key, text in raw_puts:
+                session.put(key, text.encode())
             seq += 1
-            time.sleep(args.every if publishers else 0.05)
+            time.sleep(args.every if publishers or raw_puts else 0.05)
         say({"tokens": sorted(tokens)})
         for entity in declared:
             entity.undeclare()
