@@ -106,9 +106,9 @@ def make_peer(directory: str | Path, name: str, connect: list[str], files: str |
     return path
 
 
-def peer_grants(system: Any, directory: str | Path | None) -> tuple[list[Any], dict[str, str]]:
-    """The hub's users for the ROS 2 peers in `directory`: their grants (from the system's
-    `[[ros2]]` tables) and passwords. None without tables: a peer would have nothing to do."""
+def grants_for(system: Any, directory: str | Path | None) -> list[Any]:
+    """The hub's grants for the ROS 2 peers in `directory`, from the system's `[[ros2]]` tables;
+    none without tables (a peer would have nothing to do)."""
     from iotad.launcher.access_policy import Grant
     from iotad.launcher.ros2_tables import mappings_of
     from iotad.ros2.mapping import Mapping
@@ -117,12 +117,14 @@ def peer_grants(system: Any, directory: str | Path | None) -> tuple[list[Any], d
     names = peers(directory)
     mappings = [Mapping.from_plain(plain) for plain in mappings_of(system)]
     if not names or not mappings:
-        return [], {}
+        return []
     rights = peer_rights(mappings)
-    grants, passwords = [], {}
-    for name in names:
-        grants.append(Grant(peer_user(name), "ROS 2 peer", publish=list(rights.publish),
-                            subscribe=list(rights.subscribe), ask=list(rights.ask), tokens=list(rights.tokens),
-                            watch=list(rights.watch)))
-        passwords[peer_user(name)] = password(directory, name)
-    return grants, passwords
+    return [Grant(peer_user(name), "ROS 2 peer", publish=list(rights.publish), subscribe=list(rights.subscribe),
+                  ask=list(rights.ask), tokens=list(rights.tokens), watch=list(rights.watch)) for name in names]
+
+
+def peer_grants(system: Any, directory: str | Path | None) -> tuple[list[Any], dict[str, str]]:
+    """The hub's users for the ROS 2 peers in `directory`: their grants and passwords (derived
+    from the authority's key there; CertificateError, one line, without it)."""
+    grants = grants_for(system, directory)
+    return grants, {grant.user: password(directory, grant.user[len(PREFIX):]) for grant in grants}

@@ -120,22 +120,45 @@ def main() -> int:
             topic, ros_type = spec.split("=", 1)
             declared.append(session.declare_subscriber(
                 key_of(topic, ros_type), lambda sample, t=topic, r=ros_type: on_sample(sample, t, r)))
+        latched, taken = {}, set()  # mangled topic -> (topic, type, key); (gid, seq) already taken
         for spec in args.latched:
             topic, ros_type = spec.split("=", 1)
             key = key_of(topic, ros_type)
+            latched[topic.replace("/", "%")] = (topic, ros_type, key)
             declared.append(session.declare_subscriber(
                 key, lambda sample, t=topic, r=ros_type: on_sample(sample, t, r, "put")))
 
-            def on_reply(reply, t=topic, r=ros_type):
-                if reply.ok is not None:
-                    on_sample(reply.ok, t, r, "query")
-            session.get(f"*/{key}", on_reply, target=zenoh.QueryTarget.ALL,
+        def on_reply(reply, topic, ros_type):
+            # a message is the same one whichever query brought it: (publisher GID, sequence
+            # number) tells, as rmw_zenoh's subscription dedups what its two queries both get
+            if reply.ok is None:
+                return
+            raw = reply.ok.attachment.to_bytes() if reply.ok.attachment is not None else b""
+            with lock:
+                if raw[:8] + raw[17:] in taken:
+                    return
+                taken.add(raw[:8] + raw[17:])
+            on_sample(reply.ok, topic, ros_type, "query")
+
+        def ask(selector, topic, ros_type):
+            session.get(selector, lambda reply: on_reply(reply, topic, ros_type), target=zenoh.QueryTarget.ALL,
                         consolidation=zenoh.ConsolidationMode.NONE, accept_replies=zenoh.ReplyKeyExpr.ANY)
+
+        for topic, ros_type, key in latched.values():  # every cache of the topic, as the subscription starts
+            ask(f"*/{key}", topic, ros_type)
 
         def on_token(sample):
             if sample.kind == zenoh.SampleKind.PUT:
+                token = str(sample.key_expr)
                 with lock:
-                    tokens.add(str(sample.key_expr))
+                    tokens.add(token)
+                # a transient-local publisher of a latched topic appeared (graph_cache.cpp): ask
+                # its own cache, `<its session id>/<data key>` (the first query may have gone out
+                # before this session knew of its queryable)
+                parts = token.split("/")
+                if len(parts) >= 13 and parts[5] == "MP" and parts[9] in latched and parts[12].split(":")[1] == "1":
+                    topic, ros_type, key = latched[parts[9]]
+                    ask(f"{parts[2]}/{key}", topic, ros_type)
         declared.append(session.liveliness().declare_subscriber("@ros2_lv/0/**", on_token, history=True))
         publishers = []
         gid = bytes(range(16))
