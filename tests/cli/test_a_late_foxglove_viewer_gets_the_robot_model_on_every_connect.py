@@ -70,6 +70,8 @@ def test_a_viewer_connecting_late_and_again_receives_the_urdf_and_the_meshes(tmp
     urdf = (Path(pybullet_data.getDataPath()) / "xarm/xarm6_with_gripper.urdf").read_text()
     received = []
     with launcher(system, "--port", str(port), "--until", "300", "-o", str(tmp_path / "arm.mcap")) as proc:
+        # the viewer needs the hub; the arm's joint states flow once the engines start
+        assert wait_until(lambda: "start gate open" in proc.output.read_text(), 60), proc.output.read_text()
         view = subprocess.Popen([sys.executable, "-m", "iotad", "view", "--connect", f"tcp/127.0.0.1:{port}",
                                  "--system", "arm_ros2", "--port", str(ws_port), "--until", "300"],
                                 stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)

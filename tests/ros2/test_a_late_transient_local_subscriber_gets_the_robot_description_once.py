@@ -61,7 +61,7 @@ robot_description = "{URDF}"
         time.sleep(max(0.0, started + LATE - time.monotonic()))  # the point: to be late
         assert launcher.poll() is None
         topic = "/robot_description=std_msgs/msg/String"
-        peer = subprocess.run([sys.executable, PEER, "--connect", f"tcp/127.0.0.1:{port}", "--seconds", "4",
+        peer = subprocess.run([sys.executable, PEER, "--connect", f"tcp/127.0.0.1:{port}", "--seconds", "10",
                                "--idle", "2", "--latched", topic, "--listen", topic],
                               capture_output=True, text=True, timeout=60)
         assert peer.returncode == 0, peer.stderr[-3000:]
