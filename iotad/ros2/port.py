@@ -2,10 +2,13 @@
 tokens on the node's own zenoh session (docs/ros2.md).
 
 Out: every input event of an `out_k` channel (the engine's sink sees it) becomes one CDR message
-on mapping k's data key, with rmw_zenoh's attachment. A transient-local mapping also keeps its
-latest message in a publication cache, answered as rmw_zenoh's is (`<session id>/<data key>`,
-replies on the data key) to the subscribers that join later; a constant mapping (the robot's
-`robot_description`) is published once, as the port opens, and kept there. In: every sample on mapping k's data key is
+on mapping k's data key, with rmw_zenoh's attachment. A transient-local mapping keeps its latest
+message for the subscribers that join later, answered as both generations of rmw_zenoh ask: a
+publication cache (a queryable on `<session id>/<data key>`, replies on the data key: Jazzy's
+first releases) and zenoh's advanced publisher with a cache and publisher detection (its
+`<data key>/@adv/...` keys: later releases, whose transient-local subscription is an advanced
+subscriber). A constant mapping (the robot's `robot_description`) is published once, as the port
+opens, and kept there. In: every sample on mapping k's data key is
 decoded (CDR, then the mapping) and posted to the engine as input `ros_k`, so the engine orders,
 times and checks it like any input. What cannot be converted is counted and recorded as a
 violation once per heartbeat period (`take_problems`), never raised in zenoh's threads.
@@ -57,7 +60,8 @@ class Ros2Port:
                                       mapping.qos)
             latched = mapping.durability == "transient_local"
             if mapping.direction == "out":
-                publisher = session.declare_publisher(mapping.key)
+                publisher = self._advanced_publisher(session, mapping.key) if latched else \
+                    session.declare_publisher(mapping.key)
                 self._declared.append(publisher)
                 cache = None
                 if latched:
@@ -76,6 +80,21 @@ class Ros2Port:
                     self._ask_caches(session, mapping, receive)
             self._declared.append(liveliness.declare_token(token))
         return self._declared
+
+    def session_settings(self) -> dict[str, Any]:
+        """What the node host's session must enable: an advanced publisher needs timestamps."""
+        latched = any(m.direction == "out" and m.durability == "transient_local" for m in self.mappings)
+        return {"timestamping/enabled": True} if latched else {}
+
+    @staticmethod
+    def _advanced_publisher(session: Any, key: str) -> Any:
+        """As rmw_zenoh declares a transient-local publisher (rmw_publisher_data.cpp): a cache of
+        the QoS depth, and publisher detection, so that advanced subscribers that start later, or
+        before this publisher, ask its cache."""
+        import zenoh.ext
+
+        return zenoh.ext.declare_advanced_publisher(session, key, cache=zenoh.ext.CacheConfig(
+            max_samples=rmw_zenoh.LATCHED_DEPTH), publisher_detection=True)
 
     def _answer(self, mapping: Mapping, cache: list):
         """The publication cache's queryable: the latest messages, on the data key itself."""

@@ -31,20 +31,24 @@ def graph_keys(domains: set[int]) -> list[str]:
 
 
 def bridge_rights(mappings: list[Mapping]) -> Rights:
-    """The bridge: publish its out topics (and answer for the latched ones), subscribe to its in
-    topics (and ask the latched ones' caches), declare its own tokens, watch nothing."""
+    """The bridge: publish its out topics (and answer for the latched ones from their caches),
+    subscribe to its in topics (and ask the latched ones' caches), declare its own tokens."""
     rights = Rights()
     for mapping in mappings:
         latched = mapping.durability == "transient_local"
         if mapping.direction == "out":
             rights.publish.append(mapping.key)
-            if latched:  # its cache's queryable, and the replies it sends on the data key
-                rights.serve += [rmw_zenoh.cache_query_key(mapping.key), mapping.key]
+            if latched:  # its caches' queryables (both kinds), the replies it sends on the data key,
+                # and its advanced publisher's token and watch of advanced subscribers
+                advanced = rmw_zenoh.advanced_keys(mapping.key)
+                rights.serve += [rmw_zenoh.cache_query_key(mapping.key), mapping.key, advanced]
+                rights.tokens.append(advanced)
+                rights.watch.append(advanced)
         else:
             rights.subscribe.append(mapping.key)
             if latched:
                 rights.ask += [rmw_zenoh.cache_query_key(mapping.key), mapping.key]
-    rights.tokens = graph_keys({m.domain for m in mappings})
+    rights.tokens = [*rights.tokens, *graph_keys({m.domain for m in mappings})]
     return rights
 
 
@@ -53,17 +57,23 @@ def peer_rights(mappings: list[Mapping]) -> Rights:
     transient-local subscription does), publish on the in topics, and take part in the graph of the
     mappings' domains (declare its tokens, watch and ask the others'). Nothing else: no `iota/...`
     key, no other topic, no put on an out topic."""
-    rights = Rights()
+    rights, advanced = Rights(), []
     for mapping in mappings:
         if mapping.direction == "out":
             rights.subscribe.append(mapping.key)
             # asked whatever its durability: a transient-local subscription asks every cache of
             # its topic, and a query that no queryable answers carries nothing
             rights.ask += [rmw_zenoh.cache_query_key(mapping.key), mapping.key]
+            # a later rmw_zenoh's transient-local subscription is an advanced subscriber: it
+            # declares its own token, watches the publishers', asks their caches and hears their
+            # heartbeats
+            advanced.append(rmw_zenoh.advanced_keys(mapping.key))
         else:
             rights.publish.append(mapping.key)
     graph = graph_keys({m.domain for m in mappings})
-    rights.tokens, rights.watch = list(graph), list(graph)
+    rights.tokens, rights.watch = [*graph, *advanced], [*graph, *advanced]
+    rights.ask += advanced
+    rights.subscribe += advanced
     for name in ("publish", "subscribe", "ask"):
         setattr(rights, name, list(dict.fromkeys(getattr(rights, name))))
     return rights

@@ -49,6 +49,13 @@ def cache_queryable_key(session_id: str, key: str) -> str:
     return f"{session_id}/{key}"
 
 
+def advanced_keys(key: str) -> str:
+    """Every key of zenoh's advanced publishers and subscribers of a data key (their liveliness
+    tokens, cache queryables and queries: `<data key>/@adv/pub/...`, `<data key>/@adv/sub/...`),
+    which rmw_zenoh's later releases use for transient local."""
+    return f"{key}/@adv/**"
+
+
 def cache_query_key(key: str) -> str:
     """What a transient-local subscriber asks as it starts: every publication cache of the key."""
     return f"*/{key}"

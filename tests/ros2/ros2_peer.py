@@ -18,6 +18,11 @@ once a query of `*/<data key>`, target ALL, no consolidation, accepting replies 
 every publication cache of the topic (queryable prefix: its session id) answers with what it
 holds. Such a message's line says "via": "query" (from a cache) or "put" (published live).
 
+--latched-advanced TOPIC=TYPE subscribes as a later rmw_zenoh's transient-local subscription does
+(rmw_subscription_data.cpp): zenoh's advanced subscriber with history (detect late publishers,
+max samples = depth 1) and subscriber detection, which asks every advanced publisher's cache of the
+key; its lines say "via": "advanced".
+
 --config FILE opens the session from a zenoh configuration file, as rmw_zenoh does with
 ZENOH_SESSION_CONFIG_URI (what `iotad certs ros2` writes), instead of --connect's plain one;
 --put KEY=TEXT puts raw bytes on any key (what a rogue would try). A session the hub does not
@@ -32,6 +37,7 @@ import time
 
 import numpy as np
 import zenoh
+import zenoh.ext
 from rosbags.typesys import Stores, get_typestore
 
 STORE = get_typestore(Stores.ROS2_JAZZY)
@@ -75,6 +81,7 @@ def main() -> int:
     parser.add_argument("--seconds", type=float, default=5.0)
     parser.add_argument("--listen", action="append", default=[], help="TOPIC=TYPE")
     parser.add_argument("--latched", action="append", default=[], help="TOPIC=TYPE, transient local")
+    parser.add_argument("--latched-advanced", action="append", default=[], help="TOPIC=TYPE, transient local")
     parser.add_argument("--publish", action="append", default=[], help="TOPIC=TYPE=JSON")
     parser.add_argument("--every", type=float, default=0.5, help="seconds between publications")
     parser.add_argument("--idle", type=float, default=2.0,
@@ -144,6 +151,11 @@ def main() -> int:
             session.get(selector, lambda reply: on_reply(reply, topic, ros_type), target=zenoh.QueryTarget.ALL,
                         consolidation=zenoh.ConsolidationMode.NONE, accept_replies=zenoh.ReplyKeyExpr.ANY)
 
+        for spec in args.latched_advanced:
+            topic, ros_type = spec.split("=", 1)
+            declared.append(zenoh.ext.declare_advanced_subscriber(
+                session, key_of(topic, ros_type), lambda sample, t=topic, r=ros_type: on_sample(sample, t, r, "advanced"),
+                history=zenoh.ext.HistoryConfig(detect_late_publishers=True, max_samples=1), subscriber_detection=True))
         for topic, ros_type, key in latched.values():  # every cache of the topic, as the subscription starts
             ask(f"*/{key}", topic, ros_type)
 

@@ -2,8 +2,8 @@
 declares (`[[ros2]] robot_description`) is published on /robot_description as
 std_msgs/msg/String, transient local, and a transient-local subscription made 10 s after the start
 by a participant that is not iotad (tests/ros2/ros2_peer.py, asking the publication caches as
-rmw_zenoh's querying subscriber does) receives it exactly once; a volatile subscription beside it
-receives nothing, as in ROS 2."""
+rmw_zenoh's querying subscriber does) receives it exactly once, and so does an advanced subscriber (as later rmw_zenoh releases
+subscribe transient local); a volatile subscription beside them receives nothing, as in ROS 2."""
 import json
 import signal
 import struct
@@ -62,7 +62,7 @@ robot_description = "{URDF}"
         assert launcher.poll() is None
         topic = "/robot_description=std_msgs/msg/String"
         peer = subprocess.run([sys.executable, PEER, "--connect", f"tcp/127.0.0.1:{port}", "--seconds", "10",
-                               "--idle", "2", "--latched", topic, "--listen", topic],
+                               "--idle", "2", "--latched", topic, "--latched-advanced", topic, "--listen", topic],
                               capture_output=True, text=True, timeout=60)
         assert peer.returncode == 0, peer.stderr[-3000:]
     finally:
@@ -74,8 +74,12 @@ robot_description = "{URDF}"
             launcher.communicate()
     lines = [json.loads(line) for line in peer.stdout.splitlines() if line.startswith("{")]
     heard = [line for line in lines if line.get("topic") == "/robot_description"]
-    (latched,) = heard  # once: from the publisher's cache; nothing live, nothing to the volatile one
-    assert latched["via"] == "query"
+    # once to each transient-local subscription: the publication cache's reply to the first
+    # rmw_zenoh's query, the advanced publisher's cache to the later one's advanced subscriber;
+    # nothing live, nothing to the volatile subscription
+    assert sorted(line["via"] for line in heard) == ["advanced", "query"], heard
+    latched, advanced = sorted(heard, key=lambda line: line["via"] == "advanced")
+    assert (advanced["message"], advanced["attachment"]) == (latched["message"], latched["attachment"])
     assert latched["message"]["data"] == (Path(pybullet_data.getDataPath()) / URDF).read_text()
     assert latched["key"].startswith("0/robot_description/std_msgs::msg::dds_::String_/RIHS01_")
     (tokens,) = [line["tokens"] for line in lines if "tokens" in line]

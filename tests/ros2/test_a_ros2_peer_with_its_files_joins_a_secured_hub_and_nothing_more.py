@@ -126,6 +126,7 @@ robot_description = "xarm/xarm6_with_gripper.urdf"
             code, lines, err = peer("--config", str(config), "--seconds", "5", "--idle", "10", "--every", "0.25",
                                     "--listen", "/joint_states=sensor_msgs/msg/JointState",
                                     "--latched", "/robot_description=std_msgs/msg/String",
+                                    "--latched-advanced", "/robot_description=std_msgs/msg/String",
                                     "--publish", '/cmd_vel=geometry_msgs/msg/Twist={"linear": {"x": 0.2}, "angular": {"z": 0.5}}')
             assert code == 0, (lines[-3:], err[-3000:])
             # the same peer, with the same files, now tries what it may not (a session of its own:
@@ -144,9 +145,11 @@ robot_description = "xarm/xarm6_with_gripper.urdf"
     assert "access control: on" in out, out[-3000:]
     joints = [line["message"] for line in lines if line.get("topic") == "/joint_states"]
     assert len(joints) > 50 and all(j["name"][0] == "joint1" for j in joints)  # 100 a second from the arm
-    # the latched robot model, from the bridge's publication cache: the query and its reply pass too
-    (model,) = [line for line in lines if line.get("topic") == "/robot_description"]
-    assert model["via"] == "query" and model["message"]["data"].startswith("<?xml")
+    # the latched robot model, from the bridge's caches: the queries of both kinds of rmw_zenoh
+    # transient-local subscription and their replies pass too
+    models = [line for line in lines if line.get("topic") == "/robot_description"]
+    assert sorted(m["via"] for m in models) == ["advanced", "query"], models
+    assert all(m["message"]["data"].startswith("<?xml") for m in models)
     trace = read_recording(recording).trace()
     commands = [e["value"] for e in trace if e["node"] == "buggy" and e["kind"] == "input" and e["action"] == "conscious"]
     assert commands and all(c == {"speed": 0.2, "turn": 0.5, "why": "WANDER"} for c in commands)

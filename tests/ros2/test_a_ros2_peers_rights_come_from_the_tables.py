@@ -32,10 +32,13 @@ def test_a_peer_may_read_the_out_topics_write_the_in_topics_and_nothing_else(tmp
     key = {topic: Mapping.from_plain(m).key for topic, m in keys.items()}
     assert grant.user == "ros2-op"
     assert grant.publish == [key["/cmd_vel"]]
-    assert grant.subscribe == [key["/buggy/pose"], key["/buggy/wheels"]]
+    # an out topic's data, and what a transient-local subscription of either rmw_zenoh generation
+    # asks: the publication caches (`*/<key>`), the advanced publishers' (`<key>/@adv/...`)
+    advanced = [f"{key['/buggy/pose']}/@adv/**", f"{key['/buggy/wheels']}/@adv/**"]
+    assert grant.subscribe == [key["/buggy/pose"], key["/buggy/wheels"], *advanced]
     assert set(grant.ask) == {key["/buggy/pose"], key["/buggy/wheels"], f"*/{key['/buggy/pose']}",
-                              f"*/{key['/buggy/wheels']}"}
-    assert grant.tokens == grant.watch == ["@ros2_lv/0/**"]
+                              f"*/{key['/buggy/wheels']}", *advanced}
+    assert grant.tokens == grant.watch == ["@ros2_lv/0/**", *advanced]
     assert not grant.serve
     every = grant.publish + grant.subscribe + grant.ask + grant.tokens
     assert not [k for k in every if k.startswith("iota") or k in ("**", "*")]
