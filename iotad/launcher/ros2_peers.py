@@ -61,12 +61,18 @@ def session_config(name: str, secret: str, connect: list[str], files: Path) -> d
     """rmw_zenoh's session configuration for peer `name`: a zenoh client of the hub (everything it
     sends crosses the hub's rules), over TLS with mutual authentication, logging in as its user;
     `files`: the folder where its certificate, key and the authority's certificate lie on the ROS 2
-    machine."""
+    machine. It replaces rmw_zenoh's default configuration whole, so it keeps what rmw_zenoh needs
+    of it."""
     return {
         "mode": "client",
         "connect": {"endpoints": list(connect)},
         "listen": {"endpoints": []},
         "scouting": {"multicast": {"enabled": False}, "gossip": {"enabled": False}},
+        # as rmw_zenoh's own default session configuration has them: a transient-local publisher
+        # (an advanced publisher with a cache) needs timestamps, and its subscribers' history
+        # queries a long timeout
+        "timestamping": {"enabled": True, "drop_future_timestamp": False},
+        "queries_default_timeout": 60000,
         "transport": {
             "link": {"tls": {
                 "root_ca_certificate": str(files / AUTHORITY_CERTIFICATE),

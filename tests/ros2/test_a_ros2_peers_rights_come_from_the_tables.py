@@ -47,6 +47,8 @@ def test_a_peer_may_read_the_out_topics_write_the_in_topics_and_nothing_else(tmp
     config = json.loads(text[text.index("{"):])
     assert config["transport"]["auth"]["usrpwd"] == {"user": "ros2-op", "password": password(tmp_path / "certs", "op")}
     assert config["mode"] == "client" and config["connect"]["endpoints"] == ["tls/10.0.0.1:7448"]
+    # it replaces rmw_zenoh's default configuration: a transient-local publisher there needs timestamps
+    assert config["timestamping"]["enabled"] is True
     tls = config["transport"]["link"]["tls"]
     assert tls["root_ca_certificate"] == "/etc/iotad/ca.pem" and tls["connect_certificate"] == "/etc/iotad/ros2-op.pem"
     assert tls["enable_mtls"] is True
