@@ -119,8 +119,10 @@ class AccessControl:
                     "publish on any key, motor commands included"]
         self.store.advertise(hub, TOOLS_USER)
         users = len(self.policy.grants)
+        peers = [g.user for g in self.policy.grants if g.role == "ROS 2 peer"]  # iotad/launcher/ros2_peers.py
         return [f"access control: on ({users} users, default deny; credentials in {self.store.folder}, "
-                f"removed at the end; 'iotad run --check' prints the policy)"]
+                f"removed at the end; 'iotad run --check' prints the policy)"] + \
+            ([f"ROS 2 machines admitted: {', '.join(peers)} (their [[ros2]] topics only)"] if peers else [])
 
     def summary_lines(self) -> list[str]:
         if self.store is None:

@@ -142,7 +142,7 @@ robot_description = "xarm/xarm6_with_gripper.urdf"
         if launcher.poll() is None:
             launcher.kill()
             launcher.communicate()
-    assert "access control: on" in out, out[-3000:]
+    assert "access control: on" in out and "ROS 2 machines admitted: ros2-rviz" in out, out[-3000:]
     joints = [line["message"] for line in lines if line.get("topic") == "/joint_states"]
     assert len(joints) > 50 and all(j["name"][0] == "joint1" for j in joints)  # 100 a second from the arm
     # the latched robot model, from the bridge's caches: the queries of both kinds of rmw_zenoh
