@@ -2,6 +2,7 @@
 exception of a node's own code (reported with its file, line and traceback, in the summary and
 the recording), and on a node that never went live; without it those runs exit 0 as before.
 An exception in a node's init() is refused by the check with its file and line."""
+import re
 import sys
 import time
 from pathlib import Path
@@ -102,6 +103,8 @@ def test_in_real_time_the_exception_and_its_traceback_are_in_the_nodes_log_and_s
     log = (logs / "ticker.log").read_text()
     assert f"ZeroDivisionError: division by zero (at {tmp_path / 'ticker.py'}:{line})" in log
     assert "Traceback (most recent call last):" in log and "self.n = self.n / 0" in log
-    [fault] = [e for e in read_recording(out).trace("ticker") if e["kind"] == "violation"]
+    # (a loaded machine may add deadline misses of the real-time process: the fault is one of them)
+    [fault] = [e for e in read_recording(out).trace("ticker") if e["kind"] == "violation"
+               and e["value"]["violation"] == "runtime_error"]
     assert fault["value"]["where"] == f"{tmp_path / 'ticker.py'}:{line}" and "Traceback" in fault["value"]["traceback"]
-    assert "strict: 1 violation(s)" in printed
+    assert re.search(r"strict: \d+ violation\(s\) \(listed above\): the run's exit status is 1", printed)

@@ -140,7 +140,11 @@ def run(args: argparse.Namespace) -> int:
             print(f"access control of {system.name}: on when its hub starts the other hosts through their agents "
                   "over tls/ endpoints with --certs; off with --insecure or --local; tcp/ links, and a --host "
                   "launcher the hub's agent did not start, are refused without --insecure (docs/hosts.md)")
-        print("\n".join(hub_policy(system, others).lines()))
+        from iotad.launcher.ros2_peers import grants_for
+
+        policy = hub_policy(system, others)
+        policy.grants += grants_for(system, args.certs)  # the ROS 2 machines 'iotad certs ros2' made there
+        print("\n".join(policy.lines()))
         for host in others:  # another host's nodes log in to its router only, with the same rights
             print("\n".join(HostRouter.policy_of(system, host).lines(f"the router of host {host}")))
         return 0
@@ -318,9 +322,9 @@ def _use_certificates(system, args: argparse.Namespace) -> None:
     from iotad.cli import CliError
     from iotad.host.certificates import CertificateError, use
 
-    host = args.host or system.hub_host
-    if host is None:
-        raise CliError("--certs links the hosts of a system spread over hosts; this system names no host")
+    # a system on one machine whose hub listens on tls/ for ROS 2 machines (docs/ros2.md) shows
+    # the certificate of host "hub" ('iotad certs host hub')
+    host = args.host or system.hub_host or "hub"
     try:
         use(args.certs, host)
     except CertificateError as exc:
@@ -393,8 +397,13 @@ def access_for(system, args: argparse.Namespace):
     if args.insecure:
         return AccessOptions.off("--insecure")
     hosts = [node.host for node in system.nodes.values() if node.host]
-    if not hosts:
-        return AccessOptions()
+    if not hosts:  # --certs: the ROS 2 peers 'iotad certs ros2' made there log in too (docs/ros2.md)
+        from iotad.launcher.ros2_peers import peer_grants
+        try:
+            peer_grants(system, args.certs)  # their passwords, or one line saying what is missing
+        except CertificateError as exc:
+            raise CliError(str(exc)) from None
+        return AccessOptions(certs=args.certs or None)
     if args.host is not None:
         given = os.environ.get(ENV)
         try:
