@@ -19,11 +19,14 @@ from __future__ import annotations
 import math
 from collections import deque
 
+from typing import Any, Sequence
+
 from iotad.can import canopen as co
-from iotad.can.frame import Frame
+from iotad.can.frame import Frame, FrameError
 from iotad.can.odrive import EncodeError
 
-from .joint_map import JointConfig
+from .drive_link import ARMED, ARMING, FAULT, UNARMED, DriveLink
+from .joint_map import JointMapError
 
 RPDO1_MAP = {"csp": (0x607A, 32), "pp": (0x607A, 32), "csv": (0x60FF, 32)}
 TPDO1_MAP = co.PdoMap(((0x6041, 0, 16), (0x6064, 0, 32), (0x6077, 0, 16)))
@@ -31,22 +34,41 @@ TPDO2_MAP = co.PdoMap(((0x606C, 0, 32), (0x6061, 0, 8)))
 INT32_MAX = 0x7FFFFFFF
 
 
-class Cia402Link:
-    """The host's knowledge of one drive, and the frames that drive it."""
+class Cia402Link(DriveLink):
+    """The host's knowledge of one drive, and the frames that drive it. The node's settings it
+    takes: master_node_id, master_heartbeat, lost_after, heartbeat_period, velocity_every."""
 
-    def __init__(self, joint: JointConfig, master_id: int, master_period: float, lost_after: int,
-                 heartbeat_period: float, velocity_every: int = 1):
-        self.joint = joint
-        self.node = joint.node_id
-        self.od = co.object_dictionary(co.DRIVE_EDS, self.node)
+    family = "cia402"
+    feeds_watchdog = False  # its watchdog is the heartbeat consumer (0x1016): it watches the node's heartbeat
+
+    def __init__(self, node, index: int):
+        super().__init__(node, index)
+        joint = self.joint
+        master_id, velocity_every = node.master_node_id, node.velocity_every
+        if isinstance(master_id, bool) or not isinstance(master_id, int) or not 1 <= master_id <= co.NODE_ID_MAX:
+            raise ValueError(f"CanMotor: master_node_id must be 1..{co.NODE_ID_MAX}, got {master_id!r}")
+        if joint.node_id == master_id:
+            raise JointMapError(f"joint {joint.name}: node_id {master_id} is this node's own CANopen id "
+                                "(master_node_id)")
+        if isinstance(velocity_every, bool) or not isinstance(velocity_every, int) or not 1 <= velocity_every <= 240:
+            raise ValueError(f"CanMotor: velocity_every must be a whole number of SYNCs 1..240, got {velocity_every!r}")
+        master_period = node.master_heartbeat
+        if isinstance(master_period, bool) or not isinstance(master_period, (int, float)) \
+                or not 0 < master_period < math.inf:
+            raise ValueError(f"CanMotor: master_heartbeat must be a positive number of seconds, got {master_period!r}")
+        self.master_id = master_id
+        self.master_ticks = max(1, round(master_period / node.period))
+        self.node_id = joint.node_id
+        self.od = co.object_dictionary(co.DRIVE_EDS, self.node_id)
         self.mode = joint.operation_mode
         target, bits = RPDO1_MAP[self.mode]
         self.target_index = target
         self.rpdo_map = co.PdoMap(((0x6040, 0, 16), (target, 0, bits)))
-        self.rpdo_cob = co.RPDO[0] + self.node
-        self.tpdo_maps = {co.TPDO[0] + self.node: TPDO1_MAP, co.TPDO[1] + self.node: TPDO2_MAP}
+        self.rpdo_cob = co.RPDO[0] + self.node_id
+        self.tpdo_maps = {co.TPDO[0] + self.node_id: TPDO1_MAP, co.TPDO[1] + self.node_id: TPDO2_MAP}
         self.rated_torque = co.default(self.od, 0x6076) / 1000.0  # Nm
-        self.config = self._configuration(master_id, master_period, lost_after, heartbeat_period, velocity_every)
+        self.config = self._configuration(master_id, master_period, node.lost_after, node.heartbeat_period,
+                                          velocity_every)
         self.configured = False
         self.queue: deque[tuple[int, int, bytes]] = deque()
         self.waiting: tuple[int, int] | None = None
@@ -86,14 +108,14 @@ class Cia402Link:
             writes += [u(0x6081, 0, min(velocity, 0xFFFFFFFF)), u(0x6083, 0, acceleration), u(0x6084, 0, acceleration)]
         return tuple(writes)
 
-    def arming(self) -> list[Frame]:
+    def arming_frames(self) -> list[Frame]:
         """The frames that start an arming: the start-up sequence if the drive is not configured
         (its first SDO write; the others follow their answers), else none (the controlword does it)."""
         self.new_setpoint = False
         if self.configured:
             return []
         self.queue = deque(self.config)
-        return [co.nmt("ENTER_PRE_OPERATIONAL", self.node), self._next_sdo()]
+        return [co.nmt("ENTER_PRE_OPERATIONAL", self.node_id), self._next_sdo()]
 
     def abandon(self) -> None:
         """An arming that timed out: what was waiting is forgotten (a retry starts over)."""
@@ -103,7 +125,7 @@ class Cia402Link:
     def _next_sdo(self) -> Frame:
         index, sub, data = self.queue.popleft()
         self.waiting = (index, sub)
-        return co.sdo_download(self.node, index, sub, data)
+        return co.sdo_download(self.node_id, index, sub, data)
 
     def on_sdo(self, fields: dict) -> tuple[list[Frame], str]:
         """An SDO response: (frames to send, event or ""). An abort ends the start-up (SDO_ABORT)."""
@@ -118,7 +140,7 @@ class Cia402Link:
         if self.queue:
             return [self._next_sdo()], ""
         self.configured = True
-        return [co.nmt("START", self.node)], ""
+        return [co.nmt("START", self.node_id)], ""
 
     # ------------------------------------------------------------------ state from the drive
     @property
@@ -184,3 +206,113 @@ class Cia402Link:
     def torque(self, per_mille: int) -> float:
         """Torque actual (per mille of the rated torque) in motor Nm."""
         return per_mille / 1000.0 * self.rated_torque
+
+    # ------------------------------------------------------------------ the node's hooks
+    def frame_ids(self):
+        return [function + self.node_id for function in co.SERVICES]
+
+    @classmethod
+    def bus_ids(cls, links: Sequence["Cia402Link"]) -> frozenset:
+        """NMT, SYNC and this node's heartbeat: heard from the bus, another master sends them."""
+        return frozenset((co.NMT, co.SYNC, co.HEARTBEAT + links[0].master_id))
+
+    def setpoint_frames(self, command: float, velocity_ff: float, torque_ff: float) -> tuple[Frame, ...]:
+        return tuple(self.setpoint(command))
+
+    def stop_frames(self) -> list[Frame]:
+        return [self.quick_stop(self.axis.command)]
+
+    def idle_frames(self) -> list[Frame]:
+        self.abandon()
+        return [self.quick_stop(self.axis.command)]
+
+    @classmethod
+    def after_stop_frames(cls, links: Sequence["Cia402Link"]) -> list[Frame]:
+        return [co.sync()]  # the quick stops are taken now, not at the next tick
+
+    def tick_frames(self) -> list[Frame]:
+        """An arming drive's controlword, one step toward OPERATION ENABLED, holding where it is."""
+        axis = self.axis
+        if axis.phase == ARMING and self.configured and self.statusword >= 0 and not axis.lost:
+            hold = axis.position if self.joint.mode == "position" and axis.has_position else 0.0
+            return [self.rpdo(self.next_controlword(), hold)]
+        return []
+
+    @classmethod
+    def bus_tick_frames(cls, links: Sequence["Cia402Link"], ticks: int) -> list[Frame]:
+        """This node's heartbeat when due (the drives' consumers watch it), then SYNC."""
+        first = links[0]
+        frames = [co.heartbeat(first.master_id, "OPERATIONAL")] if ticks % first.master_ticks == 0 else []
+        return frames + [co.sync()]
+
+    def receive(self, frame: Frame, value: Any) -> None:
+        node, axis = self.node, self.axis
+        try:
+            message = co.decode(frame)
+        except co.MalformedFrame:
+            node.reject_frame("WRONG_DLC", value)
+            return
+        except FrameError:
+            node.reject_frame("UNKNOWN_COMMAND", value)
+            return
+        kind = message.kind
+        if kind == "HEARTBEAT":
+            self._on_heartbeat(message.fields["state"])
+        elif kind == "EMCY":
+            self.error_code = axis.axis_error = message.fields["code"]
+            node.report(self.index, "EMCY")
+        elif kind == "SDO_RESPONSE":
+            frames, event = self.on_sdo(message.fields)
+            node.send(frames)
+            if event:
+                axis.disarm_reason = self.abort_code
+                node.report(self.index, event)
+                if axis.phase == ARMING:  # the start-up failed: another try after arm_retry
+                    axis.phase = UNARMED
+        elif frame.id in self.tpdo_maps:
+            try:
+                values = self.unpack(frame)
+            except co.MalformedFrame:
+                node.reject_frame("WRONG_DLC", value)
+                return
+            self._on_tpdo(values)
+        elif kind.startswith("RPDO") or kind == "SDO_REQUEST":
+            node.reject_frame("UNEXPECTED", value)  # a master's frame to our drive: another master
+        else:
+            node.reject_frame("UNKNOWN_COMMAND", value)  # a TPDO this node did not map
+
+    def _on_heartbeat(self, state: str) -> None:
+        axis, node = self.axis, self.node
+        axis.procedure_result = co.NMT_STATE.get(state, 0)
+        axis.heard = axis.beat = True
+        events = []
+        if axis.lost:
+            axis.lost = False
+            events.append("FOUND")
+        if self.on_heartbeat(state):
+            events.append("BOOT_UP")
+            if axis.phase == ARMED:
+                axis.phase = UNARMED if node.auto_rearm else FAULT
+                events.append("DISARMED")
+            elif axis.phase == ARMING:  # its power-on, or a restart mid-way: start again at once
+                axis.phase, axis.retry = UNARMED, False
+        for event in events or ["HEARTBEAT"]:
+            node.report(self.index, event)
+
+    def _on_tpdo(self, values: dict) -> None:
+        joint, axis = self.joint, self.axis
+        if 0x6064 in values:
+            axis.position = joint.position_of_counts(values[0x6064])
+            axis.has_position = True
+        if 0x606C in values:
+            axis.velocity = joint.velocity_of_counts(values[0x606C])
+        if 0x6077 in values:
+            axis.torque_estimate = self.torque(values[0x6077])
+            axis.effort = joint.torque(axis.torque_estimate)
+        if 0x6041 not in values:
+            return
+        self.statusword = axis.active_errors = values[0x6041]
+        axis.axis_state = co.STATE_NUMBER[self.state]
+        event = self.node.drive_enabled(self.index, self.enabled)
+        if event:
+            self.node.report(self.index, event)
