@@ -21,7 +21,9 @@ What it does (docs/simulation.md has the table):
   Cyclic Synchronous Position (8) and Cyclic Synchronous Velocity (9), the target taken at SYNC.
 - Heartbeat producer (0x1017) and consumer (0x1016): once the master's heartbeat was heard, its
   absence for the consumer time is EMCY 0x8130 and a fault: the fault reaction within the
-  consumer time plus one control step.
+  consumer time plus one control step, and the error behaviour of 0x1029.1 (CiA 301): by default
+  an OPERATIONAL drive enters PRE-OPERATIONAL (no PDOs until an NMT START), 1 keeps its NMT
+  state, 2 enters STOPPED. Every fault sends its EMCY.
 
 The control loops are those of the simulated ODrive axis (sim/odrive_axis.py): position P,
 velocity PI, torque, with its trapezoidal planner for Profile Position and the stopping ramps.
@@ -411,6 +413,15 @@ class Cia402Drive:
             self.transitions.pop()
             self._enter(FAULT, 14)
 
+    def _communication_error(self) -> None:
+        """CiA 301's error behaviour (0x1029.1) on a communication error such as a heartbeat
+        event: 0 (the default) an OPERATIONAL node enters PRE-OPERATIONAL, 1 no change, 2 STOPPED."""
+        behaviour = self.values.get((0x1029, 1), 0)
+        if behaviour == 0 and self.nmt == "OPERATIONAL":
+            self.nmt = "PRE_OPERATIONAL"
+        elif behaviour == 2:
+            self.nmt = "STOPPED"
+
     def _emcy(self, code: int, fault: bool) -> None:
         register = 0x01 | (0x10 if code & 0xFF00 == 0x8100 else 0)
         if fault:
@@ -437,6 +448,7 @@ class Cia402Drive:
         if master and self.master_heard is not None and now - self.master_heard > timeout:
             self.master_heard = None  # monitoring starts again with the master's next heartbeat
             self.fault(HEARTBEAT_ERROR)
+            self._communication_error()
         if not self.servo.armed:
             self.servo.update(position, velocity, now, dt)
             return None

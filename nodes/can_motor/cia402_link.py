@@ -25,7 +25,7 @@ from iotad.can import canopen as co
 from iotad.can.frame import Frame, FrameError
 from iotad.can.odrive import EncodeError
 
-from .drive_link import ARMED, ARMING, FAULT, UNARMED, DriveLink
+from .drive_link import ARMED, ARMING, UNARMED, DriveLink
 from .joint_map import JointMapError
 
 RPDO1_MAP = {"csp": (0x607A, 32), "pp": (0x607A, 32), "csv": (0x60FF, 32)}
@@ -78,6 +78,9 @@ class Cia402Link(DriveLink):
         self.error_code = 0           # the last EMCY's code
         self.abort_code = 0           # the last SDO abort's code
         self.new_setpoint = False     # Profile Position: bit 4 was raised in the last RPDO
+        self.started = False          # NMT START went out in this arming: its TPDOs are due
+        self.operational_seen = False  # since then, a TPDO or an OPERATIONAL heartbeat came
+        self.unanswered = 0           # SYNCs since the last statusword while one is due
 
     # ------------------------------------------------------------------ start-up
     def _configuration(self, master_id: int, master_period: float, lost_after: int,
@@ -112,8 +115,13 @@ class Cia402Link(DriveLink):
         """The frames that start an arming: the start-up sequence if the drive is not configured
         (its first SDO write; the others follow their answers), else none (the controlword does it)."""
         self.new_setpoint = False
-        if self.configured:
-            return []
+        self.statusword = -1  # unknown until its next TPDO: no controlword from an old state
+        self.operational_seen = False
+        self.unanswered = 0
+        if self.configured:  # configured already: NMT START if it is not OPERATIONAL (a recovery)
+            self.started = True
+            return [] if self.nmt == "OPERATIONAL" else [co.nmt("START", self.node_id)]
+        self.started = False
         self.queue = deque(self.config)
         return [co.nmt("ENTER_PRE_OPERATIONAL", self.node_id), self._next_sdo()]
 
@@ -139,7 +147,7 @@ class Cia402Link(DriveLink):
         self.waiting = None
         if self.queue:
             return [self._next_sdo()], ""
-        self.configured = True
+        self.configured = self.started = True
         return [co.nmt("START", self.node_id)], ""
 
     # ------------------------------------------------------------------ state from the drive
@@ -159,7 +167,7 @@ class Cia402Link(DriveLink):
         """A heartbeat; True when it is a boot-up (the drive restarted and lost its configuration)."""
         self.nmt = state
         if state == "BOOT_UP":
-            self.configured = False
+            self.configured = self.started = False
             self.statusword = -1
             self.abandon()
             return True
@@ -231,8 +239,20 @@ class Cia402Link(DriveLink):
         return [co.sync()]  # the quick stops are taken now, not at the next tick
 
     def tick_frames(self) -> list[Frame]:
-        """An arming drive's controlword, one step toward OPERATION ENABLED, holding where it is."""
+        """The TPDO timeout (a statusword is due at every SYNC once NMT START went out: none for
+        `tpdo_timeout` SYNCs is LOST, and a quick stop in case it still runs), then an arming
+        drive's controlword, one step toward OPERATION ENABLED, holding where it is."""
         axis = self.axis
+        if self.started and axis.phase in (ARMED, ARMING) and not axis.lost:
+            if self.unanswered >= self.joint.tpdo_timeout:
+                axis.lost = True
+                frames = self.stop_frames() + self.after_stop_frames([self])
+                for event in self.node.drive_not_enabled(self.index, "TPDO_TIMEOUT"):
+                    self.node.report(self.index, event)
+                return frames
+            self.unanswered += 1
+        else:
+            self.unanswered = 0
         if axis.phase == ARMING and self.configured and self.statusword >= 0 and not axis.lost:
             hold = axis.position if self.joint.mode == "position" and axis.has_position else 0.0
             return [self.rpdo(self.next_controlword(), hold)]
@@ -259,8 +279,12 @@ class Cia402Link(DriveLink):
         if kind == "HEARTBEAT":
             self._on_heartbeat(message.fields["state"])
         elif kind == "EMCY":
-            self.error_code = axis.axis_error = message.fields["code"]
-            node.report(self.index, "EMCY")
+            # every EMCY is recorded (code, register); one with a code is a fault, whatever the statusword says
+            code = message.fields["code"]
+            self.error_code = axis.axis_error = code
+            axis.error_register = message.fields["register"]
+            for event in node.drive_not_enabled(self.index, "EMCY") if code else ["EMCY"]:
+                node.report(self.index, event)
         elif kind == "SDO_RESPONSE":
             frames, event = self.on_sdo(message.fields)
             node.send(frames)
@@ -289,11 +313,18 @@ class Cia402Link(DriveLink):
         if axis.lost:
             axis.lost = False
             events.append("FOUND")
+        if state == "OPERATIONAL" and self.started:
+            self.operational_seen = True
+        elif state in ("PRE_OPERATIONAL", "STOPPED") and self.started and (
+                axis.phase == ARMED or (axis.phase == ARMING and self.operational_seen)):
+            # the drive left OPERATIONAL (its heartbeat consumer or an NMT command from elsewhere):
+            # it takes no PDO, so it is not enabled whatever its last statusword said
+            self.statusword = -1
+            events += self.node.drive_not_enabled(self.index, "NMT_" + state)
         if self.on_heartbeat(state):
             events.append("BOOT_UP")
             if axis.phase == ARMED:
-                axis.phase = UNARMED if node.auto_rearm else FAULT
-                events.append("DISARMED")
+                events += node.drive_not_enabled(self.index, "DISARMED")
             elif axis.phase == ARMING:  # its power-on, or a restart mid-way: start again at once
                 axis.phase, axis.retry = UNARMED, False
         for event in events or ["HEARTBEAT"]:
@@ -312,7 +343,13 @@ class Cia402Link(DriveLink):
         if 0x6041 not in values:
             return
         self.statusword = axis.active_errors = values[0x6041]
+        self.unanswered = 0
+        self.operational_seen = True
         axis.axis_state = co.STATE_NUMBER[self.state]
-        event = self.node.drive_enabled(self.index, self.enabled)
-        if event:
+        events = []
+        if axis.lost:  # the TPDO timeout's LOST (the heartbeat's clears with a heartbeat)
+            axis.lost = False
+            events.append("FOUND")
+        events += self.node.drive_enabled(self.index, self.enabled)
+        for event in events:
             self.node.report(self.index, event)

@@ -47,6 +47,9 @@ class Axis:
         self.trajectory_done = False
         self.active_errors = 0
         self.disarm_reason = 0
+        self.error_register = 0       # CiA 402: the last EMCY's
+        self.rearms = 0               # automatic re-arms in a row (auto_rearm), for the back-off and the limit
+        self.armed_tick = 0           # the tick it was last armed
         self.has_position = False
         self.position = 0.0           # joint units
         self.velocity = 0.0

@@ -80,6 +80,8 @@ class CanMotor(Iota):
     master_heartbeat = Param(0.05)  # CiA 402: s between this node's heartbeats; drives fault after lost_after of them
     velocity_every = Param(1)       # CiA 402: SYNCs between a drive's TPDO2 (velocity actual); 1..240
     link_timeout = Param(0.0)       # s without setpoints (once they came) before the axes go IDLE; 0: off
+    rearm_limit = Param(3)          # auto_rearm: re-arms in a row (each after twice the last wait) before FAULT
+    rearm_window = Param(10.0)      # s armed after which an axis's re-arms in a row start again from none
 
     # Sized per joint map (see `_sized`); the declarations here are for six joints.
     setpoints = Input(joint_setpoints(6), switching=0)
@@ -122,6 +124,9 @@ class CanMotor(Iota):
         self.ticks = 0
         self.setpoints_tick = -1 << 62  # the tick of the last setpoints message (none yet)
         self.link_ticks = _ticks("link_timeout", self.link_timeout, self.period)
+        if isinstance(self.rearm_limit, bool) or not isinstance(self.rearm_limit, int) or self.rearm_limit < 0:
+            raise ValueError(f"CanMotor: rearm_limit must be a whole number >= 0, got {self.rearm_limit!r}")
+        _ticks("rearm_window", self.rearm_window, self.period)
         self.link_lost = False          # the setpoints' source went silent: the axes are held IDLE
         self.states_due = False
 
@@ -159,7 +164,7 @@ class CanMotor(Iota):
 
     # ------------------------------------------------------------------ arming and timers
     @arm.action(when=lambda self, i: self.axes[i].phase == UNARMED and not self.axes[i].lost and not self.link_lost,
-                after=lambda self, i: self.arm_retry if self.axes[i].retry else 0.0)
+                after=lambda self, i: self._arm_delay(i))
     def send_arming(self, i):
         self._send_arming(i)
 
@@ -270,6 +275,13 @@ class CanMotor(Iota):
         else:
             self._bad("UNKNOWN_NODE", value)
 
+    def _arm_delay(self, i: int) -> float:
+        """0 for a first arming; `arm_retry` for a retry, doubled for each automatic re-arm in a row."""
+        axis = self.axes[i]
+        if not axis.retry:
+            return 0.0
+        return self.arm_retry * 2 ** max(0, axis.rearms - 1)
+
     # ------------------------------------------------------------------ what the links call
     def send(self, frames) -> None:
         self.tx.extend(frames)
@@ -280,24 +292,45 @@ class CanMotor(Iota):
     def reject_frame(self, reason: str, value) -> None:
         self._bad(reason, value)
 
-    def drive_enabled(self, i: int, enabled: bool) -> str | None:
+    def drive_not_enabled(self, i: int, event: str) -> list[str]:
+        """The drive says (or shows by its silence) that it is not enabled, whatever the node last
+        commanded: an armed or arming axis is safe at once (no setpoint goes to it, what its link
+        had under way is dropped). With `auto_rearm` it arms again after its back-off, at most
+        `rearm_limit` times in a row (an axis armed for `rearm_window` starts counting again);
+        otherwise, and past the limit, it is in FAULT until a reset. Returns the events: `event`
+        (and REARM_LIMIT when auto_rearm gives up)."""
+        axis = self.axes[i]
+        if axis.phase not in (ARMED, ARMING):
+            return [event]
+        self.links[i].abandon()
+        if axis.phase == ARMED and (self.ticks - axis.armed_tick) * self.period >= self.rearm_window:
+            axis.rearms = 0
+        if self.auto_rearm and axis.rearms < self.rearm_limit:
+            axis.phase, axis.retry = UNARMED, True
+            axis.rearms += 1
+        else:
+            axis.phase = FAULT
+            if self.auto_rearm:
+                return [event, "REARM_LIMIT"]
+        return [event]
+
+    def drive_enabled(self, i: int, enabled: bool) -> list[str]:
         """The drive's own account of whether it is enabled (in closed loop, in OPERATION
-        ENABLED): the phase follows it. Returns the event it makes, if any."""
+        ENABLED): the phase follows it. Returns the events it makes, if any."""
         axis = self.axes[i]
         if axis.phase == ARMING and enabled:
-            axis.phase = ARMED
+            axis.phase, axis.armed_tick = ARMED, self.ticks
             # the drive holds where it is on being enabled: its position, or standing still (0
             # velocity or torque) for the other modes, as the arming's hold commands
             axis.command = axis.position if self.joint_map[i].mode == "position" else 0.0
             axis.last_frame = None  # its first command goes out whatever it is
-            return "ARM_DONE"
+            return ["ARM_DONE"]
         if axis.phase == ARMED and not enabled:
-            axis.phase = UNARMED if self.auto_rearm else FAULT
-            return "DISARMED"
+            return self.drive_not_enabled(i, "DISARMED")
         if axis.phase == ESTOPPED and enabled:  # it missed the stop (or came back): again
             link = self.links[i]
             self.tx.extend(link.stop_frames() + type(link).after_stop_frames([link]))
-        return None
+        return []
 
     def _estop(self) -> None:
         self.estopped = True
@@ -313,6 +346,7 @@ class CanMotor(Iota):
             if axis.phase in (ESTOPPED, FAULT):
                 axis.phase = UNARMED
                 axis.retry = False
+                axis.rearms = 0
                 self.reports[i].append(("RESET", 0.0, 0.0))
 
     def _tick(self) -> None:
@@ -408,6 +442,7 @@ def _status(i: int, axis: Axis, report: tuple):
                         axis_state=axis.axis_state, axis_error=axis.axis_error,
                         procedure_result=axis.procedure_result, trajectory_done=axis.trajectory_done,
                         active_errors=axis.active_errors, disarm_reason=axis.disarm_reason,
+                        error_register=axis.error_register,
                         requested=requested, applied=applied, torque_estimate=axis.torque_estimate,
                         iq_measured=axis.iq_measured, fet_temperature=axis.fet_temperature,
                         motor_temperature=axis.motor_temperature, bus_voltage=axis.bus_voltage,

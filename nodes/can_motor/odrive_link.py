@@ -13,7 +13,7 @@ from iotad.can.frame import Frame
 from iotad.can.odrive import (AXIS_STATE, CONTROL_MODE, INPUT_MODE, MESSAGES, EncodeError, MalformedFrame,
                               UnknownFrame, decode, encode, request, undefined_values)
 
-from .drive_link import DriveLink
+from .drive_link import FAULT, UNARMED, DriveLink
 from .joint_map import JointConfig, JointMapError
 
 CLOSED_LOOP = AXIS_STATE["CLOSED_LOOP_CONTROL"]
@@ -28,6 +28,7 @@ class OdriveLink(DriveLink):
 
     def __init__(self, node, index: int):
         super().__init__(node, index)
+        self.idle_sent = False  # IDLE went out for closed loop the node did not command (UNCOMMANDED_STATE)
         try:  # a limit or gain no float32 holds (1e39) is refused when the node is built
             _arming_frames(self.joint)
         except EncodeError as exc:
@@ -97,11 +98,18 @@ class OdriveLink(DriveLink):
         if axis.lost:
             axis.lost = False
             events.append("FOUND")
-        event = node.drive_enabled(self.index, axis.axis_state == CLOSED_LOOP)
-        if event:
-            events.append(event)
+        closed = axis.axis_state == CLOSED_LOOP
+        # an axis error is the firmware saying it is not well, closed loop or not: not enabled
+        events += node.drive_enabled(self.index, closed and not axis.axis_error)
         if axis.axis_error and axis.axis_error != previous_error:
             events.append("AXIS_ERROR")
+        if closed and (axis.axis_error or axis.phase in (UNARMED, FAULT)) and not self.idle_sent:
+            # closed loop that the node did not command (or with an error): IDLE, once per episode
+            node.send(self.idle_frames())
+            self.idle_sent = True
+            events.append("UNCOMMANDED_STATE")
+        elif not closed:
+            self.idle_sent = False
         for event in events or ["HEARTBEAT"]:
             node.report(self.index, event)
 
