@@ -4,8 +4,10 @@ These are synchronous tools over a real-time bus (`iotad.can.bus`), for `iotad c
 runs inside an engine. Units at the interface are SI (rad/s at the motor shaft, N.m, A); turns
 appear only on the wire (ODrive CAN Simple), increments only in CANopen objects.
 
-- ODrive: Get_Version to every node id 0..63 (a remote frame: harmless to anyone), then
-  Heartbeat, Get_Error, Get_Bus_Voltage_Current and Get_Temperature of those that answered.
+- ODrive: Get_Version to every node id 0..63 (a remote frame: harmless to anyone); the state and
+  axis error of those that answered from their cyclic Heartbeat, the firmware's own account
+  (waited for up to 1.5 heartbeat periods; a remote Heartbeat request only when none comes, and
+  `Drive.source` says which); then Get_Error, Get_Bus_Voltage_Current and Get_Temperature.
 - CiA 402: an SDO upload of the identity object 0x1018 to every node id 1..127 whose SDO id
   (0x600 + id) is no found ODrive's command id (0x600-0x67F are ODrive nodes 48-51: an SDO
   request there would be an ODrive command), then 0x1018's other entries, 0x1009/0x100A
@@ -26,6 +28,7 @@ from .frame import Frame, FrameError
 
 TAU = 2.0 * math.pi
 TIMEOUT = 0.2  # s: how long a scan waits for answers; a command waits `--timeout`
+HEARTBEAT_PERIOD = 0.1  # s: an ODrive's cyclic Heartbeat period (the firmware's default)
 
 
 @dataclass
@@ -39,6 +42,7 @@ class Drive:
     bus_voltage: float | None = None   # V
     temperature: float | None = None   # deg C
     detail: dict = field(default_factory=dict)
+    source: str = ""                   # where the state came from: heartbeat | remote request | SDO
 
 
 class CommandFailed(Exception):
@@ -50,8 +54,15 @@ class Link:
     """Frames out, answers in: `ask` sends and collects the answers `match` picks, until each
     expected key has one or the time is up."""
 
-    def __init__(self, bus, timeout: float = TIMEOUT, clock: Callable[[], float] = time.monotonic):
+    def __init__(self, bus, timeout: float = TIMEOUT, clock: Callable[[], float] = time.monotonic,
+                 heartbeat_period: float = HEARTBEAT_PERIOD):
         self.bus, self.timeout, self.clock = bus, timeout, clock
+        self.heartbeat_period = heartbeat_period
+
+    def drain(self) -> None:
+        """Forget what the bus brought before now (a cyclic frame read later must be a fresh one)."""
+        while self.bus.recv_frame(timeout=0.0) is not None:
+            pass
 
     def ask(self, frames: Iterable[Frame], match: Callable[[Frame], object], expected: set | None = None,
             timeout: float | None = None) -> dict:
@@ -75,6 +86,22 @@ class Link:
 
 
 # ---------------------------------------------------------------------- ODrive
+def odrive_heartbeats(link: Link, nodes: Iterable[int]) -> dict[int, tuple[dict, str]]:
+    """{node: (Heartbeat signals, source)}: each axis's next cyclic Heartbeat, waited for up to 1.5
+    heartbeat periods (source "heartbeat"); for an axis that sent none, the answer to a remote
+    request (source "remote request"), which some peers answer with zeros."""
+    nodes = set(nodes)
+    match = _odrive_answer("Heartbeat")
+    link.drain()
+    got = link.collect(match, nodes, 1.5 * link.heartbeat_period)
+    beats = {n: (_odrive_signals(frame), "heartbeat") for n, frame in got.items()}
+    missing = nodes - set(got)
+    if missing:
+        asked = link.ask((odrive.request(n, "Heartbeat") for n in sorted(missing)), match, missing)
+        beats.update({n: (_odrive_signals(frame), "remote request") for n, frame in asked.items()})
+    return {n: beat for n, beat in beats.items() if beat[0]}
+
+
 def _odrive_answer(name: str) -> Callable[[Frame], int | None]:
     cmd = odrive.COMMANDS[name]
 
@@ -95,10 +122,11 @@ def _odrive_signals(frame: Frame) -> dict:
 def scan_odrives(link: Link, nodes: Iterable[int] = range(64)) -> list[Drive]:
     nodes = list(nodes)
     found = link.ask((odrive.request(n, "Get_Version") for n in nodes), _odrive_answer("Get_Version"), set(nodes))
-    return [odrive_status(link, n, found[n]) for n in sorted(found)]
+    beats = odrive_heartbeats(link, found) if found else {}
+    return [odrive_status(link, n, found[n], beats.get(n, ({}, ""))) for n in sorted(found)]
 
 
-def odrive_status(link: Link, node: int, version: Frame | None = None) -> Drive:
+def odrive_status(link: Link, node: int, version: Frame | None = None, beat: tuple[dict, str] | None = None) -> Drive:
     drive = Drive("odrive", node)
     if version is None:
         version = link.ask([odrive.request(node, "Get_Version")], _odrive_answer("Get_Version"), {node}).get(node)
@@ -106,7 +134,7 @@ def odrive_status(link: Link, node: int, version: Frame | None = None) -> Drive:
     if v:
         drive.firmware = f"{v['Fw_Version_Major']}.{v['Fw_Version_Minor']}.{v['Fw_Version_Revision']}"
         drive.hardware = f"{v['Hw_Version_Major']}.{v['Hw_Version_Minor']}.{v['Hw_Version_Variant']}"
-    beat = _ask_one(link, node, "Heartbeat")
+    beat, drive.source = beat if beat is not None else odrive_heartbeats(link, [node]).get(node, ({}, ""))
     if beat:
         drive.state = _name(odrive.AXIS_STATE, beat["Axis_State"])
         drive.detail.update(axis_error=beat["Axis_Error"], procedure_result=beat["Procedure_Result"])
@@ -200,6 +228,7 @@ def cia402_status(link: Link, node: int) -> Drive:
     if status is not None:
         drive.state = co.state_of(status)
         drive.detail["statusword"] = status
+        drive.source = "SDO"
     code = _value(read[(0x603F, 0)], od, 0x603F)
     if code:
         drive.errors = [f"0x{code:04X} {co.emcy_name(code)}"]
@@ -236,11 +265,25 @@ def _controlword(link: Link, node: int, word: int) -> None:
 
 
 def clear_errors(link: Link, protocol: str, node: int, timeout: float = 1.0) -> Drive:
+    """Clear a drive's errors and read its state back. A drive with no fault gets nothing (its
+    `detail["unchanged"]` says so). An ODrive gets Clear_Errors; a CiA 402 drive in FAULT a fault
+    reset, the rising edge of controlword bit 7 with the other command bits as they are (never
+    "disable voltage" on the way: 0x0000 would switch an enabled drive's power stage off)."""
+    drive = status(link, protocol, node)
+    faulted = drive.state == "FAULT" if protocol == "cia402" else bool(drive.errors or drive.detail.get("axis_error"))
+    if not faulted and drive.state not in ("?", "FAULT REACTION ACTIVE"):
+        drive.detail["unchanged"] = True
+        return drive
     if protocol == "odrive":
         link.bus.send_frame(odrive.encode(node, "Clear_Errors", Identify=0))
     else:
-        _controlword(link, node, 0x00)              # bit 7 low, then its rising edge: fault reset
-        _controlword(link, node, co.CW_FAULT_RESET)
+        od = co.object_dictionary(co.DRIVE_EDS, node)
+        word = _value(sdo_read(link, [node], 0x6040).get(node), od, 0x6040)
+        if word is None:
+            raise CommandFailed(f"node {node}: no answer to the SDO read of its controlword 0x6040")
+        if word & co.CW_FAULT_RESET:  # bit 7 is high already: lower it first, or there is no edge
+            _controlword(link, node, word & ~co.CW_FAULT_RESET)
+        _controlword(link, node, word | co.CW_FAULT_RESET)
     drive = _wait_for(link, lambda: status(link, protocol, node), lambda d: not d.errors and d.state != "FAULT", timeout)
     if drive.errors or drive.state == "FAULT":
         raise CommandFailed(f"node {node}: still in error after clear-errors: {', '.join(drive.errors) or drive.state}")

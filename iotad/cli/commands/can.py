@@ -123,11 +123,11 @@ def _table(link, args: argparse.Namespace) -> int:
 def format_table(drives) -> str:
     if not drives:
         return "no drive answered"
-    rows = [("protocol", "node", "firmware", "hardware", "state", "errors", "bus V", "temp C")]
+    rows = [("protocol", "node", "firmware", "hardware", "state", "errors", "bus V", "temp C", "state from")]
     for d in drives:
         rows.append((d.protocol, str(d.node_id), d.firmware, d.hardware, d.state, ", ".join(d.errors) or "none",
                      "-" if d.bus_voltage is None else f"{d.bus_voltage:.1f}",
-                     "-" if d.temperature is None else f"{d.temperature:.0f}"))
+                     "-" if d.temperature is None else f"{d.temperature:.0f}", d.source or "-"))
     widths = [max(len(row[k]) for row in rows) for k in range(len(rows[0]))]
     return "\n".join("  ".join(cell.ljust(w) for cell, w in zip(row, widths)).rstrip() for row in rows)
 
@@ -211,5 +211,16 @@ def _command(link, args: argparse.Namespace, protocol: str) -> int:
     action = {"clear-errors": bringup.clear_errors, "arm": bringup.arm, "idle": bringup.idle,
               "estop": bringup.estop}[args.action]
     drive = action(link, protocol, node, timeout)
-    print(f"node {node} ({protocol}): {args.action} done: {drive.state}, errors: {', '.join(drive.errors) or 'none'}")
+    read = _read_back(drive)
+    if drive.detail.get("unchanged"):
+        print(f"node {node} ({protocol}): {args.action}: no fault, nothing sent; it reports {drive.state}{read}")
+        return 0
+    print(f"node {node} ({protocol}): {args.action} done: {drive.state}, errors: {', '.join(drive.errors) or 'none'}{read}")
     return 0
+
+
+def _read_back(drive) -> str:
+    """Where the state shown came from: the drive's statusword, its cyclic heartbeat, or a remote request."""
+    if "statusword" in drive.detail:
+        return f" (statusword 0x{drive.detail['statusword']:04X})"
+    return f" (from its {drive.source})" if drive.source else ""
