@@ -12,8 +12,9 @@ appear only on the wire (ODrive CAN Simple), increments only in CANopen objects.
   (0x600 + id) is no found ODrive's command id (0x600-0x67F are ODrive nodes 48-51: an SDO
   request there would be an ODrive command), then 0x1018's other entries, 0x1009/0x100A
   (versions), the statusword 0x6041, the error code 0x603F, 0x6079 (DC link voltage) and 0x2001
-  (temperature, iotad's drive) where the drive has them. Only expedited SDO: a string longer than
-  4 bytes reads as '?'.
+  (temperature, iotad's drive) where the drive has them, and the device name 0x1008. SDO as CiA
+  301 has it: expedited, or segmented for a value over 4 bytes (the strings); a transfer this
+  client stops (no answer in time, a wrong toggle bit) is ended with an SDO abort and its code.
 """
 from __future__ import annotations
 
@@ -172,25 +173,104 @@ def _sdo_answer(index: int, subindex: int) -> Callable[[Frame], int | None]:
     return match
 
 
+def _segment_answer(node: int) -> Callable[[Frame], int | None]:
+    """A server's segment (or abort) from `node`: segments carry no index, the transfer is the one under way."""
+    def match(frame: Frame) -> int | None:
+        if frame.extended or frame.rtr or frame.id != co.TSDO + node or frame.dlc != 8:
+            return None
+        try:
+            fields = co.decode(frame).fields
+        except FrameError:
+            return None
+        return node if fields["service"] in ("upload_segment", "download_segment", "abort") else None
+    return match
+
+
+def sdo_abort(link: Link, node: int, index: int, subindex: int, code: int) -> None:
+    """End a transfer this client stops, as CiA 301 asks (never leave one open)."""
+    link.bus.send_frame(co.sdo_abort(node, index, subindex, code, from_server=False))
+
+
+MAX_UPLOAD = 4096  # bytes: a longer segmented upload is aborted (a server that never says "last")
+
+
 def sdo_read(link: Link, nodes: Iterable[int], index: int, subindex: int = 0, timeout: float | None = None) -> dict:
-    """{node: fields of its answer} to an upload of index.subindex (an abort's fields say so)."""
+    """{node: fields of its answer} to an upload of index.subindex (an abort's fields say so); a
+    segmented answer is read to its end, its bytes in `data`. A single node that does not answer
+    in time gets an abort (many nodes: a scan, where silence means no drive)."""
     nodes = list(nodes)
     answers = link.ask((co.sdo_upload(n, index, subindex) for n in nodes), _sdo_answer(index, subindex), set(nodes),
                        timeout)
-    return {n: co.decode(frame).fields for n, frame in answers.items()}
+    if len(nodes) == 1 and nodes[0] not in answers:
+        sdo_abort(link, nodes[0], index, subindex, co.ABORT_TIMEOUT)
+    out = {}
+    for n, frame in answers.items():
+        fields = co.decode(frame).fields
+        if fields.get("segmented"):
+            fields = _upload_segments(link, n, index, subindex, fields, timeout)
+        if fields is not None:
+            out[n] = fields
+    return out
+
+
+def _upload_segments(link: Link, node: int, index: int, subindex: int, first: dict, timeout: float | None) -> dict | None:
+    """The segments of an upload whose initiate answer was `first`; None (after an abort) when the
+    server stops answering or breaks the toggle rule."""
+    data, toggle = b"", 0
+    while True:
+        frame = link.ask([co.sdo_upload_segment_request(node, toggle)], _segment_answer(node), {node}, timeout).get(node)
+        if frame is None:
+            sdo_abort(link, node, index, subindex, co.ABORT_TIMEOUT)
+            return None
+        fields = co.decode(frame).fields
+        if fields["service"] == "abort":
+            return fields
+        if fields["service"] != "upload_segment" or fields["toggle"] != toggle or "data" not in fields:
+            sdo_abort(link, node, index, subindex, co.ABORT_TOGGLE if fields.get("toggle") != toggle else co.ABORT_COMMAND)
+            return None
+        data += fields["data"]
+        if fields["last"]:
+            return {"service": "upload", "index": index, "subindex": subindex, "data": data, "size": first.get("size")}
+        if len(data) > MAX_UPLOAD:
+            sdo_abort(link, node, index, subindex, co.SDO_ABORT_OUT_OF_MEMORY)
+            return None
+        toggle ^= 1
 
 
 def sdo_write(link: Link, node: int, index: int, subindex: int, data: bytes, timeout: float | None = None) -> None:
-    """Write one object; CommandFailed with the abort's reason, or when nothing answered."""
-    answer = link.ask([co.sdo_download(node, index, subindex, data)], _sdo_answer(index, subindex), {node},
-                      timeout).get(node)
+    """Write one object (expedited up to 4 bytes, segmented beyond); CommandFailed with the
+    abort's reason, or when nothing answered in time (the transfer then aborted)."""
+    data = bytes(data)
+    where = f"0x{index:04X}.{subindex:02X}"
+    wait = link.timeout if timeout is None else timeout
+    first = co.sdo_download(node, index, subindex, data) if len(data) <= 4 else \
+        co.sdo_download_initiate(node, index, subindex, len(data))
+    answer = link.ask([first], _sdo_answer(index, subindex), {node}, timeout).get(node)
     if answer is None:
-        raise CommandFailed(f"node {node}: no answer to the SDO write of 0x{index:04X}.{subindex:02X} within "
-                            f"{link.timeout if timeout is None else timeout:g} s")
+        sdo_abort(link, node, index, subindex, co.ABORT_TIMEOUT)
+        raise CommandFailed(f"node {node}: no answer to the SDO write of {where} within {wait:g} s (aborted)")
     fields = co.decode(answer).fields
     if fields["service"] == "abort":
-        raise CommandFailed(f"node {node}: the drive refused 0x{index:04X}.{subindex:02X}: {fields['reason']} "
+        raise CommandFailed(f"node {node}: the drive refused {where}: {fields['reason']} "
                             f"(SDO abort 0x{fields['code']:08X})")
+    if len(data) <= 4:
+        return
+    chunks = [data[k:k + 7] for k in range(0, len(data), 7)]
+    for k, chunk in enumerate(chunks):
+        toggle = k & 1
+        frame = link.ask([co.sdo_download_segment(node, toggle, chunk, k == len(chunks) - 1)], _segment_answer(node),
+                         {node}, timeout).get(node)
+        if frame is None:
+            sdo_abort(link, node, index, subindex, co.ABORT_TIMEOUT)
+            raise CommandFailed(f"node {node}: no answer to segment {k + 1} of the SDO write of {where} within "
+                                f"{wait:g} s (aborted)")
+        fields = co.decode(frame).fields
+        if fields["service"] == "abort":
+            raise CommandFailed(f"node {node}: the drive refused {where}: {fields['reason']} "
+                                f"(SDO abort 0x{fields['code']:08X})")
+        if fields["service"] != "download_segment" or fields["toggle"] != toggle:
+            sdo_abort(link, node, index, subindex, co.ABORT_TOGGLE)
+            raise CommandFailed(f"node {node}: a wrong answer to segment {k + 1} of the SDO write of {where} (aborted)")
 
 
 def _value(fields: dict | None, od, index: int, subindex: int = 0):
@@ -215,10 +295,11 @@ def cia402_status(link: Link, node: int) -> Drive:
     od = co.object_dictionary(co.DRIVE_EDS, node)
     drive = Drive("cia402", node)
     read = {key: sdo_read(link, [node], *key).get(node) for key in
-            ((0x1018, 1), (0x1018, 2), (0x1018, 3), (0x1009, 0), (0x100A, 0), (0x6041, 0), (0x603F, 0),
+            ((0x1018, 1), (0x1018, 2), (0x1018, 3), (0x1008, 0), (0x1009, 0), (0x100A, 0), (0x6041, 0), (0x603F, 0),
              (0x6079, 0), (0x2001, 0), (0x6061, 0))}
     strings = {key: (bytes(read[key]["data"]).rstrip(b"\0").decode("ascii", "replace") if read[key] and "data" in read[key]
-                     else "?") for key in ((0x1009, 0), (0x100A, 0))}
+                     else "?") for key in ((0x1008, 0), (0x1009, 0), (0x100A, 0))}
+    drive.detail["device"] = strings[(0x1008, 0)]
     revision = _value(read[(0x1018, 3)], od, 0x1018, 3)
     drive.firmware = strings[(0x100A, 0)] + (f" (rev 0x{revision:08X})" if revision is not None else "")
     drive.hardware = strings[(0x1009, 0)]

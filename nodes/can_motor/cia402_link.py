@@ -125,8 +125,15 @@ class Cia402Link(DriveLink):
         self.queue = deque(self.config)
         return [co.nmt("ENTER_PRE_OPERATIONAL", self.node_id), self._next_sdo()]
 
-    def abandon(self) -> None:
-        """An arming that timed out: what was waiting is forgotten (a retry starts over)."""
+    def abandon(self) -> list[Frame]:
+        """An arming given up (timed out, or the drive is not enabled): the start-up starts over at
+        the next arming; an SDO write still waiting for its answer is ended with an SDO abort
+        (CiA 301: a transfer the client stops is never left open)."""
+        frames = [co.sdo_abort(self.node_id, *self.waiting, co.ABORT_TIMEOUT, from_server=False)] if self.waiting else []
+        self._forget()
+        return frames
+
+    def _forget(self) -> None:
         self.queue.clear()
         self.waiting = None
 
@@ -140,7 +147,7 @@ class Cia402Link(DriveLink):
         where = (fields["index"], fields["subindex"])
         if fields["service"] == "abort":
             self.abort_code = fields["code"]
-            self.abandon()
+            self._forget()  # the server ended the transfer
             return [], "SDO_ABORT"
         if self.waiting != where or fields["service"] != "download":
             return [], ""  # an answer to nobody's question here (another master's?): ignored
@@ -169,7 +176,7 @@ class Cia402Link(DriveLink):
         if state == "BOOT_UP":
             self.configured = self.started = False
             self.statusword = -1
-            self.abandon()
+            self._forget()  # a booted drive holds no transfer
             return True
         return False
 
@@ -231,8 +238,7 @@ class Cia402Link(DriveLink):
         return [self.quick_stop(self.axis.command)]
 
     def idle_frames(self) -> list[Frame]:
-        self.abandon()
-        return [self.quick_stop(self.axis.command)]
+        return self.abandon() + [self.quick_stop(self.axis.command)]
 
     @classmethod
     def after_stop_frames(cls, links: Sequence["Cia402Link"]) -> list[Frame]:

@@ -12,7 +12,7 @@ node calls only the hooks below and never asks which family it talks to:
 - frames for the node's decisions: `arming_frames`, `setpoint_frames`, `stop_frames` (estop),
   `idle_frames` (link watch), `poll_frames`, `tick_frames` (every tick), and, once per family,
   `bus_tick_frames` and `after_stop_frames`;
-- `abandon`: an arming that timed out.
+- `abandon`: an arming given up (the frames that end what it had under way).
 
 `feeds_watchdog` says whether the drive's watchdog is fed by repeated commands (ODrive: the node's
 keep-alive and arm-hold frames) or watches the master some other way (CiA 402: its heartbeat
@@ -96,8 +96,10 @@ class DriveLink:
         """The frames that begin an arming (the axis' `command` is its hold command)."""
         raise NotImplementedError
 
-    def abandon(self) -> None:
-        """An arming that timed out or was stopped: forget what was under way."""
+    def abandon(self) -> list[Frame]:
+        """An arming that timed out or was stopped: forget what was under way; the frames that end
+        it on the drive's side (none by default)."""
+        return []
 
     def setpoint_frames(self, command: float, velocity_ff: float, torque_ff: float) -> tuple[Frame, ...]:
         """The frames of one command in joint units (EncodeError if no frame holds it)."""

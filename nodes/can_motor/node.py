@@ -170,7 +170,7 @@ class CanMotor(Iota):
 
     @arm_timeout_expired.action(when=lambda self, i: self.axes[i].phase == ARMING, after="arm_timeout")
     def on_arm_timeout(self, i):
-        self.links[i].abandon()
+        self.tx.extend(self.links[i].abandon())
         self.axes[i].phase = UNARMED
         self.reports[i].append(("ARM_TIMEOUT", 0.0, 0.0))
 
@@ -302,7 +302,7 @@ class CanMotor(Iota):
         axis = self.axes[i]
         if axis.phase not in (ARMED, ARMING):
             return [event]
-        self.links[i].abandon()
+        self.tx.extend(self.links[i].abandon())
         if axis.phase == ARMED and (self.ticks - axis.armed_tick) * self.period >= self.rearm_window:
             axis.rearms = 0
         if self.auto_rearm and axis.rearms < self.rearm_limit:
