@@ -123,11 +123,12 @@ def _table(link, args: argparse.Namespace) -> int:
 def format_table(drives) -> str:
     if not drives:
         return "no drive answered"
-    rows = [("protocol", "node", "firmware", "hardware", "state", "errors", "bus V", "temp C", "state from")]
+    rows = [("protocol", "node", "firmware", "hardware", "state", "errors", "bus V", "temp C", "state from", "device")]
     for d in drives:
         rows.append((d.protocol, str(d.node_id), d.firmware, d.hardware, d.state, ", ".join(d.errors) or "none",
                      "-" if d.bus_voltage is None else f"{d.bus_voltage:.1f}",
-                     "-" if d.temperature is None else f"{d.temperature:.0f}", d.source or "-"))
+                     "-" if d.temperature is None else f"{d.temperature:.0f}", d.source or "-",
+                     d.detail.get("device", "-")))
     widths = [max(len(row[k]) for row in rows) for k in range(len(rows[0]))]
     return "\n".join("  ".join(cell.ljust(w) for cell, w in zip(row, widths)).rstrip() for row in rows)
 
