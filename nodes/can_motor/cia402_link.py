@@ -16,7 +16,9 @@ Plain state, changed only by the node's actions (nodes/can_motor/node.py); frame
 """
 from __future__ import annotations
 
+import dataclasses
 import math
+import sys
 from collections import deque
 
 from typing import Any, Sequence
@@ -25,9 +27,12 @@ from iotad.can import canopen as co
 from iotad.can.frame import Frame, FrameError
 from iotad.can.odrive import EncodeError
 
-from .drive_link import ARMED, ARMING, UNARMED, DriveLink
+from .drive_link import ARMED, ARMING, FAULT, UNARMED, DriveLink
 from .joint_map import JointMapError
 
+# What the node reads from each drive at start-up: rated torque, position encoder resolution,
+# gear ratio, feed constant (CiA 402's factor group; the last three where the drive has them).
+SCALING = ((0x6076, 0), (0x608F, 1), (0x608F, 2), (0x6091, 1), (0x6091, 2), (0x6092, 1), (0x6092, 2))
 RPDO1_MAP = {"csp": (0x607A, 32), "pp": (0x607A, 32), "csv": (0x60FF, 32)}
 TPDO1_MAP = co.PdoMap(((0x6041, 0, 16), (0x6064, 0, 32), (0x6077, 0, 16)))
 TPDO2_MAP = co.PdoMap(((0x606C, 0, 32), (0x6061, 0, 8)))
@@ -66,11 +71,14 @@ class Cia402Link(DriveLink):
         self.rpdo_map = co.PdoMap(((0x6040, 0, 16), (target, 0, bits)))
         self.rpdo_cob = co.RPDO[0] + self.node_id
         self.tpdo_maps = {co.TPDO[0] + self.node_id: TPDO1_MAP, co.TPDO[1] + self.node_id: TPDO2_MAP}
-        self.rated_torque = co.default(self.od, 0x6076) / 1000.0  # Nm
-        self.config = self._configuration(master_id, master_period, node.lost_after, node.heartbeat_period,
-                                          velocity_every)
+        self.rated_torque = joint.rated_torque  # Nm: the drive's 0x6076 once read (None: not known)
+        self.table_joint = joint                # the joint as the table states it (scale checked against the drive's)
+        self.settings = (master_id, master_period, node.lost_after, node.heartbeat_period, velocity_every)
+        self.config = self._configuration(*self.settings)  # checked now: every value fits its object
         self.configured = False
-        self.queue: deque[tuple[int, int, bytes]] = deque()
+        self.queue: deque[tuple[int, int, bytes | None]] = deque()  # None: a read (upload)
+        self.scale: dict[tuple[int, int], int | None] = {}  # what the drive said of its scaling objects
+        self.mismatch: tuple[int, float, float] | None = None  # (object, table value, drive value)
         self.waiting: tuple[int, int] | None = None
         self.nmt = ""                 # the drive's NMT state from its heartbeat ("" until heard)
         self.statusword = -1          # -1 until a TPDO1
@@ -122,7 +130,8 @@ class Cia402Link(DriveLink):
             self.started = True
             return [] if self.nmt == "OPERATIONAL" else [co.nmt("START", self.node_id)]
         self.started = False
-        self.queue = deque(self.config)
+        self.scale = {}
+        self.queue = deque((index, sub, None) for index, sub in SCALING)  # first what the drive says of its units
         return [co.nmt("ENTER_PRE_OPERATIONAL", self.node_id), self._next_sdo()]
 
     def abandon(self) -> list[Frame]:
@@ -140,22 +149,74 @@ class Cia402Link(DriveLink):
     def _next_sdo(self) -> Frame:
         index, sub, data = self.queue.popleft()
         self.waiting = (index, sub)
+        if data is None:
+            return co.sdo_upload(self.node_id, index, sub)
         return co.sdo_download(self.node_id, index, sub, data)
 
     def on_sdo(self, fields: dict) -> tuple[list[Frame], str]:
-        """An SDO response: (frames to send, event or ""). An abort ends the start-up (SDO_ABORT)."""
+        """An SDO response: (frames to send, event or ""). An abort of a write ends the start-up
+        (SDO_ABORT); of a read, the drive lacks that optional object. Scaling that contradicts the
+        joint table's ends it too (SCALE_MISMATCH)."""
         where = (fields["index"], fields["subindex"])
-        if fields["service"] == "abort":
+        reading = where in SCALING
+        if self.waiting != where:
+            return [], ""  # an answer to nobody's question here (another master's?): ignored
+        if fields["service"] == "abort" and not reading:
             self.abort_code = fields["code"]
             self._forget()  # the server ended the transfer
             return [], "SDO_ABORT"
-        if self.waiting != where or fields["service"] != "download":
-            return [], ""  # an answer to nobody's question here (another master's?): ignored
+        if fields["service"] not in (("upload", "abort") if reading else ("download",)):
+            return [], ""
         self.waiting = None
+        if reading:
+            data = fields.get("data")
+            self.scale[where] = int.from_bytes(data, "little") if fields["service"] == "upload" and data else None
+            if not self.queue:  # every scaling object read: check them, then configure
+                self.mismatch = self._take_scale()
+                if self.mismatch:
+                    return [], "SCALE_MISMATCH"
+                self.queue.extend(self._configuration(*self.settings))
         if self.queue:
             return [self._next_sdo()], ""
         self.configured = self.started = True
         return [co.nmt("START", self.node_id)], ""
+
+    def _take_scale(self) -> tuple[int, float, float] | None:
+        """The drive's units (CiA 402's factor group): position units per motor turn are the feed
+        constant over the gear ratio (0x6092, 0x6091) where it has them, else its encoder
+        increments per turn (0x608F); the rated torque (0x6076, mNm) scales torque actual. A value
+        the joint table states explicitly must agree; one it does not state is taken from the
+        drive. Returns (object, table's, drive's) of the first contradiction, else None."""
+        def ratio(index: int) -> float | None:
+            top, bottom = self.scale.get((index, 1)), self.scale.get((index, 2))
+            return top / bottom if top and bottom else None
+
+        table = self.table_joint
+        gear, feed, resolution = ratio(0x6091) or 1.0, ratio(0x6092), ratio(0x608F)
+        units, index = (feed / gear, 0x6092) if feed else (resolution, 0x608F)
+        rated = self.scale.get((0x6076, 0))
+        rated = rated / 1000.0 if rated else None
+        if units and "counts_per_turn" in table.explicit and not math.isclose(units, table.counts_per_turn, rel_tol=1e-9):
+            return index, table.counts_per_turn, units
+        if rated and table.rated_torque is not None and not math.isclose(rated, table.rated_torque, rel_tol=1e-6):
+            return 0x6076, table.rated_torque, rated
+        if rated is None and table.rated_torque is None:
+            return 0x6076, 0.0, 0.0  # no rated torque anywhere: its torque actual means nothing
+        self.joint = dataclasses.replace(table, counts_per_turn=units or table.counts_per_turn)
+        self.rated_torque = rated or table.rated_torque
+        return None
+
+    def scale_reason(self) -> str:
+        """The one line that says why the drive is refused (after SCALE_MISMATCH)."""
+        index, table, drive = self.mismatch
+        name = {0x6076: "rated torque (0x6076, N.m)", 0x608F: "increments per motor turn (0x608F)",
+                0x6092: "position units per motor turn (0x6092 / 0x6091)"}[index]
+        if index == 0x6076 and not drive:
+            return (f"joint {self.joint.name}: the drive gives no rated torque (0x6076) and the joint table none "
+                    "(rated_torque): its torque actual cannot be scaled; not armed")
+        key = "rated_torque" if index == 0x6076 else "counts_per_turn"
+        return (f"joint {self.joint.name}: the joint table's {key} = {table:g} contradicts the drive's {name} = "
+                f"{drive:g}; not armed (fix the table or the drive)")
 
     # ------------------------------------------------------------------ state from the drive
     @property
@@ -219,8 +280,8 @@ class Cia402Link(DriveLink):
         return self.rpdo(co.CW_QUICK_STOP, command)
 
     def torque(self, per_mille: int) -> float:
-        """Torque actual (per mille of the rated torque) in motor Nm."""
-        return per_mille / 1000.0 * self.rated_torque
+        """Torque actual (per mille of the rated torque the drive gave) in motor Nm."""
+        return per_mille / 1000.0 * (self.rated_torque or 0.0)
 
     # ------------------------------------------------------------------ the node's hooks
     def frame_ids(self):
@@ -294,7 +355,14 @@ class Cia402Link(DriveLink):
         elif kind == "SDO_RESPONSE":
             frames, event = self.on_sdo(message.fields)
             node.send(frames)
-            if event:
+            if event == "SCALE_MISMATCH":  # a contradiction no retry mends: FAULT until a reset
+                index, table, drive = self.mismatch
+                axis.disarm_reason = index
+                print(f"CanMotor: {self.scale_reason()}", file=sys.stderr, flush=True)
+                if axis.phase == ARMING:
+                    axis.phase = FAULT
+                node.report(self.index, event, table, drive)
+            elif event:
                 axis.disarm_reason = self.abort_code
                 node.report(self.index, event)
                 if axis.phase == ARMING:  # the start-up failed: another try after arm_retry

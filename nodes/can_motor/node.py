@@ -286,8 +286,8 @@ class CanMotor(Iota):
     def send(self, frames) -> None:
         self.tx.extend(frames)
 
-    def report(self, i: int, event: str) -> None:
-        self.reports[i].append((event, 0.0, 0.0))
+    def report(self, i: int, event: str, requested: float = 0.0, applied: float = 0.0) -> None:
+        self.reports[i].append((event, requested, applied))
 
     def reject_frame(self, reason: str, value) -> None:
         self._bad(reason, value)
