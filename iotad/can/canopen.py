@@ -92,6 +92,10 @@ class MalformedFrame(FrameError):
     """A CANopen service's frame of the wrong shape (length, RTR, extended id, SDO command)."""
 
 
+class UnknownValue(MalformedFrame):
+    """A CANopen frame of the right shape whose value no state or command has (a heartbeat of state 99)."""
+
+
 class Message(NamedTuple):
     kind: str         # NMT SYNC EMCY HEARTBEAT SDO_REQUEST SDO_RESPONSE TPDO1..4 RPDO1..4 TIME
     node_id: int      # 0 for NMT (the target is in fields), SYNC and TIME
@@ -334,7 +338,7 @@ def decode(frame: Frame) -> Message:
         _length(frame, kind, 1)
         state = data[0] & 0x7F
         if state not in NMT_STATE_NAMES:
-            raise MalformedFrame(f"heartbeat of node {node} with state {state}, not an NMT state")
+            raise UnknownValue(f"heartbeat of node {node} with state {state}, not an NMT state")
         return Message(kind, node, {"state": NMT_STATE_NAMES[state]}, frame)
     if kind == "EMCY":
         _length(frame, kind, 8)

@@ -295,6 +295,10 @@ class Cia402Link(DriveLink):
     def setpoint_frames(self, command: float, velocity_ff: float, torque_ff: float) -> tuple[Frame, ...]:
         return tuple(self.setpoint(command))
 
+    def heartbeat_lost(self) -> list[str]:
+        """A drive silent for its heartbeat timeout is not enabled, whatever it last said."""
+        return self.node.drive_not_enabled(self.index, "LOST")
+
     def stop_frames(self) -> list[Frame]:
         return [self.quick_stop(self.axis.command)]
 
@@ -336,6 +340,9 @@ class Cia402Link(DriveLink):
         node, axis = self.node, self.axis
         try:
             message = co.decode(frame)
+        except co.UnknownValue:  # e.g. a heartbeat of no NMT state: not believed (its timeout runs on)
+            node.reject_frame("BAD_VALUE", value)
+            return
         except co.MalformedFrame:
             node.reject_frame("WRONG_DLC", value)
             return

@@ -12,6 +12,7 @@ node calls only the hooks below and never asks which family it talks to:
 - frames for the node's decisions: `arming_frames`, `setpoint_frames`, `stop_frames` (estop),
   `idle_frames` (link watch), `poll_frames`, `tick_frames` (every tick), and, once per family,
   `bus_tick_frames` and `after_stop_frames`;
+- `heartbeat_lost`: the drive fell silent for its heartbeat timeout;
 - `abandon`: an arming given up (the frames that end what it had under way).
 
 `feeds_watchdog` says whether the drive's watchdog is fed by repeated commands (ODrive: the node's
@@ -95,6 +96,11 @@ class DriveLink:
     def arming_frames(self) -> list[Frame]:
         """The frames that begin an arming (the axis' `command` is its hold command)."""
         raise NotImplementedError
+
+    def heartbeat_lost(self) -> list[str]:
+        """No heartbeat for the node's `lost_after` periods (the axis is LOST): the events it makes.
+        By default only LOST (an ODrive's own watchdog stops it; setpoints still reach it)."""
+        return ["LOST"]
 
     def abandon(self) -> list[Frame]:
         """An arming that timed out or was stopped: forget what was under way; the frames that end

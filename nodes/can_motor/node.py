@@ -179,7 +179,8 @@ class CanMotor(Iota):
                            after=lambda self, i: self.lost_timeout)
     def on_heartbeat_lost(self, i):
         self.axes[i].lost = True
-        self.reports[i].append(("LOST", 0.0, 0.0))
+        for event in self.links[i].heartbeat_lost():
+            self.reports[i].append((event, 0.0, 0.0))
 
     @tick.action(after=lambda self: self.period)
     def on_tick(self):

@@ -26,7 +26,7 @@ BAD = [
     ("WRONG_DLC", frame(0x583, bytes(5))),                          # SDO response of 5 bytes
     ("WRONG_DLC", frame(0x183, bytes(5))),                          # TPDO1 shorter than its mapping
     ("WRONG_DLC", frame(0x703, rtr=True, dlc=1)),                   # a remote request of a heartbeat
-    ("WRONG_DLC", frame(0x703, b"\x63")),                           # heartbeat state 99: no NMT state
+    ("BAD_VALUE", frame(0x703, b"\x63")),                           # heartbeat state 99: no NMT state
     ("UNEXPECTED", frame(0x203, bytes(6))),                         # someone's RPDO to our drive
     ("UNEXPECTED", frame(0x603, co.sdo_upload(3, 0x1000, 0).data)),  # someone's SDO request
     ("UNEXPECTED", frame(0x080)),                                   # another master's SYNC
