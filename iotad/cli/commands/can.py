@@ -51,6 +51,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--torque", type=positive_float, metavar="NM", help="set-limits: torque limit, N.m (CiA 402)")
     parser.add_argument("--timeout", type=positive_float, default=1.0, metavar="S",
                         help="how long a command waits for its result (default 1 s)")
+    parser.add_argument("--heartbeat-period", type=positive_float, default=0.1, metavar="S",
+                        help="an ODrive's cyclic Heartbeat period: its state is read from the next heartbeat, "
+                             "waited for up to 1.5 periods (then a remote request) (default 0.1 s, the firmware's)")
     parser.add_argument("--watch", action="store_true", help="status: refresh the table until Ctrl-C")
     parser.add_argument("--period", type=positive_float, default=1.0, metavar="S", help="status --watch: seconds between tables")
     parser.add_argument("--count", type=positive_int, metavar="N", help="status --watch: stop after N tables")
@@ -78,7 +81,7 @@ def run(args: argparse.Namespace) -> int:
     except BusUnavailable as exc:
         raise CliError(str(exc)) from None
     with bus:
-        link = Link(bus)
+        link = Link(bus, heartbeat_period=args.heartbeat_period)
         print(f"iotad can: {bus.describe()}", file=sys.stderr, flush=True)
         try:
             if args.action in ("scan", "status"):
