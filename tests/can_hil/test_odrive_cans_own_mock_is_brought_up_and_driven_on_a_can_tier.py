@@ -142,8 +142,10 @@ def test_the_motor_node_arms_the_mock_and_the_joint_follows_its_setpoint(results
     out, recording = results
     assert out["run"][0] == 0, out["run"]
     trace = read_recording(recording).trace()
-    status = [e["value"] for e in trace if e.get("node") == "motor" and e.get("action") == "joint_status"]
+    status = [e["value"] for e in trace if e.get("node") == "motor" and e.get("action") == "joint_status"
+              and e.get("kind") == "output"]
     events = [s["event"] for s in status]
     assert "ARM_DONE" in events and "DISARMED" not in events and "LOST" not in events
-    states = [e["value"]["position"][0] for e in trace if e.get("node") == "motor" and e.get("action") == "joint_states"]
+    states = [e["value"]["position"][0] for e in trace if e.get("node") == "motor" and e.get("action") == "joint_states"
+              and e.get("kind") == "output"]
     assert states and states[-1] - states[0] == pytest.approx(1.0, abs=0.01)
