@@ -8,7 +8,8 @@
   SWITCH ON DISABLED; with bit 7 already high it is lowered first (else there is no edge);
 - an ODrive's state comes from its cyclic Heartbeat (the firmware's account): a peer answering a
   remote Heartbeat request with zeros is still shown in its true state, and the table says
-  "heartbeat"; with no cyclic heartbeat the tool falls back to the remote request and says so.
+  "heartbeat"; with no cyclic heartbeat the tool falls back to the remote request and says so
+  (a peer that answers one; the firmware documents remote requests for Get_ messages only).
 """
 import itertools
 
@@ -95,7 +96,14 @@ def test_odrive_state_comes_from_its_cyclic_heartbeat_not_a_zero_answer_to_a_rem
 
 
 def test_without_a_cyclic_heartbeat_the_tools_ask_by_remote_request_and_say_so(capsys):
+    """A peer whose cyclic heartbeat is off but that answers a remote Heartbeat request (ODrive's
+    firmware documents remote requests for the Get_ messages only; some peers answer this one)."""
     with BusDrives(f"iotad-can-tools-{next(_channels)}", heartbeat_period=0) as quiet:
+        with quiet.lock:
+            axis = quiet.axes[2]
+            handle = axis.handle
+            axis.handle = lambda message, now: ([axis.heartbeat()] + handle(message, now)
+                                                if message.rtr and message.name == "Heartbeat" else handle(message, now))
         assert can(quiet, "status", "--node", "2", "--protocol", "odrive") == 0
         line = capsys.readouterr().out.splitlines()[1]
         assert "IDLE" in line and line.endswith("remote request  -")
