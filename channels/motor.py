@@ -46,13 +46,22 @@ JOINT_EVENT = Enum("jointEvent",
                    "SDO_ABORT",          # CiA 402: the drive refused a configuration write (disarm_reason: the code)
                    "BOOT_UP",            # CiA 402: the drive (re)booted; it is configured again
                    "LINK_LOST",          # no setpoints for link_timeout: the axis was commanded IDLE
-                   "LINK_FOUND")         # setpoints again after LINK_LOST
+                   "LINK_FOUND",         # setpoints again after LINK_LOST
+                   "NMT_PRE_OPERATIONAL",  # CiA 402: its heartbeat says PRE-OPERATIONAL while armed or arming
+                   "NMT_STOPPED",        # CiA 402: its heartbeat says STOPPED while armed or arming
+                   "TPDO_TIMEOUT",       # CiA 402: no statusword for tpdo_timeout SYNCs: LOST
+                   "UNCOMMANDED_STATE",  # ODrive: closed loop, or an axis error, that the node did not command
+                   "REARM_LIMIT",        # auto_rearm gave up: rearm_limit re-arms in a row; FAULT until a reset
+                   "SCALE_MISMATCH")     # CiA 402: the drive's units contradict the joint table's (disarm_reason:
+                                         # the object, requested: the table's value, applied: the drive's); FAULT
 
 JOINT_STATUS = Struct(
     "jointStatus",
     joint=Int(0, None), node_id=Int(0, 127), event=JOINT_EVENT, phase=MOTOR_PHASE, lost=Bool,
     # Heartbeat
     axis_state=U8, axis_error=U32, procedure_result=U8, trajectory_done=Bool,
+    # CiA 402: the last EMCY's error register (its code is axis_error)
+    error_register=U8,
     # Get_Error
     active_errors=U32, disarm_reason=U32,
     # SETPOINT_*: the joint-unit value asked for and the one the axis now follows (0.0 otherwise)

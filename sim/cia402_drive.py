@@ -21,7 +21,9 @@ What it does (docs/simulation.md has the table):
   Cyclic Synchronous Position (8) and Cyclic Synchronous Velocity (9), the target taken at SYNC.
 - Heartbeat producer (0x1017) and consumer (0x1016): once the master's heartbeat was heard, its
   absence for the consumer time is EMCY 0x8130 and a fault: the fault reaction within the
-  consumer time plus one control step.
+  consumer time plus one control step, and the error behaviour of 0x1029.1 (CiA 301): by default
+  an OPERATIONAL drive enters PRE-OPERATIONAL (no PDOs until an NMT START), 1 keeps its NMT
+  state, 2 enters STOPPED. Every fault sends its EMCY.
 
 The control loops are those of the simulated ODrive axis (sim/odrive_axis.py): position P,
 velocity PI, torque, with its trapezoidal planner for Profile Position and the stopping ramps.
@@ -92,6 +94,8 @@ class Cia402Drive:
         self.last_heartbeat = -math.inf
         self.ramp = False
         self.new_setpoint = False
+        self.transfer: dict | None = None  # the segmented SDO transfer under way
+        self.aborts: list[int] = []         # abort codes of the transfers this server ended
         self._boot()
 
     def _boot(self) -> None:
@@ -123,8 +127,10 @@ class Cia402Drive:
             if node == self._consumer()[0]:
                 self.master_heard = now
         elif kind == "SDO_REQUEST" and node == self.node_id:
-            if self.nmt in ("PRE_OPERATIONAL", "OPERATIONAL") and message.fields["service"] != "abort":
-                self.outbox.append(self._sdo(message.fields))  # a client's abort needs no answer
+            if message.fields["service"] == "abort":
+                self.transfer = None  # a client's abort ends its transfer, and needs no answer
+            elif self.nmt in ("PRE_OPERATIONAL", "OPERATIONAL"):
+                self.outbox.append(self._sdo(message.fields))
         elif frame.id == self._cob(0x1400) and self.nmt == "OPERATIONAL":
             self._rpdo(frame)
         # everything else (other nodes' services, TPDOs of others, EMCY) is not for this drive
@@ -199,6 +205,48 @@ class Cia402Drive:
 
     # ------------------------------------------------------------------ SDO server
     def _sdo(self, fields: dict) -> Frame:
+        service = fields["service"]
+        if service in ("upload_segment", "download_segment"):
+            return self._segment(fields)
+        self.transfer = None  # a new initiate ends any transfer under way
+        frame = self._initiate(fields)
+        if co.decode(frame).fields["service"] == "abort":
+            self.aborts.append(co.decode(frame).fields["code"])
+        return frame
+
+    def _segment(self, fields: dict) -> Frame:
+        """One segment of the segmented transfer under way (CiA 301): the toggle bit alternates,
+        starting at 0; an upload sends up to 7 bytes a segment, a download takes them."""
+        transfer, node = self.transfer, self.node_id
+        if transfer is None or transfer["service"] + "_segment" != fields["service"]:
+            where = (transfer["index"], transfer["subindex"]) if transfer else (0, 0)
+            self.transfer = None
+            self.aborts.append(co.ABORT_COMMAND)
+            return co.sdo_abort(node, *where, co.ABORT_COMMAND)
+        if fields["toggle"] != transfer["toggle"]:
+            self.transfer = None
+            self.aborts.append(co.ABORT_TOGGLE)
+            return co.sdo_abort(node, transfer["index"], transfer["subindex"], co.ABORT_TOGGLE)
+        toggle = transfer["toggle"]
+        transfer["toggle"] ^= 1
+        if transfer["service"] == "upload":
+            data, transfer["data"] = transfer["data"][:7], transfer["data"][7:]
+            last = not transfer["data"]
+            if last:
+                self.transfer = None
+            return co.sdo_upload_segment(node, toggle, data, last)
+        transfer["data"] += fields["data"]
+        if not fields["last"]:
+            return co.sdo_download_segment_response(node, toggle)
+        self.transfer = None
+        index, sub = transfer["index"], transfer["subindex"]
+        if transfer["size"] is not None and len(transfer["data"]) != transfer["size"]:
+            self.aborts.append(ABORT_LENGTH)
+            return co.sdo_abort(node, index, sub, ABORT_LENGTH)
+        answer = self._write(index, sub, bytes(transfer["data"]))
+        return answer if answer is not None else co.sdo_download_segment_response(node, toggle)
+
+    def _initiate(self, fields: dict) -> Frame:
         index, sub, service = fields["index"], fields["subindex"], fields["service"]
         node = self.node_id
         key = (index, sub)
@@ -209,10 +257,24 @@ class Cia402Drive:
         if service == "upload":
             if not var.readable:
                 return co.sdo_abort(node, index, sub, ABORT_WRITE_ONLY)
-            return co.sdo_upload_response(node, index, sub, var.encode_raw(self.read(index, sub)))
+            data = var.encode_raw(self.read(index, sub))
+            if len(data) <= 4:
+                return co.sdo_upload_response(node, index, sub, data)
+            self.transfer = {"service": "upload", "index": index, "subindex": sub, "toggle": 0, "data": bytes(data)}
+            return co.sdo_upload_initiate_response(node, index, sub, len(data))
         if not var.writable:
             return co.sdo_abort(node, index, sub, ABORT_READ_ONLY)
-        data = fields["data"]
+        if fields.get("segmented"):
+            self.transfer = {"service": "download", "index": index, "subindex": sub, "toggle": 0,
+                             "data": b"", "size": fields["size"]}
+            return co.sdo_download_response(node, index, sub)
+        answer = self._write(index, sub, fields["data"])
+        return answer if answer is not None else co.sdo_download_response(node, index, sub)
+
+    def _write(self, index: int, sub: int, data: bytes) -> Frame | None:
+        """Write an object's value from its bytes; the abort frame if refused, else None."""
+        node, key = self.node_id, (index, sub)
+        var = co.variable(self.od, index, sub)
         if var.fixed_size and len(data) != len(var) // 8:
             return co.sdo_abort(node, index, sub, ABORT_LENGTH)
         value = var.decode_raw(data)
@@ -224,7 +286,7 @@ class Cia402Drive:
         else:
             self.values[key] = value
         self._follow()
-        return co.sdo_download_response(node, index, sub)
+        return None
 
     def _refuse_write(self, index: int, sub: int, value: int) -> int:
         """The abort code a write gets, 0 if allowed."""
@@ -411,6 +473,15 @@ class Cia402Drive:
             self.transitions.pop()
             self._enter(FAULT, 14)
 
+    def _communication_error(self) -> None:
+        """CiA 301's error behaviour (0x1029.1) on a communication error such as a heartbeat
+        event: 0 (the default) an OPERATIONAL node enters PRE-OPERATIONAL, 1 no change, 2 STOPPED."""
+        behaviour = self.values.get((0x1029, 1), 0)
+        if behaviour == 0 and self.nmt == "OPERATIONAL":
+            self.nmt = "PRE_OPERATIONAL"
+        elif behaviour == 2:
+            self.nmt = "STOPPED"
+
     def _emcy(self, code: int, fault: bool) -> None:
         register = 0x01 | (0x10 if code & 0xFF00 == 0x8100 else 0)
         if fault:
@@ -437,6 +508,7 @@ class Cia402Drive:
         if master and self.master_heard is not None and now - self.master_heard > timeout:
             self.master_heard = None  # monitoring starts again with the master's next heartbeat
             self.fault(HEARTBEAT_ERROR)
+            self._communication_error()
         if not self.servo.armed:
             self.servo.update(position, velocity, now, dt)
             return None

@@ -23,6 +23,12 @@ What it models of the firmware, and where it simplifies (docs/simulation.md has 
   Position P loop -> velocity PI loop -> torque, the shape of the open 0.5 firmware's
   controller.cpp: velocity limited to vel_limit, torque to current_limit * torque_constant, the
   integrator decays while the torque saturates; torque mode limits torque near vel_limit.
+- Remote requests, as ODrive's CAN protocol documents them ("Messages prefixed with Get_ ... can
+  be enabled as Cyclic Messages or requested explicitly by the master ... with the RTR bit set,
+  and the ODrive responds with the same ID and corresponding payload", docs.odriverobotics.com,
+  CAN Protocol, firmware 0.6): the Get_ messages and Address are answered at once; Heartbeat is
+  not a Get_ message and is not answered (its state is the cyclic heartbeat's to tell: `iotad
+  can` reads it from there). The request still feeds the watchdog, as every frame does.
 - Units are the axis's: turns, turns/s, Nm at the motor. Mapping to a joint is the caller's.
 """
 from __future__ import annotations
@@ -187,6 +193,8 @@ class OdriveAxis:
         self.last_command = now  # any frame to the axis feeds the watchdog, as the firmware's CAN handler does
         spec = MESSAGES[message.name]
         if message.rtr:
+            if message.name == "Heartbeat":  # cyclic only: the protocol's requestable messages are Get_*
+                return self._ignore("remote request for Heartbeat, which the firmware sends only cyclically")
             if spec.sender in ("axis", "both"):
                 return [self.reply(message.name)]
             return self._ignore(f"remote request for {message.name}, a host command")

@@ -4,14 +4,17 @@ These are synchronous tools over a real-time bus (`iotad.can.bus`), for `iotad c
 runs inside an engine. Units at the interface are SI (rad/s at the motor shaft, N.m, A); turns
 appear only on the wire (ODrive CAN Simple), increments only in CANopen objects.
 
-- ODrive: Get_Version to every node id 0..63 (a remote frame: harmless to anyone), then
-  Heartbeat, Get_Error, Get_Bus_Voltage_Current and Get_Temperature of those that answered.
+- ODrive: Get_Version to every node id 0..63 (a remote frame: harmless to anyone); the state and
+  axis error of those that answered from their cyclic Heartbeat, the firmware's own account
+  (waited for up to 1.5 heartbeat periods; a remote Heartbeat request only when none comes, and
+  `Drive.source` says which); then Get_Error, Get_Bus_Voltage_Current and Get_Temperature.
 - CiA 402: an SDO upload of the identity object 0x1018 to every node id 1..127 whose SDO id
   (0x600 + id) is no found ODrive's command id (0x600-0x67F are ODrive nodes 48-51: an SDO
   request there would be an ODrive command), then 0x1018's other entries, 0x1009/0x100A
   (versions), the statusword 0x6041, the error code 0x603F, 0x6079 (DC link voltage) and 0x2001
-  (temperature, iotad's drive) where the drive has them. Only expedited SDO: a string longer than
-  4 bytes reads as '?'.
+  (temperature, iotad's drive) where the drive has them, and the device name 0x1008. SDO as CiA
+  301 has it: expedited, or segmented for a value over 4 bytes (the strings); a transfer this
+  client stops (no answer in time, a wrong toggle bit) is ended with an SDO abort and its code.
 """
 from __future__ import annotations
 
@@ -26,6 +29,7 @@ from .frame import Frame, FrameError
 
 TAU = 2.0 * math.pi
 TIMEOUT = 0.2  # s: how long a scan waits for answers; a command waits `--timeout`
+HEARTBEAT_PERIOD = 0.1  # s: an ODrive's cyclic Heartbeat period (the firmware's default)
 
 
 @dataclass
@@ -39,6 +43,7 @@ class Drive:
     bus_voltage: float | None = None   # V
     temperature: float | None = None   # deg C
     detail: dict = field(default_factory=dict)
+    source: str = ""                   # where the state came from: heartbeat | remote request | SDO
 
 
 class CommandFailed(Exception):
@@ -50,8 +55,15 @@ class Link:
     """Frames out, answers in: `ask` sends and collects the answers `match` picks, until each
     expected key has one or the time is up."""
 
-    def __init__(self, bus, timeout: float = TIMEOUT, clock: Callable[[], float] = time.monotonic):
+    def __init__(self, bus, timeout: float = TIMEOUT, clock: Callable[[], float] = time.monotonic,
+                 heartbeat_period: float = HEARTBEAT_PERIOD):
         self.bus, self.timeout, self.clock = bus, timeout, clock
+        self.heartbeat_period = heartbeat_period
+
+    def drain(self) -> None:
+        """Forget what the bus brought before now (a cyclic frame read later must be a fresh one)."""
+        while self.bus.recv_frame(timeout=0.0) is not None:
+            pass
 
     def ask(self, frames: Iterable[Frame], match: Callable[[Frame], object], expected: set | None = None,
             timeout: float | None = None) -> dict:
@@ -75,6 +87,22 @@ class Link:
 
 
 # ---------------------------------------------------------------------- ODrive
+def odrive_heartbeats(link: Link, nodes: Iterable[int]) -> dict[int, tuple[dict, str]]:
+    """{node: (Heartbeat signals, source)}: each axis's next cyclic Heartbeat, waited for up to 1.5
+    heartbeat periods (source "heartbeat"); for an axis that sent none, the answer to a remote
+    request (source "remote request"), which some peers answer with zeros."""
+    nodes = set(nodes)
+    match = _odrive_answer("Heartbeat")
+    link.drain()
+    got = link.collect(match, nodes, 1.5 * link.heartbeat_period)
+    beats = {n: (_odrive_signals(frame), "heartbeat") for n, frame in got.items()}
+    missing = nodes - set(got)
+    if missing:
+        asked = link.ask((odrive.request(n, "Heartbeat") for n in sorted(missing)), match, missing)
+        beats.update({n: (_odrive_signals(frame), "remote request") for n, frame in asked.items()})
+    return {n: beat for n, beat in beats.items() if beat[0]}
+
+
 def _odrive_answer(name: str) -> Callable[[Frame], int | None]:
     cmd = odrive.COMMANDS[name]
 
@@ -95,10 +123,11 @@ def _odrive_signals(frame: Frame) -> dict:
 def scan_odrives(link: Link, nodes: Iterable[int] = range(64)) -> list[Drive]:
     nodes = list(nodes)
     found = link.ask((odrive.request(n, "Get_Version") for n in nodes), _odrive_answer("Get_Version"), set(nodes))
-    return [odrive_status(link, n, found[n]) for n in sorted(found)]
+    beats = odrive_heartbeats(link, found) if found else {}
+    return [odrive_status(link, n, found[n], beats.get(n, ({}, ""))) for n in sorted(found)]
 
 
-def odrive_status(link: Link, node: int, version: Frame | None = None) -> Drive:
+def odrive_status(link: Link, node: int, version: Frame | None = None, beat: tuple[dict, str] | None = None) -> Drive:
     drive = Drive("odrive", node)
     if version is None:
         version = link.ask([odrive.request(node, "Get_Version")], _odrive_answer("Get_Version"), {node}).get(node)
@@ -106,7 +135,7 @@ def odrive_status(link: Link, node: int, version: Frame | None = None) -> Drive:
     if v:
         drive.firmware = f"{v['Fw_Version_Major']}.{v['Fw_Version_Minor']}.{v['Fw_Version_Revision']}"
         drive.hardware = f"{v['Hw_Version_Major']}.{v['Hw_Version_Minor']}.{v['Hw_Version_Variant']}"
-    beat = _ask_one(link, node, "Heartbeat")
+    beat, drive.source = beat if beat is not None else odrive_heartbeats(link, [node]).get(node, ({}, ""))
     if beat:
         drive.state = _name(odrive.AXIS_STATE, beat["Axis_State"])
         drive.detail.update(axis_error=beat["Axis_Error"], procedure_result=beat["Procedure_Result"])
@@ -144,25 +173,104 @@ def _sdo_answer(index: int, subindex: int) -> Callable[[Frame], int | None]:
     return match
 
 
+def _segment_answer(node: int) -> Callable[[Frame], int | None]:
+    """A server's segment (or abort) from `node`: segments carry no index, the transfer is the one under way."""
+    def match(frame: Frame) -> int | None:
+        if frame.extended or frame.rtr or frame.id != co.TSDO + node or frame.dlc != 8:
+            return None
+        try:
+            fields = co.decode(frame).fields
+        except FrameError:
+            return None
+        return node if fields["service"] in ("upload_segment", "download_segment", "abort") else None
+    return match
+
+
+def sdo_abort(link: Link, node: int, index: int, subindex: int, code: int) -> None:
+    """End a transfer this client stops, as CiA 301 asks (never leave one open)."""
+    link.bus.send_frame(co.sdo_abort(node, index, subindex, code, from_server=False))
+
+
+MAX_UPLOAD = 4096  # bytes: a longer segmented upload is aborted (a server that never says "last")
+
+
 def sdo_read(link: Link, nodes: Iterable[int], index: int, subindex: int = 0, timeout: float | None = None) -> dict:
-    """{node: fields of its answer} to an upload of index.subindex (an abort's fields say so)."""
+    """{node: fields of its answer} to an upload of index.subindex (an abort's fields say so); a
+    segmented answer is read to its end, its bytes in `data`. A single node that does not answer
+    in time gets an abort (many nodes: a scan, where silence means no drive)."""
     nodes = list(nodes)
     answers = link.ask((co.sdo_upload(n, index, subindex) for n in nodes), _sdo_answer(index, subindex), set(nodes),
                        timeout)
-    return {n: co.decode(frame).fields for n, frame in answers.items()}
+    if len(nodes) == 1 and nodes[0] not in answers:
+        sdo_abort(link, nodes[0], index, subindex, co.ABORT_TIMEOUT)
+    out = {}
+    for n, frame in answers.items():
+        fields = co.decode(frame).fields
+        if fields.get("segmented"):
+            fields = _upload_segments(link, n, index, subindex, fields, timeout)
+        if fields is not None:
+            out[n] = fields
+    return out
+
+
+def _upload_segments(link: Link, node: int, index: int, subindex: int, first: dict, timeout: float | None) -> dict | None:
+    """The segments of an upload whose initiate answer was `first`; None (after an abort) when the
+    server stops answering or breaks the toggle rule."""
+    data, toggle = b"", 0
+    while True:
+        frame = link.ask([co.sdo_upload_segment_request(node, toggle)], _segment_answer(node), {node}, timeout).get(node)
+        if frame is None:
+            sdo_abort(link, node, index, subindex, co.ABORT_TIMEOUT)
+            return None
+        fields = co.decode(frame).fields
+        if fields["service"] == "abort":
+            return fields
+        if fields["service"] != "upload_segment" or fields["toggle"] != toggle or "data" not in fields:
+            sdo_abort(link, node, index, subindex, co.ABORT_TOGGLE if fields.get("toggle") != toggle else co.ABORT_COMMAND)
+            return None
+        data += fields["data"]
+        if fields["last"]:
+            return {"service": "upload", "index": index, "subindex": subindex, "data": data, "size": first.get("size")}
+        if len(data) > MAX_UPLOAD:
+            sdo_abort(link, node, index, subindex, co.SDO_ABORT_OUT_OF_MEMORY)
+            return None
+        toggle ^= 1
 
 
 def sdo_write(link: Link, node: int, index: int, subindex: int, data: bytes, timeout: float | None = None) -> None:
-    """Write one object; CommandFailed with the abort's reason, or when nothing answered."""
-    answer = link.ask([co.sdo_download(node, index, subindex, data)], _sdo_answer(index, subindex), {node},
-                      timeout).get(node)
+    """Write one object (expedited up to 4 bytes, segmented beyond); CommandFailed with the
+    abort's reason, or when nothing answered in time (the transfer then aborted)."""
+    data = bytes(data)
+    where = f"0x{index:04X}.{subindex:02X}"
+    wait = link.timeout if timeout is None else timeout
+    first = co.sdo_download(node, index, subindex, data) if len(data) <= 4 else \
+        co.sdo_download_initiate(node, index, subindex, len(data))
+    answer = link.ask([first], _sdo_answer(index, subindex), {node}, timeout).get(node)
     if answer is None:
-        raise CommandFailed(f"node {node}: no answer to the SDO write of 0x{index:04X}.{subindex:02X} within "
-                            f"{link.timeout if timeout is None else timeout:g} s")
+        sdo_abort(link, node, index, subindex, co.ABORT_TIMEOUT)
+        raise CommandFailed(f"node {node}: no answer to the SDO write of {where} within {wait:g} s (aborted)")
     fields = co.decode(answer).fields
     if fields["service"] == "abort":
-        raise CommandFailed(f"node {node}: the drive refused 0x{index:04X}.{subindex:02X}: {fields['reason']} "
+        raise CommandFailed(f"node {node}: the drive refused {where}: {fields['reason']} "
                             f"(SDO abort 0x{fields['code']:08X})")
+    if len(data) <= 4:
+        return
+    chunks = [data[k:k + 7] for k in range(0, len(data), 7)]
+    for k, chunk in enumerate(chunks):
+        toggle = k & 1
+        frame = link.ask([co.sdo_download_segment(node, toggle, chunk, k == len(chunks) - 1)], _segment_answer(node),
+                         {node}, timeout).get(node)
+        if frame is None:
+            sdo_abort(link, node, index, subindex, co.ABORT_TIMEOUT)
+            raise CommandFailed(f"node {node}: no answer to segment {k + 1} of the SDO write of {where} within "
+                                f"{wait:g} s (aborted)")
+        fields = co.decode(frame).fields
+        if fields["service"] == "abort":
+            raise CommandFailed(f"node {node}: the drive refused {where}: {fields['reason']} "
+                                f"(SDO abort 0x{fields['code']:08X})")
+        if fields["service"] != "download_segment" or fields["toggle"] != toggle:
+            sdo_abort(link, node, index, subindex, co.ABORT_TOGGLE)
+            raise CommandFailed(f"node {node}: a wrong answer to segment {k + 1} of the SDO write of {where} (aborted)")
 
 
 def _value(fields: dict | None, od, index: int, subindex: int = 0):
@@ -187,10 +295,11 @@ def cia402_status(link: Link, node: int) -> Drive:
     od = co.object_dictionary(co.DRIVE_EDS, node)
     drive = Drive("cia402", node)
     read = {key: sdo_read(link, [node], *key).get(node) for key in
-            ((0x1018, 1), (0x1018, 2), (0x1018, 3), (0x1009, 0), (0x100A, 0), (0x6041, 0), (0x603F, 0),
+            ((0x1018, 1), (0x1018, 2), (0x1018, 3), (0x1008, 0), (0x1009, 0), (0x100A, 0), (0x6041, 0), (0x603F, 0),
              (0x6079, 0), (0x2001, 0), (0x6061, 0))}
     strings = {key: (bytes(read[key]["data"]).rstrip(b"\0").decode("ascii", "replace") if read[key] and "data" in read[key]
-                     else "?") for key in ((0x1009, 0), (0x100A, 0))}
+                     else "?") for key in ((0x1008, 0), (0x1009, 0), (0x100A, 0))}
+    drive.detail["device"] = strings[(0x1008, 0)]
     revision = _value(read[(0x1018, 3)], od, 0x1018, 3)
     drive.firmware = strings[(0x100A, 0)] + (f" (rev 0x{revision:08X})" if revision is not None else "")
     drive.hardware = strings[(0x1009, 0)]
@@ -200,6 +309,7 @@ def cia402_status(link: Link, node: int) -> Drive:
     if status is not None:
         drive.state = co.state_of(status)
         drive.detail["statusword"] = status
+        drive.source = "SDO"
     code = _value(read[(0x603F, 0)], od, 0x603F)
     if code:
         drive.errors = [f"0x{code:04X} {co.emcy_name(code)}"]
@@ -236,11 +346,25 @@ def _controlword(link: Link, node: int, word: int) -> None:
 
 
 def clear_errors(link: Link, protocol: str, node: int, timeout: float = 1.0) -> Drive:
+    """Clear a drive's errors and read its state back. A drive with no fault gets nothing (its
+    `detail["unchanged"]` says so). An ODrive gets Clear_Errors; a CiA 402 drive in FAULT a fault
+    reset, the rising edge of controlword bit 7 with the other command bits as they are (never
+    "disable voltage" on the way: 0x0000 would switch an enabled drive's power stage off)."""
+    drive = status(link, protocol, node)
+    faulted = drive.state == "FAULT" if protocol == "cia402" else bool(drive.errors or drive.detail.get("axis_error"))
+    if not faulted and drive.state not in ("?", "FAULT REACTION ACTIVE"):
+        drive.detail["unchanged"] = True
+        return drive
     if protocol == "odrive":
         link.bus.send_frame(odrive.encode(node, "Clear_Errors", Identify=0))
     else:
-        _controlword(link, node, 0x00)              # bit 7 low, then its rising edge: fault reset
-        _controlword(link, node, co.CW_FAULT_RESET)
+        od = co.object_dictionary(co.DRIVE_EDS, node)
+        word = _value(sdo_read(link, [node], 0x6040).get(node), od, 0x6040)
+        if word is None:
+            raise CommandFailed(f"node {node}: no answer to the SDO read of its controlword 0x6040")
+        if word & co.CW_FAULT_RESET:  # bit 7 is high already: lower it first, or there is no edge
+            _controlword(link, node, word & ~co.CW_FAULT_RESET)
+        _controlword(link, node, word | co.CW_FAULT_RESET)
     drive = _wait_for(link, lambda: status(link, protocol, node), lambda d: not d.errors and d.state != "FAULT", timeout)
     if drive.errors or drive.state == "FAULT":
         raise CommandFailed(f"node {node}: still in error after clear-errors: {', '.join(drive.errors) or drive.state}")

@@ -49,6 +49,8 @@ NMT_STATE_NAMES[0] = "BOOT_UP"  # a heartbeat with state 0 is the boot-up messag
 assert set(NMT_COMMAND.values()) <= set(NMT_COMMANDS.values())
 
 SDO_ABORTS: dict[int, str] = dict(SdoAbortedError.CODES)
+ABORT_TOGGLE, ABORT_TIMEOUT, ABORT_COMMAND = 0x05030000, 0x05040000, 0x05040001  # CiA 301 abort codes
+SDO_ABORT_OUT_OF_MEMORY = 0x05040005
 SDO_ABORTS.setdefault(0x08000022, "Data cannot be transferred or stored because of the present device state")
 
 # CiA 402: the states by the statusword masks of the `canopen` package (State402.SW_MASK), in the
@@ -88,6 +90,10 @@ class UnknownFrame(FrameError):
 
 class MalformedFrame(FrameError):
     """A CANopen service's frame of the wrong shape (length, RTR, extended id, SDO command)."""
+
+
+class UnknownValue(MalformedFrame):
+    """A CANopen frame of the right shape whose value no state or command has (a heartbeat of state 99)."""
 
 
 class Message(NamedTuple):
@@ -173,6 +179,43 @@ def sdo_download(node_id: int, index: int, subindex: int, data: bytes) -> Frame:
 def sdo_upload(node_id: int, index: int, subindex: int) -> Frame:
     """Client to server: initiate an upload (read)."""
     return Frame(RSDO + _node(node_id), _SDO.pack(0x40, index, subindex) + bytes(4))
+
+
+def sdo_download_initiate(node_id: int, index: int, subindex: int, size: int) -> Frame:
+    """Client to server: initiate a segmented download (write) of `size` bytes (more than 4)."""
+    return Frame(RSDO + _node(node_id), _SDO.pack(0x21, index, subindex) + struct.pack("<I", size))
+
+
+def sdo_download_segment(node_id: int, toggle: int, data: bytes, last: bool) -> Frame:
+    """Client to server: one segment of a download, 1 to 7 bytes; `last` ends the transfer."""
+    n = len(data)
+    if not 1 <= n <= 7:
+        raise ValueError(f"an SDO segment carries 1 to 7 bytes, got {n}")
+    command = (toggle & 1) << 4 | (7 - n) << 1 | int(last)
+    return Frame(RSDO + _node(node_id), bytes((command,)) + bytes(data).ljust(7, b"\0"))
+
+
+def sdo_upload_segment_request(node_id: int, toggle: int) -> Frame:
+    """Client to server: the next segment of an upload, please."""
+    return Frame(RSDO + _node(node_id), bytes((0x60 | (toggle & 1) << 4,)) + bytes(7))
+
+
+def sdo_upload_initiate_response(node_id: int, index: int, subindex: int, size: int) -> Frame:
+    """Server to client: a segmented upload of `size` bytes begins (the segments follow on request)."""
+    return Frame(TSDO + _node(node_id), _SDO.pack(0x41, index, subindex) + struct.pack("<I", size))
+
+
+def sdo_upload_segment(node_id: int, toggle: int, data: bytes, last: bool) -> Frame:
+    """Server to client: one segment of an upload, 0 to 7 bytes; `last` ends the transfer."""
+    n = len(data)
+    if not 0 <= n <= 7:
+        raise ValueError(f"an SDO segment carries 0 to 7 bytes, got {n}")
+    command = (toggle & 1) << 4 | (7 - n) << 1 | int(last)
+    return Frame(TSDO + _node(node_id), bytes((command,)) + bytes(data).ljust(7, b"\0"))
+
+
+def sdo_download_segment_response(node_id: int, toggle: int) -> Frame:
+    return Frame(TSDO + _node(node_id), bytes((0x20 | (toggle & 1) << 4,)) + bytes(7))
 
 
 def sdo_download_response(node_id: int, index: int, subindex: int) -> Frame:
@@ -295,7 +338,7 @@ def decode(frame: Frame) -> Message:
         _length(frame, kind, 1)
         state = data[0] & 0x7F
         if state not in NMT_STATE_NAMES:
-            raise MalformedFrame(f"heartbeat of node {node} with state {state}, not an NMT state")
+            raise UnknownValue(f"heartbeat of node {node} with state {state}, not an NMT state")
         return Message(kind, node, {"state": NMT_STATE_NAMES[state]}, frame)
     if kind == "EMCY":
         _length(frame, kind, 8)
@@ -315,6 +358,8 @@ def _length(frame: Frame, kind: str, dlc: int) -> None:
 
 
 def _sdo_fields(kind: str, data: bytes) -> dict:
+    """The fields of an SDO frame (CiA 301 7.2.4.3): initiate (expedited or segmented), segment
+    (index and subindex None: a segment belongs to the transfer under way), abort."""
     command, index, subindex = _SDO.unpack(data[:4])
     payload = bytes(data[4:8])
     ccs = command >> 5
@@ -323,17 +368,27 @@ def _sdo_fields(kind: str, data: bytes) -> dict:
         return {"service": "abort", "index": index, "subindex": subindex, "code": code,
                 "reason": SDO_ABORTS.get(code, "unknown abort code")}
     request = kind == "SDO_REQUEST"
+    segment = {0: "download_segment", 3: "upload_segment"} if request else {0: "upload_segment",
+                                                                           1: "download_segment"}
+    if ccs in segment:
+        fields = {"service": segment[ccs], "index": None, "subindex": None, "toggle": command >> 4 & 1}
+        if ccs == 0:  # a segment that carries data (download request, upload response)
+            fields["data"] = bytes(data[1:8 - (command >> 1 & 0x7)])
+            fields["last"] = bool(command & 1)
+        return fields
     services = {1: "download", 2: "upload"} if request else {3: "download", 2: "upload"}
     service = services.get(ccs)
     if service is None:
-        raise MalformedFrame(f"{kind} with command 0x{command:02X}: only expedited transfers and aborts "
-                             "are used here")
+        raise MalformedFrame(f"{kind} with command 0x{command:02X}: a block transfer or no SDO command "
+                             "(expedited and segmented transfers and aborts are spoken here)")
     fields = {"service": service, "index": index, "subindex": subindex}
     expedited, sized = command & 0x2, command & 0x1
     if (request and service == "download") or (not request and service == "upload"):
-        if not expedited:
-            raise MalformedFrame(f"{kind} 0x{command:02X}: a segmented transfer (only expedited ones are used here)")
-        fields["data"] = payload[:4 - ((command >> 2) & 0x3)] if sized else payload
+        if expedited:
+            fields["data"] = payload[:4 - ((command >> 2) & 0x3)] if sized else payload
+        else:  # segmented: the size (if indicated), the data follows in segments
+            fields["segmented"] = True
+            fields["size"] = struct.unpack("<I", payload)[0] if sized else None
     return fields
 
 
@@ -381,6 +436,11 @@ def describe(message: Message, od: ObjectDictionary | None = None, maps: dict[in
         return f"Heartbeat node={node} {f['state']}"
     if kind == "EMCY":
         return f"EMCY node={node} 0x{f['code']:04X} {f['name']} register=0x{f['register']:02X}"
+    if kind in ("SDO_REQUEST", "SDO_RESPONSE") and f["index"] is None:
+        side = "SDO" if kind == "SDO_REQUEST" else "SDO response"
+        what = f" {len(f['data'])} bytes {f['data'].hex(' ').upper()}" if "data" in f else ""
+        return f"{side} {f['service'].replace('_', ' ')} node={node} toggle={f['toggle']}{what}" + (
+            " last" if f.get("last") else "")
     if kind in ("SDO_REQUEST", "SDO_RESPONSE"):
         where = f"0x{f['index']:04X}.{f['subindex']:02X}"
         name = _object_name(od, f["index"], f["subindex"])
@@ -388,6 +448,8 @@ def describe(message: Message, od: ObjectDictionary | None = None, maps: dict[in
         if f["service"] == "abort":
             return f"{side} abort node={node} {where}{name} 0x{f['code']:08X} {f['reason']}"
         value = ""
+        if f.get("segmented"):
+            value = f" (segmented, {f['size']} bytes)" if f.get("size") is not None else " (segmented)"
         if "data" in f:
             value = " = " + _value_text(od, f["index"], f["subindex"], f["data"])
         return f"{side} {f['service']} node={node} {where}{name}{value}"
@@ -462,7 +524,8 @@ class PdoTracker:
 
     def feed(self, message: Message) -> None:
         f = message.fields
-        if message.kind != "SDO_REQUEST" or f.get("service") != "download" or message.node_id not in self.nodes:
+        if message.kind != "SDO_REQUEST" or f.get("service") != "download" or "data" not in f \
+                or message.node_id not in self.nodes:
             return
         node, index, sub = message.node_id, f["index"], f["subindex"]
         value = int.from_bytes(f["data"], "little")

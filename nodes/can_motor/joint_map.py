@@ -64,6 +64,9 @@ class JointConfig:
     operation_mode: str = ""                  # csp | pp (position), csv (velocity); "": csp or csv
     counts_per_turn: float = 65536.0          # the drive's increments per motor turn (its 0x608F)
     acceleration_limit: float = 10.0          # rad/s^2 at the joint: Profile Position's acceleration
+    tpdo_timeout: int = 3                     # SYNCs without a statusword (TPDO1) before the drive is LOST
+    rated_torque: float | None = None         # Nm, the motor's rated torque if the table states it (0x6076 / 1000)
+    explicit: frozenset = frozenset()         # the keys the joint map gave (a scale it states is checked)
 
     # --- CiA 402: joint units -> drive increments, and back ------------------------------------
     def counts(self, position: float) -> float:
@@ -109,7 +112,7 @@ class JointConfig:
         return self.gear_ratio * self.velocity_limit / TAU
 
 
-_FIELDS = {f.name: f for f in fields(JointConfig)}
+_FIELDS = {f.name: f for f in fields(JointConfig) if f.name != "explicit"}
 _OPTIONAL = {"pos_gain", "vel_gain", "vel_integrator_gain", "traj_vel_limit", "traj_accel_limit",
              "traj_decel_limit", "traj_inertia"}
 
@@ -170,7 +173,7 @@ def _joint(k: int, entry: Any) -> JointConfig:
     if isinstance(node_id, bool) or not isinstance(node_id, int) or not low <= node_id <= high:
         kind = " (a cia402 axis: CANopen)" if protocol == "cia402" else ""
         raise JointMapError(f"{where}: node_id must be a whole number {low}..{high}, got {node_id!r}{kind}")
-    settings: dict[str, Any] = {"name": name, "node_id": node_id}
+    settings: dict[str, Any] = {"name": name, "node_id": node_id, "explicit": frozenset(entry)}
     for key, raw in entry.items():
         if key in ("name", "node_id"):
             continue
@@ -180,6 +183,10 @@ def _joint(k: int, entry: Any) -> JointConfig:
         joint = _cia402(where, joint)
     elif joint.operation_mode:
         raise JointMapError(f"{where}: operation_mode is for a cia402 axis; an ODrive's is mode and input_mode")
+    else:
+        for key in ("tpdo_timeout", "rated_torque"):
+            if key in entry:
+                raise JointMapError(f"{where}: {key} is for a cia402 axis")
     if not joint.position_min < joint.position_max:
         raise JointMapError(f"{where}: position_min ({joint.position_min}) must be below position_max "
                             f"({joint.position_max})")
@@ -232,8 +239,12 @@ def _setting(where: str, key: str, raw: Any) -> Any:
         if raw not in ("csp", "pp", "csv"):
             raise JointMapError(f"{where}: operation_mode must be csp, pp or csv, got {raw!r}")
         return raw
-    if key in ("counts_per_turn", "acceleration_limit"):
+    if key in ("counts_per_turn", "acceleration_limit", "rated_torque"):
         return _number(where, key, raw, positive=True)
+    if key == "tpdo_timeout":
+        if isinstance(raw, bool) or not isinstance(raw, int) or not 1 <= raw <= 240:
+            raise JointMapError(f"{where}: tpdo_timeout must be a whole number of SYNCs 1..240, got {raw!r}")
+        return raw
     if key == "input_mode":
         if raw not in INPUT_MODE:
             raise JointMapError(f"{where}: input_mode must be an ODrive input mode "

@@ -1,6 +1,8 @@
 """Simulated drives of both families answering on an in-process python-can bus ("virtual"), in a
 thread, for the tests of `iotad can`: ODrive axes (sim/odrive_axis.py) and CiA 402 drives
-(sim/cia402_drive.py) with motors that hold still. Use as a context manager: the thread stops."""
+(sim/cia402_drive.py) with motors that hold still. Use as a context manager: the thread stops.
+An ODrive axis sends its cyclic Heartbeat every `heartbeat_period` (0: none, as a peer whose
+cyclic messages are off: then only a remote request tells its state)."""
 from __future__ import annotations
 
 import threading
@@ -17,8 +19,9 @@ STEP = 0.005
 
 
 class BusDrives:
-    def __init__(self, channel: str, odrives=(1, 2), cia402=(5, 6)):
+    def __init__(self, channel: str, odrives=(1, 2), cia402=(5, 6), heartbeat_period: float = 0.1):
         self.channel = channel
+        self.heartbeat_period = heartbeat_period
         self.axes = {n: OdriveAxis(n, AxisConfig()) for n in odrives}
         self.drives = {n: Cia402Drive(n, AxisConfig()) for n in cia402}
         self.stop = threading.Event()
@@ -37,7 +40,7 @@ class BusDrives:
 
     def _serve(self):
         start = time.monotonic()
-        next_step = 0.0
+        next_step = next_beat = 0.0
         while not self.stop.is_set():
             got = self.bus.recv_frame(timeout=0.001)
             now = time.monotonic() - start
@@ -50,6 +53,10 @@ class BusDrives:
                     for drive in self.drives.values():
                         drive.update(0.0, 0.0, next_step, STEP)
                     next_step += STEP
+                if self.heartbeat_period and now >= next_beat:
+                    for axis in self.axes.values():
+                        self.bus.send_frame(axis.heartbeat())
+                    next_beat = now + self.heartbeat_period
                 for drive in self.drives.values():
                     for frame in drive.outbox:
                         if not (frame.id & 0x780 in (co.HEARTBEAT, co.TPDO[0], co.TPDO[1])):  # keep the bus quiet

@@ -34,7 +34,10 @@ def test_scan_finds_exactly_the_drives_of_both_families_with_their_states(drives
     odrive_row = lines[1]
     assert "0.6.10" in odrive_row and "4.4.58" in odrive_row and "IDLE" in odrive_row and "24.0" in odrive_row
     cia_row = lines[3]
-    assert "0.1 (rev 0x00010000)" in cia_row and "SWITCH ON DISABLED" in cia_row and "48.0" in cia_row
+    assert "SWITCH ON DISABLED" in cia_row and "48.0" in cia_row
+    # the drive's strings, 0x100A (software) and 0x1009 (hardware) over 4 bytes: segmented SDO
+    assert "iotad-drive 0.2.0 (rev 0x00010000)" in cia_row and "sim-board 1.0" in cia_row
+    assert cia_row.endswith("iotad simulated CiA 402 drive")  # 0x1008, the device name
 
 
 def test_clear_errors_and_arm_read_back_their_result(drives, capsys):

@@ -4,7 +4,7 @@ import struct
 
 import pytest
 
-from motor_bench import (GET_ERROR, GET_TORQUES, TAU, Bench, can, encoder, f32, heartbeat)
+from motor_bench import (GET_ERROR, GET_TORQUES, IDLE, SET_AXIS_STATE, TAU, Bench, can, encoder, f32, heartbeat)
 
 
 def test_encoder_estimates_become_joint_states_in_joint_units(bench):
@@ -55,7 +55,10 @@ def test_heartbeat_fields_reach_the_status(bench):
     bench.hear(0.01, heartbeat(2, state=8, error=0x40, procedure=1, done=True))
     bench.run(0.01)
     events = bench.status(joint=1)
-    assert [s["event"] for s in events] == ["ARM_SENT", "ARM_DONE", "AXIS_ERROR"]
+    # closed loop with an axis error is not armed: the node commands IDLE (issue 42)
+    assert [s["event"] for s in events] == ["ARM_SENT", "AXIS_ERROR", "UNCOMMANDED_STATE"]
     last = events[-1]
     assert (last["axis_state"], last["axis_error"], last["procedure_result"], last["trajectory_done"],
-            last["phase"], last["node_id"]) == (8, 0x40, 1, True, "ARMED", 2)
+            last["phase"], last["node_id"]) == (8, 0x40, 1, True, "ARMING", 2)
+    idle = [data for t, ident, rtr, data in bench.sent(since=0.01) if ident == (2 << 5 | SET_AXIS_STATE)]
+    assert idle == [struct.pack("<I", IDLE).ljust(8, b"\0")]

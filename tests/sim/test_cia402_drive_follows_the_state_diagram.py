@@ -107,6 +107,7 @@ def test_quick_stop_brakes_then_ends_as_its_option_code_says(rig):
 
 
 def test_a_lost_master_is_a_fault_reaction_then_fault_and_a_reset_clears_it(rig):
+    """EMCY 0x8130 at the first step past the consumer time, the fault reaction, PRE-OPERATIONAL."""
     consumer = 0.15
     rig.frame(co.sdo_download(NODE, 0x1016, 1, (MASTER << 16 | round(consumer * 1000)).to_bytes(4, "little")))
     for word in (co.CW_SHUTDOWN, co.CW_SWITCH_ON, co.CW_ENABLE_OPERATION):
@@ -118,6 +119,12 @@ def test_a_lost_master_is_a_fault_reaction_then_fault_and_a_reset_clears_it(rig)
     assert emcy[0][1].fields["code"] == 0x8130 and emcy[0][1].fields["name"] == "life guard error or heartbeat error"
     assert consumer < emcy[0][0] - last_beat <= consumer + DT
     assert rig.drive.transitions[-2:] == [13, 14] and rig.drive.state == "FAULT"
+    # CiA 301's default error behaviour (0x1029.1 = 0): OPERATIONAL -> PRE-OPERATIONAL, where no
+    # PDO is processed: a fault reset by RPDO does nothing until an NMT START
+    assert rig.drive.nmt == "PRE_OPERATIONAL"
+    assert [m.fields["state"] for _, m in rig.sent if m.kind == "HEARTBEAT"][-1] == "PRE_OPERATIONAL"
+    assert rig.control(co.CW_FAULT_RESET) == ("FAULT", 14)
+    rig.frame(co.nmt("START", NODE))
     assert rig.control(co.CW_DISABLE_VOLTAGE) == ("FAULT", 14)  # no edge on bit 7 yet
     assert rig.control(co.CW_FAULT_RESET) == ("SWITCH ON DISABLED", 15)
     assert [m.fields["code"] for _, m in rig.sent if m.kind == "EMCY"][-1] == 0x0000  # error reset

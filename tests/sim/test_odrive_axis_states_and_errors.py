@@ -111,15 +111,18 @@ def test_axis_messages_with_data_and_remote_commands_are_ignored():
 
 
 def test_remote_requests_are_answered_with_decodable_frames():
+    """Every Get_ message and Address, as ODrive's CAN protocol documents remote requests."""
     axis = OdriveAxis(7)
     axis.update(1.5, -0.25, 0.0, 0.004)
     answers = {}
-    for name in ("Heartbeat", "Get_Encoder_Estimates", "Get_Error", "Get_Version", "Get_Iq", "Get_Torques",
+    for name in ("Get_Encoder_Estimates", "Get_Error", "Get_Version", "Get_Iq", "Get_Torques",
                  "Get_Powers", "Get_Bus_Voltage_Current", "Get_Temperature", "Address"):
         (frame,) = axis.handle(poll(7, name), 0.0)
         message = odrive.decode(frame)
         assert message.name == name and message.node_id == 7 and not message.rtr
         answers[name] = message.signals
+    # the protocol documents remote requests for the Get_ messages: Heartbeat is cyclic only
+    assert axis.handle(poll(7, "Heartbeat"), 0.0) == [] and "Heartbeat" in axis.ignored[-1]
     assert answers["Get_Encoder_Estimates"] == {"Pos_Estimate": 1.5, "Vel_Estimate": -0.25}
     assert answers["Get_Version"]["Fw_Version_Minor"] == 6 and answers["Get_Version"]["Fw_Version_Revision"] == 10
     assert answers["Address"]["Node_ID"] == 7

@@ -51,6 +51,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--torque", type=positive_float, metavar="NM", help="set-limits: torque limit, N.m (CiA 402)")
     parser.add_argument("--timeout", type=positive_float, default=1.0, metavar="S",
                         help="how long a command waits for its result (default 1 s)")
+    parser.add_argument("--heartbeat-period", type=positive_float, default=0.1, metavar="S",
+                        help="an ODrive's cyclic Heartbeat period: its state is read from the next heartbeat, "
+                             "waited for up to 1.5 periods (then a remote request) (default 0.1 s, the firmware's)")
     parser.add_argument("--watch", action="store_true", help="status: refresh the table until Ctrl-C")
     parser.add_argument("--period", type=positive_float, default=1.0, metavar="S", help="status --watch: seconds between tables")
     parser.add_argument("--count", type=positive_int, metavar="N", help="status --watch: stop after N tables")
@@ -78,7 +81,7 @@ def run(args: argparse.Namespace) -> int:
     except BusUnavailable as exc:
         raise CliError(str(exc)) from None
     with bus:
-        link = Link(bus)
+        link = Link(bus, heartbeat_period=args.heartbeat_period)
         print(f"iotad can: {bus.describe()}", file=sys.stderr, flush=True)
         try:
             if args.action in ("scan", "status"):
@@ -123,11 +126,12 @@ def _table(link, args: argparse.Namespace) -> int:
 def format_table(drives) -> str:
     if not drives:
         return "no drive answered"
-    rows = [("protocol", "node", "firmware", "hardware", "state", "errors", "bus V", "temp C")]
+    rows = [("protocol", "node", "firmware", "hardware", "state", "errors", "bus V", "temp C", "state from", "device")]
     for d in drives:
         rows.append((d.protocol, str(d.node_id), d.firmware, d.hardware, d.state, ", ".join(d.errors) or "none",
                      "-" if d.bus_voltage is None else f"{d.bus_voltage:.1f}",
-                     "-" if d.temperature is None else f"{d.temperature:.0f}"))
+                     "-" if d.temperature is None else f"{d.temperature:.0f}", d.source or "-",
+                     d.detail.get("device", "-")))
     widths = [max(len(row[k]) for row in rows) for k in range(len(rows[0]))]
     return "\n".join("  ".join(cell.ljust(w) for cell, w in zip(row, widths)).rstrip() for row in rows)
 
@@ -211,5 +215,16 @@ def _command(link, args: argparse.Namespace, protocol: str) -> int:
     action = {"clear-errors": bringup.clear_errors, "arm": bringup.arm, "idle": bringup.idle,
               "estop": bringup.estop}[args.action]
     drive = action(link, protocol, node, timeout)
-    print(f"node {node} ({protocol}): {args.action} done: {drive.state}, errors: {', '.join(drive.errors) or 'none'}")
+    read = _read_back(drive)
+    if drive.detail.get("unchanged"):
+        print(f"node {node} ({protocol}): {args.action}: no fault, nothing sent; it reports {drive.state}{read}")
+        return 0
+    print(f"node {node} ({protocol}): {args.action} done: {drive.state}, errors: {', '.join(drive.errors) or 'none'}{read}")
     return 0
+
+
+def _read_back(drive) -> str:
+    """Where the state shown came from: the drive's statusword, its cyclic heartbeat, or a remote request."""
+    if "statusword" in drive.detail:
+        return f" (statusword 0x{drive.detail['statusword']:04X})"
+    return f" (from its {drive.source})" if drive.source else ""
