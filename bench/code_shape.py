@@ -6,6 +6,7 @@ included), so that a restructuring can be measured before and after.
 """
 from __future__ import annotations
 
+import argparse
 import ast
 import sys
 from collections import defaultdict
@@ -75,7 +76,10 @@ def cycles(graph: dict[str, set[str]]) -> list[list[str]]:
 
 
 def main(argv: list[str]) -> int:
-    root = Path(argv[0] if argv else Path(__file__).resolve().parents[1]).resolve()
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("root", nargs="?", default=str(Path(__file__).resolve().parents[1]),
+                        help="a checkout of iotad (default: this one)")
+    root = Path(parser.parse_args(argv).root).resolve()
     paths = sorted((root / "iotad").rglob("*.py"))
     known = {module_name(root, p) for p in paths}
     per_package: dict[str, int] = defaultdict(int)
