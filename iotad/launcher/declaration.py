@@ -117,6 +117,26 @@ class CanBusSpec:
 
 
 @dataclass(frozen=True)
+class Ros2Decl:
+    """One `[[ros2]]` table: a channel mapped to a ROS 2 topic, checked with the channels
+    (`launcher/ros2_tables.py`, docs/ros2.md); `table` is all of it as written."""
+
+    entry: str                       # how messages name it: '[[ros2]] #1 (topic="/cmd")'
+    channel: Any                     # "node.channel[k]" (or what the file holds)
+    direction: Any                   # "in" | "out" (or what the file holds)
+    table: Mapping[str, Any]
+
+
+@dataclass(frozen=True)
+class DebugDecl:
+    """`[system.debug]` as written, its shape read; what it names is checked with the channels."""
+
+    table: bool                      # false: something else than a table stands there
+    allow_pub: Any = ()              # "node.input[k]" strings (or what the file holds)
+    unknown: tuple[str, ...] = ()    # keys other than allow_pub
+
+
+@dataclass(frozen=True)
 class HostSpec:
     name: str
     listen: list[str] = field(default_factory=lambda: list(LOOPBACK_LISTEN))
@@ -154,10 +174,10 @@ class Declaration:
     binds: tuple[Bind, ...] = ()
     # (where, value as written): external = [...] at the top and in [system]
     externals: tuple[tuple[str, Any], ...] = ()
-    debug: Any = None                # [system.debug], as written (allow_pub)
+    debug: DebugDecl | None = None   # [system.debug] (allow_pub), None where the file has none
     hosts: Mapping[str, HostSpec] = field(default_factory=lambda: MappingProxyType({}))
     buses: Mapping[str, CanBusSpec] = field(default_factory=lambda: MappingProxyType({}))
-    ros2: tuple[Any, ...] = ()       # [[ros2]] tables as written; checked with the channels (docs/ros2.md)
+    ros2: tuple[Ros2Decl, ...] = ()  # [[ros2]] tables; checked with the channels (docs/ros2.md)
     # [sweep] metrics: "file.py:function" (absolute where the file has a folder) or "module:function",
     # what `iotad sweep` measures each run with (docs/sweeps.md); nothing else reads it
     sweep_metrics: str | None = None
@@ -252,9 +272,25 @@ class _Parser:
         binds = tuple(self.parse_binds())
         return Declaration(path=self.path, text=self.text, errors=tuple(self.errors), nodes=MappingProxyType(self.nodes),
                            binds=binds, externals=externals,
-                           debug=raw_system.get("debug") if isinstance(raw_system, dict) else None,
+                           debug=self.parse_debug(raw_system.get("debug") if isinstance(raw_system, dict) else None),
                            hosts=MappingProxyType(self.hosts), buses=MappingProxyType(self.buses),
-                           ros2=tuple(self.table_list("ros2")), **self.settings)
+                           ros2=tuple(self.parse_ros2()), **self.settings)
+
+    def parse_debug(self, raw: Any) -> DebugDecl | None:
+        """`[system.debug]`: its shape (the names it lists are checked with the channels)."""
+        if raw is None:
+            return None
+        if not isinstance(raw, dict):
+            return DebugDecl(table=False)
+        return DebugDecl(table=True, allow_pub=raw.get("allow_pub", []), unknown=tuple(sorted(set(raw) - {"allow_pub"})))
+
+    def parse_ros2(self) -> list[Ros2Decl]:
+        """`[[ros2]]` tables, each named as messages name it (what they map is checked with the channels)."""
+        tables = []
+        for number, raw in enumerate(self.table_list("ros2"), 1):
+            entry = f"[[ros2]] #{number}" + (f" (topic=\"{raw['topic']}\")" if isinstance(raw.get("topic"), str) else "")
+            tables.append(Ros2Decl(entry, raw.get("channel"), raw.get("direction"), MappingProxyType(dict(raw))))
+        return tables
 
     # ------------------------------------------------------------ [system] and [hosts]
     def parse_system(self) -> None:

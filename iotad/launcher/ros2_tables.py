@@ -4,6 +4,9 @@ from __future__ import annotations
 
 from typing import Any
 
+from iotad.kernel.ports import Port
+from iotad.launcher.declaration import NodeDecl, Ros2Decl
+from iotad.launcher.system_model import Binding, NodeSpec, channel_table, instantiate
 from iotad.ros2.bridge import NODE_NAME, channel_names
 from iotad.ros2.mapping import MappingError, parse
 
@@ -11,13 +14,10 @@ BRIDGE_REF = "iotad.ros2.bridge:ros2_bridge"
 LAG = 0.05  # seconds the bridge may hold a ROS 2 message before forwarding it is late (a deadline miss)
 
 
-def add_ros2_bridge(parser: Any, system: Any, raw_tables: list) -> None:
+def add_ros2_bridge(parser: Any, system: Any, tables: list[Ros2Decl]) -> None:
     """Check every `[[ros2]]` table of a system whose channels are known; where all are good and
     there is one at least, add the bridge node and its bindings. Problems go to `parser.error`."""
-    from iotad.launcher.declaration import NodeDecl
-    from iotad.launcher.system_file import Binding, NodeSpec, Port, channel_table, instantiate
-
-    if not raw_tables:
+    if not tables:
         return
     if NODE_NAME in system.nodes:
         parser.error(system.nodes[NODE_NAME].entry, f"the name {NODE_NAME!r} is the ROS 2 bridge's when the "
@@ -25,12 +25,10 @@ def add_ros2_bridge(parser: Any, system: Any, raw_tables: list) -> None:
         return
     bound = {b.target: b for b in system.bindings}
     mappings, switching, pairs = [], [], []
-    for number, raw in enumerate(raw_tables, 1):
-        entry = f"[[ros2]] #{number}" + (f" (topic=\"{raw['topic']}\")" if isinstance(raw, dict)
-                                         and isinstance(raw.get("topic"), str) else "")
-        direction = raw.get("direction") if isinstance(raw, dict) else None
+    for table in tables:
+        entry, direction = table.entry, table.direction
         want = "input" if direction == "in" else "output"
-        resolved = parser.resolve(system, raw.get("channel") if isinstance(raw, dict) else None, entry, want)
+        resolved = parser.resolve(system, table.channel, entry, want)
         if resolved is None:
             continue
         port, channel = resolved
@@ -42,14 +40,14 @@ def add_ros2_bridge(parser: Any, system: Any, raw_tables: list) -> None:
                                 f"of its own")
             continue
         try:
-            mapping = parse(raw, channel.type, entry)
+            mapping = parse(dict(table.table), channel.type, entry)
         except MappingError as exc:
             parser.errors.append(f"{parser.file}: {exc}")
             continue
         mappings.append(mapping.plain())
         switching.append(channel.switching_time if direction == "in" else 0.0)
         pairs.append((port, direction, entry))
-    if len(mappings) != len(raw_tables):
+    if len(mappings) != len(tables):
         return
     node = NodeSpec(NodeDecl(name=NODE_NAME, entry="the ROS 2 bridge ([[ros2]])",
                              source={"kind": "python", "ref": BRIDGE_REF},

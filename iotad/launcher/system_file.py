@@ -41,140 +41,19 @@ from __future__ import annotations
 import sys
 import threading
 from contextlib import contextmanager
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from iotad.host import wire
 from iotad.kernel.ports import Port, PortSyntaxError
-from iotad.launcher.bus_logger import logger_port_config
-from iotad.launcher.link_watch import link_params
 from iotad.launcher.declaration import (  # noqa: F401 - the declaration's names, as callers know them here
     DEFAULT_INPUT_QUEUE, LOOPBACK_LISTEN, RESTART_MODES, TABLE_HINT, CanBusSpec, Declaration, HostSpec, NodeDecl,
     SystemFileError, read_declaration)
+from iotad.launcher.ros2_tables import add_ros2_bridge
+from iotad.launcher.system_model import (  # noqa: F401 - the model's names, as callers know them here
+    Binding, ChannelInfo, NodeSpec, System, channel_table, instantiate, param_names)
 
 CAN_TX, CAN_RX = "can_tx", "can_rx"  # the two channels of a node on a CAN bus
 PEER_RESTART = "peer_restart"  # an input the node host feeds when a peer restarts (iotad.host.peer_restart)
-
-
-@dataclass
-class ChannelInfo:
-    """An external channel of a node's IOTA, as seen from outside the node."""
-
-    name: str
-    direction: str
-    type: Any
-    switching_time: float
-    size: int | None  # None: one channel; else a family of `size` members
-
-    def members(self) -> list[int | None]:
-        return [None] if self.size is None else list(range(self.size))
-
-
-@dataclass
-class NodeSpec:
-    """A node of a checked system: its declaration (`NodeDecl`, whose fields it answers for) and
-    the channel table of its IOTA (empty when the system was loaded unchecked)."""
-
-    declared: NodeDecl
-    channels: dict[str, ChannelInfo] = field(default_factory=dict)
-    param_names: frozenset[str] = frozenset()  # its IOTA's parameters (empty when loaded unchecked)
-
-    def __getattr__(self, name: str) -> Any:
-        if name == "declared":  # not set yet (a copy being made): no recursion
-            raise AttributeError(name)
-        return getattr(self.declared, name)
-
-
-@dataclass
-class Binding:
-    source: Port
-    target: Port
-    entry: str
-
-
-@dataclass
-class System:
-    """A system file, parsed (`declaration`, whose settings, hosts and buses it answers for) and,
-    when loaded checked, checked: channel tables, concrete bindings, external inputs."""
-
-    declaration: Declaration
-    nodes: dict[str, NodeSpec] = field(default_factory=dict)
-    bindings: list[Binding] = field(default_factory=list)  # concrete: one per (source, target) member
-    external: set[Port] = field(default_factory=set)
-    # [system.debug] allow_pub: inputs `iotad pub` may write into under access control
-    allow_pub: set[Port] = field(default_factory=set)
-
-    def __getattr__(self, name: str) -> Any:
-        if name == "declaration":
-            raise AttributeError(name)
-        return getattr(self.declaration, name)
-
-    # ------------------------------------------------------------ what the launcher needs
-    def nodes_on(self, host: str | None) -> list[NodeSpec]:
-        """The nodes a launcher for `host` runs (all of them when `host` is None), in file order."""
-        return [n for n in self.nodes.values() if host is None or n.host == host]
-
-    def opens_hub(self, host: str | None) -> bool:
-        """Whether the launcher for `host` listens on the hub endpoints (else it connects to them)."""
-        return host is None or host == self.hub_host
-
-    def listen_for(self, host: str | None) -> list[str]:
-        if host is not None and host in self.hosts:
-            return list(self.hosts[host].listen)
-        return list(LOOPBACK_LISTEN)
-
-    def inputs_of(self, node: str) -> dict[str, list[str]]:
-        """The node host's `inputs`: "channel" or "channel/index" -> keys of the bound outputs."""
-        inputs: dict[str, list[str]] = {}
-        for binding in self.bindings:
-            if binding.target.node != node:
-                continue
-            target, source = binding.target, binding.source
-            name = target.channel if target.index is None else f"{target.channel}/{target.index}"
-            inputs.setdefault(name, []).append(
-                wire.channel_key(self.name, source.node, source.channel, source.index))
-        return inputs
-
-    def readers_of(self, node: str) -> dict[str, list[str]]:
-        """The node host's `readers`: "channel" or "channel/index" of an output -> the nodes bound
-        to read it (for restart notices: a reader's restart may have lost what it was sent)."""
-        readers: dict[str, list[str]] = {}
-        for binding in self.bindings:
-            if binding.source.node != node:
-                continue
-            source = binding.source
-            name = source.channel if source.index is None else f"{source.channel}/{source.index}"
-            nodes = readers.setdefault(name, [])
-            if binding.target.node not in nodes:
-                nodes.append(binding.target.node)
-        return readers
-
-    def node_config(self, node: str, origin: float, hub: list[str]) -> dict[str, Any]:
-        """The JSON config of `python -m iotad.host` (docs/internals.md, "Node host")."""
-        spec = self.nodes[node]
-        config = {"system": self.name, "path": spec.name, "source": dict(spec.source),
-                  "params": {**link_params(self, node), **spec.params},
-                  "time_unit": self.time_unit, "origin": origin, "listen": self.listen_for(spec.host),
-                  "connect": list(hub), "inputs": self.inputs_of(node), "readers": self.readers_of(node),
-                  "heartbeat_period": self.heartbeat_period,
-                  "deadline_tolerance": self.deadline_tolerance, "arrival_tolerance": self.arrival_tolerance,
-                  "input_queue": spec.input_queue if spec.input_queue is not None else self.input_queue}
-        bus = self.bus_of(node)
-        if bus is not None:
-            config["can"] = bus.port_config()
-        elif node in self.buses:  # the bus's own logger (bus_logger.py)
-            config["can"] = logger_port_config(self.buses[node])
-        if spec.policy is not None:
-            config["policy"] = spec.policy
-        if spec.seed is not None:
-            config["seed"] = spec.seed
-        if spec.host is not None:
-            config["host"] = spec.host
-        return config
-
-    def receivers_of(self, source: Port) -> list[Port]:
-        return [b.target for b in self.bindings if b.source == source]
 
 
 # ---------------------------------------------------------------------------- loading
@@ -212,7 +91,6 @@ class _Checker:
                 self.check_external(system, raw, where, system.external)
             self.check_allow_pub(system)
             if not self.errors:  # [[ros2]]: the ROS 2 bridge node and its bindings (docs/ros2.md)
-                from iotad.launcher.ros2_tables import add_ros2_bridge
                 add_ros2_bridge(self, system, list(declaration.ros2))
             if not self.errors:  # an input whose binding failed is not also "unbound"
                 self.check_inputs_covered(system)
@@ -227,7 +105,7 @@ class _Checker:
                                    "its module or init may block (Ctrl-C stops)"):
                     instance = instantiate(node)
                 node.channels = channel_table(instance)
-                node.param_names = _param_names(instance)
+                node.param_names = param_names(instance)
                 claims = getattr(instance, "can_node_ids", None)
                 if callable(claims):
                     self.can_claims[node.name] = claims()
@@ -343,16 +221,16 @@ class _Checker:
     def check_allow_pub(self, system: System) -> None:
         """[system.debug] allow_pub = ["node.input", "node.input[k]"]: the inputs `iotad pub` may
         write into when access control is on (docs/access-control.md)."""
-        raw = self.declaration.debug
-        if raw is None:
+        debug = self.declaration.debug
+        if debug is None:
             return
         where = "[system.debug]"
-        if not isinstance(raw, dict):
+        if not debug.table:
             self.error(where, "must be a table: { allow_pub = [\"node.input[k]\", ...] }")
             return
-        for key in sorted(set(raw) - {"allow_pub"}):
+        for key in debug.unknown:
             self.error(where, f"unknown key {key!r} (expected allow_pub)")
-        self.check_external(system, raw.get("allow_pub", []), f"{where} allow_pub", system.allow_pub)
+        self.check_external(system, debug.allow_pub, f"{where} allow_pub", system.allow_pub)
 
     # ------------------------------------------------------------ [[can]]
     def check_stations(self, system: System) -> None:
@@ -403,49 +281,6 @@ class _Checker:
                 shown = ", ".join(missing[:8]) + (f" and {len(missing) - 8} more" if len(missing) > 8 else "")
                 self.error(node.entry, f"input(s) {shown} neither bound nor declared external "
                                        f"(add a [[bind]] or external = [\"{missing[0]}\"])")
-
-
-# ---------------------------------------------------------------------------- IOTAs
-
-def instantiate(node: NodeSpec) -> Any:
-    """The node's IOTA, built in this process the way its node host will build it."""
-    leaf_name = node.name.rsplit("/", 1)[-1]
-    if node.source["kind"] == "esprit":
-        from iotad.esprit import load_iota
-        return load_iota(node.source["file"], iota=node.source.get("iota"), name=leaf_name, **node.params)
-    from iotad.kernel.python_loader import iota_factory
-    factory = iota_factory(node.source["ref"])
-    return factory(leaf_name, **node.params)
-
-
-def channel_table(instance: Any) -> dict[str, ChannelInfo]:
-    """External channels of a leaf instance or a composite, with their concrete sizes."""
-    from iotad.kernel.compose import Composite, flatten, leaf_channel
-    from iotad.kernel.model import param_values
-
-    table: dict[str, ChannelInfo] = {}
-    if isinstance(instance, Composite):
-        flat = flatten(instance)
-        for name, (direction, endpoint) in flat.external.items():
-            leaf, channel = leaf_channel(flat, endpoint)
-            size = leaf.sizes[endpoint.channel] if endpoint.index is None else None
-            table[name] = ChannelInfo(name, direction, channel.type, leaf.switching[endpoint.channel], size)
-        return table
-    spec = instance.iota_spec
-    params = param_values(instance)
-    for name, channel in spec.channels.items():
-        if channel.external:
-            # switching times may name a parameter: the table holds this instance's numbers
-            table[name] = ChannelInfo(name, channel.direction, channel.type, spec.switching_of(channel, params),
-                                      spec.size_of(channel, params))
-    return table
-
-
-def _param_names(instance: Any) -> frozenset[str]:
-    """The parameters a leaf IOTA declares (a composite's own: none)."""
-    from iotad.kernel.compose import Composite
-    from iotad.kernel.model import param_values
-    return frozenset() if isinstance(instance, Composite) else frozenset(param_values(instance))
 
 
 # ---------------------------------------------------------------------------- helpers

@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 from iotad.host import wire
+from iotad.kernel.ports import Port
 from iotad.recording.mcap_reader import Recording
 from iotad.ros2 import messages
 from iotad.ros2.bridge import NODE_NAME
@@ -76,9 +77,8 @@ def export_rosbag(recording: Recording, output: str | Path,
     in_by_key: dict[str, Mapping] = {}
     for mapping in bridge_mappings(recording):
         if mapping.direction == "out":
-            node, _, rest = mapping.channel.partition(".")
-            channel, _, index = rest.partition("[")
-            key = wire.channel_key(system, node, channel, int(index.rstrip("]")) if index else None)
+            port = Port.parse(mapping.channel)  # as the system file's [[ros2]] channel was read
+            key = wire.channel_key(system, port.node, port.channel, port.index)
             out_by_key.setdefault(key, []).append(mapping)
         else:
             in_by_key[mapping.key] = mapping.reversed()
