@@ -53,7 +53,7 @@ _SYSTEMS: dict = {}  # system file -> the system as checked: once per worker, no
 
 def _checked(path: str):
     """The system file checked as `iotad run` checks it, the first time this process runs it."""
-    from iotad.cli.commands.run import load_checked
+    from iotad.cli import load_checked
 
     if path not in _SYSTEMS:
         _SYSTEMS[path] = load_checked(path)

@@ -1,12 +1,14 @@
 """The agent of one host (`iotad agent --name NAME --connect ENDPOINT`): waits at the system's hub
-for the run that `iotad run` on the hub's machine starts, and runs this host's part of it as
-`iotad run SYSTEM.toml --host NAME` would, as a child it owns; stops it when told, or when the
-hub is gone for longer than the run's own allowance.
+for the run that `iotad run` on the hub's machine starts, and runs this host's part of it
+(`python -m iotad.launcher.host_part ORDER.json`: the order's system and options, as the
+library's `run_real_time` runs them) as a child it owns; stops it when told, or when the hub is
+gone for longer than the run's own allowance.
 
 Its wire, all under `iota/@agent/<name>` (an '@' chunk, so no system's `**` matches it):
 - a liveliness token on the key itself: the hub's `iotad run` sees the agent, and sees it go;
 - queryable `.../run`: an order (JSON) with the system file's text, its path on the hub, the files
-  it names (path and sha256), the launcher's arguments and, under access control, this host's
+  it names (path and sha256), the launcher's options (`run`: a `RunOptions`, typed, no command
+  line) and, under access control, this host's
   launcher's credentials (written to a private folder for the run and removed after it; the
   launcher, its host's router, makes its nodes' own: iotad/launcher/host_router.py); the answer
   is {"ok": true, "pid": N, "fetched": [lines]} ("already": true when it runs that system
@@ -21,15 +23,15 @@ Its wire, all under `iota/@agent/<name>` (an '@' chunk, so no system's `**` matc
 The order names every file the system file names (node code, specs) with its sha256. The agent
 runs the hub's version of each: the file at the hub's path when this machine holds the same
 bytes there, else the bytes fetched from the hub by hash into its cache under `--workdir`
-(iotad/launcher/code_by_hash.py), with a copy of the system file that names them. Bytes that do
-not hash to what the order names are refused, and so is the run.
+(iotad/launcher/code_by_hash.py); its run reads the hub's system file with those names standing
+for the files here. Bytes that do not hash to what the order names are refused, and so is the run.
 
 The run is a child that dies with the agent (the parent-death signal, SIGTERM: its launcher then
 stops its nodes in order): an agent that is killed takes its host's part down with it, and the
 hub reports the host lost and its nodes down."""
 from __future__ import annotations
 
-import hashlib
+import dataclasses
 import json
 import os
 import queue
@@ -45,43 +47,44 @@ from typing import Callable
 from iotad.host.credentials import ENV, CredentialStore
 from iotad.host.session_close import close_session
 from iotad.launcher.agent_lines import KeptLines
-from iotad.launcher.code_by_hash import CODE_PREFIX, CodeCache, CodeError, code_key, localize
+from iotad.launcher.code_by_hash import CodeCache, CodeError, localize
+from iotad.launcher.fleet_wire import CODE_PREFIX, agent_key, code_key, digest, launcher_user
 from iotad.launcher.processes import wrapped_argv
+from iotad.launcher.run_system import RunOptions
 
-AGENT_PREFIX = "iota/@agent"
 RUN_LOGS_KEPT = 20  # the lines of this many runs are kept under the work folder's logs/
-
-
-def agent_key(name: str) -> str:
-    return f"{AGENT_PREFIX}/{name}"
-
-
-def digest(text: str) -> str:
-    return hashlib.sha256(text.encode()).hexdigest()
 
 
 class AgentError(Exception):
     """An order the agent cannot carry out, said in one line."""
 
 
-def system_file_for(order: dict, workdir: Path, fetch: Callable[[str], bytes]) -> tuple[Path, list[str]]:
-    """Where this host finds the system file of `order`, and the lines saying which named files it
-    fetched: the hub's own path when it and every file it names are here with the hub's bytes,
-    else a copy in `workdir` naming the hub's version of each. Raises `AgentError` when neither
-    can be had."""
+def host_part_for(order: dict, host: str, workdir: Path, fetch: Callable[[str], bytes]) -> tuple[Path, list[str]]:
+    """The file of this host's part of `order` (`iotad/launcher/host_part.py` runs it), written in
+    `workdir`, and the lines saying which named files were fetched: the system file's text and
+    path as the hub sent them, where this machine has the hub's version of each file it names,
+    and the options of `host`'s launcher. Raises `AgentError` when any of these cannot be had."""
     text, path = order.get("system"), order.get("path")
     if not isinstance(text, str) or not isinstance(path, str):
         raise AgentError("an order without a system file (expected 'system' text and its 'path')")
     if order.get("digest") not in (None, digest(text)):
         raise AgentError("the system file's text does not match its digest: the order was damaged")
     try:
-        copy, fetched = localize(text, path, order.get("files", []), CodeCache(workdir), fetch,
-                                 workdir / "runs" / digest(text)[:16])
+        options = dataclasses.replace(RunOptions.from_json(order.get("run", {})), host=host)
+    except ValueError as exc:
+        raise AgentError(str(exc)) from None
+    folder = workdir / "runs" / digest(text)[:16]
+    try:
+        files, fetched = localize(order.get("files", []), CodeCache(workdir), fetch)
+        folder.mkdir(parents=True, exist_ok=True)
+        part = folder / f"{host}.json"
+        part.write_text(json.dumps({"system": text, "path": path, "files": files, "run": options.to_json()}),
+                        encoding="utf-8")
     except CodeError as exc:
         raise AgentError(str(exc)) from None
     except OSError as exc:
         raise AgentError(f"cannot write the hub's files under {workdir}: {exc.strerror or exc}") from None
-    return (copy or Path(path)), fetched
+    return part, fetched
 
 
 class Agent:
@@ -258,9 +261,6 @@ class Agent:
         raise AgentError(f"the hub sent no file for sha256 {sha256[:12]} within 10 s")
 
     def _start(self, order: dict) -> dict:
-        args = order.get("args", [])
-        if not isinstance(args, list) or not all(isinstance(a, str) for a in args):
-            raise AgentError("an order's 'args' must be a list of strings")
         with self._lock:
             child = self.child
         if child is not None and child.poll() is None:
@@ -268,10 +268,11 @@ class Agent:
                 # a hub that lost this agent a while (the network) and sees it again: the same run goes on
                 return {"pid": child.pid, "already": True}
             raise AgentError(f"host {self.name} already runs a system (pid {child.pid})")
-        path, fetched = system_file_for(order, self.workdir, self._fetch)
+        part, fetched = host_part_for(order, self.name, self.workdir, self._fetch)
+        path = order["path"]
         for line in fetched:
             self.say(f"agent {self.name}: {line}")
-        command = [self.python, "-m", "iotad", "run", str(path), "--host", self.name, "--plain", *args]
+        command = [self.python, "-m", "iotad.launcher.host_part", str(part)]
         env = dict(os.environ)
         env.update({k: v for k, v in (order.get("env") or {}).items() if isinstance(v, str)})
         env.pop(ENV, None)
@@ -279,8 +280,6 @@ class Agent:
         if not isinstance(given, dict) or not all(isinstance(v, str) for v in [*given, *given.values()]):
             raise AgentError("an order's 'credentials' must map user names to passwords")
         if given:
-            from iotad.launcher.host_access import launcher_user
-
             if launcher_user(self.name) not in given:
                 raise AgentError(f"an order's credentials lack this host's launcher ({launcher_user(self.name)})")
             launcher = {launcher_user(self.name): given[launcher_user(self.name)]}

@@ -6,8 +6,8 @@ The hub lists every file its system file names, with its sha256 (`named_files`),
 each file it has at the hub's path with the same hash; any other (missing here, or another
 version) it fetches by hash, checks that the bytes hash to what was asked (refusing the run
 otherwise), and stores in its cache, `<workdir>/code/<sha256>/<file name>`: a file is fetched
-once, and two versions of one file never overwrite each other. The agent then runs a copy of
-the system file that names the cached files (`localize`).
+once, and two versions of one file never overwrite each other. The agent's run then reads the
+hub's system file with each name it writes standing for this machine's copy (`localize`).
 
 Only the named files travel, not the repository: a node file's own imports (its neighbours, the
 `channels` package, iotad itself) come from the agent's checkout."""
@@ -15,16 +15,10 @@ from __future__ import annotations
 
 import hashlib
 import re
-import tomllib
 from pathlib import Path
 from typing import Callable
 
-CODE_PREFIX = "iota/@code"  # an '@' chunk: no system's `iota/<system>/**` matches it
-
-
-def code_key(sha256: str) -> str:
-    return f"{CODE_PREFIX}/{sha256}"
-
+from iotad.launcher.declaration import Declaration
 
 def sha256_of(data: bytes) -> str:
     return hashlib.sha256(data).hexdigest()
@@ -34,27 +28,17 @@ class CodeError(Exception):
     """A named file that cannot be had at the version the hub runs: one line for the user."""
 
 
-def named_files(system_path: Path, text: str) -> list[dict]:
-    """Every file the system file's nodes name (`spec = "file.iota"`, `python = "file.py:Class"`),
-    as {"written": as the file writes it, "path": the absolute path on this machine, "sha256"}.
-    Files that do not exist are left out: checking the system file says so, before any order."""
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError:
-        return []
-    nodes = data.get("node", [])
+def named_files(declaration: Declaration) -> list[dict]:
+    """Every file the system's nodes name (`spec = "file.iota"`, `python = "file.py:Class"`), as
+    {"written": as the file writes it, "path": the absolute path on this machine, "sha256"}, from
+    the declaration (which found each file where the system file's folder says). Files that do not
+    exist are left out: checking the system file says so, before any order."""
     files, seen = [], set()
-    for node in nodes if isinstance(nodes, list) else []:
-        if not isinstance(node, dict):
+    for node in declaration.nodes.values():
+        written = node.file
+        if written is None or written in seen:
             continue
-        written = node.get("spec")
-        python = node.get("python")
-        if written is None and isinstance(python, str) and ":" in python:
-            where = python.rsplit(":", 1)[0]
-            written = where if where.endswith(".py") else None  # "module:Class" names no file
-        if not isinstance(written, str) or written in seen:
-            continue
-        path = (system_path.parent / written).resolve()
+        path = Path(node.source["file"] if node.source["kind"] == "esprit" else node.source["ref"].rsplit(":", 1)[0])
         if path.is_file():
             seen.add(written)
             files.append({"written": written, "path": str(path), "sha256": sha256_of(path.read_bytes())})
@@ -91,12 +75,12 @@ class CodeCache:
         return path
 
 
-def localize(system_text: str, system_path: str, files: list, cache: CodeCache,
-             fetch: Callable[[str], bytes], run_folder: Path) -> tuple[Path | None, list[str]]:
-    """Where this machine runs the system file of an order: (None when the hub's system file and
-    every file it names are here at the hub's paths with the same hashes, else a copy written in
-    `run_folder` naming each file where this machine has the hub's version; the lines saying which
-    files were fetched). `fetch(sha256)` asks the hub for a file's bytes."""
+def localize(files: list, cache: CodeCache, fetch: Callable[[str], bytes]) -> tuple[dict[str, str], list[str]]:
+    """Where this machine has the hub's version of each file an order names: ({name as the
+    system file writes it: the file here}, the lines saying which files were fetched). A file at
+    the hub's path with the same hash is that one; any other is fetched by hash into the cache.
+    `fetch(sha256)` asks the hub for a file's bytes. The declaration of the order's system file
+    then names these (`parse_declaration(..., files=...)`): no copy of the file is written."""
     if not isinstance(files, list):
         raise CodeError("an order's 'files' must be a list")
     replaced: dict[str, str] = {}
@@ -119,49 +103,11 @@ def localize(system_text: str, system_path: str, files: list, cache: CodeCache,
             cache.store(sha, name, fetch(sha))
             said.append(f"{written}: {why} at {hub_path} here; fetched sha256 {sha[:12]} from the hub")
         replaced[written] = str(cache.path_for(sha, name))
-    here = Path(system_path)
-    if _text_of(here) == system_text and all(replaced[w] == str((here.parent / w).resolve()) for w in replaced):
-        return None, said
-    run_folder.mkdir(parents=True, exist_ok=True)
-    copy = run_folder / here.name
-    copy.write_text(rewrite(system_text, replaced), encoding="utf-8")
-    return copy, said
-
-
-def rewrite(text: str, replaced: dict[str, str]) -> str:
-    """`text` with every node's file name changed as `replaced` says, checked by reading it back:
-    the copy names exactly the files it should, or the run is refused."""
-    for written, path in replaced.items():
-        # the name inside a TOML string, alone or before ":Class"; quoted as a TOML literal string
-        # when it can be (no quote in the path), else a basic string with backslashes escaped
-        pattern = re.compile(r"""(?P<q>["'])""" + re.escape(written) + r"""(?P<rest>(:[^"'\n]*)?)(?P=q)""")
-        quoted = path if "'" not in path else None
-
-        def swap(match: re.Match) -> str:
-            rest = match["rest"]
-            if quoted is not None and "'" not in rest:
-                return f"'{path}{rest}'"
-            return '"' + (path + rest).replace("\\", "\\\\").replace('"', '\\"') + '"'
-
-        text = pattern.sub(swap, text)
-    data = tomllib.loads(text)
-    for node in data.get("node", []):
-        named = node.get("spec") or str(node.get("python", "")).rsplit(":", 1)[0]
-        if named.endswith((".py", ".iota")) and named not in replaced.values():
-            raise CodeError(f"cannot point node {node.get('name')!r}'s file {named!r} at this machine's copy "
-                            "of the hub's version")
-    return text
+    return replaced, said
 
 
 def _hash_of(path: Path) -> str | None:
     try:
         return sha256_of(path.read_bytes()) if path.is_file() else None
     except OSError:
-        return None
-
-
-def _text_of(path: Path) -> str | None:
-    try:
-        return path.read_text(encoding="utf-8") if path.is_file() else None
-    except (OSError, UnicodeDecodeError):
         return None

@@ -78,6 +78,7 @@ class NodeDecl:
     required: bool = False           # when it ends for good, the launcher stops the whole system
     input_queue: int | None = None   # None: the [system] value
     bus_logger: bool = False         # an implicit node: the logger of the bus it is named after
+    file: str | None = None          # its spec or python file as the system file writes it (code_by_hash.py)
 
 
 @dataclass(frozen=True)
@@ -211,9 +212,11 @@ class Declaration:
         return [reachable(endpoint) for endpoint in self.listen]
 
 
-def read_declaration(path: str | Path) -> Declaration:
+def read_declaration(path: str | Path, files: Mapping[str, str] | None = None) -> Declaration:
     """The declaration of the system file at `path`; raises `SystemFileError` where it cannot be
-    read or is no TOML (a declaration that parsed with errors lists them in `errors`)."""
+    read or is no TOML (a declaration that parsed with errors lists them in `errors`). `files`:
+    where this machine has a file the system file names (name as written -> path; an agent's
+    run of the hub's file, iotad/launcher/code_by_hash.py)."""
     path = Path(path)
     try:
         text = read_text_file(path)
@@ -222,11 +225,12 @@ def read_declaration(path: str | Path) -> Declaration:
     except UnicodeDecodeError:
         raise SystemFileError([f"{path.name}: not UTF-8 text"]) from None
     bom = " (the file starts with a byte-order mark, which TOML does not allow: save it as UTF-8 without BOM)"
-    return parse_declaration(text, path, base=path.resolve().parent, bom_hint=bom if text.startswith("\ufeff") else "")
+    return parse_declaration(text, path, base=path.resolve().parent, bom_hint=bom if text.startswith("\ufeff") else "",
+                             files=files)
 
 
 def parse_declaration(text: str, path: str | Path = "system.toml", *, base: Path | None = None,
-                      bom_hint: str = "") -> Declaration:
+                      bom_hint: str = "", files: Mapping[str, str] | None = None) -> Declaration:
     """The declaration `text` holds. `base`: the folder its spec and python files are named from
     (None, for a recorded copy: they are kept as written, not looked up). Raises
     `SystemFileError` where `text` is no TOML."""
@@ -239,12 +243,13 @@ def parse_declaration(text: str, path: str | Path = "system.toml", *, base: Path
         raise SystemFileError([f"{path.name}: a value is nested too deeply to read"]) from None
     except ValueError:  # tomllib reads no int of more than 4300 digits
         raise SystemFileError([f"{path.name}: an integer of thousands of digits, {HUGE_INT}"]) from None
-    return _Parser(path, data, text, base).parse()
+    return _Parser(path, data, text, base, files).parse()
 
 
 class _Parser:
-    def __init__(self, path: Path, data: dict, text: str, base: Path | None):
+    def __init__(self, path: Path, data: dict, text: str, base: Path | None, files: Mapping[str, str] | None = None):
         self.path = path.resolve() if base is not None else path
+        self.files = dict(files or {})
         self.data, self.text, self.base, self.errors = data, text, base, []
         self.file = path.name
         self.settings: dict[str, Any] = {"name": self.path.stem.replace(".", "_")}
@@ -420,7 +425,9 @@ class _Parser:
                 self.error(entry, f"iota must be an IOTA name, got {raw['iota']!r}")
                 return None
             source = {"kind": "esprit", "file": file, "iota": raw.get("iota")}
+            written = raw["spec"]
         else:
+            written = None  # "module:Class" names no file
             if "iota" in raw:
                 self.error(entry, "iota only goes with spec = \"file.iota\"; python names its class after ':'")
             ref = raw["python"]
@@ -433,8 +440,9 @@ class _Parser:
                 if file is None:
                     return None
                 ref = f"{file}:{cls}"
+                written = where
             source = {"kind": "python", "ref": ref}
-        node: dict[str, Any] = {"name": name, "entry": entry, "source": source}
+        node: dict[str, Any] = {"name": name, "entry": entry, "source": source, "file": written}
         params = raw.get("params", {})
         if not isinstance(params, dict):
             self.error(entry, "params must be a table, e.g. params = { N = 2 }")
@@ -478,7 +486,7 @@ class _Parser:
         recorded copy, which has no folder (its files are not looked up)."""
         if self.base is None:
             return written
-        file = (self.base / written).resolve()
+        file = Path(self.files[written]) if written in self.files else (self.base / written).resolve()
         if not file.is_file():
             found = f"is a folder; name the {suffix} file in it" if file.is_dir() else "not found"
             self.error(entry, f"{what} {written!r} {found} (looked at {file})")

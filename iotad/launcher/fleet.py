@@ -12,11 +12,15 @@ import json
 import threading
 import time
 from pathlib import Path
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
-from iotad.launcher.agent import AGENT_PREFIX, agent_key, digest
 from iotad.launcher.agent_lines import KEPT, HeardLines
-from iotad.launcher.code_by_hash import CODE_PREFIX, named_files
+from iotad.launcher.code_by_hash import named_files
+from iotad.launcher.fleet_wire import AGENT_PREFIX, CODE_PREFIX, agent_key, digest
+
+if TYPE_CHECKING:  # the options are the run's, which builds the fleet: no import at run time
+    from iotad.launcher.run_system import RunOptions
+    from iotad.launcher.system_model import System
 
 
 class FleetError(Exception):
@@ -24,15 +28,16 @@ class FleetError(Exception):
 
 
 class Fleet:
-    """The agents of `hosts`, each given `args` (the launcher's options) and the system file."""
+    """The agents of `hosts`, each ordered to run its part of the checked `system` as its
+    `RunOptions` in `orders` say (a typed order, JSON on the wire: no command line)."""
 
-    def __init__(self, system_path: str | Path, hosts: list[str], hub: list[str], args: list[str], *,
+    def __init__(self, system: System, hosts: list[str], hub: list[str], orders: dict[str, RunOptions], *,
                  tls=None, env: dict[str, str] | None = None, say: Callable[[str], None] = print,
-                 start_timeout: float = 30.0, host_args: dict[str, list[str]] | None = None):
-        self.path = Path(system_path).resolve()
-        self.text = self.path.read_text(encoding="utf-8")
-        self.hosts, self.hub, self.args, self.tls = list(hosts), list(hub), list(args), tls
-        self.host_args = {host: list(extra) for host, extra in (host_args or {}).items()}  # one host's own (its recording)
+                 start_timeout: float = 30.0):
+        self.path = Path(system.path)
+        self.text = system.text
+        self.hosts, self.hub, self.tls = list(hosts), list(hub), tls
+        self.host_orders = dict(orders)  # host -> the options its launcher runs with (its recording)
         self.env, self.say, self.start_timeout = dict(env or {}), say, start_timeout
         self.session = None
         self.exits: dict[str, int] = {}
@@ -45,10 +50,10 @@ class Fleet:
         self._rejoining: set[str] = set()
         self._ran_on: dict[str, bool] = {}  # host -> its agent said its part was running already
         # the files the system names, served by hash: the bytes hashed are the bytes served
-        files = named_files(self.path, self.text)
+        files = named_files(system.declaration)
         self._code = {item["sha256"]: Path(item["path"]).read_bytes() for item in files}
         self._order_base = {"system": self.text, "path": str(self.path), "digest": digest(self.text),
-                       "files": files, "args": self.args, "env": self.env}
+                            "files": files, "env": self.env}
         self._access = None
         self._asked_to_stop: set[str] = set()  # a host that exits after this was stopped, not failed
         self._present: set[str] = set()
@@ -114,8 +119,8 @@ class Fleet:
     def _order(self, host: str, interruptible: bool = True) -> str | None:
         """Give `host` its part; None when its agent runs it, else why not."""
         # the hub admits only the agent of `host` to serve this key: its credentials go to it alone
-        order = dict(self._order_base, credentials=self._access.host_part(host) if self._access else {})
-        order["args"] = list(order.get("args", [])) + self.host_args.get(host, [])  # its own recording
+        order = dict(self._order_base, credentials=self._access.host_part(host) if self._access else {},
+                     run=self.host_orders[host].to_json())
         answer = self._ask(f"{agent_key(host)}/run", json.dumps(order).encode(), interruptible=interruptible)
         if not answer.get("ok"):
             return answer.get("error", "no answer")

@@ -23,16 +23,8 @@ from iotad.host import wire
 from iotad.host.agent_secret import agent_user
 from iotad.host.clock_offset import clock_key
 from iotad.launcher.access_policy import Grant, Policy, derive, node_user
-from iotad.launcher.agent import AGENT_PREFIX, agent_key
-from iotad.launcher.code_by_hash import CODE_PREFIX
+from iotad.launcher.fleet_wire import AGENT_PREFIX, CODE_PREFIX, FLEET_USER, agent_key, launcher_user
 from iotad.launcher.system_file import System
-
-FLEET_USER = "iotad-fleet"  # the hub launcher's own client session that talks to the agents
-
-
-def launcher_user(host: str) -> str:
-    return f"iotad-launcher-{host}"
-
 
 def host_users(system: System, host: str) -> list[str]:
     """The users whose credentials `host`'s agent receives from the hub: its launcher's alone (its

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import os
 import shutil
+import stat
+import time
 from pathlib import Path
 
 
@@ -119,3 +121,60 @@ def unused_recording_path(path: str | Path, claim: bool = False) -> Path:
 def _claimed(path: Path) -> bool:
     path.parent.mkdir(parents=True, exist_ok=True)
     return claim_file(path)
+
+
+# ---------------------------------------------------------------------------- claims
+class RecordingClaimError(Exception):
+    """A recording name that a run may not write: one line for the user."""
+
+
+def new_recording(path: str, force: bool, option: str = "-o") -> None:
+    """Refuse, with one line, to write a recording over one that is already there, unless `force`."""
+    found = None if force else existing_recording(path)
+    if found is not None:
+        info = found.stat()
+        written = time.strftime("%Y-%m-%d %H:%M:%S", time.localtime(info.st_mtime))
+        raise RecordingClaimError(f"{option} {path}: a recording is already there ({found}, {info.st_size:,} bytes, "
+                                 f"written {written}); name another file, or add --force to replace it")
+
+
+def claim_recording(path: str, force: bool, option: str = "-o") -> bool:
+    """`new_recording`'s check, then the name claimed (`claim_file`): of two runs started together
+    with the same `-o`, one writes it and the other is refused here. True if this call created
+    the (empty) file, which its caller removes should nothing be written to it."""
+    new_recording(path, force, option)
+    if force:
+        return False
+    try:
+        if claim_file(path):
+            return True
+    except OSError:
+        return False  # a path that cannot be written: the writer says so in its own words
+    if os.path.exists(path) and not is_regular_file(path):
+        raise RecordingClaimError(f"{option} {path}: not a plain file (a device, a FIFO or a link); name a file, "
+                                  "or add --force to write the recording there anyway")
+    raise RecordingClaimError(f"{option} {path}: an empty file is there: another run has just claimed it for its "
+                              "recording (or one stopped before writing any); name another file, or add --force "
+                              "to replace it")
+
+
+def drop_empty_claim(path: str | os.PathLike | None) -> None:
+    """Remove a recording file this run claimed (`claim_recording` returned True) that nothing
+    was written to (the run stopped first). Only an empty regular file: never a device such as
+    /dev/null, and never what was at the path before (call it only for a path this run created)."""
+    if path is None:
+        return
+    try:
+        if is_regular_file(path) and os.path.getsize(path) == 0:
+            os.unlink(path)
+    except OSError:
+        pass
+
+
+def is_regular_file(path: str | os.PathLike) -> bool:
+    """Whether `path` is a plain file (not a device, a FIFO or a folder), without following a
+    symbolic link: what a command may remove of its own output."""
+    try:
+        return stat.S_ISREG(os.lstat(path).st_mode)
+    except OSError:
+        return False

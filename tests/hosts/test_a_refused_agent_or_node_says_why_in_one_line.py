@@ -55,7 +55,7 @@ print(json.dumps({{"user": json.load(open(path))["user"], "folder": os.path.dirn
                                    for f in os.listdir(os.path.dirname(path))}}),
                   "folder_mode": oct(stat.S_IMODE(os.stat(os.path.dirname(path)).st_mode)),
                   "files": sorted(os.listdir(os.path.dirname(path))),
-                  "args": sys.argv[1:]}}), flush=True)
+                  "args": sys.argv[1:], "part": json.load(open(sys.argv[-1]))}}), flush=True)
 """
 
 
@@ -71,7 +71,7 @@ def test_an_agent_keeps_its_hosts_credentials_private_for_the_run_and_removes_th
     agent._publish = lambda part, payload: published.append((part, payload))  # no hub in this test
     # a node's password in an order (a hub from before the hosts' routers made their nodes' own)
     # is not written: only the launcher's is kept
-    order = {"system": system.read_text(), "path": str(system), "args": ["--no-record"],
+    order = {"system": system.read_text(), "path": str(system), "run": {"no_record": True},
              "credentials": {"iotad-launcher-arm": "p1", "node-vision": "p2"}}
     # the agent spawns its runs on the thread of serve() (its parent-death signal's thread): here,
     # with no hub to serve, a thread of the test's takes that one spawn
@@ -84,7 +84,10 @@ def test_an_agent_keeps_its_hosts_credentials_private_for_the_run_and_removes_th
     while not any(part == "exit" for part, _ in published) and time.monotonic() < deadline:
         time.sleep(0.05)
     seen = json.loads(next(payload["line"] for part, payload in published if part == "log"))
-    assert seen["user"] == "iotad-launcher-arm" and seen["args"][-1] == "--no-record"
+    # a typed order, no command line: the host's part, with its launcher's options
+    assert seen["user"] == "iotad-launcher-arm" and seen["args"][:2] == ["-m", "iotad.launcher.host_part"]
+    assert seen["part"]["run"]["no_record"] is True and seen["part"]["run"]["host"] == "arm"
+    assert seen["part"]["system"] == system.read_text() and "credentials" not in seen["part"]
     assert seen["folder_mode"] == "0o700" and seen["modes"] == ["0o600"]
     assert "iotad-launcher-arm.json" in seen["files"] and "node-vision.json" not in seen["files"], seen["files"]
     assert not Path(seen["folder"]).exists()  # removed once the run ended

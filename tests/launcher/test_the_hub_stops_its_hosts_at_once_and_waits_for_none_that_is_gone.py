@@ -10,6 +10,8 @@ import zenoh
 
 from launcher_helpers import ROOT, wait_until
 from iotad.launcher.fleet import Fleet
+from iotad.launcher.run_system import RunOptions
+from iotad.launcher.system_file import load_system
 
 
 class TokenGone:
@@ -23,7 +25,8 @@ class TokenGone:
 def fleet_of(hosts: list[str], answers: dict[str, int]):
     """A fleet whose `hosts` all run their part; an agent in `answers` answers the stop with that
     exit status, the others never (cut off). The stop requests, in the order they were made."""
-    fleet = Fleet(ROOT / "examples" / "figure2.toml", hosts, ["tcp/127.0.0.1:9"], [])
+    fleet = Fleet(load_system(ROOT / "examples" / "figure2.toml", check=False), hosts, ["tcp/127.0.0.1:9"],
+                  {host: RunOptions(host=host) for host in hosts})
     fleet._started, fleet._present = set(hosts), set(hosts)
     asked: list[str] = []
     never = threading.Event()  # a cut-off agent's answer: never, until the test ends

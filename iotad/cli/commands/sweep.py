@@ -62,7 +62,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def plan_from(args: argparse.Namespace):
     """The sweep's plan and its system, from the file and the options (options win)."""
-    from iotad.cli.commands.run import load_checked
+    from iotad.cli import load_checked
     from iotad.cli.sweep_plan import Plan, check_against, make_runs, parse_set, read_sweep_file
 
     path = Path(args.file)

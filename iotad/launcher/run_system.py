@@ -1,0 +1,268 @@
+"""A system run in real time, as the library does it: the run's options (`RunOptions`: what
+`iotad run` parses, and what the hub's run orders each other host's agent to run), the access
+control it decides, the other hosts' agents it starts (`Fleet`), the recording's name it claims,
+and the launcher it runs. Raises `RunError`, one line for the user; the CLI only prints it."""
+from __future__ import annotations
+
+import dataclasses
+import os
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable
+
+from iotad.launcher.system_file import System, with_port
+
+
+class RunError(Exception):
+    """A run that cannot start (or go on) as asked, said in one line."""
+
+
+@dataclass(frozen=True)
+class RunOptions:
+    """How one host's part of a system runs in real time (`iotad run`'s options, docs there)."""
+
+    host: str | None = None           # the host whose nodes run here (None: the hub's, or all)
+    port: int | None = None           # the hub's port instead of the file's (0: any free one)
+    until: float | None = None        # wall seconds from the launch (or from every node live)
+    after_live: bool = False
+    origin: float | None = None       # the run's origin, wall time (a host joining the hub's run)
+    log_dir: str | None = None
+    plain: bool = False               # plain event lines even on a terminal
+    record_to: str | None = None      # the recording (None: a new name under recordings/)
+    no_record: bool = False
+    force: bool = False
+    max_size: int | None = None
+    max_duration: float | None = None
+    local: bool = False               # every host's nodes on this machine, no agents
+    certs: str | None = None
+    agent_timeout: float | None = None
+    insecure: bool = False
+
+    def to_json(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+    @classmethod
+    def from_json(cls, data: Any) -> RunOptions:
+        """The options `data` (a run order's) holds; ValueError in one line where it is no such thing."""
+        if not isinstance(data, dict):
+            raise ValueError("a run's options must be a JSON object")
+        fields = {f.name: f for f in dataclasses.fields(cls)}
+        unknown = sorted(set(data) - set(fields))
+        if unknown:
+            raise ValueError(f"a run's options name unknown option(s) {', '.join(unknown)}")
+        for name, value in data.items():
+            wanted = {"bool": (bool,), "str | None": (str, type(None)), "int | None": (int, type(None)),
+                      "float | None": (int, float, type(None))}[fields[name].type]
+            if not isinstance(value, wanted) or (isinstance(value, bool) and bool not in wanted):
+                raise ValueError(f"a run's option {name} must be {fields[name].type}, got {value!r}")
+        return cls(**data)
+
+
+def run_real_time(system: System, options: RunOptions, *, view: Callable[[Any, str], Any] | None = None,
+                  summary_hook: Callable[[Any, int], int] | None = None) -> int:
+    """Run `system` (checked) as `options` say until it ends; its exit status (0: every node
+    stopped cleanly). `view(launcher, hub)`: started once the launcher is built, on the hub's
+    host, and stopped (`.stop()`) after the run; `summary_hook(launcher, code)` may change the status."""
+    from iotad.launcher.recording_paths import RecordingClaimError, claim_recording, drop_empty_claim
+
+    if options.host is not None and options.host not in {n.host for n in system.nodes.values()}:
+        hosts = sorted({n.host for n in system.nodes.values() if n.host}) or ["none declared"]
+        raise RunError(f"{system.file}: no node has host = {options.host!r} (hosts: {', '.join(hosts)})")
+    if options.until is not None and options.until <= 0:
+        raise RunError("--until must be a positive number of seconds")
+    if options.log_dir:
+        log_dir = Path(options.log_dir)
+        try:
+            log_dir.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise RunError(f"--log-dir {options.log_dir}: cannot create it: {exc.strerror or exc}") from None
+        if not os.access(log_dir, os.W_OK):
+            raise RunError(f"--log-dir {options.log_dir}: not writable")
+    if options.no_record and (options.max_size or options.max_duration):
+        raise RunError("--max-size and --max-duration split the recording: not with --no-record")
+    if options.record_to and Path(options.record_to).is_dir():
+        raise RunError(f"-o {options.record_to}: is a directory; name the .mcap file to write")
+    record_to = options.record_to
+    claimed = None  # the recording's name, created empty here so that no other run takes it
+    if record_to and not options.no_record and not options.force and not system.opens_hub(options.host):
+        # another host's part: a launcher started again in the same run (its agent came back)
+        # records the rest of it beside the first part, never over it; `iotad merge` takes both
+        from iotad.launcher.recording_paths import unused_recording_path
+
+        try:
+            record_to = claimed = str(unused_recording_path(record_to, claim=True))
+        except OSError as exc:
+            raise RunError(f"-o {options.record_to}: cannot create it: {exc.strerror or exc}") from None
+    elif record_to and not options.no_record:
+        try:
+            if claim_recording(record_to, options.force):
+                claimed = record_to
+        except RecordingClaimError as exc:
+            raise RunError(str(exc)) from None
+    elif not options.no_record and system.opens_hub(options.host):
+        # a new name: recordings/<system>-<date>-<time>.mcap, -2 in the same second (another
+        # host's launcher started by hand records only where -o tells it to)
+        from iotad.launcher.recording_paths import unused_recording_path
+
+        stamp = time.strftime("%Y%m%d-%H%M%S", time.localtime(options.origin or time.time()))
+        try:
+            record_to = claimed = str(unused_recording_path(Path("recordings") / f"{system.name}-{stamp}.mcap",
+                                                            claim=True))
+        except OSError as exc:
+            raise RunError(f"cannot create recordings/ here: {exc.strerror or exc}") from None
+    try:
+        return _launch(system, options, record_to, view, summary_hook)
+    finally:
+        drop_empty_claim(claimed)  # the run stopped before its recorder wrote anything
+
+
+def _launch(system: System, options: RunOptions, record_to: str | None, view, summary_hook) -> int:
+    from iotad.host.transport import free_port, reachable
+    from iotad.launcher.options import LaunchOptions, RecordingOptions
+    from iotad.launcher.supervision import Launcher, LauncherError
+
+    if not options.local:
+        from iotad.host.zenoh_runtime import use_for
+
+        # before this process's first session, and inherited by its nodes and recorder: a host
+        # cut off longer than zenoh's lease must not leave them without a thread to receive on
+        use_for(system, options.host or system.hub_host)
+    port = options.port
+    if port == 0:
+        port = free_port()
+    _use_certificates(system, options)
+    access = access_for(system, options)
+    # each other host records its own part, under access control too (its launcher is its nodes'
+    # router: iotad/launcher/host_router.py; docs/hosts.md, "The recording")
+    fleet, host = fleet_for(system, options, port, record_to, insecure=not access.enabled)
+    launch = LaunchOptions(host=host, port=port, until=options.until, after_live=options.after_live,
+                           origin=options.origin, log_dir=options.log_dir, live_table=False if options.plain else None)
+    recording = None if options.no_record or record_to is None else RecordingOptions(
+        record_to, force=options.force, max_size=options.max_size, max_duration=options.max_duration)
+    launcher = Launcher(system, launch, recording, access, fleet=fleet)
+    viewer = None
+    try:
+        if view is not None and system.opens_hub(options.host):
+            hub = system.listen[0] if port is None else f"tcp/127.0.0.1:{port}"
+            viewer = view(launcher, reachable(hub))
+        code = launcher.run()
+    except LauncherError as exc:
+        raise RunError(str(exc)) from None
+    except KeyboardInterrupt:
+        launcher.discard()  # Ctrl-C before the launcher's own handling took over: leave nothing behind
+        raise
+    finally:
+        if viewer is not None:
+            viewer.stop()
+        if launcher.access is not None:
+            launcher.access.close()
+    where = f" (host {launcher.host}" + (f"; hosts {', '.join(fleet.hosts)} through their agents" if fleet else "") + ")"
+    print(f"summary of {system.name}" + (where if launcher.host else "") + ":")
+    for line in launcher.summary():
+        print(line)
+    if fleet is not None and fleet.host_orders and launcher.recorder is not None:
+        from iotad.launcher.host_recording import host_recording_path
+
+        others = [str(host_recording_path(record_to, host)) for host in fleet.hosts]
+        print(f"  each other host recorded its part on its own machine: {', '.join(others)}; "
+              f"join them with: iotad merge {record_to} {' '.join(others)} -o MERGED.mcap")
+    if summary_hook is not None:
+        code = summary_hook(launcher, code)
+    if sys.stdout is not None:  # None when the shell closed it (>&-)
+        sys.stdout.flush()
+    return code
+
+
+def _use_certificates(system: System, options: RunOptions) -> None:
+    """--certs: this host's certificates, checked now and handed to every process of the run."""
+    if not options.certs:
+        return
+    from iotad.host.certificates import CertificateError, use
+
+    host = options.host or system.hub_host
+    if host is None:
+        raise RunError("--certs links the hosts of a system spread over hosts; this system names no host")
+    try:
+        use(options.certs, host)
+    except CertificateError as exc:
+        raise RunError(str(exc)) from None
+
+
+def fleet_for(system: System, options: RunOptions, port: int | None, record_to: str | None = None,
+              insecure: bool = False):
+    """(the agents of the other hosts or None, the host this launcher runs). A system spread over
+    hosts, started without --host or --local, runs here as its hub host and everywhere else
+    through each host's agent; each of them records its own part beside the hub's recording
+    `record_to` (`host_recording_path`: split.mcap -> split.arm.mcap, on that host). `insecure`:
+    the run is open (--insecure), and so are the launchers the agents start for it."""
+    hosts = [n.host for n in system.nodes.values() if n.host]
+    if options.host is not None or options.local or not hosts:
+        return None, options.host
+    from iotad.host.transport import reachable
+    from iotad.launcher.fleet import Fleet
+
+    hub = [reachable(e) for e in (with_port(system.listen, port) if port is not None else system.listen)]
+    others = sorted(set(hosts) - {system.hub_host}, key=hosts.index)
+    orders = {}
+    for host in others:  # what each host's agent runs: its part, recorded on its own machine
+        recorded = {}
+        if record_to is not None:
+            from iotad.launcher.host_recording import host_recording_path
+
+            recorded = dict(record_to=str(host_recording_path(record_to, host)), force=options.force,
+                            max_size=options.max_size, max_duration=options.max_duration)
+        orders[host] = RunOptions(host=host, plain=True, no_record=record_to is None, port=port,
+                                  insecure=insecure, **recorded)
+    fleet = Fleet(system, others, hub, orders, start_timeout=options.agent_timeout or system.start_timeout)
+    return fleet, system.hub_host
+
+
+def access_for(system: System, options: RunOptions):
+    """Access control for this run (docs/access-control.md): on unless --insecure. A system spread
+    over hosts has it when the hub starts the other hosts through their agents over TLS (the hub
+    hands each agent its host's credentials) and on each host's launcher its agent starts. Where
+    no one could hand the other launchers their credentials (tcp/ links, no --certs, a launcher
+    started by hand with --host), the run is refused unless --insecure says to run it open: a
+    system on a network is secured by default, not by remembering a flag."""
+    from iotad.host.agent_secret import derive
+    from iotad.host.certificates import ENV_DIR, CertificateError
+    from iotad.host.credentials import ENV, CredentialsError, load
+    from iotad.launcher.fleet_wire import launcher_user
+    from iotad.launcher.options import AccessOptions
+
+    if options.insecure:
+        return AccessOptions.off("--insecure")
+    hosts = [node.host for node in system.nodes.values() if node.host]
+    if not hosts:
+        return AccessOptions()
+    if options.host is not None:
+        given = os.environ.get(ENV)
+        try:
+            own = load(given) if given else None
+        except CredentialsError as exc:
+            raise RunError(str(exc)) from None
+        if own is not None and own.user == launcher_user(options.host):
+            return AccessOptions(given=given)  # started by this host's agent, for the hub's run
+        raise RunError(f"--host {options.host}: no credentials from the hub, so this host's nodes would run without "
+                       "access control: start this host through its agent ('iotad agent', started by the hub's "
+                       "'iotad run'; docs/hosts.md), or give --insecure here and to the hub's launcher to run "
+                       "the system open")
+    if options.local:
+        return AccessOptions.off("--local")
+    certs = options.certs or os.environ.get(ENV_DIR)
+    plain = [endpoint for endpoint in system.listen if not endpoint.startswith(("tls/", "quic/"))]
+    if not certs or plain:
+        how = f"listens on {', '.join(plain)}" if plain else "has no --certs DIR"
+        raise RunError(f"{system.name} spreads over hosts and its hub {how}: its agents could be neither admitted "
+                       "nor sent their credentials safely, so access control would be off. Link the hosts by "
+                       "tls/ endpoints and give --certs DIR ('iotad certs'; docs/hosts.md), run every host "
+                       "here with --local, or give --insecure to run the system open")
+    others = list(dict.fromkeys(host for host in hosts if host != system.hub_host))
+    try:
+        for host in others:
+            derive(certs, host)  # every agent's secret, or one line saying which is missing
+    except CertificateError as exc:
+        raise RunError(str(exc)) from None
+    return AccessOptions(hosts=tuple(others), certs=str(certs))
