@@ -4,7 +4,7 @@ import ast
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-LAYERS = ["kernel", "esprit", "can", "ros2", "host", "launcher", "recording", "cli"]
+LAYERS = ["kernel", "esprit", "can", "ros2", "host", "launcher", "recording", "virtual", "sweep", "cli"]
 ROBOT_PACKAGES = {"channels", "nodes", "sim"}
 
 

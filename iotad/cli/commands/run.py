@@ -134,20 +134,33 @@ def run(args: argparse.Namespace) -> int:
         # one of the two is a mistake: a run the user expects recorded would leave no file
         raise CliError(f"-o {args.record_to} names the recording, and --no-record says there is none: give one of them")
     if args.virtual:
-        from iotad.cli.virtual_run import run_virtual
-
-        if args.max_size is not None or args.max_duration is not None:
-            from iotad.cli import CliError
-
-            raise CliError("--max-size and --max-duration split a real-time run's recording, not a --virtual one")
-
-        return run_virtual(system, args)
+        return virtual(system, args)
     for option, value in (("inputs", args.inputs), ("seed", args.seed)):
         if value is not None:
             from iotad.cli import CliError
 
             raise CliError(f"--{option} goes with --virtual")
     return launch(system, args)
+
+
+def virtual(system, args: argparse.Namespace) -> int:
+    """`--virtual`: the library's `run_virtual`, its errors as one line."""
+    from iotad.cli import CliError
+    from iotad.virtual.virtual_run import VirtualOptions, VirtualRunError, run_virtual
+
+    if args.max_size is not None or args.max_duration is not None:
+        raise CliError("--max-size and --max-duration split a real-time run's recording, not a --virtual one")
+    if args.until is None:
+        raise CliError("--virtual needs --until SECONDS (virtual time; the run is as fast as the machine allows)")
+    for option in ("host", "port", "origin", "log_dir"):
+        if getattr(args, option) is not None:
+            raise CliError(f"--{option.replace('_', '-')} is for processes over zenoh, not --virtual")
+    options = VirtualOptions(until=args.until, seed=args.seed, record_to=args.record_to, force=args.force,
+                             no_record=args.no_record, inputs=args.inputs, plain=args.plain)
+    try:
+        return run_virtual(system, options)
+    except VirtualRunError as exc:
+        raise CliError(str(exc)) from None
 
 
 def options_of(args: argparse.Namespace):

@@ -4,7 +4,6 @@ runs it, then measured by the system's metrics hook. Whatever goes wrong (an exc
 out, a run cut short) is the run's failed row, never the sweep's end."""
 from __future__ import annotations
 
-import argparse
 import contextlib
 import math
 import os
@@ -53,7 +52,7 @@ _SYSTEMS: dict = {}  # system file -> the system as checked: once per worker, no
 
 def _checked(path: str):
     """The system file checked as `iotad run` checks it, the first time this process runs it."""
-    from iotad.cli import load_checked
+    from iotad.sweep.plan import load_checked
 
     if path not in _SYSTEMS:
         _SYSTEMS[path] = load_checked(path)
@@ -61,17 +60,16 @@ def _checked(path: str):
 
 
 def _run_virtual(task: dict, checked) -> int:
-    from iotad.cli.sweep_plan import apply
-    from iotad.cli.virtual_run import run_virtual
+    from iotad.sweep.plan import apply
+    from iotad.virtual.virtual_run import VirtualOptions, run_virtual
 
     values, seed = task["values"], task["seed"]
     if task.get("seed_param"):  # the seed is a node's (a world's), and the policy eager
         values, seed = {**values, task["seed_param"]: seed}, None
     system = apply(checked, values)
-    args = argparse.Namespace(until=task["until"], seed=seed, record_to=task["recording"], force=True,
-                              no_record=False, inputs=None, plain=True)
+    options = VirtualOptions(until=task["until"], seed=seed, record_to=task["recording"], force=True, plain=True)
     # every core already runs a run: the recording is written in this process, not a second one
-    return run_virtual(system, args, second_process=False)
+    return run_virtual(system, options, second_process=False)
 
 
 def measure(task: dict, code: int) -> dict[str, Any]:
@@ -104,7 +102,7 @@ def measure(task: dict, code: int) -> dict[str, Any]:
 def _one_line(exc: BaseException) -> str:
     text = " ".join(str(exc).split()) or type(exc).__name__
     name = type(exc).__name__
-    return text if name in ("CliError", "RuntimeError") else f"{name}: {text}"
+    return text if name in ("SweepError", "VirtualRunError", "RuntimeError") else f"{name}: {text}"
 
 
 @contextlib.contextmanager

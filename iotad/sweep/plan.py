@@ -14,7 +14,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-from iotad.cli import CliError
+from iotad.sweep import SweepError
 
 SWEEP_FILE_KEYS = {"system", "set", "seeds", "until", "sample", "sample_seed", "timeout", "metrics", "seed_param"}
 _FILE_NUMBERS = {"seeds": (int, "a whole number > 0"), "sample": (int, "a whole number > 0"),
@@ -90,14 +90,14 @@ def parse_set(text: str, sample: bool) -> tuple[str, list | Range]:
     name, eq, values = text.partition("=")
     name = name.strip()
     if not eq or "." not in name or not values.strip():
-        raise CliError(f"--set {text!r}: expected NODE.PARAM=V1,V2,... (or NODE.PARAM=LOW..HIGH with --sample)")
+        raise SweepError(f"--set {text!r}: expected NODE.PARAM=V1,V2,... (or NODE.PARAM=LOW..HIGH with --sample)")
     if ".." in values:
         low, _, high = values.partition("..")
         low, high = parse_value(low), parse_value(high)
         if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in (low, high)) or low > high:
-            raise CliError(f"--set {text!r}: a range is LOW..HIGH, two numbers with LOW <= HIGH")
+            raise SweepError(f"--set {text!r}: a range is LOW..HIGH, two numbers with LOW <= HIGH")
         if not sample:
-            raise CliError(f"--set {text!r}: a range is for --sample K (random points); a grid lists its values")
+            raise SweepError(f"--set {text!r}: a range is for --sample K (random points); a grid lists its values")
         return name, Range(low, high)
     return name, [parse_value(v) for v in values.split(",")]
 
@@ -110,29 +110,29 @@ def read_sweep_file(path: Path) -> dict | None:
     try:
         data = tomllib.loads(read_text_file(path))
     except OSError as exc:
-        raise CliError(f"{path}: cannot read: {exc.strerror or exc}") from None
+        raise SweepError(f"{path}: cannot read: {exc.strerror or exc}") from None
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise CliError(f"{path}: not valid TOML: {exc}") from None
+        raise SweepError(f"{path}: not valid TOML: {exc}") from None
     table = data.get("sweep")
     if "node" in data or not isinstance(table, dict) or "system" not in table:
         return None
     other = sorted(set(data) - {"sweep"})
     if other:
-        raise CliError(f"{path.name}: unknown top-level key {other[0]!r} in a sweep file (it holds one [sweep] table)")
+        raise SweepError(f"{path.name}: unknown top-level key {other[0]!r} in a sweep file (it holds one [sweep] table)")
     unknown = sorted(set(table) - SWEEP_FILE_KEYS)
     if unknown:
-        raise CliError(f"{path.name}: [sweep]: unknown key {unknown[0]!r} (expected one of {sorted(SWEEP_FILE_KEYS)})")
+        raise SweepError(f"{path.name}: [sweep]: unknown key {unknown[0]!r} (expected one of {sorted(SWEEP_FILE_KEYS)})")
     for key, (kind, what) in _FILE_NUMBERS.items():
         value = table.get(key)
         if key not in table:
             continue
         number = isinstance(value, kind) and not isinstance(value, bool) and math.isfinite(value)
         if not number or not (value >= 0 if key == "sample_seed" else value > 0):
-            raise CliError(f"{path.name}: [sweep] {key} must be {what}, got {value!r}")
+            raise SweepError(f"{path.name}: [sweep] {key} must be {what}, got {value!r}")
     if "seed_param" in table and not isinstance(table["seed_param"], str):
-        raise CliError(f"{path.name}: [sweep] seed_param must be \"node.param\", got {table['seed_param']!r}")
+        raise SweepError(f"{path.name}: [sweep] seed_param must be \"node.param\", got {table['seed_param']!r}")
     if not isinstance(table["system"], str):
-        raise CliError(f"{path.name}: [sweep] system must be the system file's name, got {table['system']!r}")
+        raise SweepError(f"{path.name}: [sweep] system must be the system file's name, got {table['system']!r}")
     table = dict(table, system=str((path.parent / table["system"]).resolve()))
     if "metrics" in table:  # a file named as relative is relative to the sweep file, as in a system file
         where, _, function = str(table["metrics"]).rpartition(":")
@@ -140,7 +140,7 @@ def read_sweep_file(path: Path) -> dict | None:
             table["metrics"] = f"{(path.parent / where).resolve()}:{function}"
     swept = table.get("set", {})
     if not isinstance(swept, dict):
-        raise CliError(f"{path.name}: [sweep.set] must be a table: \"node.param\" = [values] or {{ from, to }}")
+        raise SweepError(f"{path.name}: [sweep.set] must be a table: \"node.param\" = [values] or {{ from, to }}")
     table["set"] = {name: _file_values(path.name, name, v) for name, v in swept.items()}
     return table
 
@@ -151,7 +151,7 @@ def _file_values(file: str, name: str, raw: Any) -> list | Range:
     if isinstance(raw, dict) and set(raw) == {"from", "to"} and all(
             isinstance(raw[k], (int, float)) and not isinstance(raw[k], bool) for k in raw) and raw["from"] <= raw["to"]:
         return Range(raw["from"], raw["to"])
-    raise CliError(f"{file}: [sweep.set] {name!r}: expected a list of values, or {{ from = LOW, to = HIGH }}")
+    raise SweepError(f"{file}: [sweep.set] {name!r}: expected a list of values, or {{ from = LOW, to = HIGH }}")
 
 
 def make_runs(plan: Plan) -> list[Run]:
@@ -160,7 +160,7 @@ def make_runs(plan: Plan) -> list[Run]:
     if plan.sample is None:
         ranges = [n for n, v in plan.swept.items() if isinstance(v, Range)]
         if ranges:
-            raise CliError(f"{ranges[0]} is a range: ranges go with --sample K (random points)")
+            raise SweepError(f"{ranges[0]} is a range: ranges go with --sample K (random points)")
         points = [dict(zip(names, combo)) for combo in itertools.product(*plan.swept.values())]
     else:
         rng = random.Random(plan.sample_seed)
@@ -180,35 +180,48 @@ def check_against(plan: Plan, system) -> None:
     for name in [*plan.swept, *([plan.seed_param] if plan.seed_param else [])]:
         node, _, path = name.partition(".")
         if node not in system.nodes:
-            raise CliError(f"{name}: no node {node!r} in {system.file} (nodes: {', '.join(system.nodes)})")
+            raise SweepError(f"{name}: no node {node!r} in {system.file} (nodes: {', '.join(system.nodes)})")
         params: Any = system.nodes[node].params
         for key in path.split("."):
             if not isinstance(params, dict) or key not in params:
                 known = ", ".join(params) if isinstance(params, dict) else "none: it is a value"
-                raise CliError(f"{name}: {system.file} gives node {node!r} no parameter {path!r} "
+                raise SweepError(f"{name}: {system.file} gives node {node!r} no parameter {path!r} "
                                f"({key!r} is not among {known})")
             params = params[key]
 
 
 def apply(system, values: dict[str, Any]):
-    """The system with each "node.param[.key...]" of `values` set in its nodes' parameters: a copy,
-    the checked system it came from unchanged (a worker keeps it for its next run)."""
+    """The system with each "node.param[.key...]" of `values` set in its nodes' parameters: a new
+    system whose changed nodes have new declarations, built whole; the checked system it came
+    from, and its declarations, unchanged (a worker keeps it for its next run)."""
     import copy
     import dataclasses
 
-    nodes = dict(system.nodes)
+    params: dict[str, dict] = {}  # node -> its parameters with the values set, a copy of the declared
     for name, value in values.items():
         node, _, path = name.partition(".")
-        if nodes[node] is system.nodes[node]:  # the node's declaration, with its own copy of params
-            spec = nodes[node]
-            nodes[node] = dataclasses.replace(spec, declared=dataclasses.replace(
-                spec.declared, params=copy.deepcopy(dict(spec.params))))
-        table = nodes[node].params
+        table = params.setdefault(node, copy.deepcopy(dict(system.nodes[node].params)))
         *parents, leaf = path.split(".")
         for key in parents:
             table = table[key]
         table[leaf] = value
+    nodes = dict(system.nodes)
+    for node, changed in params.items():
+        spec = nodes[node]
+        nodes[node] = dataclasses.replace(spec, declared=dataclasses.replace(spec.declared, params=changed))
     return dataclasses.replace(system, nodes=nodes)
+
+
+def load_checked(path: str):
+    """The system file at `path`, checked as `iotad run` checks it; `SweepError` listing every
+    problem otherwise."""
+    from iotad.launcher.system_file import SystemFileError, load_system
+
+    try:
+        return load_system(path)
+    except SystemFileError as exc:
+        raise SweepError(str(exc) if len(exc.errors) == 1 else
+                         f"{len(exc.errors)} problems in the system file:\n" + str(exc)) from None
 
 
 def same_plan(plan: Plan, described: dict) -> bool:

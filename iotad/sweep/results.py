@@ -12,8 +12,8 @@ import json
 import os
 from pathlib import Path
 
-from iotad.cli import CliError
-from iotad.cli.sweep_plan import Plan, same_plan
+from iotad.sweep import SweepError
+from iotad.sweep.plan import Plan, same_plan
 
 FORMAT = "iotad-sweep/1"
 TABLE = "results.csv"
@@ -40,21 +40,21 @@ class SweepFolder:
         holding another sweep (or something else) is refused, so that no run is mixed up."""
         described = self.folder / "sweep.json"
         if self.folder.exists() and not self.folder.is_dir():
-            raise CliError(f"-o {self.folder}: is a file; name a folder for the sweep")
+            raise SweepError(f"-o {self.folder}: is a file; name a folder for the sweep")
         if described.exists():
             try:
                 old = json.loads(described.read_text(encoding="utf-8"))
             except (OSError, ValueError) as exc:
-                raise CliError(f"-o {self.folder}: its sweep.json cannot be read ({exc}); choose another folder") from None
+                raise SweepError(f"-o {self.folder}: its sweep.json cannot be read ({exc}); choose another folder") from None
             if not same_plan(plan, old):
-                raise CliError(f"-o {self.folder} holds another sweep (its sweep.json differs: system, parameters, "
+                raise SweepError(f"-o {self.folder} holds another sweep (its sweep.json differs: system, parameters, "
                                "seeds, --until, --timeout or metrics); choose another folder to start this one")
         elif self.folder.is_dir() and any(self.folder.iterdir()):
-            raise CliError(f"-o {self.folder}: not empty and no sweep's folder (no sweep.json); choose another")
+            raise SweepError(f"-o {self.folder}: not empty and no sweep's folder (no sweep.json); choose another")
         try:
             self.runs.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
-            raise CliError(f"-o {self.folder}: cannot create it: {exc.strerror or exc}") from None
+            raise SweepError(f"-o {self.folder}: cannot create it: {exc.strerror or exc}") from None
         if not described.exists():
             self.describe(plan, {})
 
@@ -108,7 +108,7 @@ class SweepFolder:
 
 def read_table(path: str | Path) -> list[dict]:
     """`results.csv` back as rows, numbers as numbers."""
-    from iotad.cli.sweep_plan import parse_value
+    from iotad.sweep.plan import parse_value
 
     with open(path, newline="", encoding="utf-8") as handle:
         return [{name: (parse_value(value) if name not in ("run", "status", "error") and value != "" else value)

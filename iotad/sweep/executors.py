@@ -15,8 +15,8 @@ from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 from typing import Callable
 
-from iotad.cli import CliError
-from iotad.cli.sweep_run import run_one
+from iotad.sweep import SweepError
+from iotad.sweep.run import run_one
 
 Done = Callable[[dict, dict], None]
 
@@ -103,7 +103,7 @@ def run_ray(tasks: list[dict], address: str | None, jobs: int | None, done: Done
     try:
         import ray
     except ImportError:
-        raise CliError("--ray needs Ray: pip install 'iotad[ray]'") from None
+        raise SweepError("--ray needs Ray: pip install 'iotad[ray]'") from None
     started = False
     if not ray.is_initialized():
         options = {"include_dashboard": False, "log_to_driver": False}
@@ -114,7 +114,7 @@ def run_ray(tasks: list[dict], address: str | None, jobs: int | None, done: Done
         try:
             ray.init(**options)
         except (ConnectionError, RuntimeError, ValueError) as exc:
-            raise CliError(f"--ray {address or ''}: cannot start or reach Ray: {exc}".replace("  ", " ")) from None
+            raise SweepError(f"--ray {address or ''}: cannot start or reach Ray: {exc}".replace("  ", " ")) from None
         started = True
     remote = ray.remote(num_cpus=1, max_retries=0)(_ray_run)
     pending = {remote.remote(task): task for task in tasks}

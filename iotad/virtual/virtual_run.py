@@ -1,8 +1,8 @@
-"""`iotad run SYSTEM.toml --virtual`: the system file's IOTAs in one process in virtual time,
-recorded in the same MCAP format as a real-time run, with a progress line on long runs."""
+"""A system's IOTAs in one process in virtual time (`iotad run SYSTEM.toml --virtual`, sweeps,
+scripts): `run_virtual(system, VirtualOptions(until=...))`, recorded in the same MCAP format as a
+real-time run, with a progress line on long runs. Raises `VirtualRunError`, one line for the user."""
 from __future__ import annotations
 
-import argparse
 import contextlib
 import gc
 import json
@@ -11,27 +11,42 @@ import signal
 import sys
 import time
 from collections import Counter
+from dataclasses import dataclass
 from pathlib import Path
 
-from iotad.cli import CliError, claim_recording, drop_empty_claim, output_file
+from iotad.launcher.recording_paths import RecordingClaimError, claim_recording, drop_empty_claim, unwritable
+from iotad.launcher.system_file import System
 from iotad.launcher.violation_examples import ViolationExamples
 
 PROGRESS_EVERY = 1.0  # wall-clock seconds between progress lines
 
 
-def run_virtual(system, args: argparse.Namespace, second_process: bool = True) -> int:
-    """Run `system` as `iotad run --virtual` with `args`; `second_process=False`: the recording is
-    written in this process even with cores to spare (a sweep's runs already use every core)."""
+class VirtualRunError(Exception):
+    """A virtual run that cannot be made as asked, said in one line."""
+
+
+@dataclass(frozen=True)
+class VirtualOptions:
+    """How a system runs in virtual time (`iotad run --virtual`'s options, docs there)."""
+
+    until: float                      # virtual seconds
+    seed: int | None = None           # None: the eager policy; else random(seed)
+    record_to: str | None = None      # None: a new name under recordings/
+    force: bool = False               # replace a recording that is there
+    no_record: bool = False
+    inputs: str | None = None         # an input script (JSONL, times in spec units)
+    plain: bool = False               # no progress line rewritten in place on a terminal
+
+
+def run_virtual(system: System, args: VirtualOptions, second_process: bool = True) -> int:
+    """Run `system` (checked) as `args` say; its exit status (0: the run went to its end).
+    `second_process=False`: the recording is written in this process even with cores to spare
+    (a sweep's runs already use every core)."""
     from iotad.recording.mcap_format import MAX_RECORDED_SECONDS
     from iotad.recording.writer_process import RecordingProcess
 
-    if args.until is None:
-        raise CliError("--virtual needs --until SECONDS (virtual time; the run is as fast as the machine allows)")
-    for option in ("host", "port", "origin", "log_dir"):
-        if getattr(args, option, None) is not None:
-            raise CliError(f"--{option.replace('_', '-')} is for processes over zenoh, not --virtual")
     if not args.no_record and args.until > MAX_RECORDED_SECONDS:
-        raise CliError(f"--until {args.until:g}: a recording holds at most {MAX_RECORDED_SECONDS:.3g} s "
+        raise VirtualRunError(f"--until {args.until:g}: a recording holds at most {MAX_RECORDED_SECONDS:.3g} s "
                        "(its times are 64-bit nanoseconds: 584 years); --no-record runs without one")
     # With a core to spare, the recording is written by a second process (a quarter of the work
     # of a run): started now, its start-up overlaps building the system.
@@ -56,7 +71,7 @@ def cores() -> int:
         return os.cpu_count() or 1
 
 
-def _run(system, args: argparse.Namespace, writer) -> int:
+def _run(system: System, args: VirtualOptions, writer) -> int:
     from iotad.launcher.in_process import compose
     from iotad.kernel.compose import flatten
 
@@ -64,7 +79,7 @@ def _run(system, args: argparse.Namespace, writer) -> int:
     try:
         root = compose(system)
     except Exception as exc:  # noqa: BLE001 - a node that fails to build: the user's message
-        raise CliError(f"{system.file}: cannot compose the system: {type(exc).__name__}: {exc}") from None
+        raise VirtualRunError(f"{system.file}: cannot compose the system: {type(exc).__name__}: {exc}") from None
     # Every input's node is found before a recording is opened (or, with --force, replaced).
     leaves = {leaf.path: leaf for leaf in flatten(root).leaves}
     try:
@@ -86,7 +101,7 @@ def close_nodes(leaves) -> None:
                 pass
 
 
-def _run_composed(system, args: argparse.Namespace, writer, root, leaves: dict, inputs: list) -> int:
+def _run_composed(system: System, args: VirtualOptions, writer, root, leaves: dict, inputs: list) -> int:
     from iotad.kernel.clock import VirtualClock
     from iotad.kernel.engine import Engine
     from iotad.kernel.policy import Eager, Random
@@ -116,17 +131,20 @@ def _run_composed(system, args: argparse.Namespace, writer, root, leaves: dict, 
         claimed = False
         if args.record_to:
             output = Path(args.record_to)
-            output_file(str(output))  # a folder, or a path under a file: one line
+            _output_file(str(output))  # a folder, or a path under a file: one line
             # no other run writes it too; created here: the run may remove it if it writes nothing
-            claimed = claim_recording(str(output), getattr(args, "force", False))
+            try:
+                claimed = claim_recording(str(output), args.force)
+            except RecordingClaimError as exc:
+                raise VirtualRunError(str(exc)) from None
         else:
             output = Path(f"recordings/{system.name}-virtual-{time.strftime('%Y%m%d-%H%M%S')}.mcap")
-            output_file(str(output))
+            _output_file(str(output))
             try:
                 output = unused_recording_path(output, claim=True)
                 claimed = True
             except OSError as exc:
-                raise CliError(f"cannot create {output.parent}: {exc.strerror or exc}") from None
+                raise VirtualRunError(f"cannot create {output.parent}: {exc.strerror or exc}") from None
         try:
             output.parent.mkdir(parents=True, exist_ok=True)
             if writer is not None:
@@ -136,10 +154,10 @@ def _run_composed(system, args: argparse.Namespace, writer, root, leaves: dict, 
                 sink = McapSink(output)
         except OSError as exc:
             drop_empty_claim(output if claimed else None)
-            raise CliError(f"-o {output}: cannot write: {exc.strerror or exc}") from None
+            raise VirtualRunError(f"-o {output}: cannot write: {exc.strerror or exc}") from None
         except WriterFailed as exc:  # "cannot write: ..." in the writer's words, or how it died
             drop_empty_claim(output if claimed else None)
-            raise CliError(f"-o {output}: {exc}") from None
+            raise VirtualRunError(f"-o {output}: {exc}") from None
     policy = Eager() if args.seed is None else Random(args.seed)
     if output is not None:
         header = recording_header(root, system.name, time_unit=system.time_unit, policy=policy,
@@ -248,6 +266,13 @@ def _run_composed(system, args: argparse.Namespace, writer, root, leaves: dict, 
     return 1 if engine.halted or raised else 0
 
 
+def _output_file(path: str) -> None:
+    """Refuse, with one line, an output path that cannot be written: a folder, or one under a file."""
+    problem = unwritable(path)
+    if problem:
+        raise VirtualRunError(f"-o {path}: {problem}")
+
+
 class _Stop:
     """Whether a Ctrl-C asked the run to stop (true once one came)."""
 
@@ -295,7 +320,7 @@ def _input_path(name: str | None, root: str, leaves, script: str) -> str | None:
     if full in leaves:
         return full
     nodes = sorted({path[len(root) + 1:].split("/")[0] for path in leaves if path.startswith(root + "/")})
-    raise CliError(f"--inputs {script}: no node {name!r} in this system (nodes: {', '.join(nodes)}; "
+    raise VirtualRunError(f"--inputs {script}: no node {name!r} in this system (nodes: {', '.join(nodes)}; "
                    f"an external input is {{\"action\": \"NODE.CHANNEL\"}}, as `external` names it)")
 
 
@@ -310,7 +335,7 @@ def _external_entry(entry: dict, system, script: str) -> dict:
         if action == str(port) or (action == f"{port.node}.{port.channel}" and index in (None, port.index)):
             return dict(entry, iota=port.node, action=port.channel, index=port.index)
     known = ", ".join(sorted(str(port) for port in system.external)) or "none"
-    raise CliError(f"--inputs {script}: {{\"action\": {json.dumps(action)}}} without \"iota\" must be one of "
+    raise VirtualRunError(f"--inputs {script}: {{\"action\": {json.dumps(action)}}} without \"iota\" must be one of "
                    f"the system's external inputs ({known}); or name the node: "
                    f"{{\"iota\": \"NODE\", \"action\": \"CHANNEL\"}}")
 
@@ -322,8 +347,8 @@ def _read_inputs(path: str) -> list[dict]:
     try:
         return parse_script(read_text_file(path).splitlines(), path)
     except OSError as exc:
-        raise CliError(f"--inputs {path}: cannot read: {exc.strerror or exc}") from None
+        raise VirtualRunError(f"--inputs {path}: cannot read: {exc.strerror or exc}") from None
     except UnicodeDecodeError:
-        raise CliError(f"--inputs {path}: not UTF-8 text") from None
+        raise VirtualRunError(f"--inputs {path}: not UTF-8 text") from None
     except ScriptError as exc:
-        raise CliError(f"--inputs {exc}") from None
+        raise VirtualRunError(f"--inputs {exc}") from None
