@@ -9,7 +9,7 @@ import time
 
 from iotad.cli import key_expression, nonnegative_float, nonnegative_int, positive_float
 
-from .ls import add_connect, tool_session
+from iotad.cli.live import add_connect, tool_session
 
 ORDER = 42
 

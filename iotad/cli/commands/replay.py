@@ -62,7 +62,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from iotad.cli import CliError
-    from iotad.cli.commands.info import load
+    from iotad.cli.recordings import load
     from iotad.recording.mcap_format import RecordingError
     from iotad.recording.replay import default_tolerance, replay_node
 

@@ -10,7 +10,7 @@ import sys
 import time
 
 from iotad.cli import positive_float
-from iotad.cli.commands.ls import add_connect, tool_session
+from iotad.cli.live import add_connect, tool_session
 
 ORDER = 45
 

@@ -10,7 +10,7 @@ import sys
 import time
 
 from iotad.cli import CliError, port, positive_float
-from iotad.cli.commands.ls import add_connect, tool_session
+from iotad.cli.live import add_connect, tool_session
 
 ORDER = 46
 
@@ -58,7 +58,7 @@ def run(args: argparse.Namespace) -> int:
         import foxglove
     except ImportError:
         raise CliError("iotad view needs foxglove-sdk: pip install 'foxglove-sdk>=0.14'") from None
-    from iotad.cli.foxglove_bridge import Bridge
+    from iotad.recording.foxglove_live import Bridge
 
     if args.host not in ("127.0.0.1", "localhost", "::1"):
         print(f"iotad view: warning: listening on {args.host}: anyone who reaches it sees the system "
