@@ -50,7 +50,7 @@ from iotad.launcher.agent_lines import KeptLines
 from iotad.launcher.code_by_hash import CodeCache, CodeError, localize
 from iotad.launcher.fleet_wire import CODE_PREFIX, agent_key, code_key, digest, launcher_user
 from iotad.launcher.processes import wrapped_argv
-from iotad.launcher.run_system import RunOptions
+from iotad.launcher.options import RunOptions
 
 RUN_LOGS_KEPT = 20  # the lines of this many runs are kept under the work folder's logs/
 

@@ -12,15 +12,13 @@ import json
 import threading
 import time
 from pathlib import Path
-from typing import TYPE_CHECKING, Callable
+from typing import Callable
 
 from iotad.launcher.agent_lines import KEPT, HeardLines
 from iotad.launcher.code_by_hash import named_files
 from iotad.launcher.fleet_wire import AGENT_PREFIX, CODE_PREFIX, agent_key, digest
-
-if TYPE_CHECKING:  # the options are the run's, which builds the fleet: no import at run time
-    from iotad.launcher.run_system import RunOptions
-    from iotad.launcher.system_model import System
+from iotad.launcher.options import RunOptions
+from iotad.launcher.system_model import System
 
 
 class FleetError(Exception):

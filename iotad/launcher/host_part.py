@@ -17,7 +17,8 @@ def run_part(part: dict) -> int:
     """Run the part `part` describes (the JSON of PART.json); raises `SystemFileError`, `RunError`
     or ValueError with one line."""
     from iotad.launcher.declaration import parse_declaration
-    from iotad.launcher.run_system import RunOptions, run_real_time
+    from iotad.launcher.options import RunOptions
+    from iotad.launcher.run_system import run_real_time
     from iotad.launcher.system_file import SystemFileError, check_system
 
     text, path, files = part.get("system"), part.get("path"), part.get("files", {})

@@ -1,11 +1,55 @@
-"""What a launcher is told before it runs, as three frozen objects passed in whole: how to launch
-(`LaunchOptions`), what to record (`RecordingOptions`, or None: no recording) and whether to guard
-the hub (`AccessOptions`, or None: zenoh's defaults, no authentication). `iotad run` builds them
-from its command line (`cli/commands/run.py`); tests build them directly."""
+"""What a run is told, as frozen objects passed in whole: a host's run as `iotad run` asks it, and
+as the hub orders each other host's agent to run its part (`RunOptions`, JSON on the wire); and
+what its launcher is told before it runs: how to launch (`LaunchOptions`), what to record
+(`RecordingOptions`, or None: no recording) and whether to guard the hub (`AccessOptions`, or
+None: zenoh's defaults, no authentication). `run_system.run_real_time` builds the launcher's from
+a `RunOptions`; tests build them directly."""
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import Any, Callable
+
+
+@dataclass(frozen=True)
+class RunOptions:
+    """How one host's part of a system runs in real time (`iotad run`'s options, docs there)."""
+
+    host: str | None = None           # the host whose nodes run here (None: the hub's, or all)
+    port: int | None = None           # the hub's port instead of the file's (0: any free one)
+    until: float | None = None        # wall seconds from the launch (or from every node live)
+    after_live: bool = False
+    origin: float | None = None       # the run's origin, wall time (a host joining the hub's run)
+    log_dir: str | None = None
+    plain: bool = False               # plain event lines even on a terminal
+    record_to: str | None = None      # the recording (None: a new name under recordings/)
+    no_record: bool = False
+    force: bool = False
+    max_size: int | None = None
+    max_duration: float | None = None
+    local: bool = False               # every host's nodes on this machine, no agents
+    certs: str | None = None
+    agent_timeout: float | None = None
+    insecure: bool = False
+
+    def to_json(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+    @classmethod
+    def from_json(cls, data: Any) -> RunOptions:
+        """The options `data` (a run order's) holds; ValueError in one line where it is no such thing."""
+        if not isinstance(data, dict):
+            raise ValueError("a run's options must be a JSON object")
+        fields = {f.name: f for f in dataclasses.fields(cls)}
+        unknown = sorted(set(data) - set(fields))
+        if unknown:
+            raise ValueError(f"a run's options name unknown option(s) {', '.join(unknown)}")
+        for name, value in data.items():
+            wanted = {"bool": (bool,), "str | None": (str, type(None)), "int | None": (int, type(None)),
+                      "float | None": (int, float, type(None))}[fields[name].type]
+            if not isinstance(value, wanted) or (isinstance(value, bool) and bool not in wanted):
+                raise ValueError(f"a run's option {name} must be {fields[name].type}, got {value!r}")
+        return cls(**data)
 
 
 @dataclass(frozen=True)

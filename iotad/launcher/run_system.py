@@ -1,63 +1,21 @@
-"""A system run in real time, as the library does it: the run's options (`RunOptions`: what
-`iotad run` parses, and what the hub's run orders each other host's agent to run), the access
+"""A system run in real time, as the library does it: with its options (`options.RunOptions`:
+what `iotad run` parses, and what the hub's run orders each other host's agent to run), the access
 control it decides, the other hosts' agents it starts (`Fleet`), the recording's name it claims,
 and the launcher it runs. Raises `RunError`, one line for the user; the CLI only prints it."""
 from __future__ import annotations
 
-import dataclasses
 import os
 import sys
 import time
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
+from iotad.launcher.options import RunOptions
 from iotad.launcher.system_file import System, with_port
 
 
 class RunError(Exception):
     """A run that cannot start (or go on) as asked, said in one line."""
-
-
-@dataclass(frozen=True)
-class RunOptions:
-    """How one host's part of a system runs in real time (`iotad run`'s options, docs there)."""
-
-    host: str | None = None           # the host whose nodes run here (None: the hub's, or all)
-    port: int | None = None           # the hub's port instead of the file's (0: any free one)
-    until: float | None = None        # wall seconds from the launch (or from every node live)
-    after_live: bool = False
-    origin: float | None = None       # the run's origin, wall time (a host joining the hub's run)
-    log_dir: str | None = None
-    plain: bool = False               # plain event lines even on a terminal
-    record_to: str | None = None      # the recording (None: a new name under recordings/)
-    no_record: bool = False
-    force: bool = False
-    max_size: int | None = None
-    max_duration: float | None = None
-    local: bool = False               # every host's nodes on this machine, no agents
-    certs: str | None = None
-    agent_timeout: float | None = None
-    insecure: bool = False
-
-    def to_json(self) -> dict[str, Any]:
-        return dataclasses.asdict(self)
-
-    @classmethod
-    def from_json(cls, data: Any) -> RunOptions:
-        """The options `data` (a run order's) holds; ValueError in one line where it is no such thing."""
-        if not isinstance(data, dict):
-            raise ValueError("a run's options must be a JSON object")
-        fields = {f.name: f for f in dataclasses.fields(cls)}
-        unknown = sorted(set(data) - set(fields))
-        if unknown:
-            raise ValueError(f"a run's options name unknown option(s) {', '.join(unknown)}")
-        for name, value in data.items():
-            wanted = {"bool": (bool,), "str | None": (str, type(None)), "int | None": (int, type(None)),
-                      "float | None": (int, float, type(None))}[fields[name].type]
-            if not isinstance(value, wanted) or (isinstance(value, bool) and bool not in wanted):
-                raise ValueError(f"a run's option {name} must be {fields[name].type}, got {value!r}")
-        return cls(**data)
 
 
 def run_real_time(system: System, options: RunOptions, *, view: Callable[[Any, str], Any] | None = None,

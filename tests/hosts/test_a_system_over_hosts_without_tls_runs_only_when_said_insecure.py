@@ -8,7 +8,8 @@ import sys
 from launcher_helpers import ROOT
 from namespaces import split_figure2
 
-from iotad.launcher.run_system import RunOptions, fleet_for
+from iotad.launcher.options import RunOptions
+from iotad.launcher.run_system import fleet_for
 from iotad.launcher.system_file import load_system
 
 

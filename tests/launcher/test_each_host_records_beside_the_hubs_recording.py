@@ -7,7 +7,8 @@ from pathlib import Path
 import pytest
 
 from namespaces import split_figure2
-from iotad.launcher.run_system import RunOptions, fleet_for
+from iotad.launcher.options import RunOptions
+from iotad.launcher.run_system import fleet_for
 from iotad.launcher.system_file import load_system
 from iotad.launcher.host_recording import host_recording_path, local_endpoints, pinned
 

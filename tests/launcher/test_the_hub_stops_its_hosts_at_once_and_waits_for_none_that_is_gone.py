@@ -10,7 +10,7 @@ import zenoh
 
 from launcher_helpers import ROOT, wait_until
 from iotad.launcher.fleet import Fleet
-from iotad.launcher.run_system import RunOptions
+from iotad.launcher.options import RunOptions
 from iotad.launcher.system_file import load_system
 
 

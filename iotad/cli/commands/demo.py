@@ -46,7 +46,8 @@ def run(args: argparse.Namespace) -> int:
 def run_processes(args: argparse.Namespace) -> int:
     from iotad.cli import CliError, load_checked
     from iotad.host.transport import DEFAULT_HUB_ENDPOINT
-    from iotad.launcher.run_system import RunError, RunOptions, run_real_time
+    from iotad.launcher.options import RunOptions
+    from iotad.launcher.run_system import RunError, run_real_time
 
     system = load_checked(str(EXAMPLES / "figure2.toml"))
     port = args.port

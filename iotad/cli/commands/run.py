@@ -165,7 +165,7 @@ def virtual(system, args: argparse.Namespace) -> int:
 
 def options_of(args: argparse.Namespace):
     """The library's options of a real-time run, from `iotad run`'s command line."""
-    from iotad.launcher.run_system import RunOptions
+    from iotad.launcher.options import RunOptions
 
     return RunOptions(host=args.host, port=args.port, until=args.until, after_live=args.after_live, origin=args.origin,
                       log_dir=args.log_dir, plain=args.plain, record_to=args.record_to, no_record=args.no_record,
