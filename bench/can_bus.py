@@ -384,8 +384,8 @@ def motor_loop(seconds: float, rate: float = RATE, port: int = 7447, protocol: s
 def virtual_arm(seconds: float = 5.0) -> dict:
     """Part 3: examples/arm_can.toml in one process in virtual time."""
     from iotad.kernel.engine import Engine
-    from iotad.launcher.in_process import compose
-    from iotad.launcher.system_file import load_system
+    from iotad.launcher.system.in_process import compose
+    from iotad.launcher.system.system_file import load_system
 
     engine = Engine(compose(load_system(ROOT / "examples" / "arm_can.toml")))
     try:

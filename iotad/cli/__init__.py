@@ -13,7 +13,7 @@ import sys
 import textwrap
 
 from iotad import __version__
-from iotad.launcher.recording_paths import drop_empty_claim, is_regular_file  # noqa: F401 - as commands know them
+from iotad.launcher.run.recording_paths import drop_empty_claim, is_regular_file  # noqa: F401 - as commands know them
 
 from . import commands
 
@@ -136,7 +136,7 @@ def byte_size(text: str) -> int:
 
 def load_checked(path: str):
     """The system file at `path`, checked (`load_system`); a `CliError` listing every problem otherwise."""
-    from iotad.launcher.system_file import SystemFileError, load_system
+    from iotad.launcher.system.system_file import SystemFileError, load_system
 
     try:
         return load_system(path)
@@ -147,7 +147,7 @@ def load_checked(path: str):
 
 def output_file(path: str, option: str = "-o") -> None:
     """Refuse, with one line, an output path that cannot be written: a folder, or one under a file."""
-    from iotad.launcher.recording_paths import unwritable
+    from iotad.launcher.run.recording_paths import unwritable
 
     problem = unwritable(path)
     if problem:
@@ -156,7 +156,7 @@ def output_file(path: str, option: str = "-o") -> None:
 
 def new_recording(path: str, force: bool, option: str = "-o") -> None:
     """Refuse, with one line, to write a recording over one that is already there, unless `force`."""
-    from iotad.launcher.recording_paths import RecordingClaimError, new_recording as check
+    from iotad.launcher.run.recording_paths import RecordingClaimError, new_recording as check
 
     try:
         check(path, force, option)
@@ -177,7 +177,7 @@ def not_its_own_file(path: str, recording, option: str = "-o") -> None:
 
 def claim_recording(path: str, force: bool, option: str = "-o") -> bool:
     """The recording's name claimed (`recording_paths.claim_recording`), or one line saying why not."""
-    from iotad.launcher.recording_paths import RecordingClaimError, claim_recording as claim
+    from iotad.launcher.run.recording_paths import RecordingClaimError, claim_recording as claim
 
     try:
         return claim(path, force, option)

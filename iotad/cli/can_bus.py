@@ -16,7 +16,7 @@ def live_bus(args: argparse.Namespace):
     if args.source:
         if args.interface or args.channel:
             raise CliError("give a system file or --interface/--channel, not both")
-        from iotad.launcher.system_file import SystemFileError, load_system
+        from iotad.launcher.system.system_file import SystemFileError, load_system
 
         try:
             system = load_system(args.source)

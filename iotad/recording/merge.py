@@ -395,7 +395,7 @@ def _schema(name: str, schema: dict) -> Schema:
 
 def _node_hosts(recording: Recording) -> dict[str, str | None]:
     """node path -> its host, as the recorded system file says (bus loggers included)."""
-    from iotad.launcher.declaration import SystemFileError
+    from iotad.launcher.system.declaration import SystemFileError
     from iotad.recording.recorded_system import recorded_declaration
 
     try:
@@ -408,7 +408,7 @@ def _node_hosts(recording: Recording) -> dict[str, str | None]:
 
 
 def _hub_host(recording: Recording) -> str | None:
-    from iotad.launcher.declaration import SystemFileError
+    from iotad.launcher.system.declaration import SystemFileError
     from iotad.recording.recorded_system import recorded_declaration
 
     try:

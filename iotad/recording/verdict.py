@@ -157,7 +157,7 @@ def _never_ran(recording, specs: dict, unchecked: list[str]) -> list[str]:
     """Nodes of the recorded system file (a real-time run's system.toml) that the recording holds
     nothing of, where it was made to hold them (its key expressions cover their @trace)."""
     from iotad.host import wire
-    from iotad.launcher.declaration import SystemFileError
+    from iotad.launcher.system.declaration import SystemFileError
     from iotad.host.wire import keyexpr_matches
     from iotad.recording.recorded_system import recorded_declaration
 

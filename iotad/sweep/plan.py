@@ -9,7 +9,6 @@ import itertools
 import json
 import math
 import random
-import tomllib
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -105,13 +104,13 @@ def parse_set(text: str, sample: bool) -> tuple[str, list | Range]:
 def read_sweep_file(path: Path) -> dict | None:
     """A sweep file's `[sweep]` table, with `system` made absolute; None for a system file (one
     with nodes): a sweep file names its system, a system file is one."""
-    from iotad.kernel.text_file import read_text_file
+    from iotad.launcher.system.declaration import read_toml
 
     try:
-        data = tomllib.loads(read_text_file(path))
+        data = read_toml(path)
     except OSError as exc:
         raise SweepError(f"{path}: cannot read: {exc.strerror or exc}") from None
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+    except ValueError as exc:  # TOML, UTF-8, or an integer of thousands of digits
         raise SweepError(f"{path}: not valid TOML: {exc}") from None
     table = data.get("sweep")
     if "node" in data or not isinstance(table, dict) or "system" not in table:
@@ -215,7 +214,7 @@ def apply(system, values: dict[str, Any]):
 def load_checked(path: str):
     """The system file at `path`, checked as `iotad run` checks it; `SweepError` listing every
     problem otherwise."""
-    from iotad.launcher.system_file import SystemFileError, load_system
+    from iotad.launcher.system.system_file import SystemFileError, load_system
 
     try:
         return load_system(path)

@@ -14,9 +14,9 @@ from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
 
-from iotad.launcher.recording_paths import RecordingClaimError, claim_recording, drop_empty_claim, unwritable
-from iotad.launcher.system_file import System
-from iotad.launcher.violation_examples import ViolationExamples
+from iotad.launcher.run.recording_paths import RecordingClaimError, claim_recording, drop_empty_claim, unwritable
+from iotad.launcher.system.system_file import System
+from iotad.launcher.run.violation_examples import ViolationExamples
 
 PROGRESS_EVERY = 1.0  # wall-clock seconds between progress lines
 
@@ -72,7 +72,7 @@ def cores() -> int:
 
 
 def _run(system: System, args: VirtualOptions, writer) -> int:
-    from iotad.launcher.in_process import compose
+    from iotad.launcher.system.in_process import compose
     from iotad.kernel.compose import flatten
 
     inputs = _read_inputs(args.inputs) if args.inputs else []
@@ -105,7 +105,7 @@ def _run_composed(system: System, args: VirtualOptions, writer, root, leaves: di
     from iotad.kernel.clock import VirtualClock
     from iotad.kernel.engine import Engine
     from iotad.kernel.policy import Eager, Random
-    from iotad.launcher.recording_paths import unused_recording_path
+    from iotad.launcher.run.recording_paths import unused_recording_path
     from iotad.recording.engine_sink import EngineRecorder, recording_header
     from iotad.recording.mcap_format import RUN_END, RUN_ERROR
     from iotad.recording.mcap_sink import McapSink

@@ -9,7 +9,7 @@ import pytest
 from iotad.host.node_config import ConfigError, parse
 from iotad.host.peer_restart import notice_values, peers_of
 from iotad.kernel.types import Enum
-from iotad.launcher.system_file import load_system
+from iotad.launcher.system.system_file import load_system
 
 ROOT = Path(__file__).resolve().parents[2]
 

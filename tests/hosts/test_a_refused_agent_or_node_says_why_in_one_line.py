@@ -20,7 +20,7 @@ from launcher_helpers import ROOT
 from iotad.host import agent_secret, certificates
 from iotad.host.certificates import CertificateError
 from iotad.host.transport import free_port
-from iotad.launcher.agent import Agent, AgentError
+from iotad.launcher.hosts.agent import Agent, AgentError
 
 
 @pytest.fixture
@@ -85,7 +85,7 @@ def test_an_agent_keeps_its_hosts_credentials_private_for_the_run_and_removes_th
         time.sleep(0.05)
     seen = json.loads(next(payload["line"] for part, payload in published if part == "log"))
     # a typed order, no command line: the host's part, with its launcher's options
-    assert seen["user"] == "iotad-launcher-arm" and seen["args"][:2] == ["-m", "iotad.launcher.host_part"]
+    assert seen["user"] == "iotad-launcher-arm" and seen["args"][:2] == ["-m", "iotad.launcher.run.host_part"]
     assert seen["part"]["run"]["no_record"] is True and seen["part"]["run"]["host"] == "arm"
     assert seen["part"]["system"] == system.read_text() and "credentials" not in seen["part"]
     assert seen["folder_mode"] == "0o700" and seen["modes"] == ["0o600"]

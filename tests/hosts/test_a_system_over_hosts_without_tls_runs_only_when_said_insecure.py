@@ -9,8 +9,8 @@ from launcher_helpers import ROOT
 from namespaces import split_figure2
 
 from iotad.launcher.options import RunOptions
-from iotad.launcher.run_system import fleet_for
-from iotad.launcher.system_file import load_system
+from iotad.launcher.run.run_system import fleet_for
+from iotad.launcher.system.system_file import load_system
 
 
 def iotad(*args: str) -> subprocess.CompletedProcess:

@@ -31,10 +31,10 @@ from iotad.host import certificates, wire
 from iotad.host.credentials import CredentialStore
 from iotad.host.session_close import close_session
 from iotad.host.transport import open_session
-from iotad.launcher.access_control import AccessControl
-from iotad.launcher.access_policy import RECORDER_USER, node_user
-from iotad.launcher.host_access import launcher_user, router_zid, zenoh_mode
-from iotad.launcher.system_file import load_system
+from iotad.launcher.access.access_control import AccessControl
+from iotad.launcher.access.access_policy import RECORDER_USER, node_user
+from iotad.launcher.access.host_access import launcher_user, router_zid, zenoh_mode
+from iotad.launcher.system.system_file import load_system
 
 import zenoh
 

@@ -8,9 +8,9 @@ import pytest
 
 from namespaces import split_figure2
 from iotad.launcher.options import RunOptions
-from iotad.launcher.run_system import fleet_for
-from iotad.launcher.system_file import load_system
-from iotad.launcher.host_recording import host_recording_path, local_endpoints, pinned
+from iotad.launcher.run.run_system import fleet_for
+from iotad.launcher.system.system_file import load_system
+from iotad.launcher.hosts.host_recording import host_recording_path, local_endpoints, pinned
 
 
 @pytest.mark.parametrize("given, arm", [

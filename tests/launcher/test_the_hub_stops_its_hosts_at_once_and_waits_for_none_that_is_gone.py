@@ -2,16 +2,16 @@
 one after another, and stops waiting for a host whose agent is gone (a host cut off: zenoh's
 lease ran out and its liveliness token went; its agent stops its part when it finds the hub gone)
 or when a second Ctrl-C says hurry. Before, the hub asked each host in turn and waited up to 20 s
-for each, a cut-off host's full 20 s included. The hub's side (iotad/launcher/fleet.py) with its
+for each, a cut-off host's full 20 s included. The hub's side (iotad/launcher/hosts/fleet.py) with its
 agents' answers played by the test."""
 import threading
 
 import zenoh
 
 from launcher_helpers import ROOT, wait_until
-from iotad.launcher.fleet import Fleet
+from iotad.launcher.hosts.fleet import Fleet
 from iotad.launcher.options import RunOptions
-from iotad.launcher.system_file import load_system
+from iotad.launcher.system.system_file import load_system
 
 
 class TokenGone:

@@ -10,7 +10,7 @@ import time
 from pathlib import Path
 
 from iotad.host.transport import free_port
-from iotad.launcher.system_file import load_system
+from iotad.launcher.system.system_file import load_system
 from iotad.recording.mcap_reader import read_recording
 
 ROOT = Path(__file__).resolve().parents[2]

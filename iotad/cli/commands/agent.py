@@ -48,7 +48,7 @@ def run(args: argparse.Namespace) -> int:
     from iotad.cli import CliError
     from iotad.host import agent_secret
     from iotad.host.certificates import CertificateError, use
-    from iotad.launcher.agent import main
+    from iotad.launcher.hosts.agent import main
 
     tls, secret = None, None
     if args.certs:

@@ -47,7 +47,7 @@ def run_processes(args: argparse.Namespace) -> int:
     from iotad.cli import CliError, load_checked
     from iotad.host.transport import DEFAULT_HUB_ENDPOINT
     from iotad.launcher.options import RunOptions
-    from iotad.launcher.run_system import RunError, run_real_time
+    from iotad.launcher.run.run_system import RunError, run_real_time
 
     system = load_checked(str(EXAMPLES / "figure2.toml"))
     port = args.port
@@ -101,7 +101,7 @@ def run_virtual(args: argparse.Namespace) -> int:
     from iotad.kernel.compose import Composite
     from iotad.kernel.engine import Engine
     from iotad.cli import load_checked
-    from iotad.launcher.system_file import instantiate
+    from iotad.launcher.system.system_file import instantiate
 
     system = load_checked(str(EXAMPLES / "figure2.toml"))
     components = [instantiate(node) for node in system.nodes.values()]

@@ -205,7 +205,7 @@ def _check_system_file(path: str, whole: bool = True) -> None:
     shape), so that the recorder starts at once, beside a system already starting, and imports
     no robot code."""
     from iotad.cli import CliError
-    from iotad.launcher.system_file import SystemFileError, load_system
+    from iotad.launcher.system.system_file import SystemFileError, load_system
 
     try:
         load_system(path, check=whole)

@@ -116,8 +116,8 @@ def run(args: argparse.Namespace) -> int:
         buses = f", {len(system.buses)} CAN bus(es)" if system.buses else ""
         print(f"{system.file}: ok: system {system.name!r}, {len(system.nodes)} nodes, "
               f"{inputs} channel bindings, {len(system.external)} external inputs{buses}")
-        from iotad.launcher.host_access import hub_policy
-        from iotad.launcher.host_router import HostRouter
+        from iotad.launcher.access.host_access import hub_policy
+        from iotad.launcher.access.host_router import HostRouter
 
         others = list(dict.fromkeys(n.host for n in system.nodes.values() if n.host and n.host != system.hub_host))
         if others:  # as `run_system.access_for` decides for the run
@@ -176,7 +176,7 @@ def options_of(args: argparse.Namespace):
 def launch(system, args: argparse.Namespace) -> int:
     """Run `system` in real time as `args` say (the library's `run_real_time`); errors as one line."""
     from iotad.cli import CliError
-    from iotad.launcher.run_system import RunError, run_real_time
+    from iotad.launcher.run.run_system import RunError, run_real_time
 
     if args.view is not None:
         _view_port_free(args.view)

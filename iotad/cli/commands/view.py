@@ -45,7 +45,7 @@ def run(args: argparse.Namespace) -> int:
 
     if args.system_file:
         from iotad.host.transport import reachable
-        from iotad.launcher.system_file import SystemFileError, load_system
+        from iotad.launcher.system.system_file import SystemFileError, load_system
 
         try:
             system = load_system(args.system_file)

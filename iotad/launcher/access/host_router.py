@@ -6,7 +6,7 @@ over TLS as the host's launcher user (docs/hosts.md, "The recording").
 Why: the host's nodes and recorder are its clients, so while the link to the hub is cut they
 still reach each other and the recorder hears everything they do. The hub sees the router's
 link as the launcher user, whose grant holds what the host's nodes may do and nothing more
-(`iotad.launcher.host_access`); the host's recorder may read every key here, but the hub denies
+(`iotad.launcher.access.host_access`); the host's recorder may read every key here, but the hub denies
 its wider subscriptions, so only what the host's nodes read crosses the link.
 
 Measured with zenoh 1.10 (two sessions, a unix socket and a TLS link): one `transport/auth/usrpwd`
@@ -22,9 +22,9 @@ from pathlib import Path
 from typing import Any
 
 from iotad.host.credentials import Credentials, CredentialStore
-from iotad.launcher.access_policy import RECORDER_USER, Grant, Policy, derive
-from iotad.launcher.host_access import across_hosts_settings, launcher_grant, router_zid, routed_users, zenoh_mode
-from iotad.launcher.system_file import System
+from iotad.launcher.access.access_policy import RECORDER_USER, Grant, Policy, derive
+from iotad.launcher.access.host_access import across_hosts_settings, launcher_grant, router_zid, routed_users, zenoh_mode
+from iotad.launcher.system.system_file import System
 
 # every kind of message a link carries: the hub's own access control judges them
 _EVERY_MESSAGE = ["put", "delete", "declare_subscriber", "declare_queryable", "query", "reply",

@@ -1,9 +1,9 @@
 """The lines of a host's run, numbered, so that the hub gets the ones a network cut kept from it.
 
-An agent (iotad/launcher/agent.py) relays every line its run prints to the hub as it comes, and
+An agent (iotad/launcher/hosts/agent.py) relays every line its run prints to the hub as it comes, and
 a line relayed while the host is cut off reaches nobody: zenoh drops a publication with no route.
 So each line is numbered within its run and the agent keeps the last `KEPT` of them
-(`KeptLines`). The hub (iotad/launcher/fleet.py) notes the numbers it heard (`HeardLines`): a
+(`KeptLines`). The hub (iotad/launcher/hosts/fleet.py) notes the numbers it heard (`HeardLines`): a
 number past the next one, the agent coming back, or the run's exit naming more lines than the
 hub heard, is a gap, and the hub asks the agent for the lines after the last it heard
 (`.../lines?after=N`) and prints them marked as late. Lines the agent no longer keeps are

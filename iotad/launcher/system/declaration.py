@@ -5,13 +5,13 @@
 
 Parsing reads the TOML (this is the one module of iotad that does), checks the shape of every
 entry (keys, names, numbers, endpoints, hosts, buses, `after`) and adds the implicit nodes: one
-bus logger per `[[can]]` bus that logs (`launcher/bus_logger.py` says why). Problems are
+bus logger per `[[can]]` bus that logs (`launcher/system/bus_logger.py` says why). Problems are
 collected in `errors`, one line per problem naming the file and the entry; what parsed is kept,
 so that a reader of a recorded copy (recorder, delivery check, plots, `iotad check`) gets what
 it can. Checking the declaration against the nodes' IOTAs (channel tables, types, switching
-times, families) is `launcher/system_file.py`'s `load_system`, a separate step.
+times, families) is `launcher/system/system_file.py`'s `load_system`, a separate step.
 
-The file format is documented in `launcher/system_file.py` and docs/system-file.md.
+The file format is documented in `launcher/system/system_file.py` and docs/system-file.md.
 """
 from __future__ import annotations
 
@@ -107,11 +107,11 @@ class CanBusSpec:
     stations: list[str] = field(default_factory=list)
     options: dict[str, Any] = field(default_factory=dict)
     entry: str = ""
-    log: bool = True  # real time: a bus logger node named after the bus (iotad/launcher/bus_logger.py)
+    log: bool = True  # real time: a bus logger node named after the bus (iotad/launcher/system/bus_logger.py)
 
     def port_config(self) -> dict[str, Any]:
         """The node host's `can` config (docs/internals.md): what it opens with python-can."""
-        from iotad.launcher.can_env import resolved
+        from iotad.launcher.system.can_env import resolved
         interface, channel = resolved(self.interface, self.channel)  # interface = "env": the environment's
         return {"bus": self.name, "interface": interface, "channel": channel,
                 "bitrate": self.bitrate, "options": dict(self.options)}
@@ -120,7 +120,7 @@ class CanBusSpec:
 @dataclass(frozen=True)
 class Ros2Decl:
     """One `[[ros2]]` table: a channel mapped to a ROS 2 topic, checked with the channels
-    (`launcher/ros2_tables.py`, docs/ros2.md); `table` is all of it as written."""
+    (`launcher/system/ros2_tables.py`, docs/ros2.md); `table` is all of it as written."""
 
     entry: str                       # how messages name it: '[[ros2]] #1 (topic="/cmd")'
     channel: Any                     # "node.channel[k]" (or what the file holds)
@@ -163,7 +163,7 @@ class Declaration:
     # seconds between two measurements of a host's clock against the hub's during a run
     clock_period: float = 10.0
     # seconds without setpoints from another host before a node that watches its link (a CAN motor
-    # node's `link_timeout`) stops its motors; 0: no such watch (iotad/launcher/link_watch.py)
+    # node's `link_timeout`) stops its motors; 0: no such watch (iotad/launcher/system/link_watch.py)
     link_timeout: float = 0.06
     deadline_tolerance: float = 0.002  # seconds a firing may be late before it is a deadline miss
     arrival_tolerance: float = 0.002   # seconds an input may be early (jitter) against its switching time
@@ -212,11 +212,18 @@ class Declaration:
         return [reachable(endpoint) for endpoint in self.listen]
 
 
+def read_toml(path: str | Path) -> dict[str, Any]:
+    """The TOML data of the file at `path` as it is written, checked for nothing: for a sweep file
+    (`iotad sweep`), which may be a system file too. This module is the one place iotad parses
+    TOML. Raises OSError, or ValueError where the file is no UTF-8 TOML."""
+    return tomllib.loads(read_text_file(path))
+
+
 def read_declaration(path: str | Path, files: Mapping[str, str] | None = None) -> Declaration:
     """The declaration of the system file at `path`; raises `SystemFileError` where it cannot be
     read or is no TOML (a declaration that parsed with errors lists them in `errors`). `files`:
     where this machine has a file the system file names (name as written -> path; an agent's
-    run of the hub's file, iotad/launcher/code_by_hash.py)."""
+    run of the hub's file, iotad/launcher/hosts/code_by_hash.py)."""
     path = Path(path)
     try:
         text = read_text_file(path)

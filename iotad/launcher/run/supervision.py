@@ -14,10 +14,10 @@ output (its stderr) and keeps the other nodes running, unless the node is `requi
 case it stops the whole system (exit status 1). The recorder is watched like a node: if it dies,
 the cut-short file is named (`iotad recover` makes it whole) and a new recorder continues in a
 new file; a recording that cannot go on is reported and makes the exit status 1, never silent
-(`iotad.launcher.recorder_supervision`).
+(`iotad.launcher.run.recorder_supervision`).
 
 Its options come in three frozen objects (`iotad.launcher.options`); what it knows of each node
-is a `NodeRun` in a `NodeState` (`iotad.launcher.node_run`).
+is a `NodeRun` in a `NodeState` (`iotad.launcher.run.node_run`).
 """
 from __future__ import annotations
 
@@ -40,13 +40,13 @@ from iotad.host.clock_offset import ClockServer
 from iotad.kernel.clock import steady_wall, wall
 from iotad.host.node_config import CONFIGURATION_ERROR
 from iotad.host.stop_signals import Flag
-from iotad.launcher.access_control import AccessControl
-from iotad.launcher.node_run import NodeRun, NodeState
+from iotad.launcher.access.access_control import AccessControl
+from iotad.launcher.run.node_run import NodeRun, NodeState
 from iotad.launcher.options import AccessOptions, LaunchOptions, RecordingOptions
 from iotad.launcher.processes import FAILED_TO_START, Child, RestartPolicy, describe_exit, log_tail, stop_all
-from iotad.launcher.recorder_supervision import RECORDER_STALL, RecorderSupervisor, RecordingError
-from iotad.launcher.system_file import Port, System, with_port
-from iotad.launcher.violation_examples import ViolationExamples
+from iotad.launcher.run.recorder_supervision import RECORDER_STALL, RecorderSupervisor, RecordingError
+from iotad.launcher.system.system_file import Port, System, with_port
+from iotad.launcher.run.violation_examples import ViolationExamples
 
 VALUE_LABELS = 32             # distinct values counted per channel for the summary; then "*"
 # Exit status of `run()` by stop reason: 128 + the signal, like a shell.
@@ -88,7 +88,7 @@ class Launcher:
                  recording: RecordingOptions | None = None, access: AccessOptions | None = None,
                  fleet: Any = None):
         self.system, self.options = system, launch
-        # the agents of the other hosts (iotad/launcher/fleet.py), for a hub launcher that starts
+        # the agents of the other hosts (iotad/launcher/hosts/fleet.py), for a hub launcher that starts
         # the whole of a system spread over hosts; asked to stop before this host's own nodes
         self.fleet = fleet
         self._hub_answered = False  # another host's launcher: the hub launcher answered its origin query
@@ -114,7 +114,7 @@ class Launcher:
             self.runs[spec.name] = NodeRun(spec, child, policy)
         self.session = None
         # this host's clock as its nodes count time (wall, then monotonic): what the hub answers
-        # clock queries on, and what another host measures its offset on (iotad/launcher/clock_watch.py)
+        # clock queries on, and what another host measures its offset on (iotad/launcher/hosts/clock_watch.py)
         self._steady = steady_wall()
         self.clock_watch = None  # another host's launcher, where the hub answered: its clock measured
         self._origin_publisher = None
@@ -135,15 +135,15 @@ class Launcher:
         self.gate_key = wire.gate_key(system.name, self.host)
         self.gate_open = not system.start_gate  # start_gate = false: no gate, as if always open
         self._system_live = False  # every node has been live (or ended) once: the system runs
-        from iotad.launcher.status_view import StatusView
+        from iotad.launcher.run.status_view import StatusView
         self.view = StatusView(launch.console, launch.live_table, title=f"iotad run {system.file}")
         # the recorder: the hub's launcher records what reaches the hub, another host's launcher
-        # what its own nodes do (iotad/launcher/host_recording.py)
+        # what its own nodes do (iotad/launcher/hosts/host_recording.py)
         self.recorder: RecorderSupervisor | None = None
         self._local: list[str] = []      # another host's launcher: where its recorder and nodes reach it
         if self.access is not None and self.access.own is not None and not system.opens_hub(self.host):
             # under access control its session is its host's router, on a private unix socket
-            # (iotad/launcher/host_router.py): its nodes and recorder reach nothing else
+            # (iotad/launcher/access/host_router.py): its nodes and recorder reach nothing else
             self._local = [self.access.route(self.host)]
         self._hub_origin: float | None = None  # another host's launcher: the origin the hub answered
         self._clock: dict | None = None        # another host's launcher: its clock offset, as measured
@@ -217,7 +217,7 @@ class Launcher:
 
     def _open_session(self) -> None:
         from iotad.host.transport import open_session, reachable
-        from iotad.launcher.can_env import unresolved
+        from iotad.launcher.system.can_env import unresolved
 
         system = self.system
         if (problem := unresolved(system, self.host)) is not None:  # [[can]] interface = "env", none set
@@ -229,7 +229,7 @@ class Launcher:
             if self.access is not None and self.access.router is not None:
                 listen = list(self._local)
             elif self.recorder is not None:  # its recorder and nodes connect here: a known port
-                from iotad.launcher.host_recording import local_endpoints, pinned
+                from iotad.launcher.hosts.host_recording import local_endpoints, pinned
 
                 listen = pinned(listen)
                 self._local = local_endpoints(listen)
@@ -297,7 +297,7 @@ class Launcher:
         system's `clock_bound`, or one that finds the nodes' clocks off by more, is a
         `clock_violation` event and a warning: windows on this host are then judged on a clock
         that may be off by that much."""
-        from iotad.launcher.clock_watch import ClockWatch
+        from iotad.launcher.hosts.clock_watch import ClockWatch
 
         system = self.system
         self.clock_watch = watch = ClockWatch(
@@ -331,7 +331,7 @@ class Launcher:
         here, while nothing runs yet: --no-record runs without one."""
         if self.recorder is not None:
             if self.host is not None:  # a run spread over hosts: whose recording this is (iotad merge)
-                from iotad.launcher.host_recording import run_info
+                from iotad.launcher.hosts.host_recording import run_info
 
                 hub = self.system.opens_hub(self.host)
                 origin = self.origin if hub or self._hub_origin is None else self._hub_origin
@@ -350,7 +350,7 @@ class Launcher:
         start gate then waits for all of them together)."""
         if self.fleet is None:
             return
-        from iotad.launcher.fleet import FleetError
+        from iotad.launcher.hosts.fleet import FleetError
 
         self.fleet.say = self.view.line
         # a host lost or back is the loop's to report (its nodes' state, the recording)

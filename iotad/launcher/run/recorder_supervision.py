@@ -22,8 +22,8 @@ from typing import Callable
 
 from iotad.launcher.options import RecordingOptions
 from iotad.launcher.processes import Child, describe_exit, log_tail, stop_all
-from iotad.launcher.recording_paths import next_continuation, unwritable
-from iotad.launcher.system_file import System
+from iotad.launcher.run.recording_paths import next_continuation, unwritable
+from iotad.launcher.system.system_file import System
 
 MIN_FREE_BYTES = 16 * 2**20   # refuse to start a recording on a file system with less free space
 RECORDER_RESTARTS = 3         # new recorders after the first one died, before recording stops

@@ -1,6 +1,6 @@
 """One host's part of a system spread over hosts, as its agent runs it:
-`python -m iotad.launcher.host_part PART.json`, where PART.json (written by the agent,
-iotad/launcher/agent.py) holds the hub's system file text and path, where this machine has each
+`python -m iotad.launcher.run.host_part PART.json`, where PART.json (written by the agent,
+iotad/launcher/hosts/agent.py) holds the hub's system file text and path, where this machine has each
 file it names, and the typed options of this host's launcher (`RunOptions`). Checks the system
 and runs it with `run_real_time`; its lines and exit status are those of `iotad run --host`:
 an error is one line, `iotad: error: ...` (exit 2), Ctrl-C exits 130."""
@@ -16,10 +16,10 @@ from pathlib import Path
 def run_part(part: dict) -> int:
     """Run the part `part` describes (the JSON of PART.json); raises `SystemFileError`, `RunError`
     or ValueError with one line."""
-    from iotad.launcher.declaration import parse_declaration
+    from iotad.launcher.system.declaration import parse_declaration
     from iotad.launcher.options import RunOptions
-    from iotad.launcher.run_system import run_real_time
-    from iotad.launcher.system_file import SystemFileError, check_system
+    from iotad.launcher.run.run_system import run_real_time
+    from iotad.launcher.system.system_file import SystemFileError, check_system
 
     text, path, files = part.get("system"), part.get("path"), part.get("files", {})
     if not isinstance(text, str) or not isinstance(path, str) or not isinstance(files, dict):
@@ -35,11 +35,11 @@ def run_part(part: dict) -> int:
 
 
 def main(argv: list[str]) -> int:
-    from iotad.launcher.run_system import RunError
-    from iotad.launcher.system_file import SystemFileError
+    from iotad.launcher.run.run_system import RunError
+    from iotad.launcher.system.system_file import SystemFileError
 
     if len(argv) != 1:
-        print("usage: python -m iotad.launcher.host_part PART.json", file=sys.stderr)
+        print("usage: python -m iotad.launcher.run.host_part PART.json", file=sys.stderr)
         return 2
     try:
         with open(argv[0], encoding="utf-8") as stream:

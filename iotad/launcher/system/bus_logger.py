@@ -18,7 +18,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from iotad.launcher.declaration import LOGGER_REF  # noqa: F401 - the logger's class, as this module names it
+from iotad.launcher.system.declaration import LOGGER_REF  # noqa: F401 - the logger's class, as this module names it
 
 # The logger nodes themselves are added where the system file is parsed (a parse step:
 # `declaration._Parser.add_bus_loggers`), so every reader of a declaration sees them.

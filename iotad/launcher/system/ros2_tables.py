@@ -5,8 +5,8 @@ from __future__ import annotations
 from typing import Any
 
 from iotad.kernel.ports import Port
-from iotad.launcher.declaration import NodeDecl, Ros2Decl
-from iotad.launcher.system_model import Binding, NodeSpec, channel_table, instantiate
+from iotad.launcher.system.declaration import NodeDecl, Ros2Decl
+from iotad.launcher.system.system_model import Binding, NodeSpec, channel_table, instantiate
 from iotad.ros2.bridge import NODE_NAME, channel_names
 from iotad.ros2.mapping import MappingError, parse
 

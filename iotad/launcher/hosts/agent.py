@@ -1,6 +1,6 @@
 """The agent of one host (`iotad agent --name NAME --connect ENDPOINT`): waits at the system's hub
 for the run that `iotad run` on the hub's machine starts, and runs this host's part of it
-(`python -m iotad.launcher.host_part ORDER.json`: the order's system and options, as the
+(`python -m iotad.launcher.run.host_part ORDER.json`: the order's system and options, as the
 library's `run_real_time` runs them) as a child it owns; stops it when told, or when the hub is
 gone for longer than the run's own allowance.
 
@@ -10,7 +10,7 @@ Its wire, all under `iota/@agent/<name>` (an '@' chunk, so no system's `**` matc
   it names (path and sha256), the launcher's options (`run`: a `RunOptions`, typed, no command
   line) and, under access control, this host's
   launcher's credentials (written to a private folder for the run and removed after it; the
-  launcher, its host's router, makes its nodes' own: iotad/launcher/host_router.py); the answer
+  launcher, its host's router, makes its nodes' own: iotad/launcher/access/host_router.py); the answer
   is {"ok": true, "pid": N, "fetched": [lines]} ("already": true when it runs that system
   already) or {"ok": false, "error": "..."};
 - queryable `.../stop`: SIGINT to the child, as Ctrl-C would; answered once it has exited;
@@ -23,7 +23,7 @@ Its wire, all under `iota/@agent/<name>` (an '@' chunk, so no system's `**` matc
 The order names every file the system file names (node code, specs) with its sha256. The agent
 runs the hub's version of each: the file at the hub's path when this machine holds the same
 bytes there, else the bytes fetched from the hub by hash into its cache under `--workdir`
-(iotad/launcher/code_by_hash.py); its run reads the hub's system file with those names standing
+(iotad/launcher/hosts/code_by_hash.py); its run reads the hub's system file with those names standing
 for the files here. Bytes that do not hash to what the order names are refused, and so is the run.
 
 The run is a child that dies with the agent (the parent-death signal, SIGTERM: its launcher then
@@ -46,8 +46,8 @@ from typing import Callable
 
 from iotad.host.credentials import ENV, CredentialStore
 from iotad.host.session_close import close_session
-from iotad.launcher.agent_lines import KeptLines
-from iotad.launcher.code_by_hash import CodeCache, CodeError, localize
+from iotad.launcher.hosts.agent_lines import KeptLines
+from iotad.launcher.hosts.code_by_hash import CodeCache, CodeError, localize
 from iotad.launcher.fleet_wire import CODE_PREFIX, agent_key, code_key, digest, launcher_user
 from iotad.launcher.processes import wrapped_argv
 from iotad.launcher.options import RunOptions
@@ -60,7 +60,7 @@ class AgentError(Exception):
 
 
 def host_part_for(order: dict, host: str, workdir: Path, fetch: Callable[[str], bytes]) -> tuple[Path, list[str]]:
-    """The file of this host's part of `order` (`iotad/launcher/host_part.py` runs it), written in
+    """The file of this host's part of `order` (`iotad/launcher/run/host_part.py` runs it), written in
     `workdir`, and the lines saying which named files were fetched: the system file's text and
     path as the hub sent them, where this machine has the hub's version of each file it names,
     and the options of `host`'s launcher. Raises `AgentError` when any of these cannot be had."""
@@ -272,7 +272,7 @@ class Agent:
         path = order["path"]
         for line in fetched:
             self.say(f"agent {self.name}: {line}")
-        command = [self.python, "-m", "iotad.launcher.host_part", str(part)]
+        command = [self.python, "-m", "iotad.launcher.run.host_part", str(part)]
         env = dict(os.environ)
         env.update({k: v for k, v in (order.get("env") or {}).items() if isinstance(v, str)})
         env.pop(ENV, None)

@@ -1,6 +1,6 @@
 """The hub's side of a system spread over hosts: `iotad run SYSTEM.toml` on the hub's machine asks
-the agent of every other host (`iotad agent`, iotad/launcher/agent.py) to run that host's part,
-serves the files the system file names by their sha256 (iotad/launcher/code_by_hash.py), relays
+the agent of every other host (`iotad agent`, iotad/launcher/hosts/agent.py) to run that host's part,
+serves the files the system file names by their sha256 (iotad/launcher/hosts/code_by_hash.py), relays
 the agents' lines, notices an agent that disappears (and gives it its part again when it comes
 back during the run), and stops them all at the end.
 
@@ -14,11 +14,11 @@ import time
 from pathlib import Path
 from typing import Callable
 
-from iotad.launcher.agent_lines import KEPT, HeardLines
-from iotad.launcher.code_by_hash import named_files
+from iotad.launcher.hosts.agent_lines import KEPT, HeardLines
+from iotad.launcher.hosts.code_by_hash import named_files
 from iotad.launcher.fleet_wire import AGENT_PREFIX, CODE_PREFIX, agent_key, digest
 from iotad.launcher.options import RunOptions
-from iotad.launcher.system_model import System
+from iotad.launcher.system.system_model import System
 
 
 class FleetError(Exception):
@@ -66,7 +66,7 @@ class Fleet:
     def start(self, access=None, stop=None) -> None:
         """Give each host its part as soon as its agent is there, waiting up to `start_timeout` for
         them all; raises `FleetError` naming the hosts that did not take it (the ones that did are
-        stopped). `access` (iotad/launcher/access_control.py): under access control, this session's
+        stopped). `access` (iotad/launcher/access/access_control.py): under access control, this session's
         user and each host's credentials, which go in that host's order only. `stop` (a flag with
         `is_set()`: Ctrl-C) ends the wait at once: the hosts started by then are the caller's to
         stop (`stop()`), as at the end of a run."""

@@ -10,9 +10,9 @@ from typing import Any, Mapping
 
 from iotad.host import wire
 from iotad.kernel.ports import Port
-from iotad.launcher.bus_logger import logger_port_config
-from iotad.launcher.declaration import LOOPBACK_LISTEN, CanBusSpec, Declaration, HostSpec, NodeDecl
-from iotad.launcher.link_watch import link_params
+from iotad.launcher.system.bus_logger import logger_port_config
+from iotad.launcher.system.declaration import LOOPBACK_LISTEN, CanBusSpec, Declaration, HostSpec, NodeDecl
+from iotad.launcher.system.link_watch import link_params
 
 
 @dataclass

@@ -9,8 +9,8 @@ from typing import Any
 
 from iotad.can.canopen_ids import canopen_nodes
 from iotad.kernel.compose import Composite
-from iotad.launcher.bus_logger import is_bus_logger
-from iotad.launcher.system_file import CAN_RX, CAN_TX, System, instantiate
+from iotad.launcher.system.bus_logger import is_bus_logger
+from iotad.launcher.system.system_file import CAN_RX, CAN_TX, System, instantiate
 
 
 def compose(system: System) -> Composite:

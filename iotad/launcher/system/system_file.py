@@ -45,11 +45,11 @@ from pathlib import Path
 from typing import Any
 
 from iotad.kernel.ports import Port, PortSyntaxError
-from iotad.launcher.declaration import (  # noqa: F401 - the declaration's names, as callers know them here
+from iotad.launcher.system.declaration import (  # noqa: F401 - the declaration's names, as callers know them here
     DEFAULT_INPUT_QUEUE, LOOPBACK_LISTEN, RESTART_MODES, TABLE_HINT, CanBusSpec, Declaration, HostSpec, NodeDecl,
     SystemFileError, read_declaration)
-from iotad.launcher.ros2_tables import add_ros2_bridge
-from iotad.launcher.system_model import (  # noqa: F401 - the model's names, as callers know them here
+from iotad.launcher.system.ros2_tables import add_ros2_bridge
+from iotad.launcher.system.system_model import (  # noqa: F401 - the model's names, as callers know them here
     Binding, ChannelInfo, NodeSpec, System, channel_table, instantiate, param_names)
 
 CAN_TX, CAN_RX = "can_tx", "can_rx"  # the two channels of a node on a CAN bus

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 from enum import StrEnum
 
 from iotad.launcher.processes import Child, RestartPolicy
-from iotad.launcher.system_file import NodeSpec
+from iotad.launcher.system.system_file import NodeSpec
 
 
 class NodeState(StrEnum):

@@ -18,7 +18,7 @@ import re
 from pathlib import Path
 from typing import Callable
 
-from iotad.launcher.declaration import Declaration
+from iotad.launcher.system.declaration import Declaration
 
 def sha256_of(data: bytes) -> str:
     return hashlib.sha256(data).hexdigest()

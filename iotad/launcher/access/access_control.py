@@ -1,5 +1,5 @@
 """Running a system under access control: the hub's zenoh options (user-password authentication
-plus the `access_control` rules derived by `iotad.launcher.access_policy`), each child's
+plus the `access_control` rules derived by `iotad.launcher.access.access_policy`), each child's
 credentials, and the lines the launcher shows about it. `AccessControl.off(why)` is the same
 object for a run without it (`iotad run --insecure`), which only warns."""
 from __future__ import annotations
@@ -11,11 +11,11 @@ from typing import Any
 from iotad.host import agent_secret
 from iotad.host.agent_secret import agent_user
 from iotad.host.credentials import ENV, Credentials, CredentialStore, GivenCredentials, load
-from iotad.launcher.access_policy import RECORDER_USER, TOOLS_USER, Policy, derive, node_user
-from iotad.launcher.host_access import (FLEET_USER, across_hosts_settings, host_users, hub_policy, launcher_user, router_zid,
+from iotad.launcher.access.access_policy import RECORDER_USER, TOOLS_USER, Policy, derive, node_user
+from iotad.launcher.access.host_access import (FLEET_USER, across_hosts_settings, host_users, hub_policy, launcher_user, router_zid,
                                         zenoh_mode)
 from iotad.launcher.options import AccessOptions
-from iotad.launcher.system_file import System
+from iotad.launcher.system.system_file import System
 
 
 class AccessControl:
@@ -29,7 +29,7 @@ class AccessControl:
         self.policy: Policy | None = derive(system) if enabled else None
         self.store: CredentialStore | None = None
         self.own: Credentials | None = None  # a host's launcher: its own, from its agent
-        self.router = None  # a host's launcher: the router of its nodes (iotad/launcher/host_router.py)
+        self.router = None  # a host's launcher: the router of its nodes (iotad/launcher/access/host_router.py)
         self.hosts = tuple(hosts)
         if self.policy is None:
             return
@@ -54,8 +54,8 @@ class AccessControl:
 
     def route(self, host: str) -> str:
         """Another host's launcher: its session becomes the router of `host`'s nodes and recorder
-        (iotad/launcher/host_router.py); where they reach it."""
-        from iotad.launcher.host_router import HostRouter
+        (iotad/launcher/access/host_router.py); where they reach it."""
+        from iotad.launcher.access.host_router import HostRouter
 
         self.router = HostRouter(self.system, host, self.own)
         return self.router.endpoint

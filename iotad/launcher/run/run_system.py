@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 from iotad.launcher.options import RunOptions
-from iotad.launcher.system_file import System, with_port
+from iotad.launcher.system.system_file import System, with_port
 
 
 class RunError(Exception):
@@ -23,7 +23,7 @@ def run_real_time(system: System, options: RunOptions, *, view: Callable[[Any, s
     """Run `system` (checked) as `options` say until it ends; its exit status (0: every node
     stopped cleanly). `view(launcher, hub)`: started once the launcher is built, on the hub's
     host, and stopped (`.stop()`) after the run; `summary_hook(launcher, code)` may change the status."""
-    from iotad.launcher.recording_paths import RecordingClaimError, claim_recording, drop_empty_claim
+    from iotad.launcher.run.recording_paths import RecordingClaimError, claim_recording, drop_empty_claim
 
     if options.host is not None and options.host not in {n.host for n in system.nodes.values()}:
         hosts = sorted({n.host for n in system.nodes.values() if n.host}) or ["none declared"]
@@ -47,7 +47,7 @@ def run_real_time(system: System, options: RunOptions, *, view: Callable[[Any, s
     if record_to and not options.no_record and not options.force and not system.opens_hub(options.host):
         # another host's part: a launcher started again in the same run (its agent came back)
         # records the rest of it beside the first part, never over it; `iotad merge` takes both
-        from iotad.launcher.recording_paths import unused_recording_path
+        from iotad.launcher.run.recording_paths import unused_recording_path
 
         try:
             record_to = claimed = str(unused_recording_path(record_to, claim=True))
@@ -62,7 +62,7 @@ def run_real_time(system: System, options: RunOptions, *, view: Callable[[Any, s
     elif not options.no_record and system.opens_hub(options.host):
         # a new name: recordings/<system>-<date>-<time>.mcap, -2 in the same second (another
         # host's launcher started by hand records only where -o tells it to)
-        from iotad.launcher.recording_paths import unused_recording_path
+        from iotad.launcher.run.recording_paths import unused_recording_path
 
         stamp = time.strftime("%Y%m%d-%H%M%S", time.localtime(options.origin or time.time()))
         try:
@@ -79,7 +79,7 @@ def run_real_time(system: System, options: RunOptions, *, view: Callable[[Any, s
 def _launch(system: System, options: RunOptions, record_to: str | None, view, summary_hook) -> int:
     from iotad.host.transport import free_port, reachable
     from iotad.launcher.options import LaunchOptions, RecordingOptions
-    from iotad.launcher.supervision import Launcher, LauncherError
+    from iotad.launcher.run.supervision import Launcher, LauncherError
 
     if not options.local:
         from iotad.host.zenoh_runtime import use_for
@@ -93,7 +93,7 @@ def _launch(system: System, options: RunOptions, record_to: str | None, view, su
     _use_certificates(system, options)
     access = access_for(system, options)
     # each other host records its own part, under access control too (its launcher is its nodes'
-    # router: iotad/launcher/host_router.py; docs/hosts.md, "The recording")
+    # router: iotad/launcher/access/host_router.py; docs/hosts.md, "The recording")
     fleet, host = fleet_for(system, options, port, record_to, insecure=not access.enabled)
     launch = LaunchOptions(host=host, port=port, until=options.until, after_live=options.after_live,
                            origin=options.origin, log_dir=options.log_dir, live_table=False if options.plain else None)
@@ -121,7 +121,7 @@ def _launch(system: System, options: RunOptions, record_to: str | None, view, su
     for line in launcher.summary():
         print(line)
     if fleet is not None and fleet.host_orders and launcher.recorder is not None:
-        from iotad.launcher.host_recording import host_recording_path
+        from iotad.launcher.hosts.host_recording import host_recording_path
 
         others = [str(host_recording_path(record_to, host)) for host in fleet.hosts]
         print(f"  each other host recorded its part on its own machine: {', '.join(others)}; "
@@ -159,7 +159,7 @@ def fleet_for(system: System, options: RunOptions, port: int | None, record_to: 
     if options.host is not None or options.local or not hosts:
         return None, options.host
     from iotad.host.transport import reachable
-    from iotad.launcher.fleet import Fleet
+    from iotad.launcher.hosts.fleet import Fleet
 
     hub = [reachable(e) for e in (with_port(system.listen, port) if port is not None else system.listen)]
     others = sorted(set(hosts) - {system.hub_host}, key=hosts.index)
@@ -167,7 +167,7 @@ def fleet_for(system: System, options: RunOptions, port: int | None, record_to: 
     for host in others:  # what each host's agent runs: its part, recorded on its own machine
         recorded = {}
         if record_to is not None:
-            from iotad.launcher.host_recording import host_recording_path
+            from iotad.launcher.hosts.host_recording import host_recording_path
 
             recorded = dict(record_to=str(host_recording_path(record_to, host)), force=options.force,
                             max_size=options.max_size, max_duration=options.max_duration)

@@ -5,7 +5,7 @@ hub admits at all (`hub_policy`), and which credentials the hub hands each host'
 
 The nodes keep exactly their one-machine rights (`access_policy.derive`), but only the hub
 host's own nodes log in to the hub: another host's nodes log in to their host's router
-(iotad/launcher/host_router.py), which makes their passwords itself, so the hub neither holds nor
+(iotad/launcher/access/host_router.py), which makes their passwords itself, so the hub neither holds nor
 hands out a password that would let one of them open a session with it directly.
 
 A host's launcher may only do what a launcher that does not hold the hub does: publish its
@@ -22,9 +22,9 @@ import hashlib
 from iotad.host import wire
 from iotad.host.agent_secret import agent_user
 from iotad.host.clock_offset import clock_key
-from iotad.launcher.access_policy import Grant, Policy, derive, node_user
+from iotad.launcher.access.access_policy import Grant, Policy, derive, node_user
 from iotad.launcher.fleet_wire import AGENT_PREFIX, CODE_PREFIX, FLEET_USER, agent_key, launcher_user
-from iotad.launcher.system_file import System
+from iotad.launcher.system.system_file import System
 
 def host_users(system: System, host: str) -> list[str]:
     """The users whose credentials `host`'s agent receives from the hub: its launcher's alone (its
@@ -39,7 +39,7 @@ def routed_users(system: System, host: str) -> list[str]:
 
 def routed_hosts(system: System) -> list[str]:
     """The hosts of `system` besides the hub's that hold nodes: under access control each has a
-    router of its own (iotad/launcher/host_router.py)."""
+    router of its own (iotad/launcher/access/host_router.py)."""
     return list(dict.fromkeys(node.host for node in system.nodes.values() if node.host and node.host != system.hub_host))
 
 
@@ -116,7 +116,7 @@ def launcher_grant(system: System, host: str) -> Grant:
     """What `host`'s launcher user may do at the hub: its own part (its launcher events, the hub's
     origin on its clock that its nodes follow, its start gate, the nodes' liveliness, heartbeats
     and traces), and, since its session is the router its nodes reach the hub through
-    (iotad/launcher/host_router.py), what each of those nodes may do, nothing more."""
+    (iotad/launcher/access/host_router.py), what each of those nodes may do, nothing more."""
     name = system.name
     grant = Grant(
         launcher_user(host), f"launcher of host {host}",
@@ -150,7 +150,7 @@ def host_grants(system: System, hosts: list[str]) -> list[Grant]:
             publish=[f"{key}/log", f"{key}/exit"],
             serve=[f"{key}/run", f"{key}/stop", f"{key}/lines"],
             # an agent may measure the hub's clock itself before its launcher starts, and fetch
-            # the files its order names by their hash (iotad/launcher/code_by_hash.py)
+            # the files its order names by their hash (iotad/launcher/hosts/code_by_hash.py)
             ask=[clock_key("*"), f"{CODE_PREFIX}/*"],
             tokens=[key],
             declarations=[f"{AGENT_PREFIX}/*/log", f"{AGENT_PREFIX}/*/exit", f"{CODE_PREFIX}/*"]))

@@ -11,8 +11,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from iotad.host import wire
-from iotad.launcher.ros2_tables import widen_grant
-from iotad.launcher.system_file import System
+from iotad.launcher.system.ros2_tables import widen_grant
+from iotad.launcher.system.system_file import System
 
 RECORDER_USER = "iotad-recorder"
 TOOLS_USER = "iotad-tools"
@@ -45,7 +45,7 @@ class Grant:
     tokens: list[str] = field(default_factory=list)      # liveliness tokens it declares
     watch: list[str] = field(default_factory=list)       # liveliness it subscribes to or asks
     # subscribers and queryables it is told of beyond every user's `DECLARATION_KEYS`: the agents'
-    # wire (iotad/launcher/host_access.py) is outside `iota/<system>`
+    # wire (iotad/launcher/access/host_access.py) is outside `iota/<system>`
     declarations: list[str] = field(default_factory=list)
 
 
