@@ -6,7 +6,7 @@ The package is layered; each layer imports only the layers before it (tests/test
     iotad.esprit     the ESPRIT specification language, compiled onto the kernel
     iotad.can        CAN frames, buses (real and modelled) and the ODrive CAN Simple protocol
     iotad.ros2       ROS 2 interop: rmw_zenoh's wire format, channel-to-message mappings, the bridge
-    iotad.host       one IOTA as one process on zenoh (and its CAN bus): wire, transport, node host
+    iotad.node_host       one IOTA as one process on zenoh (and its CAN bus): wire, transport, node host
     iotad.launcher   system files, process supervision, the status view (`iotad run`)
     iotad.recording  MCAP recordings: recorder, reading, replay, conformance checks, export, plots
     iotad.cli        the `iotad` command line, one module per command

@@ -7,7 +7,7 @@ import ast
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-LAYERS = ["kernel", "esprit", "can", "ros2", "host", "launcher", "recording", "virtual", "sweep", "cli"]
+LAYERS = ["kernel", "esprit", "can", "ros2", "machine", "node_host", "launcher", "recording", "virtual", "sweep", "cli"]
 ROBOT_PACKAGES = {"channels", "nodes", "sim"}
 LAUNCHER_PARTS = ["system", "access", "hosts", "run"]  # each imports only those before it
 
@@ -120,5 +120,14 @@ def test_the_check_sees_a_launcher_package_reaching_up(tmp_path, monkeypatch):
     assert "iotad/launcher/system/model.py (system) imports iotad.launcher.run (run)" in launcher_violations()
     assert "iotad/launcher/options.py (beside the packages) imports iotad.launcher.access.policy (access)" \
         in launcher_violations()
-    assert command_violations() == ["iotad/cli/commands/a.py imports iotad.cli.commands.b",
-                                    "iotad/cli/commands/a.py imports iotad.cli.commands.b.helper"]
+    assert sorted(command_violations()) == ["iotad/cli/commands/a.py imports iotad.cli.commands.b",
+                                            "iotad/cli/commands/a.py imports iotad.cli.commands.b.helper"]
+
+
+def test_the_machine_layer_spells_the_key_prefix_as_the_wire_does():
+    # clock_offset (iotad.machine, below the node host) cannot import the node host's wire
+    from iotad.machine import clock_offset
+    from iotad.node_host import wire
+
+    assert clock_offset.PREFIX == wire.PREFIX
+    assert clock_offset.clock_key("robot") == f"{wire.PREFIX}/robot/@clock"

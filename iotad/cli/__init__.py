@@ -110,7 +110,7 @@ def port(text: str) -> int:
 
 def endpoint(text: str) -> str:
     """A zenoh endpoint such as tcp/127.0.0.1:7447 (an argparse type)."""
-    from iotad.host.transport import endpoint_problem
+    from iotad.node_host.transport import endpoint_problem
     problem = endpoint_problem(text)
     if problem:
         raise argparse.ArgumentTypeError(problem)

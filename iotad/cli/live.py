@@ -9,7 +9,7 @@ from iotad.cli import endpoint, positive_float
 
 def add_connect(parser: argparse.ArgumentParser) -> None:
     """The options every introspection command shares."""
-    from iotad.host.transport import DEFAULT_HUB_ENDPOINT
+    from iotad.node_host.transport import DEFAULT_HUB_ENDPOINT
 
     parser.add_argument("--connect", action="append", metavar="ENDPOINT", type=endpoint,
                         help=f"zenoh endpoint of the system's hub (default {DEFAULT_HUB_ENDPOINT}, where "
@@ -20,7 +20,7 @@ def add_connect(parser: argparse.ArgumentParser) -> None:
 
 def tool_session(args: argparse.Namespace):
     from iotad.cli import CliError
-    from iotad.host.transport import DEFAULT_HUB_ENDPOINT, PeerUnreachable, open_tool_session
+    from iotad.node_host.transport import DEFAULT_HUB_ENDPOINT, PeerUnreachable, open_tool_session
 
     try:
         return open_tool_session(args.connect or [DEFAULT_HUB_ENDPOINT], args.connect_timeout)
@@ -30,7 +30,7 @@ def tool_session(args: argparse.Namespace):
 
 def list_nodes(session, system: str | None, timeout: float) -> list[dict]:
     """Every live node of `system` (or of all systems), with its `@spec` answer when it gave one."""
-    from iotad.host import wire
+    from iotad.node_host import wire
 
     pattern = f"{wire.PREFIX}/{system or '*'}/**/{wire.ALIVE}"
     nodes = []

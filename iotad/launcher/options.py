@@ -62,7 +62,7 @@ class LaunchOptions:
     in user-mode Linux and would eat the run. `origin`: the wall-clock time that is t=0 for every
     node (None: now, or the hub launcher's). `log_dir`: keep configs and logs there (None: a temp
     folder, removed unless a node failed). `node_argv(config_path)`: a node's command line
-    (default `python -m iotad.host CONFIG`; tests pass a stand-in). `console`, `live_table`: the
+    (default `python -m iotad.node_host CONFIG`; tests pass a stand-in). `console`, `live_table`: the
     status view's. `stop_timeouts`: seconds after SIGINT, then after SIGTERM, before the next."""
 
     host: str | None = None
@@ -98,7 +98,7 @@ class AccessOptions:
     enabled: bool = True
     why_off: str = ""
     # a system spread over hosts, run through agents: the other hosts, and the certificates'
-    # folder whose authority key gives each host's agent secret (iotad/host/agent_secret.py)
+    # folder whose authority key gives each host's agent secret (iotad/machine/agent_secret.py)
     hosts: tuple[str, ...] = ()
     certs: str | None = None
     # one host's launcher started by its agent: its own credentials file (IOTAD_CREDENTIALS)

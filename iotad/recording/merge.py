@@ -31,7 +31,7 @@ from typing import Any, Iterable
 
 from mcap.records import Channel as McapChannel, Schema
 
-from iotad.host import wire
+from iotad.node_host import wire
 from iotad.recording.mcap_format import (GAP_SCHEMA, GAP_TOPIC, MERGE_GAP_SCHEMA, MERGE_GAP_TOPIC, MESSAGE_ENCODING,
                                          SCHEMA_ENCODING, RecordingError, packb)
 from iotad.recording.mcap_reader import RecordedMessage, Recording

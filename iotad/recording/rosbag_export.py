@@ -15,7 +15,7 @@ import re
 from pathlib import Path
 from typing import Any, Callable
 
-from iotad.host import wire
+from iotad.node_host import wire
 from iotad.kernel.ports import Port
 from iotad.recording.mcap_reader import Recording
 from iotad.ros2 import messages

@@ -129,7 +129,7 @@ def _check_node(recording, node: str, asked: str | None, file: str, tolerance: f
     be checked. Its trace, decoded, is the bulk of the memory a check takes: it is read here, and
     let go before the next node's is read. `widen`: its host clock's bound over time
     (`iotad.recording.clock_offsets.Widening`), which its windows are widened by."""
-    from iotad.host.wire import START_KIND
+    from iotad.node_host.wire import START_KIND
     from iotad.recording.conformance import check_runs
     from iotad.recording.mcap_reader import start_time
     from iotad.recording.replay import node_root
@@ -156,9 +156,9 @@ def _check_node(recording, node: str, asked: str | None, file: str, tolerance: f
 def _never_ran(recording, specs: dict, unchecked: list[str]) -> list[str]:
     """Nodes of the recorded system file (a real-time run's system.toml) that the recording holds
     nothing of, where it was made to hold them (its key expressions cover their @trace)."""
-    from iotad.host import wire
+    from iotad.node_host import wire
     from iotad.launcher.system.declaration import SystemFileError
-    from iotad.host.wire import keyexpr_matches
+    from iotad.node_host.wire import keyexpr_matches
     from iotad.recording.recorded_system import recorded_declaration
 
     try:

@@ -17,9 +17,9 @@ import pytest
 from agent_helpers import agent_lines, hub_session
 from launcher_helpers import ROOT
 
-from iotad.host import agent_secret, certificates
-from iotad.host.certificates import CertificateError
-from iotad.host.transport import free_port
+from iotad.machine import agent_secret, certificates
+from iotad.machine.certificates import CertificateError
+from iotad.node_host.transport import free_port
 from iotad.launcher.hosts.agent import Agent, AgentError
 
 
@@ -125,11 +125,11 @@ def test_a_node_whose_credentials_are_refused_says_so_in_one_line(authority, tmp
     env = {**os.environ, "IOTAD_CREDENTIALS": str(stale), certificates.ENV_DIR: str(authority),
            certificates.ENV_HOST: "arm"}
     with hub_session(authority, port, {"node-echo": "the run's"}, tmp_path):
-        done = subprocess.run([sys.executable, "-m", "iotad.host", "--config-json", json.dumps(config)],
+        done = subprocess.run([sys.executable, "-m", "iotad.node_host", "--config-json", json.dumps(config)],
                               capture_output=True, text=True, timeout=60, cwd=ROOT, env=env)
     assert done.returncode == 2, done.stderr
     assert done.stderr.strip().splitlines() == [
-        f"iotad.host: error: echo: cannot start on zenoh: not admitted: the hub at tls/127.0.0.1:{port} refused the "
+        f"iotad.node_host: error: echo: cannot start on zenoh: not admitted: the hub at tls/127.0.0.1:{port} refused the "
         "credentials of user 'node-echo': they are not this run's (an agent's HOST.secret from another authority, or "
         "a stale credentials file)"]
 

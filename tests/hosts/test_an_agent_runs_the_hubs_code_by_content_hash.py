@@ -20,7 +20,7 @@ import pytest
 from agent_helpers import Lines, start
 from launcher_helpers import ROOT, free_port
 from namespaces import hosts, split_figure2
-from iotad.host import agent_secret, certificates
+from iotad.machine import agent_secret, certificates
 from iotad.launcher.hosts.code_by_hash import CodeCache, CodeError, localize, named_files, sha256_of
 from iotad.launcher.system.declaration import read_declaration
 from iotad.launcher.processes import interrupt_then_kill
@@ -100,7 +100,7 @@ def answer_of_a_real_agent(tmp_path: Path, serve_code) -> tuple[dict | None, lis
     """A real agent on loopback, ordered to run a system whose files it lacks, by a hub session
     that answers `iota/@code/*` with `serve_code(query)` (None: nothing serves it): its answer,
     its lines and the agent."""
-    from iotad.host.transport import open_session
+    from iotad.node_host.transport import open_session
     from iotad.launcher.hosts.agent import Agent
     from iotad.launcher.fleet_wire import agent_key, digest
 

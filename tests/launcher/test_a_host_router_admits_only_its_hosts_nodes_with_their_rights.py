@@ -14,9 +14,9 @@ import zenoh
 
 from namespaces import split_figure2
 
-from iotad.host import wire
-from iotad.host.credentials import Credentials, CredentialStore, GivenCredentials, load
-from iotad.host.transport import open_session
+from iotad.node_host import wire
+from iotad.node_host.credentials import Credentials, CredentialStore, GivenCredentials, load
+from iotad.node_host.transport import open_session
 from iotad.launcher.access.access_policy import RECORDER_USER, derive, node_user
 from iotad.launcher.access.host_access import host_users, launcher_grant, launcher_user
 from iotad.launcher.access.host_router import HostRouter

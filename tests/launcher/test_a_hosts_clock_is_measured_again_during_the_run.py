@@ -7,8 +7,8 @@ import time
 
 import pytest
 
-from iotad.host import transport
-from iotad.host.clock_offset import ClockOffset, ClockServer
+from iotad.node_host import transport
+from iotad.machine.clock_offset import ClockOffset, ClockServer
 from iotad.launcher.hosts.clock_watch import ClockReading, ClockWatch, judge
 from iotad.launcher.access.access_policy import derive
 from iotad.launcher.system.declaration import parse_declaration as parse_text

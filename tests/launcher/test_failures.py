@@ -31,7 +31,7 @@ def stub_argv(*stubbed: str):
         name = Path(config).stem
         if not stubbed or name in stubbed:
             return [sys.executable, str(STUB), config]
-        return [sys.executable, "-m", "iotad.host", config]
+        return [sys.executable, "-m", "iotad.node_host", config]
     return argv
 
 
@@ -426,7 +426,7 @@ params = {{ ignore_signals = true, exit_after = 60 }}
 
 LOADS_ONLY_IN_THE_LAUNCHER = '''
 import sys
-if sys.argv[0].endswith("/iotad/host/__main__.py"):  # the node host (python -m iotad.host): fails at import
+if sys.argv[0].endswith("/iotad/node_host/__main__.py"):  # the node host (python -m iotad.node_host): fails at import
     raise ImportError("no CAN driver in this process")
 from iotad import Int, Iota, Output
 

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 import zenoh
 
-from iotad.host import wire
+from iotad.node_host import wire
 from iotad.launcher.options import LaunchOptions
 from iotad.launcher.run.recorder_supervision import RECORDER_MODULE
 from iotad.launcher.run.supervision import Launcher

@@ -214,7 +214,7 @@ def test_figure2_configs_follow_the_node_host_contract():
     assert config["connect"] == ["tcp/127.0.0.1:7500"] and config["origin"] == 123.5
     assert config["listen"] == ["tcp/127.0.0.1:0"]
     assert system.node_config("vision", 0.0, [])["inputs"] == {"ack": ["iota/figure2/scheduler/ack/0"]}
-    from iotad.host.node_config import from_dict
+    from iotad.node_host.node_config import from_dict
     from_dict(config)  # the node host accepts it
 
 

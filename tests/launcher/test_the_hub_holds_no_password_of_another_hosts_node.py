@@ -18,10 +18,10 @@ from agent_helpers import authority_for
 from launcher_helpers import free_port, wait_until
 from namespaces import split_figure2
 
-from iotad.host import certificates
-from iotad.host.agent_secret import agent_user
-from iotad.host.credentials import ENV, CredentialStore, load
-from iotad.host.transport import open_session
+from iotad.machine import certificates
+from iotad.machine.agent_secret import agent_user
+from iotad.node_host.credentials import ENV, CredentialStore, load
+from iotad.node_host.transport import open_session
 from iotad.launcher.access.access_control import AccessControl
 from iotad.launcher.access.access_policy import RECORDER_USER, TOOLS_USER, node_user
 from iotad.launcher.access.host_access import FLEET_USER, launcher_user

@@ -9,7 +9,7 @@ import sys
 import time
 from pathlib import Path
 
-from iotad.host.transport import free_port
+from iotad.node_host.transport import free_port
 from iotad.launcher.system.system_file import load_system
 from iotad.recording.mcap_reader import read_recording
 

@@ -162,7 +162,7 @@ def held_axes(args: argparse.Namespace) -> dict[tuple[str, int], str]:
     node (liveliness token @alive) whose @spec params carry a joint map."""
     if not args.hub_timeout:
         return {}
-    from iotad.host.transport import DEFAULT_HUB_ENDPOINT, PeerUnreachable, open_tool_session
+    from iotad.node_host.transport import DEFAULT_HUB_ENDPOINT, PeerUnreachable, open_tool_session
 
     from iotad.cli.live import list_nodes
 

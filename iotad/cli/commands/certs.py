@@ -59,22 +59,22 @@ def _days(text: str) -> int:
 
 def run(args: argparse.Namespace) -> int:
     from iotad.cli import CliError
-    from iotad.host import certificates
+    from iotad.machine import certificates
 
     try:
         if args.certs_action == "init":
             path = certificates.init_authority(args.dir, args.name, args.days, args.force)
             print(f"made a certificate authority: {path} (its key {path.with_name('ca.key')} stays on this machine)")
         elif args.certs_action == "host":
-            from iotad.host import agent_secret
+            from iotad.machine import agent_secret
 
             files = certificates.issue_host(args.dir, args.name, args.address, args.days, args.force)
             secret = agent_secret.write(args.dir, args.name)  # its agent's proof under access control
             print(f"signed {files.certificate} and its key {files.key} for host {args.name!r}, and wrote its "
                   f"agent's secret {secret}; copy them with {files.authority} to that host")
         elif args.certs_action == "secret":
-            from iotad.host import agent_secret
-            from iotad.host.certificates import AUTHORITY_KEY
+            from iotad.machine import agent_secret
+            from iotad.machine.certificates import AUTHORITY_KEY
 
             if not (Path(args.dir) / AUTHORITY_KEY).is_file():  # else derive would read the secret it writes
                 raise certificates.CertificateError(f"no authority's key {Path(args.dir) / AUTHORITY_KEY}: "

@@ -45,7 +45,7 @@ def run(args: argparse.Namespace) -> int:
 
 def run_processes(args: argparse.Namespace) -> int:
     from iotad.cli import CliError, load_checked
-    from iotad.host.transport import DEFAULT_HUB_ENDPOINT
+    from iotad.node_host.transport import DEFAULT_HUB_ENDPOINT
     from iotad.launcher.options import RunOptions
     from iotad.launcher.run.run_system import RunError, run_real_time
 
@@ -68,7 +68,7 @@ def _answers(launcher, code: int) -> int:
     seen: set[str] = set()
     with launcher.tally.lock:
         values = {k: Counter(v) for k, v in launcher.tally.values.items()}
-    from iotad.host import wire
+    from iotad.node_host import wire
     for binding in system.bindings:
         if binding.target.channel != "ack":
             continue

@@ -72,7 +72,7 @@ def json_record(key: str, seq: int | None, send_ns: int | None, value, gap: int,
 
 
 def run(args: argparse.Namespace) -> int:
-    from iotad.host import wire
+    from iotad.node_host import wire
 
     inbox: queue.SimpleQueue = queue.SimpleQueue()
     session = tool_session(args)

@@ -186,7 +186,7 @@ def launch(system, args: argparse.Namespace) -> int:
             import os
 
             from iotad.cli.viewer_process import ViewerProcess
-            from iotad.host.credentials import ENV
+            from iotad.node_host.credentials import ENV
 
             if launcher.access is not None and launcher.access.tools_file():
                 os.environ[ENV] = launcher.access.tools_file()  # the viewer reads with the tools' credentials

@@ -50,7 +50,7 @@ def run(args: argparse.Namespace) -> int:
     import zenoh
 
     from iotad.cli.dashboard import Dashboard
-    from iotad.host import wire
+    from iotad.node_host import wire
 
     system = args.system
     scope = f"{wire.PREFIX}/{system or '*'}"

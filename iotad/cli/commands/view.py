@@ -41,10 +41,10 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     import zenoh
 
-    from iotad.host import wire
+    from iotad.node_host import wire
 
     if args.system_file:
-        from iotad.host.transport import reachable
+        from iotad.node_host.transport import reachable
         from iotad.launcher.system.system_file import SystemFileError, load_system
 
         try:

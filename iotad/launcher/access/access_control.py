@@ -8,9 +8,9 @@ import os
 from pathlib import Path
 from typing import Any
 
-from iotad.host import agent_secret
-from iotad.host.agent_secret import agent_user
-from iotad.host.credentials import ENV, Credentials, CredentialStore, GivenCredentials, load
+from iotad.machine import agent_secret
+from iotad.machine.agent_secret import agent_user
+from iotad.node_host.credentials import ENV, Credentials, CredentialStore, GivenCredentials, load
 from iotad.launcher.access.access_policy import RECORDER_USER, TOOLS_USER, Policy, derive, node_user
 from iotad.launcher.access.host_access import (FLEET_USER, across_hosts_settings, host_users, hub_policy, launcher_user, router_zid,
                                         zenoh_mode)

@@ -10,7 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-from iotad.host import wire
+from iotad.node_host import wire
 from iotad.launcher.system.ros2_tables import widen_grant
 from iotad.launcher.system.system_file import System
 

@@ -19,9 +19,9 @@ from __future__ import annotations
 
 import hashlib
 
-from iotad.host import wire
-from iotad.host.agent_secret import agent_user
-from iotad.host.clock_offset import clock_key
+from iotad.node_host import wire
+from iotad.machine.agent_secret import agent_user
+from iotad.machine.clock_offset import clock_key
 from iotad.launcher.access.access_policy import Grant, Policy, derive, node_user
 from iotad.launcher.fleet_wire import AGENT_PREFIX, CODE_PREFIX, FLEET_USER, agent_key, launcher_user
 from iotad.launcher.system.system_file import System

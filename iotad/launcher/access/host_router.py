@@ -21,7 +21,7 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
-from iotad.host.credentials import Credentials, CredentialStore
+from iotad.node_host.credentials import Credentials, CredentialStore
 from iotad.launcher.access.access_policy import RECORDER_USER, Grant, Policy, derive
 from iotad.launcher.access.host_access import across_hosts_settings, launcher_grant, router_zid, routed_users, zenoh_mode
 from iotad.launcher.system.system_file import System

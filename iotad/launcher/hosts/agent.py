@@ -44,8 +44,8 @@ import time
 from pathlib import Path
 from typing import Callable
 
-from iotad.host.credentials import ENV, CredentialStore
-from iotad.host.session_close import close_session
+from iotad.node_host.credentials import ENV, CredentialStore
+from iotad.node_host.session_close import close_session
 from iotad.launcher.hosts.agent_lines import KeptLines
 from iotad.launcher.hosts.code_by_hash import CodeCache, CodeError, localize
 from iotad.launcher.fleet_wire import CODE_PREFIX, agent_key, code_key, digest, launcher_user
@@ -92,10 +92,10 @@ class Agent:
 
     def __init__(self, name: str, connect: list[str], tls=None, workdir: str | Path | None = None,
                  say: Callable[[str], None] = print, python: str = sys.executable, secret: str | None = None):
-        """`secret`: this host's agent secret (HOST.secret, iotad/host/agent_secret.py), with which
+        """`secret`: this host's agent secret (HOST.secret, iotad/machine/agent_secret.py), with which
         it is admitted by a hub under access control."""
-        from iotad.host.agent_secret import agent_user
-        from iotad.host.credentials import Credentials
+        from iotad.machine.agent_secret import agent_user
+        from iotad.node_host.credentials import Credentials
 
         self.name, self.connect, self.tls, self.say, self.python = name, list(connect), tls, say, python
         self.credentials = Credentials(agent_user(name), secret) if secret else None
@@ -130,8 +130,8 @@ class Agent:
     def _admit(self) -> str | None:
         """Open a session with the hub once a run holds it (None: the agent stopped first); the
         user it was admitted as."""
-        from iotad.host.admission import listening
-        from iotad.host.transport import open_session
+        from iotad.node_host.admission import listening
+        from iotad.node_host.transport import open_session
 
         while not self._stopping.is_set():
             if not any(listening(endpoint) for endpoint in self.connect):
@@ -207,7 +207,7 @@ class Agent:
     def _not_admitted(self) -> None:
         """Say once why the hub does not admit this agent, when something answers there (a hub
         that is not up yet is a wait, not an error)."""
-        from iotad.host.admission import diagnose
+        from iotad.node_host.admission import diagnose
 
         refusal = diagnose(self.connect[0], self.tls, self.credentials.user if self.credentials else None)
         if refusal.listening and refusal.reason != self._refusal:

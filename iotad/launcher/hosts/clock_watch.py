@@ -2,7 +2,7 @@
 on the hub's origin moved by that offset) and every `clock_period` seconds after, on a thread of
 its own; each measurement becomes a `ClockReading`, which the launcher records as a launcher event
 (`clock`, or `clock_violation`) and hands on to its nodes as the hub's origin on this host's
-clock (`wire.host_origin_key`), which their clocks follow (iotad/host/clock_correction.py).
+clock (`wire.host_origin_key`), which their clocks follow (iotad/node_host/clock_correction.py).
 
 A reading is a violation when the offset is known no better than the limit (`[system]
 clock_bound`) or, after the first, when the nodes' clocks were off by more than the limit: the
@@ -17,7 +17,7 @@ import threading
 from dataclasses import dataclass
 from typing import Callable
 
-from iotad.host.clock_offset import ClockError, ClockOffset, measure
+from iotad.machine.clock_offset import ClockError, ClockOffset, measure
 
 
 @dataclass(frozen=True)

@@ -70,7 +70,7 @@ class Fleet:
         user and each host's credentials, which go in that host's order only. `stop` (a flag with
         `is_set()`: Ctrl-C) ends the wait at once: the hosts started by then are the caller's to
         stop (`stop()`), as at the end of a run."""
-        from iotad.host.transport import open_session
+        from iotad.node_host.transport import open_session
 
         self._stop = stop
         self.session = open_session([], self.hub, mode="client", connect_timeout=self.start_timeout,
@@ -332,7 +332,7 @@ class Fleet:
                 pass
         self._declared.clear()
         if self.session is not None:
-            from iotad.host.session_close import close_session
+            from iotad.node_host.session_close import close_session
 
             close_session(self.session)  # an agent that is cut off is not waited for
             self.session = None

@@ -13,7 +13,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from iotad.host.transport import free_port, reachable
+from iotad.node_host.transport import free_port, reachable
 
 
 def host_recording_path(path: str | Path, host: str) -> Path:

@@ -77,12 +77,12 @@ def run_real_time(system: System, options: RunOptions, *, view: Callable[[Any, s
 
 
 def _launch(system: System, options: RunOptions, record_to: str | None, view, summary_hook) -> int:
-    from iotad.host.transport import free_port, reachable
+    from iotad.node_host.transport import free_port, reachable
     from iotad.launcher.options import LaunchOptions, RecordingOptions
     from iotad.launcher.run.supervision import Launcher, LauncherError
 
     if not options.local:
-        from iotad.host.zenoh_runtime import use_for
+        from iotad.node_host.zenoh_runtime import use_for
 
         # before this process's first session, and inherited by its nodes and recorder: a host
         # cut off longer than zenoh's lease must not leave them without a thread to receive on
@@ -137,7 +137,7 @@ def _use_certificates(system: System, options: RunOptions) -> None:
     """--certs: this host's certificates, checked now and handed to every process of the run."""
     if not options.certs:
         return
-    from iotad.host.certificates import CertificateError, use
+    from iotad.machine.certificates import CertificateError, use
 
     host = options.host or system.hub_host
     if host is None:
@@ -158,7 +158,7 @@ def fleet_for(system: System, options: RunOptions, port: int | None, record_to: 
     hosts = [n.host for n in system.nodes.values() if n.host]
     if options.host is not None or options.local or not hosts:
         return None, options.host
-    from iotad.host.transport import reachable
+    from iotad.node_host.transport import reachable
     from iotad.launcher.hosts.fleet import Fleet
 
     hub = [reachable(e) for e in (with_port(system.listen, port) if port is not None else system.listen)]
@@ -184,9 +184,9 @@ def access_for(system: System, options: RunOptions):
     no one could hand the other launchers their credentials (tcp/ links, no --certs, a launcher
     started by hand with --host), the run is refused unless --insecure says to run it open: a
     system on a network is secured by default, not by remembering a flag."""
-    from iotad.host.agent_secret import derive
-    from iotad.host.certificates import ENV_DIR, CertificateError
-    from iotad.host.credentials import ENV, CredentialsError, load
+    from iotad.machine.agent_secret import derive
+    from iotad.machine.certificates import ENV_DIR, CertificateError
+    from iotad.node_host.credentials import ENV, CredentialsError, load
     from iotad.launcher.fleet_wire import launcher_user
     from iotad.launcher.options import AccessOptions
 

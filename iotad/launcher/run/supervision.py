@@ -35,11 +35,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from iotad.host import wire
-from iotad.host.clock_offset import ClockServer
+from iotad.node_host import wire
+from iotad.machine.clock_offset import ClockServer
 from iotad.kernel.clock import steady_wall, wall
-from iotad.host.node_config import CONFIGURATION_ERROR
-from iotad.host.stop_signals import Flag
+from iotad.node_host.node_config import CONFIGURATION_ERROR
+from iotad.node_host.stop_signals import Flag
 from iotad.launcher.access.access_control import AccessControl
 from iotad.launcher.run.node_run import NodeRun, NodeState
 from iotad.launcher.options import AccessOptions, LaunchOptions, RecordingOptions
@@ -96,7 +96,7 @@ class Launcher:
         self._live_at: float | None = None  # with after_live: when every node was first live
         self.hub = with_port(system.listen, launch.port) if launch.port is not None else list(system.listen)
         self.origin = launch.origin
-        self.node_argv = launch.node_argv or (lambda config: [sys.executable, "-m", "iotad.host", config])
+        self.node_argv = launch.node_argv or (lambda config: [sys.executable, "-m", "iotad.node_host", config])
         self._own_dir = launch.log_dir is None
         self.run_dir = Path(launch.log_dir) if launch.log_dir else Path(tempfile.mkdtemp(prefix=f"iotad-{system.name}-"))
         self.run_dir.mkdir(parents=True, exist_ok=True)
@@ -123,7 +123,7 @@ class Launcher:
         self._declared: list[Any] = []
         self._stop_reason: str | None = None
         self._interrupts = 0
-        # Set by signal handlers, hence lock-free flags, not threading.Events (iotad.host.stop_signals)
+        # Set by signal handlers, hence lock-free flags, not threading.Events (iotad.node_host.stop_signals)
         self._stop_asked = Flag()  # a stop was asked for (signal or request_stop)
         self._hurry = Flag()       # a second signal: skip the waiting of the stop
         self._signals: list[int] = []  # the stop signals received, in order; the loop takes them
@@ -216,7 +216,7 @@ class Launcher:
             signal.signal(signum, handler)
 
     def _open_session(self) -> None:
-        from iotad.host.transport import open_session, reachable
+        from iotad.node_host.transport import open_session, reachable
         from iotad.launcher.system.can_env import unresolved
 
         system = self.system
@@ -241,8 +241,8 @@ class Launcher:
                 raise LauncherError(f"the hub endpoint {', '.join(listen)} is taken (another 'iotad run'?); "
                                     "choose another with --port") from None
             if self.access is not None and self.access.own is not None:  # another host's, under access control
-                from iotad.host.admission import diagnose
-                from iotad.host.certificates import from_env
+                from iotad.node_host.admission import diagnose
+                from iotad.machine.certificates import from_env
 
                 text = f"not admitted: {diagnose(connect[0], from_env(), self.access.own.user).reason}"
             raise LauncherError(f"cannot open the hub session (listen {listen}, connect {connect}): {text}") from None
@@ -473,7 +473,7 @@ class Launcher:
     def _host_changed(self, event: str, host: str) -> None:
         """Another host's agent was lost, or came back and runs its part again: its nodes are
         down (a launcher event each, in the recording) or starting again. Their peers learn of
-        the restart from the nodes' own tokens when they come back (iotad/host/peer_restart.py)."""
+        the restart from the nodes' own tokens when they come back (iotad/node_host/peer_restart.py)."""
         nodes = [name for name, spec in self.system.nodes.items() if spec.host == host]
         if event == "lost":
             for name in nodes:
@@ -745,7 +745,7 @@ class Launcher:
                 pass
         self._declared.clear()
         if self.session is not None:
-            from iotad.host.session_close import close_session
+            from iotad.node_host.session_close import close_session
 
             session, self.session = self.session, None
             problem = close_session(session)  # never waits on a host that is cut off

@@ -25,7 +25,7 @@ from types import MappingProxyType
 from typing import Any, Callable, Mapping
 
 from iotad.can.canopen_ids import canopen_nodes
-from iotad.host.transport import DEFAULT_HUB_ENDPOINT, endpoint_problem, reachable
+from iotad.node_host.transport import DEFAULT_HUB_ENDPOINT, endpoint_problem, reachable
 from iotad.kernel.ports import Port
 from iotad.kernel.text_file import read_text_file
 from iotad.kernel.types import HUGE_INT

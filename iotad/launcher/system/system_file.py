@@ -53,7 +53,7 @@ from iotad.launcher.system.system_model import (  # noqa: F401 - the model's nam
     Binding, ChannelInfo, NodeSpec, System, channel_table, instantiate, param_names)
 
 CAN_TX, CAN_RX = "can_tx", "can_rx"  # the two channels of a node on a CAN bus
-PEER_RESTART = "peer_restart"  # an input the node host feeds when a peer restarts (iotad.host.peer_restart)
+PEER_RESTART = "peer_restart"  # an input the node host feeds when a peer restarts (iotad.node_host.peer_restart)
 
 
 # ---------------------------------------------------------------------------- loading

@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
 
-from iotad.host import wire
+from iotad.node_host import wire
 from iotad.kernel.ports import Port
 from iotad.launcher.system.bus_logger import logger_port_config
 from iotad.launcher.system.declaration import LOOPBACK_LISTEN, CanBusSpec, Declaration, HostSpec, NodeDecl
@@ -257,7 +257,7 @@ class System:
         return readers
 
     def node_config(self, node: str, origin: float, hub: list[str]) -> dict[str, Any]:
-        """The JSON config of `python -m iotad.host` (docs/internals.md, "Node host")."""
+        """The JSON config of `python -m iotad.node_host` (docs/internals.md, "Node host")."""
         spec = self.nodes[node]
         config = {"system": self.name, "path": spec.name, "source": dict(spec.source),
                   "params": {**link_params(self, node), **spec.params},

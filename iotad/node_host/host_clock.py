@@ -19,7 +19,7 @@ What fits in the queue is served as usual; the stop and restart notices are neve
 
 On a host other than the hub's, its launcher measures the host's clock against the hub's during
 the run and tells its nodes the hub's origin on this host's clock again (`follow`): the clock
-then reads its raw time plus a `Correction` (iotad/host/clock_correction.py), stepped forward or
+then reads its raw time plus a `Correction` (iotad/node_host/clock_correction.py), stepped forward or
 slewed back, never run backwards.
 """
 from __future__ import annotations
@@ -29,8 +29,8 @@ import queue
 import threading
 from typing import Any, Callable
 
-from iotad.host import wire
-from iotad.host.clock_correction import Correction
+from iotad.node_host import wire
+from iotad.node_host.clock_correction import Correction
 from iotad.kernel.clock import RealClock
 from iotad.kernel.engine import STOP
 

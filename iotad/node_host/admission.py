@@ -9,7 +9,7 @@ import socket
 import ssl
 from dataclasses import dataclass
 
-from iotad.host.certificates import TlsFiles
+from iotad.machine.certificates import TlsFiles
 
 
 @dataclass(frozen=True)

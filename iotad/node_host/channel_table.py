@@ -8,9 +8,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-from iotad.host import wire
+from iotad.node_host import wire
 from iotad.kernel.compose import Flat
-from iotad.host.node_config import ConfigError, NodeConfig
+from iotad.node_host.node_config import ConfigError, NodeConfig
 
 
 @dataclass

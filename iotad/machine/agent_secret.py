@@ -13,7 +13,7 @@ import hmac
 import os
 from pathlib import Path
 
-from iotad.host.certificates import AUTHORITY_KEY, CertificateError
+from iotad.machine.certificates import AUTHORITY_KEY, CertificateError
 
 SUFFIX = ".secret"
 

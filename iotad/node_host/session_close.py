@@ -1,7 +1,7 @@
 """Closing a zenoh session without waiting on a host that cannot be reached.
 
 A session with a link to a host that is cut off closes slowly: zenoh closes each such link with
-SO_LINGER 10 s (iotad/host/zenoh_runtime.py says why), and gives up after its own 10 s with
+SO_LINGER 10 s (iotad/node_host/zenoh_runtime.py says why), and gives up after its own 10 s with
 `ZError: close operation timed out`. A launcher stopped while its host was cut off ended on that
 error, exit 2, after its nodes had been killed for not stopping in time, and printed no summary.
 Nothing is left to send on such a link, so the close runs on a thread of its own here, and the

@@ -8,8 +8,8 @@ from typing import Iterable
 
 import zenoh
 
-from iotad.host.certificates import TlsFiles, from_env as tls_from_env
-from iotad.host.credentials import Credentials, for_endpoints, from_env
+from iotad.machine.certificates import TlsFiles, from_env as tls_from_env
+from iotad.node_host.credentials import Credentials, for_endpoints, from_env
 
 DEFAULT_LISTEN = ("tcp/127.0.0.1:0",)  # port 0: the OS picks a free loopback port
 # Where `iotad run` puts its hub peer unless told otherwise, and where the introspection commands
@@ -44,7 +44,7 @@ def make_config(listen: Iterable[str] = DEFAULT_LISTEN, connect: Iterable[str] =
     """`extra` maps zenoh config paths (e.g. "transport/link/tx/queue/size/data") to JSON values;
     it cannot turn multicast scouting back on. `credentials`: authenticate with zenoh's
     user-password scheme (and, with a dictionary, check the peers that connect here). `tls`: the
-    certificates for `tls/` endpoints, with mutual authentication (iotad/host/certificates.py)."""
+    certificates for `tls/` endpoints, with mutual authentication (iotad/machine/certificates.py)."""
     config = zenoh.Config()
     for path, value in (extra or {}).items():
         config.insert_json5(path, json.dumps(value))
@@ -74,7 +74,7 @@ def open_session(listen: Iterable[str] = DEFAULT_LISTEN, connect: Iterable[str] 
     (a listening peer could be reached around it). False: none, whatever the environment says.
 
     `tls` None: the certificates this process was given in `IOTAD_CERTS`/`IOTAD_CERTS_HOST`, if
-    any (iotad/host/certificates.py): used on `tls/` endpoints."""
+    any (iotad/machine/certificates.py): used on `tls/` endpoints."""
     if tls is None:
         tls = tls_from_env()
     if credentials is None:

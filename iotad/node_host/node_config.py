@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from iotad.host.transport import DEFAULT_LISTEN
+from iotad.node_host.transport import DEFAULT_LISTEN
 
 
 class ConfigError(ValueError):
@@ -64,7 +64,7 @@ class NodeConfig:
     start_gate: str | None = None
     # Where this host's launcher publishes the hub's origin on this host's clock each time it
     # measures the clock again (`iota/<system>/@origin/<host>`, a host other than the hub's): the
-    # node's clock follows it (iotad/host/clock_correction.py). None: the origin above holds.
+    # node's clock follows it (iotad/node_host/clock_correction.py). None: the origin above holds.
     follow_origin: str | None = None
     # The system file's host of this node (its `host = NAME`), said in its @spec answer so that
     # `iotad ls` and `iotad top` show where each node runs. None: a system on one machine.

@@ -20,18 +20,18 @@ from typing import Any
 
 import zenoh
 
-from iotad.host import wire
+from iotad.node_host import wire
 from iotad.kernel.compose import Composite, flatten
 from iotad.kernel.engine import INPUT_REFUSALS, Engine
-from iotad.host.can_port import CAN_TX, CanPort
-from iotad.host.channel_table import ChannelTable, build, plain_params
-from iotad.host.host_clock import HostClock, RawInput
-from iotad.host.node_config import ConfigError, NodeConfig
-from iotad.host.peer_restart import PEER_RESTART, watch_for_host
-from iotad.host.session_close import close_session
+from iotad.node_host.can_port import CAN_TX, CanPort
+from iotad.node_host.channel_table import ChannelTable, build, plain_params
+from iotad.node_host.host_clock import HostClock, RawInput
+from iotad.node_host.node_config import ConfigError, NodeConfig
+from iotad.node_host.peer_restart import PEER_RESTART, watch_for_host
+from iotad.node_host.session_close import close_session
 from iotad.kernel.model import param_values
 from iotad.kernel.policy import make_policy
-from iotad.host.transport import open_session
+from iotad.node_host.transport import open_session
 
 
 class SpecLoadError(Exception):
@@ -169,7 +169,7 @@ class NodeHost:
         spec_payload = wire.encode(self.describe())
         self._declared.append(session.declare_queryable(
             spec_key, lambda query: query.reply(spec_key, spec_payload)))
-        # peers' restarts as input events, if the IOTA asks for them (iotad/host/peer_restart.py)
+        # peers' restarts as input events, if the IOTA asks for them (iotad/node_host/peer_restart.py)
         restart_port = self.flat.external.get(PEER_RESTART)
         if restart_port is not None and restart_port[0] == "input":
             leaf = next(lf for lf in self.flat.leaves if lf.path == restart_port[1].path)

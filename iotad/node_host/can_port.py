@@ -14,8 +14,8 @@ from typing import Any, Callable
 
 from iotad.can.error_frames import describe_error_frame
 from iotad.can.frame import Frame, FrameError
-from iotad.host import wire
-from iotad.host.host_clock import RawInput
+from iotad.node_host import wire
+from iotad.node_host.host_clock import RawInput
 from iotad.kernel.types import to_plain
 
 CAN_TX, CAN_RX = "can_tx", "can_rx"

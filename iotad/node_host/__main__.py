@@ -1,4 +1,4 @@
-"""`python -m iotad.host CONFIG.json`: run one IOTA as one process on zenoh until SIGINT/SIGTERM.
+"""`python -m iotad.node_host CONFIG.json`: run one IOTA as one process on zenoh until SIGINT/SIGTERM.
 
 Prints nothing on stdout. A bad config, a spec that fails to load or a port that cannot open (a
 CAN bus, a zenoh endpoint) is reported on stderr and exits with CONFIGURATION_ERROR (2), which
@@ -11,17 +11,17 @@ import gc
 import signal
 import sys
 
-from iotad.host.node_config import CONFIGURATION_ERROR, ConfigError, load, parse
-from iotad.host.stop_signals import StopSignals
+from iotad.node_host.node_config import CONFIGURATION_ERROR, ConfigError, load, parse
+from iotad.node_host.stop_signals import StopSignals
 
 
 def _fail(message: str, code: int = CONFIGURATION_ERROR) -> int:
-    print(f"iotad.host: error: {message}", file=sys.stderr, flush=True)
+    print(f"iotad.node_host: error: {message}", file=sys.stderr, flush=True)
     return code
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m iotad.host", description=__doc__)
+    parser = argparse.ArgumentParser(prog="python -m iotad.node_host", description=__doc__)
     parser.add_argument("config", nargs="?", help="the node's JSON config file (docs/internals.md)")
     parser.add_argument("--config-json", help="the same JSON, inline")
     args = parser.parse_args(argv)
@@ -33,7 +33,7 @@ def main(argv: list[str] | None = None) -> int:
     # anyone else (kill, a service manager) ends the node as a kill does, 128 + 15 as a shell
     # reports it: under restart = "on-failure" its launcher starts it again.
     # (No threading.Event set in the handler: it deadlocks when the signal lands while this
-    # thread waits on that Event; iotad.host.stop_signals.)
+    # thread waits on that Event; iotad.node_host.stop_signals.)
     stop = StopSignals((signal.SIGTERM, signal.SIGINT))
     received = stop.received
 
@@ -42,7 +42,7 @@ def main(argv: list[str] | None = None) -> int:
     except ConfigError as exc:
         return _fail(str(exc))
 
-    from iotad.host.node_host import NodeHost, SpecLoadError, load_root
+    from iotad.node_host.node_host import NodeHost, SpecLoadError, load_root
 
     try:
         root, text = load_root(config)
@@ -57,7 +57,7 @@ def main(argv: list[str] | None = None) -> int:
     if stop.is_set():
         return _signalled(received)
     try:
-        from iotad.host.can_port import CanPortError
+        from iotad.node_host.can_port import CanPortError
 
         try:
             host.start(settle=_freeze_heap)
@@ -79,8 +79,8 @@ def main(argv: list[str] | None = None) -> int:
 
 def _refused(config, exc: Exception) -> str:
     """zenoh's reason, or for a node given credentials (under access control) why the hub did not
-    admit it: its certificate or its credentials, said in one line (iotad/host/admission.py)."""
-    from iotad.host.credentials import CredentialsError, from_env
+    admit it: its certificate or its credentials, said in one line (iotad/node_host/admission.py)."""
+    from iotad.node_host.credentials import CredentialsError, from_env
 
     try:
         own = from_env()
@@ -88,8 +88,8 @@ def _refused(config, exc: Exception) -> str:
         return str(refused)
     if own is None or not config.connect:
         return str(exc)
-    from iotad.host.admission import diagnose
-    from iotad.host.certificates import CertificateError, from_env as tls_from_env
+    from iotad.node_host.admission import diagnose
+    from iotad.machine.certificates import CertificateError, from_env as tls_from_env
 
     try:
         tls = tls_from_env()

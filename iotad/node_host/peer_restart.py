@@ -29,7 +29,7 @@ from __future__ import annotations
 import threading
 from typing import Any, Callable, Iterable
 
-from iotad.host import wire
+from iotad.node_host import wire
 
 PEER_RESTART = "peer_restart"  # the reserved input channel a node host feeds
 
@@ -117,7 +117,7 @@ def watch_for_host(session: Any, config: Any, channel_type: Any, post: Callable[
     """The node host's watch: for a root IOTA with a `peer_restart` input, post a notice to the
     engine (`post`, never dropped by a full input queue) for each restart of a node bound to
     one of its inputs or outputs. None when the IOTA has no such input or no peers."""
-    from iotad.host.host_clock import RawInput
+    from iotad.node_host.host_clock import RawInput
 
     peers = peers_of(config.system, config.path, config.inputs, config.readers)
     if not peers:
