@@ -6,7 +6,7 @@ and how long it pauses after each answer.
 
 If the scheduler restarts while a request is in flight, the restarted scheduler knows nothing of
 it and would never answer: the node host tells the requester through its `peer_restart` input
-(iotad/node_host/peer_restart.py), and the requester takes that as the ABORT it is (the motors were
+(iotad/host/peer_restart.py), and the requester takes that as the ABORT it is (the motors were
 taken from it) and goes on with its next request after its pause (docs/failures.md).
 
 An answer can also be lost on the way: the network between hosts is cut for longer than it
