@@ -1,7 +1,7 @@
 """`iotad view`: watch a running system in Foxglove. A Foxglove WebSocket server (foxglove-sdk)
 bridges every channel of every live node, with its JSON schema; joint states and planar poses
 also in Foxglove's well-known schemas (3D and plot panels), the schedulers' acks, `mdl_command`
-and every violation on /log, CAN frames decoded by name (iotad/cli/foxglove_bridge.py)."""
+and every violation on /log, CAN frames decoded by name (iotad/recording/foxglove_mapping.py)."""
 from __future__ import annotations
 
 import argparse

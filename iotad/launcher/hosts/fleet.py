@@ -63,15 +63,21 @@ class Fleet:
         # out between the lines of an answer it follows
         self._printing = threading.Lock()
 
-    def start(self, access=None, stop=None) -> None:
+    def start(self, access=None, stop=None, *, say: Callable[[str], None] | None = None,
+              notify: Callable[[str, str], None] | None = None) -> None:
         """Give each host its part as soon as its agent is there, waiting up to `start_timeout` for
         them all; raises `FleetError` naming the hosts that did not take it (the ones that did are
         stopped). `access` (iotad/launcher/access/access_control.py): under access control, this session's
         user and each host's credentials, which go in that host's order only. `stop` (a flag with
         `is_set()`: Ctrl-C) ends the wait at once: the hosts started by then are the caller's to
-        stop (`stop()`), as at the end of a run."""
+        stop (`stop()`), as at the end of a run. `say` prints its lines, `notify(event, host)` hears a host
+        lost or back (the launcher's: given here, not set from outside)."""
         from iotad.node_host.transport import open_session
 
+        if say is not None:
+            self.say = say
+        if notify is not None:
+            self.notify = notify
         self._stop = stop
         self.session = open_session([], self.hub, mode="client", connect_timeout=self.start_timeout,
                                     credentials=access.fleet_credentials() if access else False, tls=self.tls)

@@ -45,7 +45,9 @@ class RecorderSupervisor:
 
     def __init__(self, system: System, options: RecordingOptions, *, hub: list[str], run_dir: Path,
                  env: dict[str, str] | None, events: queue.Queue, say: Callable[[str], None],
-                 announce: Callable[..., None]):
+                 announce: Callable[..., None], run_info: dict | None = None, nodes: list[str] | None = None):
+        """`run_info`: a run spread over hosts, whose recording this is (metadata `run`, for `iotad
+        merge`); `nodes`: another host's recording records only its own nodes (None: every node)."""
         self.system, self.options, self.hub, self.run_dir, self.env = system, options, hub, run_dir, env
         self.events, self.say, self.announce = events, say, announce
         self.child: Child | None = None
@@ -60,10 +62,7 @@ class RecorderSupervisor:
         self._frozen = 0.0                        # s of silence of a recorder killed as frozen
         self._stopping = False
         self._since = 0.0                         # time.time() as the recording began
-        # a run spread over hosts: whose recording this is (metadata `run`, for `iotad merge`),
-        # set by the launcher before `start()`, once it knows the run's origin and its clock
-        self.run_info: dict | None = None
-        self.nodes: list[str] | None = None  # another host's recording: only its own nodes
+        self.run_info, self.nodes = run_info, nodes
 
     # ------------------------------------------------------------------ allowances
     def start_allowance(self) -> float:

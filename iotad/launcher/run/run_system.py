@@ -120,7 +120,7 @@ def _launch(system: System, options: RunOptions, record_to: str | None, view, su
     print(f"summary of {system.name}" + (where if launcher.host else "") + ":")
     for line in launcher.summary():
         print(line)
-    if fleet is not None and fleet.host_orders and launcher.recorder is not None:
+    if fleet is not None and fleet.host_orders and recording is not None:
         from iotad.launcher.hosts.host_recording import host_recording_path
 
         others = [str(host_recording_path(record_to, host)) for host in fleet.hosts]

@@ -31,7 +31,6 @@ import tempfile
 import threading
 import time
 from collections import Counter
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -46,37 +45,10 @@ from iotad.launcher.options import AccessOptions, LaunchOptions, RecordingOption
 from iotad.launcher.processes import FAILED_TO_START, Child, RestartPolicy, describe_exit, log_tail, stop_all
 from iotad.launcher.run.recorder_supervision import RECORDER_STALL, RecorderSupervisor, RecordingError
 from iotad.launcher.system.system_file import Port, System, with_port
-from iotad.launcher.run.violation_examples import ViolationExamples
+from iotad.launcher.run.tally import VALUE_LABELS, Tally
 
-VALUE_LABELS = 32             # distinct values counted per channel for the summary; then "*"
 # Exit status of `run()` by stop reason: 128 + the signal, like a shell.
 _SIGNAL_STATUS = {"interrupted": 130, "SIGTERM": 143, "SIGHUP": 129}
-
-
-@dataclass
-class Tally:
-    """What crossed the system's keys while it ran: for the summary at the end."""
-
-    values: dict[str, Counter] = field(default_factory=dict)      # channel key -> Counter of values
-    violations: Counter = field(default_factory=Counter)           # node path -> count
-    examples: ViolationExamples = field(default_factory=ViolationExamples)  # first distinct violation lines
-    lock: threading.Lock = field(default_factory=threading.Lock)
-
-    def channel(self, key: str, value: Any) -> None:
-        label = value if isinstance(value, (str, bool, int)) and not isinstance(value, float) else "*"
-        with self.lock:
-            counts = self.values.setdefault(key, Counter())
-            if label not in counts and len(counts) >= VALUE_LABELS:
-                label = "*"  # a counter, a sequence number...: bounded memory over a long run
-            counts[label] += 1
-
-    def trace(self, path: str, event: Any) -> None:
-        if isinstance(event, dict) and event.get("kind") == "violation":
-            with self.lock:
-                self.violations[path] += 1
-                value = event.get("value") or {}
-                message = value.get("message") if isinstance(value, dict) else value
-                self.examples.add(f"{path} t={event.get('t', 0):.3f}: {message}", event.get("index"))
 
 
 class Launcher:
@@ -139,7 +111,9 @@ class Launcher:
         self.view = StatusView(launch.console, launch.live_table, title=f"iotad run {system.file}")
         # the recorder: the hub's launcher records what reaches the hub, another host's launcher
         # what its own nodes do (iotad/launcher/hosts/host_recording.py)
+        # made by _start_recorder, whole, once the hub session says where it records and from when
         self.recorder: RecorderSupervisor | None = None
+        self._recording = recording
         self._local: list[str] = []      # another host's launcher: where its recorder and nodes reach it
         if self.access is not None and self.access.own is not None and not system.opens_hub(self.host):
             # under access control its session is its host's router, on a private unix socket
@@ -147,11 +121,6 @@ class Launcher:
             self._local = [self.access.route(self.host)]
         self._hub_origin: float | None = None  # another host's launcher: the origin the hub answered
         self._clock: dict | None = None        # another host's launcher: its clock offset, as measured
-        if recording is not None:
-            self.recorder = RecorderSupervisor(
-                system, recording, hub=self.hub, run_dir=self.run_dir,
-                env=self.access.recorder_env() if self.access else None, events=self.events,
-                say=lambda text: self.view.line(text), announce=self._launcher_event)
 
     # ------------------------------------------------------------------ public
     def discard(self) -> None:
@@ -228,7 +197,7 @@ class Launcher:
             listen, connect = system.listen_for(self.host), self.hub
             if self.access is not None and self.access.router is not None:
                 listen = list(self._local)
-            elif self.recorder is not None:  # its recorder and nodes connect here: a known port
+            elif self._recording is not None:  # its recorder and nodes connect here: a known port
                 from iotad.launcher.hosts.host_recording import local_endpoints, pinned
 
                 listen = pinned(listen)
@@ -322,24 +291,33 @@ class Launcher:
                 self._origin_publisher.put(wire.encode({"origin": self.origin}))
             except Exception:  # noqa: BLE001 - a closing session: the run is ending anyway
                 pass
+        event = reading.event()
+        if self._clock is None and "offset" in event:
+            # the clock measured at start, for this host's own recording (started after it)
+            self._clock = dict(event, measured_ns=round(wall() * 1e9))
         self._launcher_event("clock_violation" if reading.problem else "clock", reading.message(),
-                             quiet=not (reading.first or reading.problem), **reading.event())
+                             quiet=not (reading.first or reading.problem), **event)
 
     def _start_recorder(self) -> None:
         """Start the recorder and wait until it has subscribed, before any node starts. A
         recording that cannot be written (no folder, no space, the recorder fails) is an error
         here, while nothing runs yet: --no-record runs without one."""
-        if self.recorder is not None:
+        if self._recording is not None:
+            info, reach, nodes = None, self.hub, None
             if self.host is not None:  # a run spread over hosts: whose recording this is (iotad merge)
                 from iotad.launcher.hosts.host_recording import run_info
 
                 hub = self.system.opens_hub(self.host)
                 origin = self.origin if hub or self._hub_origin is None else self._hub_origin
-                self.recorder.run_info = run_info(self.host, hub, origin, None if hub else self._clock)
+                info = run_info(self.host, hub, origin, None if hub else self._clock)
                 if not hub and self._local:
-                    self.recorder.hub = list(self._local)  # the host's own launcher, not the hub
+                    reach = list(self._local)  # the host's own launcher, not the hub
                 if not hub:
-                    self.recorder.nodes = list(self.runs)  # its own nodes (the hub records the others)
+                    nodes = list(self.runs)  # its own nodes (the hub records the others)
+            self.recorder = RecorderSupervisor(
+                self.system, self._recording, hub=reach, run_dir=self.run_dir,
+                env=self.access.recorder_env() if self.access else None, events=self.events,
+                say=lambda text: self.view.line(text), announce=self._launcher_event, run_info=info, nodes=nodes)
             try:
                 self.recorder.start()
             except RecordingError as exc:
@@ -352,11 +330,11 @@ class Launcher:
             return
         from iotad.launcher.hosts.fleet import FleetError
 
-        self.fleet.say = self.view.line
-        # a host lost or back is the loop's to report (its nodes' state, the recording)
-        self.fleet.notify = lambda event, host: self.events.put(("host", event, host))
         try:
-            self.fleet.start(self.access, stop=self._stop_asked)  # Ctrl-C ends the wait for agents at once
+            # a host lost or back is the loop's to report (its nodes' state, the recording);
+            # Ctrl-C ends the wait for agents at once
+            self.fleet.start(self.access, stop=self._stop_asked, say=self.view.line,
+                             notify=lambda event, host: self.events.put(("host", event, host)))
         except FleetError as exc:
             raise LauncherError(str(exc)) from None
 
@@ -667,9 +645,6 @@ class Launcher:
                         **extra: Any) -> None:
         """An event of the launcher itself (node None): the recorder's fate... `quiet`: recorded,
         not shown."""
-        if event in ("clock", "clock_violation") and self._clock is None and "offset" in extra:
-            # the clock measured at start, for this host's own recording (started after it)
-            self._clock = dict(extra, measured_ns=round(wall() * 1e9))
         if not quiet:
             self.view.line(text)
         self._publish({"event": event, "node": None, "pid": os.getpid(), "code": code,
