@@ -84,9 +84,16 @@ def use(directory: str | Path, host: str) -> TlsFiles:
     return files
 
 
+def authority_name(system: str) -> str:
+    """The common name of system `system`'s authority: two systems' authorities, and so the issuers
+    of their hosts' certificates, read differently (`iotad certs show`)."""
+    return f"{system} certificate authority"
+
+
 def init_authority(directory: str | Path, name: str = "iotad", days: int = 3650, force: bool = False) -> Path:
-    """Make a certificate authority in `directory` (ca.pem, and ca.key readable by its owner only).
-    Refuses to replace one unless `force`: every host certificate it signed would stop working."""
+    """Make a certificate authority for system `name` in `directory` (ca.pem, and ca.key readable by
+    its owner only). Refuses to replace one unless `force`: every host certificate it signed would
+    stop working."""
     from cryptography import x509
     from cryptography.hazmat.primitives import hashes
     from cryptography.hazmat.primitives.asymmetric import ec
@@ -99,7 +106,7 @@ def init_authority(directory: str | Path, name: str = "iotad", days: int = 3650,
                                "certificate it signed (use --force to replace it)")
     directory.mkdir(parents=True, exist_ok=True)
     key = ec.generate_private_key(ec.SECP256R1())
-    subject = x509.Name([x509.NameAttribute(NameOID.COMMON_NAME, f"{name} certificate authority")])
+    subject = x509.Name([x509.NameAttribute(NameOID.COMMON_NAME, authority_name(name))])
     now = datetime.datetime.now(datetime.timezone.utc)
     certificate = (
         x509.CertificateBuilder()
@@ -175,7 +182,8 @@ def issue_host(directory: str | Path, host: str, addresses: list[str] = (), days
 
 
 def describe(path: str | Path) -> str:
-    """One line about a certificate: subject, names, issuer and expiry (`iotad certs show`)."""
+    """One line about a certificate: subject, names, issuer with its fingerprint, and expiry
+    (`iotad certs show`)."""
     from cryptography import x509
     certificate = x509.load_pem_x509_certificate(Path(path).read_bytes())
     try:
@@ -184,8 +192,41 @@ def describe(path: str | Path) -> str:
     except x509.ExtensionNotFound:
         names = "-"
     return (f"{Path(path).name}: {certificate.subject.rfc4514_string()}; names {names}; "
-            f"issued by {certificate.issuer.rfc4514_string()}; valid until "
-            f"{certificate.not_valid_after_utc:%Y-%m-%d}")
+            f"issued by {certificate.issuer.rfc4514_string()} (issuer fingerprint "
+            f"{issuer_fingerprint(certificate, Path(path).with_name(AUTHORITY_CERTIFICATE))}); "
+            f"valid until {certificate.not_valid_after_utc:%Y-%m-%d}")
+
+
+def issuer_fingerprint(certificate, authority: Path | None = None) -> str:
+    """The fingerprint of the key that signed `certificate`: SHA-256 of the issuer's public key
+    (SubjectPublicKeyInfo, DER), in hex pairs. Two authorities of the same name differ here. Taken
+    from the certificate that signed it where it lies beside (`ca.pem`), else from its own key for a
+    self-signed one; otherwise the authority key identifier the certificate carries (SHA-1 of the
+    issuer's key, RFC 5280), marked as such. `authority`: the certificate that may have signed it."""
+    from cryptography import x509
+    from cryptography.exceptions import InvalidSignature
+    from cryptography.hazmat.primitives import hashes, serialization
+
+    def of_key(public_key) -> str:
+        digest = hashes.Hash(hashes.SHA256())
+        digest.update(public_key.public_bytes(serialization.Encoding.DER,
+                                              serialization.PublicFormat.SubjectPublicKeyInfo))
+        return "sha256 " + digest.finalize().hex(":").upper()
+
+    if certificate.issuer == certificate.subject:
+        return of_key(certificate.public_key())
+    if authority is not None and authority.is_file():
+        try:
+            issuer = x509.load_pem_x509_certificate(authority.read_bytes())
+            certificate.verify_directly_issued_by(issuer)  # the one beside signed it, not only shares its name
+            return of_key(issuer.public_key())
+        except (ValueError, TypeError, InvalidSignature):
+            pass
+    try:
+        identifier = certificate.extensions.get_extension_for_class(x509.AuthorityKeyIdentifier).value.key_identifier
+    except x509.ExtensionNotFound:
+        identifier = None
+    return "sha1 key id " + identifier.hex(":").upper() if identifier else "unknown"
 
 
 def _pem(certificate) -> bytes:

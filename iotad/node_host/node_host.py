@@ -143,7 +143,8 @@ class NodeHost:
         config = self.config
         # Shared memory is off by default: it buys nothing for small messages and costs each of
         # many node processes ~2 MB (measured with 32 nodes); a config's "zenoh" may turn it on.
-        extra = {"transport/shared_memory/enabled": False, **config.zenoh}
+        extra = {"transport/shared_memory/enabled": False, **config.zenoh,
+                 **(self.ros2.session_settings() if self.ros2 is not None else {})}  # a latched topic: timestamps
         self.session = session = open_session(config.listen, config.connect, extra=extra)
         base = f"{wire.PREFIX}/{config.system}/{config.path}"
         block = zenoh.CongestionControl.BLOCK

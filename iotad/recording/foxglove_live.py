@@ -22,7 +22,10 @@ class Bridge:
         self.log_channel = LogChannel(LOG_TOPIC)
         from iotad.recording.foxglove_scene import SceneTracker
 
+        from iotad.recording.foxglove_latched import LatchedScene
+
         self.scene = SceneTracker(embed=False)  # meshes by URL: the server answers them (asset)
+        self.latched = LatchedScene()  # the URDF, meshes, arena, conveyor: again for each late viewer
         self._scene: dict[str, Any] = {}
         self.schemas: dict[str, dict] = {}   # topic -> JSON schema (from @spec)
         self.types: dict[str, str] = {}      # key -> type name
@@ -62,6 +65,7 @@ class Bridge:
             channel = self._scene.get(topic)
             if channel is None:
                 channel = self._scene[topic] = self._scene_channel(topic, message)
+            self.latched.keep(topic, channel, message, stamp_ns)
             channel.log(message, log_time=stamp_ns)
             self.sent += 1
 

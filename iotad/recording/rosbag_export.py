@@ -75,8 +75,11 @@ def export_rosbag(recording: Recording, output: str | Path,
     system = recording.system
     out_by_key: dict[str, list[Mapping]] = {}
     in_by_key: dict[str, Mapping] = {}
+    constants: list[Mapping] = []
     for mapping in bridge_mappings(recording):
-        if mapping.direction == "out":
+        if mapping.constant:  # the robot's description: published once, as the bridge opened
+            constants.append(mapping)
+        elif mapping.direction == "out":
             port = Port.parse(mapping.channel)  # as the system file's [[ros2]] channel was read
             key = wire.channel_key(system, port.node, port.channel, port.index)
             out_by_key.setdefault(key, []).append(mapping)
@@ -98,6 +101,10 @@ def export_rosbag(recording: Recording, output: str | Path,
         counts[topic] = counts.get(topic, 0) + 1
 
     with writer:
+        for mapping in constants:
+            first = next(iter(recording.messages), None)
+            stamp = first.log_time if first is not None else 0
+            write(mapping.topic, mapping.ros_type, _converted(mapping, None, stamp), stamp)
         for number, message in enumerate(recording.messages):
             if progress is not None and number % 10_000 == 0:
                 progress(number)

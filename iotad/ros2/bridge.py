@@ -35,6 +35,8 @@ def ros2_bridge(name: str = NODE_NAME, mappings: list | None = None, switching: 
     attributes: dict[str, Any] = {"lag": Param(lag), "mappings": Param(mappings), "switching": Param(switching),
                                   "ros_node": Param(ros_node), "__module__": __name__}
     for number, mapping in enumerate(mappings):
+        if mapping["channel"] is None:  # constant (robot_description): its port publishes it, no channel
+            continue
         value_type = value_types.build(mapping["value_type"])
         if mapping["direction"] == "out":
             (out,) = channel_names(number, "out")

@@ -17,7 +17,8 @@ from iotad.ros2 import messages, rmw_zenoh, value_types
 from iotad.ros2.messages import MessageError
 
 DIRECTIONS = ("out", "in")
-KEYS = {"channel", "topic", "type", "direction", "domain", "fields", "frame_id"}
+KEYS = {"channel", "topic", "type", "direction", "domain", "fields", "frame_id", "durability"}
+DURABILITIES = ("volatile", "transient_local")
 _SCALARS = {  # std_msgs scalar types: their one field `data`, mapped from the whole value by default
     t: "data" for t in messages.SUPPORTED if t.startswith("std_msgs/msg/")}
 
@@ -28,22 +29,35 @@ class MappingError(ValueError):
 
 @dataclass
 class Mapping:
-    channel: str                   # "node.channel" (an output for out, an input for in)
+    channel: str | None            # "node.channel" (an output for out, an input for in); None: constant
     topic: str                     # fully qualified: "/joint_states"
     ros_type: str                  # "sensor_msgs/msg/JointState"
     direction: str                 # out: iotad -> ROS 2; in: ROS 2 -> iotad
     domain: int = 0
     fields: dict[str, Any] = field(default_factory=dict)
     value_type: Any = None         # the channel's plain type description (value_types.describe)
+    durability: str = "volatile"   # or "transient_local": late subscribers get the latest message
 
     def plain(self) -> dict[str, Any]:
         return {"channel": self.channel, "topic": self.topic, "type": self.ros_type, "direction": self.direction,
-                "domain": self.domain, "fields": self.fields, "value_type": self.value_type}
+                "domain": self.domain, "fields": self.fields, "value_type": self.value_type,
+                "durability": self.durability}
 
     @classmethod
     def from_plain(cls, plain: dict[str, Any]) -> "Mapping":
+        # a recording made before durability existed holds volatile mappings
         return cls(plain["channel"], plain["topic"], plain["type"], plain["direction"], plain["domain"],
-                   dict(plain["fields"]), plain.get("value_type"))
+                   dict(plain["fields"]), plain.get("value_type"), plain.get("durability", "volatile"))
+
+    @property
+    def constant(self) -> bool:
+        """A message of constants alone (`robot_description`): no channel, sent once and latched."""
+        return self.channel is None
+
+    @property
+    def qos(self) -> str:
+        """The QoS part of its liveliness token."""
+        return rmw_zenoh.qos_token(self.durability == "transient_local")
 
     @property
     def type_hash(self) -> str:
@@ -111,16 +125,30 @@ def parse(raw: Any, channel_type: Type | None, entry: str) -> Mapping:
         raise MappingError(f"{entry}: needs a fields table: each destination field = a source field path "
                            f"or {{ value = constant }}")
     fields = dict(fields)
+    durability = parse_durability(raw, entry)
     if isinstance(raw.get("frame_id"), str):  # a shorthand: the message's header.frame_id
         fields.setdefault("header.frame_id", {"value": raw["frame_id"]})
     mapping = Mapping(raw["channel"], raw["topic"], raw["type"], direction, domain, fields,
-                      value_types.describe(channel_type))
+                      value_types.describe(channel_type), durability)
     try:
         (_check_out if direction == "out" else _check_in)(mapping, channel_type)
     except (KeyError, MessageError, ValueError) as exc:
         text = exc.args[0] if isinstance(exc, KeyError) and exc.args else str(exc)
         raise MappingError(f"{entry}: {text}") from None
     return mapping
+
+
+def latched_by_default(topic: str) -> bool:
+    """Topics ROS 2 tools expect to get late: `/robot_description` and `/tf_static` (also under a
+    namespace), published transient local by robot_state_publisher and tf2's static broadcaster."""
+    return topic.rsplit("/", 1)[-1] in ("robot_description", "tf_static")
+
+
+def parse_durability(raw: dict, entry: str) -> str:
+    durability = raw.get("durability", "transient_local" if latched_by_default(str(raw.get("topic"))) else "volatile")
+    if durability not in DURABILITIES:
+        raise MappingError(f"{entry}: durability must be \"volatile\" or \"transient_local\", not {durability!r}")
+    return durability
 
 
 def _check_out(mapping: Mapping, channel_type: Type) -> None:

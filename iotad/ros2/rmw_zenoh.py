@@ -11,13 +11,16 @@ branch of Jazzy and later) specifies:
   <namespace>/<node>[/<topic>/<type>/<hash>/<qos>]`, every name "mangled" (`/` -> `%`), kinds NN
   (node), MP (publisher), MS (subscription);
 - attachment: sequence number (int64 little-endian), source timestamp (int64 ns since the UNIX
-  epoch, little-endian), one byte holding the GID's length (16), the 16-byte GID.
+  epoch, little-endian), one byte holding the GID's length (16), the 16-byte GID;
+- GID: XXH3-128 of the entity's liveliness token, as rmw_zenoh's `Entity` computes it for every
+  entity, remote ones included (its low 64 bits, then its high 64 bits, each little-endian).
 """
 from __future__ import annotations
 
-import hashlib
 import struct
 from dataclasses import dataclass
+
+import xxhash
 
 ADMIN_SPACE = "@ros2_lv"
 NODE, PUBLISHER, SUBSCRIPTION = "NN", "MP", "MS"
@@ -27,6 +30,35 @@ _ATTACHMENT = struct.Struct("<qqB")
 # profile). rmw_zenoh writes a field only where it differs from its own defaults; the design
 # document's listener on `chatter`, with exactly this profile, carries "::,10:,:,:,,".
 DEFAULT_QOS = "::,10:,:,:,,"
+# A transient-local entity: durability 1 (RMW_QOS_POLICY_DURABILITY_TRANSIENT_LOCAL; rmw_zenoh's
+# default is volatile, 2, so it is written) and keep last 1, as robot_state_publisher and tf2's
+# static broadcaster declare theirs: a late subscriber gets the latest message.
+LATCHED_QOS = ":1:,1:,:,:,,"
+LATCHED_DEPTH = 1
+
+
+def qos_token(transient_local: bool) -> str:
+    return LATCHED_QOS if transient_local else DEFAULT_QOS
+
+
+def cache_queryable_key(session_id: str, key: str) -> str:
+    """Where a transient-local publisher's cache answers: rmw_zenoh's publication cache takes the
+    session id as its queryable prefix, `<session id>/<data key>`; its subscribers ask `*/<data key>`
+    when they start and `<session id>/<data key>` when a new publisher's token appears, and accept
+    replies on the data key itself."""
+    return f"{session_id}/{key}"
+
+
+def advanced_keys(key: str) -> str:
+    """Every key of zenoh's advanced publishers and subscribers of a data key (their liveliness
+    tokens, cache queryables and queries: `<data key>/@adv/pub/...`, `<data key>/@adv/sub/...`),
+    which rmw_zenoh's later releases use for transient local."""
+    return f"{key}/@adv/**"
+
+
+def cache_query_key(key: str) -> str:
+    """What a transient-local subscriber asks as it starts: every publication cache of the key."""
+    return f"*/{key}"
 
 
 class Ros2NameError(ValueError):
@@ -96,10 +128,11 @@ class Node:
 
 
 def gid_of(token: str) -> bytes:
-    """A 16-byte GID for the entity with this liveliness token. rmw_zenoh hashes the token with
-    XXH3-128; any 16 bytes unique to the entity serve (a GID is compared, never decoded), so the
-    standard library's BLAKE2b stands in."""
-    return hashlib.blake2b(token.encode(), digest_size=GID_SIZE).digest()
+    """The 16-byte GID of the entity with this liveliness token, as rmw_zenoh makes it: XXH3-128 of
+    the token, the 128-bit value's low half then its high half, each copied from memory on a
+    little-endian machine, i.e. the whole value little-endian. A ROS 2 program compares the GID in
+    a message's attachment with the one its graph cache computed from the publisher's token."""
+    return xxhash.xxh3_128_intdigest(token.encode()).to_bytes(GID_SIZE, "little")
 
 
 def encode_attachment(sequence: int, timestamp_ns: int, gid: bytes) -> bytes:

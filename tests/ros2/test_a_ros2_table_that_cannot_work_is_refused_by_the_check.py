@@ -105,4 +105,31 @@ fields = { position = "position" }
     with pytest.raises(SystemFileError) as caught:
         load_system(path)
     (error,) = caught.value.errors
-    assert "[[ros2]] #3" in error and "arm.setpoints is already bound ([[bind]]" in error
+    assert "[[ros2]] #4" in error and "arm.setpoints is already bound ([[bind]]" in error
+
+
+@pytest.mark.parametrize("table, said", [
+    ('robot_description = "nope.urdf"', "robot_description 'nope.urdf': no such file beside the system file"),
+    ('robot_description = "t.toml"', "is not a URDF (no <robot> element)"),
+    ('robot_description = "xarm/xarm6_with_gripper.urdf"\nchannel = "arm.joint_states"',
+     "unknown key(s) channel for a robot_description table"),
+    ('robot_description = "xarm/xarm6_with_gripper.urdf"\ndurability = "forever"',
+     'durability must be "volatile" or "transient_local"'),
+])
+def test_a_robot_description_that_cannot_work_is_one_error_naming_it(tmp_path, table, said):
+    errors = check(tmp_path, GOOD + "\n[[ros2]]\n" + table + "\n")
+    assert len(errors) == 1 and "[[ros2]] #2" in errors[0] and said in errors[0], errors
+
+
+def test_durability_defaults_to_transient_local_for_latched_topics_only(tmp_path):
+    path = tmp_path / "t.toml"
+    beside = tmp_path / "robot.urdf"
+    beside.write_text('<robot name="r"><link name="base"/></robot>')
+    path.write_text(HEAD + GOOD + GOOD.replace("/joint_states", "/robot1/tf_static")
+                    + GOOD.replace("/joint_states", "/latched_joints").replace('direction = "out"', 'direction = "out"\ndurability = "transient_local"')
+                    + '\n[[ros2]]\nrobot_description = "robot.urdf"\n')
+    mappings = load_system(path).nodes["ros2"].params["mappings"]
+    assert [(m["topic"], m["durability"]) for m in mappings] == [
+        ("/joint_states", "volatile"), ("/robot1/tf_static", "transient_local"), ("/latched_joints", "transient_local"),
+        ("/robot_description", "transient_local")]
+    assert mappings[3]["channel"] is None and mappings[3]["fields"] == {"data": {"value": beside.read_text()}}

@@ -5,6 +5,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pybullet_data
 import pytest
 from mcap.reader import make_reader
 from rosbags.rosbag2 import Reader
@@ -46,10 +47,16 @@ def test_the_mapped_joint_states_are_a_bag_with_every_value(arm_recording, tmp_p
     with Reader(bag) as reader:
         types = {c.topic: c.msgtype for c in reader.connections}
         counts = {c.topic: c.msgcount for c in reader.connections}
-        assert reader.message_count == 2 * len(recorded)
-    assert types == {"/joint_states": "sensor_msgs/msg/JointState", "/arm/joint1": "std_msgs/msg/Float64"}
-    assert counts == {"/joint_states": len(recorded), "/arm/joint1": len(recorded)} and len(recorded) == 300
+        assert reader.message_count == 2 * len(recorded) + 1
+    assert types == {"/joint_states": "sensor_msgs/msg/JointState", "/arm/joint1": "std_msgs/msg/Float64",
+                     "/robot_description": "std_msgs/msg/String"}
+    assert counts == {"/joint_states": len(recorded), "/arm/joint1": len(recorded), "/robot_description": 1}
+    assert len(recorded) == 300
     found = bag_messages(bag)
+    # the robot model the system declares, once, at the start of the recording
+    ((stamp, description),) = found["/robot_description"]
+    assert stamp == read_recording(arm_recording).messages[0].log_time
+    assert description.data == (Path(pybullet_data.getDataPath()) / "xarm/xarm6_with_gripper.urdf").read_text()
     for message, (stamp, joint_state), (_, joint1) in zip(recorded, found["/joint_states"], found["/arm/joint1"]):
         assert stamp == message.log_time
         assert joint_state.position.tolist() == message.value["position"]

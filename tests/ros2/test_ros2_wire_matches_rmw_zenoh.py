@@ -4,6 +4,7 @@ implementation of CDR and of REP-2016 type hashes that is not iotad's."""
 import struct
 
 import pytest
+import xxhash
 from rosbags.typesys import Stores, get_typestore
 
 from channels.joints import JOINT_STATES
@@ -58,6 +59,37 @@ def test_attachment_bytes_parse_as_rmw_zenoh_lays_them_out():
     assert rmw_zenoh.decode_attachment(data) == (41, 1_700_000_000_123_456_789, gid)
     assert rmw_zenoh.decode_attachment(data[:10]) is None
     assert rmw_zenoh.decode_attachment(data[:20]) is None  # a GID cut short
+
+
+# rmw_zenoh_cpp/src/detail/liveliness_utils.cpp, Entity::Entity (ros2/rmw_zenoh), quoted:
+#   simplified_XXH128_hash_t keyexpr_gid =
+#     simplified_XXH3_128bits(this->liveliness_keyexpr_.c_str(), this->liveliness_keyexpr_.length());
+#   memcpy(this->gid_, &keyexpr_gid.low64, sizeof(keyexpr_gid.low64));
+#   memcpy(this->gid_ + sizeof(keyexpr_gid.low64), &keyexpr_gid.high64, sizeof(keyexpr_gid.high64));
+# where liveliness_keyexpr_ is the whole token, "@ros2_lv/..." included, and the two halves are
+# copied from memory of a little-endian machine. simplified_XXH3_128bits is XXH3_128bits with the
+# default secret (simplified_xxhash3.cpp); its reference value for the empty input is
+# { low64 = 0x6001C324468D497F, high64 = 0x99AA06D3014798D8 } (xxHash's own sanity checks).
+XXH3_128_OF_NOTHING = (0x6001C324468D497F, 0x99AA06D3014798D8)
+
+
+def rmw_zenoh_gid(token: str) -> bytes:
+    """The GID as rmw_zenoh's code above makes it: low64 then high64, each little-endian."""
+    digest = xxhash.xxh3_128(token.encode()).digest()  # xxHash's canonical form: high64, low64 big-endian
+    high, low = struct.unpack(">QQ", digest)
+    return struct.pack("<Q", low) + struct.pack("<Q", high)
+
+
+def test_gids_are_xxh3_128_of_the_token_as_rmw_zenoh_lays_them_out():
+    high, low = struct.unpack(">QQ", xxhash.xxh3_128(b"").digest())
+    assert (low, high) == XXH3_128_OF_NOTHING  # the hash library is XXH3-128 with the default secret
+    talker = rmw_zenoh.Node(2, "8b20917502ee955ac4476e0266340d5c", "talker")
+    for token in (DOC_LISTENER_NODE, DOC_LISTENER_SUB, talker.token(),
+                  talker.entity_token(10, rmw_zenoh.PUBLISHER, "/chatter", "std_msgs/msg/String", DOC_STRING_HASH)):
+        assert rmw_zenoh.gid_of(token) == rmw_zenoh_gid(token)
+        assert len(rmw_zenoh.gid_of(token)) == rmw_zenoh.GID_SIZE
+    # the byte order matters: the canonical (big-endian) digest is not the GID
+    assert rmw_zenoh.gid_of(DOC_LISTENER_SUB) != xxhash.xxh3_128(DOC_LISTENER_SUB.encode()).digest()
 
 
 def test_a_mapped_joint_state_is_cdr_that_rosbags_decodes():

@@ -124,7 +124,11 @@ def run(args: argparse.Namespace) -> int:
             print(f"access control of {system.name}: on when its hub starts the other hosts through their agents "
                   "over tls/ endpoints with --certs; off with --insecure or --local; tcp/ links, and a --host "
                   "launcher the hub's agent did not start, are refused without --insecure (docs/hosts.md)")
-        print("\n".join(hub_policy(system, others).lines()))
+        from iotad.launcher.access.ros2_peers import grants_for
+
+        policy = hub_policy(system, others)
+        policy.grants += grants_for(system, args.certs)  # the ROS 2 machines 'iotad certs ros2' made there
+        print("\n".join(policy.lines()))
         for host in others:  # another host's nodes log in to its router only, with the same rights
             print("\n".join(HostRouter.policy_of(system, host).lines(f"the router of host {host}")))
         return 0

@@ -63,17 +63,20 @@ def run(args: argparse.Namespace) -> int:
     if args.host not in ("127.0.0.1", "localhost", "::1"):
         print(f"iotad view: warning: listening on {args.host}: anyone who reaches it sees the system "
               "(no authentication)", file=sys.stderr)
+    from iotad.recording.foxglove_latched import subscriptions
+
     session = tool_session(args)
     server = None
     try:
+        inbox: queue.SimpleQueue = queue.SimpleQueue()
         try:
             server = foxglove.start_server(name=f"iotad {args.system or ''}".strip(), host=args.host, port=args.port,
-                                           asset_handler=Bridge.asset)  # the arm's meshes (package:// URLs)
+                                           asset_handler=Bridge.asset,  # the arm's meshes (package:// URLs)
+                                           server_listener=subscriptions(inbox.put))  # late viewers: latched state
         except Exception as exc:  # noqa: BLE001 - port taken, bad address: one line
             raise CliError(f"cannot serve on {args.host}:{args.port}: {exc}") from None
         bridge = Bridge()
         scope = f"{wire.PREFIX}/{args.system or '*'}"
-        inbox: queue.SimpleQueue = queue.SimpleQueue()
         session.liveliness().declare_subscriber(
             f"{scope}/**/{wire.ALIVE}", lambda s: inbox.put(("alive", str(s.key_expr), s.kind == zenoh.SampleKind.PUT)),
             history=True)
@@ -103,6 +106,9 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _handle(bridge, session, item, asked, wire) -> None:
+    if item[0] == "subscribed":  # a viewer subscribed: the latest URDF, meshes, arena... for it
+        bridge.latched.resend(item[1])
+        return
     if item[0] == "alive":
         _, key, present = item
         if present and key not in asked:

@@ -15,6 +15,7 @@ from iotad.launcher.access.access_policy import RECORDER_USER, TOOLS_USER, Polic
 from iotad.launcher.access.host_access import (FLEET_USER, across_hosts_settings, host_users, hub_policy, launcher_user, router_zid,
                                         zenoh_mode)
 from iotad.launcher.options import AccessOptions
+from iotad.launcher.access.ros2_peers import peer_grants
 from iotad.launcher.system.system_file import System
 
 
@@ -40,8 +41,11 @@ class AccessControl:
         # only who logs in here: the other hosts' nodes log in to their own host's router
         self.policy = hub_policy(system, list(hosts))
         agents = {agent_user(host): agent_secret.derive(certs, host) for host in hosts}
+        # the ROS 2 machines that `iotad certs ros2` admitted in `certs`, with the [[ros2]] tables' rights
+        peers, peer_passwords = peer_grants(system, certs)
+        self.policy.grants += peers
         # the tools' file says where they may publish: `iotad pub` refuses the rest itself
-        self.store = CredentialStore(self.policy.users(), passwords=agents,
+        self.store = CredentialStore(self.policy.users(), passwords={**agents, **peer_passwords},
                                      may_publish={TOOLS_USER: self.policy.grant(TOOLS_USER).publish})
 
     @classmethod
@@ -115,8 +119,10 @@ class AccessControl:
                     "publish on any key, motor commands included"]
         self.store.advertise(hub, TOOLS_USER)
         users = len(self.policy.grants)
+        peers = [g.user for g in self.policy.grants if g.role == "ROS 2 peer"]  # iotad/launcher/access/ros2_peers.py
         return [f"access control: on ({users} users, default deny; credentials in {self.store.folder}, "
-                f"removed at the end; 'iotad run --check' prints the policy)"]
+                f"removed at the end; 'iotad run --check' prints the policy)"] + \
+            ([f"ROS 2 machines admitted: {', '.join(peers)} (their [[ros2]] topics only)"] if peers else [])
 
     def summary_lines(self) -> list[str]:
         if self.store is None:

@@ -139,9 +139,9 @@ def _use_certificates(system: System, options: RunOptions) -> None:
         return
     from iotad.machine.certificates import CertificateError, use
 
-    host = options.host or system.hub_host
-    if host is None:
-        raise RunError("--certs links the hosts of a system spread over hosts; this system names no host")
+    # a system on one machine whose hub listens on tls/ for ROS 2 machines (docs/ros2.md) shows
+    # the certificate of host "hub" ('iotad certs host hub')
+    host = options.host or system.hub_host or "hub"
     try:
         use(options.certs, host)
     except CertificateError as exc:
@@ -193,8 +193,13 @@ def access_for(system: System, options: RunOptions):
     if options.insecure:
         return AccessOptions.off("--insecure")
     hosts = [node.host for node in system.nodes.values() if node.host]
-    if not hosts:
-        return AccessOptions()
+    if not hosts:  # --certs: the ROS 2 peers 'iotad certs ros2' made there log in too (docs/ros2.md)
+        from iotad.launcher.access.ros2_peers import peer_grants
+        try:
+            peer_grants(system, options.certs)  # their passwords, or one line saying what is missing
+        except CertificateError as exc:
+            raise RunError(str(exc)) from None
+        return AccessOptions(certs=options.certs or None)
     if options.host is not None:
         given = os.environ.get(ENV)
         try:

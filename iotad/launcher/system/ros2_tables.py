@@ -2,11 +2,13 @@
 them (`iotad.ros2.bridge`, named `ros2`), bound to the mapped channels (docs/ros2.md)."""
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 from iotad.kernel.ports import Port
 from iotad.launcher.system.declaration import NodeDecl, Ros2Decl
 from iotad.launcher.system.system_model import Binding, NodeSpec, channel_table, instantiate
+from iotad.ros2 import robot_description
 from iotad.ros2.bridge import NODE_NAME, channel_names
 from iotad.ros2.mapping import MappingError, parse
 
@@ -27,6 +29,14 @@ def add_ros2_bridge(parser: Any, system: Any, tables: list[Ros2Decl]) -> None:
     mappings, switching, pairs = [], [], []
     for table in tables:
         entry, direction = table.entry, table.direction
+        if robot_description.is_robot_description(dict(table.table)):  # the system's robot model: no channel
+            try:
+                mappings.append(robot_description.parse(dict(table.table), entry, _folder_of(parser)).plain())
+            except MappingError as exc:
+                parser.errors.append(f"{parser.file}: {exc}")
+                continue
+            switching.append(0.0)
+            continue
         want = "input" if direction == "in" else "output"
         resolved = parser.resolve(system, table.channel, entry, want)
         if resolved is None:
@@ -44,9 +54,9 @@ def add_ros2_bridge(parser: Any, system: Any, tables: list[Ros2Decl]) -> None:
         except MappingError as exc:
             parser.errors.append(f"{parser.file}: {exc}")
             continue
+        pairs.append((len(mappings), port, direction, entry))
         mappings.append(mapping.plain())
         switching.append(channel.switching_time if direction == "in" else 0.0)
-        pairs.append((port, direction, entry))
     if len(mappings) != len(tables):
         return
     node = NodeSpec(NodeDecl(name=NODE_NAME, entry="the ROS 2 bridge ([[ros2]])",
@@ -55,13 +65,20 @@ def add_ros2_bridge(parser: Any, system: Any, tables: list[Ros2Decl]) -> None:
                                      "lag": LAG / system.time_unit}))
     node.channels = channel_table(instantiate(node))
     system.nodes[NODE_NAME] = node
-    for number, (port, direction, entry) in enumerate(pairs):
+    for number, port, direction, entry in pairs:
         if direction == "out":
             system.bindings.append(Binding(port, Port(NODE_NAME, channel_names(number, "out")[0]), entry))
         else:
             inbound, forward = channel_names(number, "in")
             system.bindings.append(Binding(Port(NODE_NAME, forward), port, entry))
             system.external.add(Port(NODE_NAME, inbound))  # fed from outside: ROS 2, by the bridge's port
+
+
+def _folder_of(parser: Any) -> Path | None:
+    """The folder of the system file (where a robot_description's URDF is looked for first); None
+    for a recorded copy, which has none."""
+    path = getattr(getattr(parser, "declaration", None), "path", None)
+    return path.parent if isinstance(path, Path) and path.is_absolute() else None
 
 
 def mappings_of(system: Any) -> list[dict]:
@@ -74,15 +91,13 @@ def mappings_of(system: Any) -> list[dict]:
 
 def widen_grant(system: Any, node: str, grant: Any) -> None:
     """Under access control, the bridge also publishes its out topics, subscribes to its in
-    topics and declares its rmw_zenoh liveliness tokens (`@ros2_lv/<domain>/...`)."""
+    topics, answers for its latched topics and declares its rmw_zenoh liveliness tokens
+    (`@ros2_lv/<domain>/...`): `iotad.ros2.rights.bridge_rights`."""
     from iotad.ros2.mapping import Mapping
-    from iotad.ros2.rmw_zenoh import ADMIN_SPACE
+    from iotad.ros2.rights import bridge_rights
 
     if node != NODE_NAME:
         return
-    for plain in mappings_of(system):
-        mapping = Mapping.from_plain(plain)
-        (grant.publish if mapping.direction == "out" else grant.subscribe).append(mapping.key)
-        token = f"{ADMIN_SPACE}/{mapping.domain}/**"
-        if token not in grant.tokens:
-            grant.tokens.append(token)
+    rights = bridge_rights([Mapping.from_plain(plain) for plain in mappings_of(system)])
+    for name in ("publish", "subscribe", "serve", "ask", "tokens", "watch"):
+        getattr(grant, name).extend(key for key in getattr(rights, name) if key not in getattr(grant, name))
