@@ -105,10 +105,8 @@ def _run_composed(system: System, args: VirtualOptions, writer, root, leaves: di
     from iotad.kernel.clock import VirtualClock
     from iotad.kernel.engine import Engine
     from iotad.kernel.policy import Eager, Random
-    from iotad.launcher.run.recording_paths import unused_recording_path
     from iotad.recording.engine_sink import EngineRecorder, recording_header
     from iotad.recording.mcap_format import RUN_END, RUN_ERROR
-    from iotad.recording.mcap_sink import McapSink
     from iotad.recording.writer_process import WriterFailed
 
     inputs = [_external_entry(entry, system, args.inputs) for entry in inputs]
@@ -128,36 +126,7 @@ def _run_composed(system: System, args: VirtualOptions, writer, root, leaves: di
 
     sinks.append(count)
     if not args.no_record:
-        claimed = False
-        if args.record_to:
-            output = Path(args.record_to)
-            _output_file(str(output))  # a folder, or a path under a file: one line
-            # no other run writes it too; created here: the run may remove it if it writes nothing
-            try:
-                claimed = claim_recording(str(output), args.force)
-            except RecordingClaimError as exc:
-                raise VirtualRunError(str(exc)) from None
-        else:
-            output = Path(f"recordings/{system.name}-virtual-{time.strftime('%Y%m%d-%H%M%S')}.mcap")
-            _output_file(str(output))
-            try:
-                output = unused_recording_path(output, claim=True)
-                claimed = True
-            except OSError as exc:
-                raise VirtualRunError(f"cannot create {output.parent}: {exc.strerror or exc}") from None
-        try:
-            output.parent.mkdir(parents=True, exist_ok=True)
-            if writer is not None:
-                writer.open(output)
-                sink = writer
-            else:
-                sink = McapSink(output)
-        except OSError as exc:
-            drop_empty_claim(output if claimed else None)
-            raise VirtualRunError(f"-o {output}: cannot write: {exc.strerror or exc}") from None
-        except WriterFailed as exc:  # "cannot write: ..." in the writer's words, or how it died
-            drop_empty_claim(output if claimed else None)
-            raise VirtualRunError(f"-o {output}: {exc}") from None
+        output, sink = _open_recording(system, args, writer)
     policy = Eager() if args.seed is None else Random(args.seed)
     if output is not None:
         header = recording_header(root, system.name, time_unit=system.time_unit, policy=policy,
@@ -264,6 +233,47 @@ def _run_composed(system: System, args: VirtualOptions, writer, root, leaves: di
     if interrupted:
         return 130
     return 1 if engine.halted or raised else 0
+
+
+def _open_recording(system: System, args: VirtualOptions, writer):
+    """The recording's path, claimed (no other run writes it too; created here, so that the run may
+    remove it if it writes nothing), and what writes it: the second process `writer`, or a sink in
+    this process."""
+    from iotad.launcher.run.recording_paths import unused_recording_path
+    from iotad.recording.mcap_sink import McapSink
+    from iotad.recording.writer_process import WriterFailed
+
+    claimed = False
+    if args.record_to:
+        output = Path(args.record_to)
+        _output_file(str(output))  # a folder, or a path under a file: one line
+        # no other run writes it too; created here: the run may remove it if it writes nothing
+        try:
+            claimed = claim_recording(str(output), args.force)
+        except RecordingClaimError as exc:
+            raise VirtualRunError(str(exc)) from None
+    else:
+        output = Path(f"recordings/{system.name}-virtual-{time.strftime('%Y%m%d-%H%M%S')}.mcap")
+        _output_file(str(output))
+        try:
+            output = unused_recording_path(output, claim=True)
+            claimed = True
+        except OSError as exc:
+            raise VirtualRunError(f"cannot create {output.parent}: {exc.strerror or exc}") from None
+    try:
+        output.parent.mkdir(parents=True, exist_ok=True)
+        if writer is not None:
+            writer.open(output)
+            sink = writer
+        else:
+            sink = McapSink(output)
+    except OSError as exc:
+        drop_empty_claim(output if claimed else None)
+        raise VirtualRunError(f"-o {output}: cannot write: {exc.strerror or exc}") from None
+    except WriterFailed as exc:  # "cannot write: ..." in the writer's words, or how it died
+        drop_empty_claim(output if claimed else None)
+        raise VirtualRunError(f"-o {output}: {exc}") from None
+    return output, sink
 
 
 def _output_file(path: str) -> None:

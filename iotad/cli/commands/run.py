@@ -120,7 +120,7 @@ def run(args: argparse.Namespace) -> int:
         from iotad.launcher.access.host_router import HostRouter
 
         others = list(dict.fromkeys(n.host for n in system.nodes.values() if n.host and n.host != system.hub_host))
-        if others:  # as `run_system.access_for` decides for the run
+        if others:  # as `launcher.access.decision` decides for the run
             print(f"access control of {system.name}: on when its hub starts the other hosts through their agents "
                   "over tls/ endpoints with --certs; off with --insecure or --local; tcp/ links, and a --host "
                   "launcher the hub's agent did not start, are refused without --insecure (docs/hosts.md)")
