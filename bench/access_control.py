@@ -21,8 +21,8 @@ sys.path.insert(0, str(ROOT))
 
 import zenoh  # noqa: E402
 
-from iotad.host import credentials, wire  # noqa: E402
-from iotad.host.transport import free_port, open_session  # noqa: E402
+from iotad.node_host import credentials, wire  # noqa: E402
+from iotad.node_host.transport import free_port, open_session  # noqa: E402
 from iotad.launcher.processes import interrupt_then_kill  # noqa: E402
 
 SYSTEM = """

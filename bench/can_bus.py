@@ -173,7 +173,7 @@ def motor_pid() -> int:
             argv = (entry / "cmdline").read_bytes().split(b"\0")
         except OSError:
             continue
-        if b"iotad.host" in argv and any(a.endswith(b"motor.json") for a in argv):
+        if b"iotad.node_host" in argv and any(a.endswith(b"motor.json") for a in argv):
             return int(entry.name)
     raise SystemExit("the motor node's process is not to be found")
 
@@ -195,8 +195,8 @@ def motor_loop(seconds: float, rate: float = RATE, port: int = 7447, protocol: s
 
     from iotad.can import odrive
     from iotad.can.bit_timing import frame_bits
-    from iotad.host import wire
-    from iotad.host.transport import open_tool_session
+    from iotad.node_host import wire
+    from iotad.node_host.transport import open_tool_session
     from iotad.launcher.processes import interrupt_then_kill
 
     interface, channel = os.environ["IOTAD_CAN_INTERFACE"], os.environ["IOTAD_CAN_CHANNEL"]
@@ -477,8 +477,8 @@ def print_axes(figures: dict) -> None:
 def virtual_arm(seconds: float = 5.0) -> dict:
     """Part 3: examples/arm_can.toml in one process in virtual time."""
     from iotad.kernel.engine import Engine
-    from iotad.launcher.in_process import compose
-    from iotad.launcher.system_file import load_system
+    from iotad.launcher.system.in_process import compose
+    from iotad.launcher.system.system_file import load_system
 
     engine = Engine(compose(load_system(ROOT / "examples" / "arm_can.toml")))
     try:

@@ -10,7 +10,7 @@ Two "hosts" are network namespaces this benchmark makes and removes (needs root)
 (10.201.0.1) and `arm` (10.201.0.2), with addresses that exist only inside them. The echo process
 listens in `arm`; the pinger connects from `brain` as a client and sends one ping at a time. The
 baseline is the same two processes in one namespace over its loopback. The certificates for TLS
-are made for the run (iotad/host/certificates.py) and removed with it.
+are made for the run (iotad/machine/certificates.py) and removed with it.
 """
 from __future__ import annotations
 
@@ -80,13 +80,13 @@ class Namespaces:
 def tls_files(certificates_dir: str | None, host: str):
     if not certificates_dir:
         return None
-    from iotad.host.certificates import host_files
+    from iotad.machine.certificates import host_files
     return host_files(certificates_dir, host)
 
 
 def echo(listen: str, certificates_dir: str | None) -> None:
     """The responder: every ping comes back as a pong, until stdin closes."""
-    from iotad.host.transport import open_session
+    from iotad.node_host.transport import open_session
     with open_session([listen], [], credentials=False, tls=tls_files(certificates_dir, "arm")) as session:
         publisher = session.declare_publisher("bench/pong", express=True)
         session.declare_subscriber("bench/ping", lambda sample: publisher.put(sample.payload))
@@ -96,7 +96,7 @@ def echo(listen: str, certificates_dir: str | None) -> None:
 
 def ping(connect: str, certificates_dir: str | None, rounds: int, payload: int) -> None:
     """The pinger: `rounds` round trips, one at a time; prints the times (seconds) as JSON."""
-    from iotad.host.transport import open_session
+    from iotad.node_host.transport import open_session
     answered = threading.Event()
     with open_session([], [connect], mode="client", connect_timeout=10, credentials=False,
                       tls=tls_files(certificates_dir, "brain")) as session:
@@ -308,7 +308,7 @@ def main() -> None:
 
 
 def links(args: argparse.Namespace) -> None:
-    from iotad.host import certificates
+    from iotad.machine import certificates
     print(f"zenoh echo round trips, {args.rounds} per case, {args.payload}-byte payload, {os.cpu_count()} cores; "
           f"load average {os.getloadavg()[0]:.1f}")
     with tempfile.TemporaryDirectory(prefix="iotad-bench-certs-") as directory, Namespaces() as namespaces:

@@ -30,8 +30,8 @@ sys.path.insert(0, str(ROOT))
 
 import zenoh  # noqa: E402
 
-from iotad.host import wire  # noqa: E402
-from iotad.host.transport import free_port, open_session  # noqa: E402
+from iotad.node_host import wire  # noqa: E402
+from iotad.node_host.transport import free_port, open_session  # noqa: E402
 
 ECHO = f"{ROOT / 'examples' / 'echo.py'}:Echo"
 SCHEDULER = f"{ROOT / 'examples' / 'scheduler.py'}:Scheduler"
@@ -85,7 +85,7 @@ class Bench:
     def start_node(self, system: str, path: str, ref: str, **extra) -> subprocess.Popen:
         config = {"system": system, "path": path, "source": {"kind": "python", "ref": ref},
                   "listen": ["tcp/127.0.0.1:0"], "connect": [self.endpoint], "heartbeat_period": 0.5, **extra}
-        process = subprocess.Popen([sys.executable, "-m", "iotad.host", "--config-json", json.dumps(config)],
+        process = subprocess.Popen([sys.executable, "-m", "iotad.node_host", "--config-json", json.dumps(config)],
                                    cwd=ROOT)
         self.processes.append(process)
         return process

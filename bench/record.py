@@ -43,8 +43,8 @@ sys.path.insert(0, str(ROOT))
 import zenoh  # noqa: E402
 from importlib.metadata import version  # noqa: E402
 
-from iotad.host import wire  # noqa: E402
-from iotad.host.transport import free_port, open_session  # noqa: E402
+from iotad.node_host import wire  # noqa: E402
+from iotad.node_host.transport import free_port, open_session  # noqa: E402
 
 GOAL_RATE = 100_000
 GOAL_LATENCY_COST = 0.10
@@ -53,8 +53,8 @@ PUBLISHER = r"""
 import sys, time
 sys.path.insert(0, {root!r})
 import zenoh
-from iotad.host import wire
-from iotad.host.transport import open_session
+from iotad.node_host import wire
+from iotad.node_host.transport import open_session
 endpoint, index, count, mode = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), sys.argv[4]
 session = open_session(connect=[endpoint])
 try:
@@ -74,7 +74,7 @@ try:
     else:
         # as a node host: each output event notes its key, seq and send_ns; the trace goes out in
         # bursts of TRACE_BATCH events, one sample each (attachment: seq of the burst's first event)
-        from iotad.host.host_clock import HostClock
+        from iotad.node_host.host_clock import HostClock
         batch, buffer, first = HostClock.TRACE_BATCH, [], 0
         for seq in range(count):
             buffer.append({{"t": 0.0, "iota": "p", "action": "out", "index": None, "kind": "output", "value": 1.5,
@@ -93,8 +93,8 @@ PONG = r"""
 import sys, threading, time
 sys.path.insert(0, {root!r})
 import zenoh
-from iotad.host import wire
-from iotad.host.transport import open_session
+from iotad.node_host import wire
+from iotad.node_host.transport import open_session
 session = open_session(connect=[sys.argv[1]])
 traced = sys.argv[2] == "traces"
 stop, flusher = threading.Event(), None

@@ -24,8 +24,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from iotad.host import wire  # noqa: E402
-from iotad.host.transport import free_port, open_session  # noqa: E402
+from iotad.node_host import wire  # noqa: E402
+from iotad.node_host.transport import free_port, open_session  # noqa: E402
 from iotad.ros2 import rmw_zenoh  # noqa: E402
 from iotad.ros2.mapping import parse  # noqa: E402
 

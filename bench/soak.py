@@ -193,7 +193,7 @@ def main() -> int:
     if args.warmup >= args.minutes * 60:
         parser.error("--warmup must be shorter than the run (--minutes)")
 
-    from iotad.host.transport import free_port
+    from iotad.node_host.transport import free_port
     from iotad.launcher.processes import interrupt_then_kill
 
     with tempfile.TemporaryDirectory(prefix="iotad-soak-") as tmp:

@@ -31,9 +31,10 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from iotad.cli.commands.sweep import plan_from, sweep  # noqa: E402
-from iotad.cli.sweep_results import SweepFolder  # noqa: E402
-from iotad.cli.virtual_run import cores  # noqa: E402
+from iotad.cli.commands.sweep import plan_from  # noqa: E402
+from iotad.sweep.session import sweep  # noqa: E402
+from iotad.sweep.results import SweepFolder  # noqa: E402
+from iotad.virtual.virtual_run import cores  # noqa: E402
 
 
 def one(plan, jobs: int, ray: str | None = None) -> tuple[float, float, str]:

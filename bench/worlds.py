@@ -44,9 +44,9 @@ from iotad.kernel.clock import VirtualClock  # noqa: E402
 from iotad.kernel.compose import flatten  # noqa: E402
 from iotad.kernel.engine import Engine  # noqa: E402
 from iotad.kernel.policy import Eager  # noqa: E402
-from iotad.launcher.in_process import compose  # noqa: E402
-from iotad.launcher.system_file import load_system  # noqa: E402
-from iotad.cli.virtual_run import close_nodes, cores  # noqa: E402
+from iotad.launcher.system.in_process import compose  # noqa: E402
+from iotad.launcher.system.system_file import load_system  # noqa: E402
+from iotad.virtual.virtual_run import close_nodes, cores  # noqa: E402
 from iotad.recording.engine_sink import EngineRecorder, recording_header  # noqa: E402
 from iotad.recording.mcap_sink import McapSink  # noqa: E402
 from iotad.recording.writer_process import RecordingProcess  # noqa: E402

@@ -2,13 +2,13 @@
 
 `encode(type, value)` checks the value and packs `type.to_plain(value)`; `decode(type, payload)`
 unpacks and rebuilds it with `type.from_plain` (ranges checked). Both raise `BadValue` for a
-value that does not fit and `decode` raises `iotad.host.wire.WireError` for bytes that are not msgpack.
+value that does not fit and `decode` raises `iotad.node_host.wire.WireError` for bytes that are not msgpack.
 """
 from __future__ import annotations
 
 from typing import Any
 
-from iotad.host import wire
+from iotad.node_host import wire
 from iotad.kernel.types import Type
 
 

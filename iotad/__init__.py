@@ -6,11 +6,14 @@ The package is layered; each layer imports only the layers before it (tests/test
     iotad.esprit     the ESPRIT specification language, compiled onto the kernel
     iotad.can        CAN frames, buses (real and modelled) and the ODrive CAN Simple protocol
     iotad.ros2       ROS 2 interop: rmw_zenoh's wire format, channel-to-message mappings, the bridge
-    iotad.host       one IOTA as one process on zenoh (and its CAN bus): wire, transport, node host
-    iotad.launcher   system files, process supervision, the status view (`iotad run`)
+    iotad.machine    a machine of a system over hosts: certificates, its agent's secret, its clock offset
+    iotad.node_host  the node host: one IOTA as one process on zenoh (and its CAN bus): wire, transport
+    iotad.launcher   system files, access control, several hosts, the run of one host (`iotad run`)
     iotad.recording  MCAP recordings: recorder, reading, replay, conformance checks, export, plots
+    iotad.virtual    a system run in one process in virtual time (`run_virtual`)
+    iotad.sweep      many virtual runs over parameters and seeds, locally or on Ray
     iotad.scaffold   `iotad new`: a working robot's files from a few choices
-    iotad.cli        the `iotad` command line, one module per command
+    iotad.cli        the `iotad` command line, one module per command: parses, calls, prints
 
 The names below are the public Python API (README.md).
 """

@@ -9,9 +9,9 @@ from pathlib import Path
 
 from launcher_helpers import ROOT
 
-from iotad.host import certificates
-from iotad.host.credentials import Credentials, CredentialStore
-from iotad.host.transport import open_session
+from iotad.machine import certificates
+from iotad.node_host.credentials import Credentials, CredentialStore
+from iotad.node_host.transport import open_session
 from iotad.launcher.processes import interrupt_then_kill
 
 
@@ -103,7 +103,7 @@ def agent_lines(certs: Path, port: int, until: str, timeout: float = 40) -> tupl
 def authority_for(certs: Path, hosts: dict[str, list[str]]) -> Path:
     """A system's authority in `certs` with a certificate and an agent secret for each host of
     `hosts` (name: its addresses), as 'iotad certs init' and 'iotad certs host' make them."""
-    from iotad.host import agent_secret
+    from iotad.machine import agent_secret
 
     certificates.init_authority(certs)
     for host, addresses in hosts.items():

@@ -14,8 +14,8 @@ from pathlib import Path
 
 import zenoh
 
-from iotad.host import wire
-from iotad.host.transport import open_session
+from iotad.node_host import wire
+from iotad.node_host.transport import open_session
 from iotad.launcher.processes import interrupt_then_kill
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -35,7 +35,7 @@ def _ephemeral_low() -> int:
 
 def free_port() -> int:
     """A free loopback port below the kernel's ephemeral range, for a hub that another process
-    will listen on a moment later. `iotad.host.transport.free_port` returns an ephemeral port, which
+    will listen on a moment later. `iotad.node_host.transport.free_port` returns an ephemeral port, which
     any outgoing connection (a node, a recorder, another test's peer) may take as its source
     port before the hub binds it; ports below the range are only ever taken by listeners."""
     low = _ephemeral_low()

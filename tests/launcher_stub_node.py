@@ -21,8 +21,8 @@ if params.get("stderr"):
     print(params["stderr"], file=sys.stderr, flush=True)
 session = None
 if params.get("token") or params.get("flood_hz"):
-    from iotad.host import wire
-    from iotad.host.transport import open_session
+    from iotad.node_host import wire
+    from iotad.node_host.transport import open_session
 
     session = open_session(config["listen"], config["connect"])
 base = f"iota/{config['system']}/{config['path']}"

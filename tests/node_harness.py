@@ -10,8 +10,8 @@ import sys
 import time
 from pathlib import Path
 
-from iotad.host import wire
-from iotad.host.transport import free_port, open_session
+from iotad.node_host import wire
+from iotad.node_host.transport import free_port, open_session
 
 ROOT = Path(__file__).resolve().parents[1]
 ECHO = f"{ROOT / 'examples' / 'echo.py'}"
@@ -77,7 +77,7 @@ class Node:
 
     def __init__(self, config: dict):
         self.config = config
-        self.process = subprocess.Popen([sys.executable, "-m", "iotad.host", "--config-json", json.dumps(config)],
+        self.process = subprocess.Popen([sys.executable, "-m", "iotad.node_host", "--config-json", json.dumps(config)],
                                         cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
 
     @property

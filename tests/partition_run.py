@@ -99,7 +99,7 @@ to = "trajectory.joint_states"
 # one line each, "<key below iota/SYSTEM/> <value as JSON>", so that a test waits on events.
 WATCHER = r"""
 import json, sys, threading, time, msgpack, zenoh
-from iotad.host.transport import open_session
+from iotad.node_host.transport import open_session
 hub, system, keys = sys.argv[1], sys.argv[2], sys.argv[3:]
 lock = threading.Lock()  # callbacks come on several threads: one whole line at a time
 def show(sample):

@@ -12,10 +12,10 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from iotad.host import certificates  # noqa: E402
-from iotad.host.transport import open_session  # noqa: E402
-from iotad.launcher.access_control import AccessControl  # noqa: E402
-from iotad.launcher.system_file import load_system  # noqa: E402
+from iotad.machine import certificates  # noqa: E402
+from iotad.node_host.transport import open_session  # noqa: E402
+from iotad.launcher.access.access_control import AccessControl  # noqa: E402
+from iotad.launcher.system.system_file import load_system  # noqa: E402
 
 
 def main() -> None:

@@ -6,8 +6,10 @@ import re
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-FOLDERS = ["iotad/kernel", "iotad/esprit", "iotad/can", "iotad/ros2", "iotad/host", "iotad/launcher", "iotad/recording",
-           "iotad/scaffold", "iotad/cli", "channels"]
+FOLDERS = ["iotad/kernel", "iotad/esprit", "iotad/can", "iotad/ros2", "iotad/machine", "iotad/node_host", "iotad/launcher",
+           "iotad/launcher/system", "iotad/launcher/access", "iotad/launcher/hosts", "iotad/launcher/run", "iotad/recording",
+           "iotad/virtual", "iotad/sweep", "iotad/scaffold",
+           "iotad/cli", "channels"]
 
 
 def listed(folder: str) -> set[str]:

@@ -6,9 +6,9 @@ import re
 from pathlib import Path
 
 from iotad import Input, Int, Iota, Output
-from iotad.host import wire
-from iotad.host.host_clock import HostClock
-from iotad.host.node_config import NodeConfig
+from iotad.node_host import wire
+from iotad.node_host.host_clock import HostClock
+from iotad.node_host.node_config import NodeConfig
 from iotad.kernel.clock import VirtualClock
 from iotad.kernel.compose import Composite
 from iotad.kernel.engine import Engine
@@ -27,11 +27,11 @@ def layer_table() -> dict[str, str]:
 def test_the_layer_table_is_the_layering_checks_order_with_can_below_the_host():
     table = layer_table()
     assert list(table) == LAYERS
-    assert "can" in table["host"] and "host" not in table["can"]
+    assert "can" in table["node_host"] and "node_host" not in table["can"]
     can_imports = {m for path in (ROOT / "iotad" / "can").glob("*.py") for m in imported_modules(path)}
-    assert not any(m.startswith(("iotad.host", "zenoh")) for m in can_imports)  # it knows nothing of zenoh
-    assert "iotad.can.bus" in imported_modules(ROOT / "iotad" / "host" / "can_port.py")
-    assert "CAN sits below the host" in DESIGN
+    assert not any(m.startswith(("iotad.node_host", "zenoh")) for m in can_imports)  # it knows nothing of zenoh
+    assert "iotad.can.bus" in imported_modules(ROOT / "iotad" / "node_host" / "can_port.py")
+    assert "CAN sits below the node host" in DESIGN
 
 
 def test_the_page_names_every_key_a_system_subscription_needs():

@@ -7,13 +7,13 @@ import argparse
 import importlib
 import math
 import os
-import stat
 import pkgutil
 import signal
 import sys
 import textwrap
 
 from iotad import __version__
+from iotad.launcher.run.recording_paths import drop_empty_claim, is_regular_file  # noqa: F401 - as commands know them
 
 from . import commands
 
@@ -110,16 +110,44 @@ def port(text: str) -> int:
 
 def endpoint(text: str) -> str:
     """A zenoh endpoint such as tcp/127.0.0.1:7447 (an argparse type)."""
-    from iotad.host.transport import endpoint_problem
+    from iotad.node_host.transport import endpoint_problem
     problem = endpoint_problem(text)
     if problem:
         raise argparse.ArgumentTypeError(problem)
     return text
 
 
+def byte_size(text: str) -> int:
+    """`100M`, `1.5G`, `64K`, `4096`: bytes (K, M, G are 1024-based; a trailing B or iB is allowed)."""
+    units = {"": 1, "K": 1024, "M": 1024 ** 2, "G": 1024 ** 3, "T": 1024 ** 4}
+    body = text.strip().upper().removesuffix("IB").removesuffix("B")
+    unit = body[-1:] if body[-1:] in units and body[-1:] else ""
+    try:
+        value = float(body[:-1] if unit else body)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a size such as 100M, 1.5G or 65536, got {text!r}") from None
+    if value != value or value in (float("inf"), float("-inf")):
+        raise argparse.ArgumentTypeError(f"must be a finite size, got {text!r}")
+    size = int(value * units[unit])
+    if not size > 0:
+        raise argparse.ArgumentTypeError(f"must be a positive size, got {text!r}")
+    return size
+
+
+def load_checked(path: str):
+    """The system file at `path`, checked (`load_system`); a `CliError` listing every problem otherwise."""
+    from iotad.launcher.system.system_file import SystemFileError, load_system
+
+    try:
+        return load_system(path)
+    except SystemFileError as exc:
+        raise CliError(str(exc) if len(exc.errors) == 1 else
+                       f"{len(exc.errors)} problems in the system file:\n" + str(exc)) from None
+
+
 def output_file(path: str, option: str = "-o") -> None:
     """Refuse, with one line, an output path that cannot be written: a folder, or one under a file."""
-    from iotad.launcher.recording_paths import unwritable
+    from iotad.launcher.run.recording_paths import unwritable
 
     problem = unwritable(path)
     if problem:
@@ -128,15 +156,12 @@ def output_file(path: str, option: str = "-o") -> None:
 
 def new_recording(path: str, force: bool, option: str = "-o") -> None:
     """Refuse, with one line, to write a recording over one that is already there, unless `force`."""
-    import time
-    from iotad.launcher.recording_paths import existing_recording
+    from iotad.launcher.run.recording_paths import RecordingClaimError, new_recording as check
 
-    found = None if force else existing_recording(path)
-    if found is not None:
-        info = found.stat()
-        written = time.strftime("%Y-%m-%d %H:%M:%S", time.localtime(info.st_mtime))
-        raise CliError(f"{option} {path}: a recording is already there ({found}, {info.st_size:,} bytes, "
-                       f"written {written}); name another file, or add --force to replace it")
+    try:
+        check(path, force, option)
+    except RecordingClaimError as exc:
+        raise CliError(str(exc)) from None
 
 
 def not_its_own_file(path: str, recording, option: str = "-o") -> None:
@@ -151,47 +176,13 @@ def not_its_own_file(path: str, recording, option: str = "-o") -> None:
 
 
 def claim_recording(path: str, force: bool, option: str = "-o") -> bool:
-    """`new_recording`'s check, then the name claimed (`claim_file`): of two runs started together
-    with the same `-o`, one writes it and the other is refused here. True if this call created
-    the (empty) file, which its caller removes should nothing be written to it."""
-    from iotad.launcher.recording_paths import claim_file
+    """The recording's name claimed (`recording_paths.claim_recording`), or one line saying why not."""
+    from iotad.launcher.run.recording_paths import RecordingClaimError, claim_recording as claim
 
-    new_recording(path, force, option)
-    if force:
-        return False
     try:
-        if claim_file(path):
-            return True
-    except OSError:
-        return False  # a path that cannot be written: the writer says so in its own words
-    if os.path.exists(path) and not is_regular_file(path):
-        raise CliError(f"{option} {path}: not a plain file (a device, a FIFO or a link); name a file, or add "
-                       "--force to write the recording there anyway")
-    raise CliError(f"{option} {path}: an empty file is there: another run has just claimed it for its "
-                   "recording (or one stopped before writing any); name another file, or add --force to "
-                   "replace it")
-
-
-def drop_empty_claim(path: str | os.PathLike | None) -> None:
-    """Remove a recording file this run claimed (`claim_recording` returned True) that nothing
-    was written to (the run stopped first). Only an empty regular file: never a device such as
-    /dev/null, and never what was at the path before (call it only for a path this run created)."""
-    if path is None:
-        return
-    try:
-        if is_regular_file(path) and os.path.getsize(path) == 0:
-            os.unlink(path)
-    except OSError:
-        pass
-
-
-def is_regular_file(path: str | os.PathLike) -> bool:
-    """Whether `path` is a plain file (not a device, a FIFO or a folder), without following a
-    symbolic link: what a command may remove of its own output."""
-    try:
-        return stat.S_ISREG(os.lstat(path).st_mode)
-    except OSError:
-        return False
+        return claim(path, force, option)
+    except RecordingClaimError as exc:
+        raise CliError(str(exc)) from None
 
 
 def key_expression(text: str) -> str:

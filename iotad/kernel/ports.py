@@ -2,7 +2,7 @@
 
 Every part of iotad that names a channel in text reads it here: the composition of IOTAs
 (`kernel/compose.py`, where a composite's own channel has no node: "channel[k]"), the system
-file (`launcher/declaration.py`), and what reads a recorded system (delivery check, plots).
+file (`launcher/system/declaration.py`), and what reads a recorded system (delivery check, plots).
 A node is an instance path (`arm/wrist`): chunks without spaces, dots or brackets.
 """
 from __future__ import annotations

@@ -1,11 +1,56 @@
-"""What a launcher is told before it runs, as three frozen objects passed in whole: how to launch
-(`LaunchOptions`), what to record (`RecordingOptions`, or None: no recording) and whether to guard
-the hub (`AccessOptions`, or None: zenoh's defaults, no authentication). `iotad run` builds them
-from its command line (`cli/commands/run.py`); tests build them directly."""
+"""What a run is told, as frozen objects passed in whole: a host's run as `iotad run` asks it, and
+as the hub orders each other host's agent to run its part (`RunOptions`, JSON on the wire); and
+what its launcher is told before it runs: how to launch (`LaunchOptions`), what to record
+(`RecordingOptions`, or None: no recording) and whether to guard the hub (`AccessOptions`, or
+None: zenoh's defaults, no authentication). `run_system.run_real_time` builds the launcher's from
+a `RunOptions`; tests build them directly."""
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import Any, Callable
+
+
+@dataclass(frozen=True)
+class RunOptions:
+    """How one host's part of a system runs in real time (`iotad run`'s options, docs there)."""
+
+    host: str | None = None           # the host whose nodes run here (None: the hub's, or all)
+    port: int | None = None           # the hub's port instead of the file's (0: any free one)
+    until: float | None = None        # wall seconds from the launch (or from every node live)
+    after_live: bool = False
+    origin: float | None = None       # the run's origin, wall time (a host joining the hub's run)
+    log_dir: str | None = None
+    plain: bool = False               # plain event lines even on a terminal
+    record_to: str | None = None      # the recording (None: a new name under recordings/)
+    no_record: bool = False
+    force: bool = False
+    max_size: int | None = None
+    max_duration: float | None = None
+    local: bool = False               # every host's nodes on this machine, no agents
+    certs: str | None = None
+    agent_timeout: float | None = None
+    insecure: bool = False
+    strict: bool = False      # any violation or a node never live ends the run non-zero
+
+    def to_json(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+    @classmethod
+    def from_json(cls, data: Any) -> RunOptions:
+        """The options `data` (a run order's) holds; ValueError in one line where it is no such thing."""
+        if not isinstance(data, dict):
+            raise ValueError("a run's options must be a JSON object")
+        fields = {f.name: f for f in dataclasses.fields(cls)}
+        unknown = sorted(set(data) - set(fields))
+        if unknown:
+            raise ValueError(f"a run's options name unknown option(s) {', '.join(unknown)}")
+        for name, value in data.items():
+            wanted = {"bool": (bool,), "str | None": (str, type(None)), "int | None": (int, type(None)),
+                      "float | None": (int, float, type(None))}[fields[name].type]
+            if not isinstance(value, wanted) or (isinstance(value, bool) and bool not in wanted):
+                raise ValueError(f"a run's option {name} must be {fields[name].type}, got {value!r}")
+        return cls(**data)
 
 
 @dataclass(frozen=True)
@@ -18,7 +63,7 @@ class LaunchOptions:
     in user-mode Linux and would eat the run. `origin`: the wall-clock time that is t=0 for every
     node (None: now, or the hub launcher's). `log_dir`: keep configs and logs there (None: a temp
     folder, removed unless a node failed). `node_argv(config_path)`: a node's command line
-    (default `python -m iotad.host CONFIG`; tests pass a stand-in). `console`, `live_table`: the
+    (default `python -m iotad.node_host CONFIG`; tests pass a stand-in). `console`, `live_table`: the
     status view's. `stop_timeouts`: seconds after SIGINT, then after SIGTERM, before the next."""
 
     host: str | None = None
@@ -54,7 +99,7 @@ class AccessOptions:
     enabled: bool = True
     why_off: str = ""
     # a system spread over hosts, run through agents: the other hosts, and the certificates'
-    # folder whose authority key gives each host's agent secret (iotad/host/agent_secret.py)
+    # folder whose authority key gives each host's agent secret (iotad/machine/agent_secret.py)
     hosts: tuple[str, ...] = ()
     certs: str | None = None
     # one host's launcher started by its agent: its own credentials file (IOTAD_CREDENTIALS)

@@ -1,2 +1,2 @@
 """Recordings: the MCAP recorder, reading, replay, conformance checking, export and plots.
-Imports iotad.kernel, iotad.esprit, iotad.host, iotad.can and iotad.launcher only."""
+Imports iotad.kernel, iotad.esprit, iotad.node_host, iotad.can and iotad.launcher only."""

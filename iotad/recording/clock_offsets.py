@@ -53,7 +53,7 @@ def node_hosts(recording: Any) -> dict[str, str]:
             out.setdefault(node, host)
     if out:
         return out
-    from iotad.launcher.declaration import SystemFileError
+    from iotad.launcher.system.declaration import SystemFileError
     from iotad.recording.recorded_system import recorded_declaration
 
     try:

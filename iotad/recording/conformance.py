@@ -25,7 +25,7 @@ from typing import Any, Callable, Iterable
 from iotad.kernel.clock import VirtualClock
 from iotad.kernel.engine import ActionInstance, Engine, plus
 from iotad.kernel.types import to_plain
-from iotad.host.wire import START_KIND
+from iotad.node_host.wire import START_KIND
 from iotad.recording.values import values_close
 
 INF = math.inf

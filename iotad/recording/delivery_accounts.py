@@ -18,7 +18,7 @@ from array import array
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
-from iotad.host import wire
+from iotad.node_host import wire
 from iotad.recording.clock_offsets import widenings
 from iotad.recording.mcap_format import packb, unpackb
 from iotad.recording.mcap_reader import RecordedMessage, Recording

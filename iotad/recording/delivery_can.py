@@ -12,7 +12,7 @@ from collections import deque
 from dataclasses import dataclass, field
 from typing import Any
 
-from iotad.host import wire
+from iotad.node_host import wire
 from iotad.kernel.ports import Port
 from iotad.recording.delivery_accounts import CAN_RX, CAN_TX, Accounts, Life, last_at_or_before
 from iotad.recording.delivery_report import Link, Rows

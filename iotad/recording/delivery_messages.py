@@ -10,8 +10,8 @@ import re
 from dataclasses import dataclass, field
 from typing import Any
 
-from iotad.host import wire
-from iotad.host.can_port import KEY_PREFIX as CAN_KEY_PREFIX
+from iotad.node_host import wire
+from iotad.node_host.can_port import KEY_PREFIX as CAN_KEY_PREFIX
 from iotad.kernel.engine import INPUT_REFUSALS
 from iotad.kernel.ports import Port
 from iotad.recording.delivery_accounts import Accounts, Got, OnWire, Sent, ident_of, same_value, short

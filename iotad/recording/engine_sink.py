@@ -11,7 +11,7 @@ from typing import Any, Iterable
 
 import msgpack
 
-from iotad.host import wire
+from iotad.node_host import wire
 from iotad.recording.mcap_format import FORMAT, json_default
 from iotad.recording.mcap_sink import McapSink, schema_for_topic
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from iotad.host import wire
+from iotad.node_host import wire
 from iotad.recording.foxglove_scene import SceneWriter
 from iotad.recording.mcap_format import EXPORTED
 from iotad.recording.mcap_reader import Recording

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from iotad.recording.foxglove_scene import ARENA, ARM_JOINTS, ARM_MODEL, CONVEYOR, PATH, POSE, WORLD
 
-LOG_TOPIC = "/log"  # iotad/cli/foxglove_bridge.py's
+LOG_TOPIC = "/log"  # iotad/recording/foxglove_mapping.py's
 
 
 def layout_json() -> str:

@@ -102,7 +102,7 @@ class SceneTracker:
         if robot is None or not isinstance(positions, list) or not all(_number(p) for p in positions) \
                 or self.arm_key not in (None, key):
             return None
-        from iotad.host import wire
+        from iotad.node_host import wire
 
         parsed = wire.parse_key(key)
         names = self.robots.names_for(parsed[1], len(positions)) if parsed else None

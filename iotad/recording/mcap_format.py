@@ -21,7 +21,7 @@ A recording carries what replay and check need and nothing else must be found:
 
 Every message on a `@trace` channel is one trace event, whether the node sent it alone or in a
 burst (the recorder splits bursts). Writing: `mcap_sink`, `engine_sink`; reading: `mcap_reader`;
-file names: `iotad.launcher.recording_paths`.
+file names: `iotad.launcher.run.recording_paths`.
 """
 from __future__ import annotations
 

@@ -23,7 +23,7 @@ from mcap.records import Attachment, Channel as McapChannel, Footer, Message, Me
 from mcap.stream_reader import CRCValidationError, StreamReader
 from mcap.writer import MCAP0_MAGIC as MCAP_MAGIC
 
-from iotad.host import wire
+from iotad.node_host import wire
 from iotad.recording.mcap_format import (EXPORTED, GAP_TOPIC, MALFORMED_TOPIC, RUN_END, RUN_ERROR, SET_METADATA,
                                          RecordingError, packb, trace_event_problem, unpackb)
 

@@ -11,7 +11,7 @@ from typing import IO, Any, Callable
 from mcap.records import Channel as McapChannel, Schema
 from mcap.writer import CompressionType, Writer
 
-from iotad.host import wire
+from iotad.node_host import wire
 from iotad.recording.mcap_batch_writer import BatchWriter, spill_chunk_indexes
 from iotad.recording.mcap_format import (GAP_SCHEMA, GAP_TOPIC, HEARTBEAT_SCHEMA, LAUNCHER_SCHEMA, MALFORMED_SCHEMA,
                                          MALFORMED_TOPIC, MESSAGE_ENCODING, PERMISSIVE_SCHEMA, PROFILE,

@@ -31,7 +31,7 @@ from typing import Any, Iterable
 
 from mcap.records import Channel as McapChannel, Schema
 
-from iotad.host import wire
+from iotad.node_host import wire
 from iotad.recording.mcap_format import (GAP_SCHEMA, GAP_TOPIC, MERGE_GAP_SCHEMA, MERGE_GAP_TOPIC, MESSAGE_ENCODING,
                                          SCHEMA_ENCODING, RecordingError, packb)
 from iotad.recording.mcap_reader import RecordedMessage, Recording
@@ -395,7 +395,7 @@ def _schema(name: str, schema: dict) -> Schema:
 
 def _node_hosts(recording: Recording) -> dict[str, str | None]:
     """node path -> its host, as the recorded system file says (bus loggers included)."""
-    from iotad.launcher.declaration import SystemFileError
+    from iotad.launcher.system.declaration import SystemFileError
     from iotad.recording.recorded_system import recorded_declaration
 
     try:
@@ -408,7 +408,7 @@ def _node_hosts(recording: Recording) -> dict[str, str | None]:
 
 
 def _hub_host(recording: Recording) -> str | None:
-    from iotad.launcher.declaration import SystemFileError
+    from iotad.launcher.system.declaration import SystemFileError
     from iotad.recording.recorded_system import recorded_declaration
 
     try:

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Iterator
 
-from iotad.host import wire
+from iotad.node_host import wire
 from iotad.recording.mcap_reader import Recording, read_recording
 
 

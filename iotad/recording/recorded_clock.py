@@ -1,7 +1,7 @@
 """A host recording's clock offsets to the hub, as the recording holds them, and a time on the
 host's clock moved onto the hub's (what `iotad merge` orders host recordings by).
 
-hub clock = host clock + offset (`iotad.host.clock_offset`). A host launcher's recorder stores the
+hub clock = host clock + offset (`iotad.machine.clock_offset`). A host launcher's recorder stores the
 offset its launcher measured at start in the file's metadata (`iotad.recording`: `run.clock`, with
 the host clock's time of the measurement); every later measurement is a launcher event `clock` of
 that host on `@launcher`, read by `iotad.recording.clock_offsets`. Merging reads offsets only

@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from iotad.kernel.ports import Port
-from iotad.launcher.declaration import Declaration, parse_declaration
+from iotad.launcher.system.declaration import Declaration, parse_declaration
 
 SYSTEM_TOML, SYSTEM_JSON = "system.toml", "system.json"  # the attachments a recording keeps it in
 CAN_TX = "can_tx"
@@ -46,7 +46,7 @@ def recorded_system(recording: Any, expand: bool = True) -> RecordedSystem | str
     """The system attached to `recording` (system.toml, or system.json of an in-process run),
     with family bindings expanded by the recorded channel tables (unless not `expand`); or why
     there is none."""
-    from iotad.launcher.declaration import SystemFileError
+    from iotad.launcher.system.declaration import SystemFileError
 
     json_text = next((a.data.decode(errors="replace") for a in recording.attachments if a.name == SYSTEM_JSON), None)
     sizes = _channel_sizes(recording.specs)

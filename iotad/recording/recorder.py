@@ -41,15 +41,15 @@ from typing import Any, Callable, Iterable
 import msgpack
 import zenoh
 
-from iotad.host import wire
-from iotad.host.can_port import KEY_PREFIX as CAN_KEY_PREFIX
-from iotad.host.credentials import for_endpoints
-from iotad.launcher.recording_paths import continuation_path, unused_recording_path
+from iotad.node_host import wire
+from iotad.node_host.can_port import KEY_PREFIX as CAN_KEY_PREFIX
+from iotad.node_host.credentials import for_endpoints
+from iotad.launcher.run.recording_paths import continuation_path, unused_recording_path
 from iotad.recording.mcap_format import FORMAT, GAP_TOPIC, MALFORMED_TOPIC, packb, trace_event_problem
 from iotad.recording.mcap_sink import channel_schemas, McapSink, schema_for_topic, write_set_file
-from iotad.host.transport import DEFAULT_LISTEN, open_session
+from iotad.node_host.transport import DEFAULT_LISTEN, open_session
 from iotad.kernel.clock import CLOCK_SKEW_ENV, wall
-from iotad.launcher.declaration import Declaration, SystemFileError, read_declaration
+from iotad.launcher.system.declaration import Declaration, SystemFileError, read_declaration
 
 _MAPS = ("/" + wire.LAUNCHER, "/" + wire.HEARTBEAT)
 _TRACE = "/" + wire.TRACE  # the end of every node's @trace key  # keys whose payload every reader takes for a msgpack map
@@ -323,7 +323,7 @@ class Recorder:
 
     def _close_session(self) -> None:
         if self._session is not None:
-            from iotad.host.session_close import close_session
+            from iotad.node_host.session_close import close_session
 
             close_session(self._session)  # the file is finished by then; a cut-off host is not waited for
             self._session = None

@@ -19,8 +19,8 @@ import time
 from pathlib import Path
 from typing import Callable
 
-from iotad.host import wire
-from iotad.host.stop_signals import StopSignals
+from iotad.node_host import wire
+from iotad.node_host.stop_signals import StopSignals
 from iotad.recording.recorder import Recorder
 
 BEAT = 0.5  # s between stamps of the ready file
@@ -38,7 +38,7 @@ def stamp(path: str | os.PathLike) -> None:
 def stop_on_signals() -> StopSignals:
     """SIGINT or SIGTERM: the clean stop of a recorder process. Not a threading.Event set in the
     handler: that deadlocked a recorder whose SIGINT came while it waited on the Event
-    (iotad.host.stop_signals), and its file was never finished."""
+    (iotad.node_host.stop_signals), and its file was never finished."""
     return StopSignals((signal.SIGINT, signal.SIGTERM))
 
 

@@ -13,7 +13,7 @@ import time
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
-from iotad.host.wire import START_KIND
+from iotad.node_host.wire import START_KIND
 from iotad.recording.conformance import align_paths, describe, first_difference, split_runs
 from iotad.kernel.clock import VirtualClock
 from iotad.kernel.engine import Engine
@@ -347,7 +347,7 @@ def republish(recording: Recording, session: Any, *, rate: float = 1.0, start: f
               progress: Callable[[int, int], None] | None = None, stop: Callable[[], bool] = lambda: False) -> int:
     """Publish every message on its key at its recorded pace (divided by `rate`), from `start`
     seconds into the recording. Attachments are fresh `[sequence, send_time_ns]`. Returns the count."""
-    from iotad.host import wire
+    from iotad.node_host import wire
 
     # Paced by the senders' send times where the recording has them: a trace-sourced recording's
     # log times are burst arrivals (20 ms lumps), not when the messages were sent.

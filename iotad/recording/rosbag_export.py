@@ -15,7 +15,8 @@ import re
 from pathlib import Path
 from typing import Any, Callable
 
-from iotad.host import wire
+from iotad.node_host import wire
+from iotad.kernel.ports import Port
 from iotad.recording.mcap_reader import Recording
 from iotad.ros2 import messages
 from iotad.ros2.bridge import NODE_NAME
@@ -82,9 +83,8 @@ def export_rosbag(recording: Recording, output: str | Path,
         if mapping.constant:  # the robot's description: published once, as the bridge opened
             constants.append(mapping)
         elif mapping.direction == "out":
-            node, _, rest = mapping.channel.partition(".")
-            channel, _, index = rest.partition("[")
-            key = wire.channel_key(system, node, channel, int(index.rstrip("]")) if index else None)
+            port = Port.parse(mapping.channel)  # as the system file's [[ros2]] channel was read
+            key = wire.channel_key(system, port.node, port.channel, port.index)
             out_by_key.setdefault(key, []).append(mapping)
         else:
             in_by_key[mapping.key] = mapping.reversed()

@@ -5,7 +5,7 @@ Both speak rmw_zenoh (docs/ros2.md): data on `<domain>/<topic>/<type>/<hash>`, t
 liveliness tokens under `@ros2_lv/<domain>/`, and a transient-local topic's publication cache as a
 queryable on `<session id>/<data key>` that a subscriber asks as `*/<data key>` (or with the
 publisher's session id), accepting replies on the data key. The sets are what the hub's rules
-(`iotad.launcher.access_policy.Grant`) take: key expressions per kind of message.
+(`iotad.launcher.access.access_policy.Grant`) take: key expressions per kind of message.
 """
 from __future__ import annotations
 

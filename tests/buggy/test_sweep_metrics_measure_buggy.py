@@ -3,7 +3,7 @@ ate and the bumps its pose counted, seconds in each behaviour that add up to the
 hunger and fear within the range the moods took; the hungrier, bolder Buggy is hungrier."""
 from buggy_runs import ROOT
 from iotad.kernel.python_loader import load_object
-from iotad.launcher.system_file import load_system
+from iotad.launcher.system.system_file import load_system
 from iotad.recording.mcap_reader import read_recording
 
 

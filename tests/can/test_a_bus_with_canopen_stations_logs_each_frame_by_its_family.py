@@ -14,9 +14,9 @@ from iotad.can.frame import Frame
 from iotad.can.frame_log import CAN_BUS_FRAME, BusLogger
 from iotad.can.virtual_bus import CanBus
 from iotad.kernel.clock import VirtualClock
-from iotad.launcher.declaration import CANOPEN_LOGGER_REF, LOGGER_REF
-from iotad.launcher.in_process import compose
-from iotad.launcher.system_file import load_system
+from iotad.launcher.system.declaration import CANOPEN_LOGGER_REF, LOGGER_REF
+from iotad.launcher.system.in_process import compose
+from iotad.launcher.system.system_file import load_system
 
 ROOT = __import__("pathlib").Path(__file__).resolve().parents[2]
 DRIVES = frozenset({4, 5, 6})  # a mixed bus: ODrives 1..3, CiA 402 drives 4..6, the master 127

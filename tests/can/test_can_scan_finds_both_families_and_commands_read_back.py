@@ -8,8 +8,8 @@ import itertools
 import pytest
 
 from iotad.cli import main
-from iotad.host import wire
-from iotad.host.transport import free_port, open_session
+from iotad.node_host import wire
+from iotad.node_host.transport import free_port, open_session
 from simulated_bus_drives import BusDrives
 
 _channels = itertools.count()

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from iotad.launcher.system_file import SystemFileError, load_system
+from iotad.launcher.system.system_file import SystemFileError, load_system
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 

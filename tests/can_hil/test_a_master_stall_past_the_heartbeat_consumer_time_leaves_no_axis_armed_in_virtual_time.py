@@ -27,7 +27,7 @@ from iotad.can.frame import CAN_FRAME, Frame  # noqa: E402
 from iotad.can.virtual_bus import CanBus  # noqa: E402
 from iotad.kernel.compose import Composite  # noqa: E402
 from iotad.kernel.engine import Engine  # noqa: E402
-from iotad.launcher.system_file import load_system  # noqa: E402
+from iotad.launcher.system.system_file import load_system  # noqa: E402
 from nodes.can_motor import CanMotor  # noqa: E402
 from sim.cia402_sim import SimulatedCia402Drives  # noqa: E402
 from sim.odrive_sim import SimulatedOdrives  # noqa: E402

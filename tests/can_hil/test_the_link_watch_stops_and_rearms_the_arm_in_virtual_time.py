@@ -16,7 +16,7 @@ from iotad.can.virtual_bus import CanBus  # noqa: E402
 from iotad.kernel.api import Input, Internal, Iota, Output, Param  # noqa: E402
 from iotad.kernel.compose import Composite  # noqa: E402
 from iotad.kernel.engine import Engine  # noqa: E402
-from iotad.launcher.system_file import load_system  # noqa: E402
+from iotad.launcher.system.system_file import load_system  # noqa: E402
 from nodes.can_motor import CanMotor  # noqa: E402
 
 CUT, HEAL, END = 1.2, 2.2, 6.0  # s; the trajectory's last leg ends at 3.5

@@ -6,7 +6,7 @@ import textwrap
 import pytest
 from hypothesis import given, strategies as st
 
-from iotad.launcher.system_file import SystemFileError, load_system
+from iotad.launcher.system.system_file import SystemFileError, load_system
 from nodes.can_motor import CanMotor, JointMapError, parse_joints
 
 LIST = [{"name": "a", "node_id": 1}, {"name": "b", "node_id": 2, "direction": -1, "gear_ratio": 50.0}]

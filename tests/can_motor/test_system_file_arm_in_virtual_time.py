@@ -7,8 +7,8 @@ pytest.importorskip("pybullet")
 
 from arm_system import system_toml  # noqa: E402
 from iotad.kernel.engine import Engine  # noqa: E402
-from iotad.launcher.in_process import compose  # noqa: E402
-from iotad.launcher.system_file import load_system  # noqa: E402
+from iotad.launcher.system.in_process import compose  # noqa: E402
+from iotad.launcher.system.system_file import load_system  # noqa: E402
 
 TARGET = [0.2, 0.1, -0.9, -0.3, 1.2, 0.4]
 

@@ -7,7 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from iotad.cli import main, virtual_run
+from iotad.cli import main
+from iotad.virtual import virtual_run
 from iotad.recording.engine_sink import EngineRecorder
 from iotad.recording.mcap_reader import read_recording
 from iotad.recording.writer_process import RecordingProcess

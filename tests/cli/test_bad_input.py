@@ -291,7 +291,7 @@ IGNORING = ("import os, signal, sys; signal.signal(signal.SIGINT, signal.SIG_IGN
 def test_ctrl_c_exits_130_without_traceback(started):
     """Ctrl-C (SIGINT) in a command that waits: exit 130, no traceback, no hang; also when the
     command was started with SIGINT ignored (it then waited for ever)."""
-    hub = subprocess.Popen([sys.executable, "-c", "import sys, time\nfrom iotad.host.transport import open_session\n"
+    hub = subprocess.Popen([sys.executable, "-c", "import sys, time\nfrom iotad.node_host.transport import open_session\n"
                             f"s = open_session(['tcp/127.0.0.1:{_port()}'])\nprint('up', flush=True)\n"
                             "sys.stdin.read()\ns.close()"],
                            cwd=ROOT, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
@@ -326,7 +326,7 @@ _PORT = []
 
 
 def _port():
-    from iotad.host.transport import free_port
+    from iotad.node_host.transport import free_port
     _PORT[:] = [free_port()]
     return _PORT[0]
 

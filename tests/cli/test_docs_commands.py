@@ -85,7 +85,7 @@ def test_system_file_reference_example_checks(tmp_path, capsys):
 
 def test_system_file_reference_names_every_key():
     """Every key the system file parser accepts is documented."""
-    from iotad.launcher import declaration as system
+    from iotad.launcher.system import declaration as system
     text = (ROOT / "docs" / "system-file.md").read_text()
     keys = system._SYSTEM_KEYS | system._NODE_KEYS | system._TOP_KEYS | system._CAN_KEYS | {"listen", "connect", "from", "to"}
     missing = sorted(k for k in keys if f"`{k}`" not in text)

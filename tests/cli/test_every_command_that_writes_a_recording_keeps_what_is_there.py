@@ -35,7 +35,7 @@ def test_record_that_writes_nothing_leaves_no_claim_behind(tmp_path, capsys):
 
 def split_set(tmp_path) -> tuple[Path, Path]:
     """A recording read as a split set of one member: run.mcap lists run_0.mcap."""
-    from iotad.launcher.recording_paths import continuation_path
+    from iotad.launcher.run.recording_paths import continuation_path
     from iotad.recording.mcap_sink import write_set_file
 
     whole = tmp_path / "whole.mcap"

@@ -2,7 +2,7 @@
 the one every trace event, violation and `iotad check` line is in: seconds from the system's
 origin, not from the recording's first message (which came a fraction of a second later)."""
 from iotad.cli import main
-from iotad.host import wire
+from iotad.node_host import wire
 from iotad.recording.mcap_sink import McapSink
 
 

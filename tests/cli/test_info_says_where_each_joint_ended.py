@@ -2,7 +2,7 @@
 axes went to FAULT and stayed there (its controllers restarted) stops with no violation to say
 so, and the line names the joints, since when, and the event that put them there."""
 from iotad.cli import main
-from iotad.host import wire
+from iotad.node_host import wire
 from iotad.recording.mcap_sink import McapSink
 
 

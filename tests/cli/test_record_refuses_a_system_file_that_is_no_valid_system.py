@@ -6,7 +6,7 @@ has checked) loads no node code; a valid system file is still taken at once."""
 import pytest
 
 from iotad.cli import main
-from iotad.launcher.system_file import SystemFileError, load_system
+from iotad.launcher.system.system_file import SystemFileError, load_system
 from launcher_helpers import IOTAS
 
 DEAD = ["--connect", "tcp/127.0.0.1:9", "--duration", "3", "--quiet"]  # no hub: only a refusal ends it early

@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 
 from iotad.cli import main
-from iotad.launcher.recording_paths import unused_recording_path
+from iotad.launcher.run.recording_paths import unused_recording_path
 from iotad.recording.mcap_reader import read_recording
 
 ROOT = Path(__file__).resolve().parents[2]

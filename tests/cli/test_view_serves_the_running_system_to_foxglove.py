@@ -12,7 +12,7 @@ import pytest
 
 from launcher_helpers import free_port, launcher, stop_launcher, wait_until
 
-from iotad.cli.foxglove_bridge import can_decoded, joint_states, log_lines, planar_pose, topic_of, views
+from iotad.recording.foxglove_mapping import can_decoded, joint_states, log_lines, planar_pose, topic_of, views
 from iotad.recording.mcap_reader import read_recording
 
 ROOT = Path(__file__).resolve().parents[2]

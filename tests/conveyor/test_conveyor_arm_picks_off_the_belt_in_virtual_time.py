@@ -114,7 +114,7 @@ def test_iotad_plot_node_draws_that_schedulers_timeline_and_refuses_one_that_sch
 def test_sweep_metrics_count_what_the_world_and_the_scheduler_did(run):
     """examples/conveyor.toml's [sweep] metrics, as `iotad sweep` loads them, on this run."""
     from iotad.kernel.python_loader import load_object
-    from iotad.launcher.system_file import load_system
+    from iotad.launcher.system.system_file import load_system
 
     from conveyor_variant import ROOT
 

@@ -5,10 +5,10 @@ import random
 
 import pytest
 
-from iotad.host import wire
-from iotad.host.clock_correction import SLEW, Correction
-from iotad.host.host_clock import HostClock
-from iotad.host.node_config import ConfigError, from_dict
+from iotad.node_host import wire
+from iotad.node_host.clock_correction import SLEW, Correction
+from iotad.node_host.host_clock import HostClock
+from iotad.node_host.node_config import ConfigError, from_dict
 from iotad.kernel import clock as kernel_clock
 
 

@@ -7,8 +7,8 @@ from types import SimpleNamespace
 
 import zenoh
 
-from iotad.host.session_close import close_session
-from iotad.host.zenoh_runtime import DEFAULT_RX, ENV, remote_sessions, rx_threads, setting, use_for
+from iotad.node_host.session_close import close_session
+from iotad.node_host.zenoh_runtime import DEFAULT_RX, ENV, remote_sessions, rx_threads, setting, use_for
 
 
 class Lingering:

@@ -4,7 +4,7 @@ The recorder (and the node host) set a `threading.Event` in their SIGINT handler
 a signal that landed while the main thread was inside that Event's `wait()` ran the handler with
 the Event's lock held, and `set()` waited for that lock for ever. A recorder whose launcher was
 SIGKILLed hung so, an orphan with its file never finished (the once-failing
-`test_sigkilled_launcher_leaves_no_orphans`). `iotad.host.stop_signals` takes no lock in the
+`test_sigkilled_launcher_leaves_no_orphans`). `iotad.node_host.stop_signals` takes no lock in the
 handler. Each case runs in a process of its own: signals go to a main thread."""
 import subprocess
 import sys
@@ -38,7 +38,7 @@ STORM = textwrap.dedent("""
 
 @pytest.mark.parametrize("module, factory", [
     ("iotad.recording.recorder_process", "stop_on_signals"),   # the recorder's stop
-    ("iotad.host.stop_signals", "StopSignals"),                # the node host's
+    ("iotad.node_host.stop_signals", "StopSignals"),                # the node host's
 ])
 def test_a_storm_of_sigints_never_deadlocks_the_wait(module, factory):
     run = subprocess.run([sys.executable, "-c", STORM.format(module=module, factory=factory)],
@@ -51,7 +51,7 @@ def test_a_storm_of_sigints_never_deadlocks_the_wait(module, factory):
 
 WAKE = textwrap.dedent("""
     import os, signal, threading
-    from iotad.host.stop_signals import StopSignals
+    from iotad.node_host.stop_signals import StopSignals
     stop = StopSignals()
     threading.Timer(0.2, os.kill, (os.getpid(), signal.SIGTERM)).start()
     print("stopped", stop.wait(None), stop.received == [signal.SIGTERM])

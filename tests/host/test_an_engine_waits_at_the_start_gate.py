@@ -1,8 +1,8 @@
 """A node given a `start_gate` goes live and heartbeats, but its engine starts only once a
 liveliness token appears on the gate's key (the launcher's, once every node is live); inputs that
 came meanwhile wait for it. A node stopped at the gate ends cleanly, without an engine start."""
-from iotad.host import wire
-from iotad.host.node_config import ConfigError, from_dict
+from iotad.node_host import wire
+from iotad.node_host.node_config import ConfigError, from_dict
 from node_harness import ECHO, Node, node_config, wait_for, wait_ready
 
 import pytest

@@ -8,7 +8,7 @@ import uuid
 import can
 
 from iotad.can.error_frames import describe_error_frame
-from iotad.host.can_port import ERROR_FRAME, RECEIVE_FAILED, RETRY, UNUSABLE, CanPort
+from iotad.node_host.can_port import ERROR_FRAME, RECEIVE_FAILED, RETRY, UNUSABLE, CanPort
 
 
 def test_error_frames_are_described_from_their_class_bits_and_data():
@@ -115,8 +115,8 @@ def test_a_node_host_records_an_error_frame_on_its_trace():
     """End to end in one process (python-can's `virtual` bus is in-process): a bus logger's node
     host hears an error frame; its trace carries the violation at the next heartbeat."""
     from iotad.can.frame_log import BusLogger
-    from iotad.host.node_config import from_dict
-    from iotad.host.node_host import NodeHost
+    from iotad.node_host.node_config import from_dict
+    from iotad.node_host.node_host import NodeHost
     from node_harness import Hub, node_config
 
     hub = Hub()

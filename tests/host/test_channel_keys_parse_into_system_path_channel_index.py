@@ -1,7 +1,7 @@
 """`wire.parse_key`: a channel key as (system, path, channel, index), None for anything else; the
 answers it remembers (the recording tools parse the same few hundred keys millions of times) are
 the ones it computes, for more keys than it remembers too."""
-from iotad.host import wire
+from iotad.node_host import wire
 
 
 def test_keys_of_every_shape():

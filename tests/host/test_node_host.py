@@ -7,7 +7,7 @@ import time
 
 import pytest
 
-from iotad.host import wire
+from iotad.node_host import wire
 from node_harness import ECHO, ROOT, Node, node_config, wait_for, wait_ready
 
 
@@ -127,7 +127,7 @@ def test_signal_exits_cleanly(hub, start_node, signum, status):
 
 
 def run_node(*args, timeout=30):
-    return subprocess.run([sys.executable, "-m", "iotad.host", *args], cwd=ROOT, capture_output=True,
+    return subprocess.run([sys.executable, "-m", "iotad.node_host", *args], cwd=ROOT, capture_output=True,
                           text=True, timeout=timeout)
 
 

@@ -1,4 +1,4 @@
-"""Which peers' restarts a node host tells its IOTA about (iotad/host/peer_restart.py): nodes
+"""Which peers' restarts a node host tells its IOTA about (iotad/node_host/peer_restart.py): nodes
 bound to its inputs and nodes bound to read its outputs, each with the channels it is bound
 through, as the launcher writes them into the node's config (`inputs` and `readers`)."""
 import json
@@ -6,10 +6,10 @@ from pathlib import Path
 
 import pytest
 
-from iotad.host.node_config import ConfigError, parse
-from iotad.host.peer_restart import notice_values, peers_of
+from iotad.node_host.node_config import ConfigError, parse
+from iotad.node_host.peer_restart import notice_values, peers_of
 from iotad.kernel.types import Enum
-from iotad.launcher.system_file import load_system
+from iotad.launcher.system.system_file import load_system
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -2,9 +2,9 @@
 the checker and replay use for the start of the first windows (older recordings still read)."""
 import json
 
-from iotad.host import wire
+from iotad.node_host import wire
 from iotad.recording.conformance import check_trace, split_start
-from iotad.host.host_clock import HostClock
+from iotad.node_host.host_clock import HostClock
 from iotad.recording.recorder import yield_cpu
 from iotad.recording.mcap_reader import read_recording, start_time
 from iotad.recording.mcap_sink import McapSink

@@ -7,7 +7,7 @@ Brain (the hub) and arm in network namespaces, started as a person would: an age
 link is cut for CUT s. Each host's recording shows its own pulse's outputs in every second of the
 cut, received as they were sent: before the fix a process meshed with the other host stopped
 receiving once the lease ran out (zenoh closed the cut links on both of its receive threads, each
-held up to 10 s by SO_LINGER; iotad/host/zenoh_runtime.py), the hub's recorder recorded nothing
+held up to 10 s by SO_LINGER; iotad/node_host/zenoh_runtime.py), the hub's recorder recorded nothing
 for seconds and its launcher killed its own nodes as frozen (the open run; under access control
 only the launchers link the hosts, and the test passed before the fix too)."""
 import re

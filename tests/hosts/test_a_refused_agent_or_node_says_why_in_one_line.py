@@ -17,10 +17,10 @@ import pytest
 from agent_helpers import agent_lines, hub_session
 from launcher_helpers import ROOT
 
-from iotad.host import agent_secret, certificates
-from iotad.host.certificates import CertificateError
-from iotad.host.transport import free_port
-from iotad.launcher.agent import Agent, AgentError
+from iotad.machine import agent_secret, certificates
+from iotad.machine.certificates import CertificateError
+from iotad.node_host.transport import free_port
+from iotad.launcher.hosts.agent import Agent, AgentError
 
 
 @pytest.fixture
@@ -55,7 +55,7 @@ print(json.dumps({{"user": json.load(open(path))["user"], "folder": os.path.dirn
                                    for f in os.listdir(os.path.dirname(path))}}),
                   "folder_mode": oct(stat.S_IMODE(os.stat(os.path.dirname(path)).st_mode)),
                   "files": sorted(os.listdir(os.path.dirname(path))),
-                  "args": sys.argv[1:]}}), flush=True)
+                  "args": sys.argv[1:], "part": json.load(open(sys.argv[-1]))}}), flush=True)
 """
 
 
@@ -71,7 +71,7 @@ def test_an_agent_keeps_its_hosts_credentials_private_for_the_run_and_removes_th
     agent._publish = lambda part, payload: published.append((part, payload))  # no hub in this test
     # a node's password in an order (a hub from before the hosts' routers made their nodes' own)
     # is not written: only the launcher's is kept
-    order = {"system": system.read_text(), "path": str(system), "args": ["--no-record"],
+    order = {"system": system.read_text(), "path": str(system), "run": {"no_record": True},
              "credentials": {"iotad-launcher-arm": "p1", "node-vision": "p2"}}
     # the agent spawns its runs on the thread of serve() (its parent-death signal's thread): here,
     # with no hub to serve, a thread of the test's takes that one spawn
@@ -84,7 +84,10 @@ def test_an_agent_keeps_its_hosts_credentials_private_for_the_run_and_removes_th
     while not any(part == "exit" for part, _ in published) and time.monotonic() < deadline:
         time.sleep(0.05)
     seen = json.loads(next(payload["line"] for part, payload in published if part == "log"))
-    assert seen["user"] == "iotad-launcher-arm" and seen["args"][-1] == "--no-record"
+    # a typed order, no command line: the host's part, with its launcher's options
+    assert seen["user"] == "iotad-launcher-arm" and seen["args"][:2] == ["-m", "iotad.launcher.run.host_part"]
+    assert seen["part"]["run"]["no_record"] is True and seen["part"]["run"]["host"] == "arm"
+    assert seen["part"]["system"] == system.read_text() and "credentials" not in seen["part"]
     assert seen["folder_mode"] == "0o700" and seen["modes"] == ["0o600"]
     assert "iotad-launcher-arm.json" in seen["files"] and "node-vision.json" not in seen["files"], seen["files"]
     assert not Path(seen["folder"]).exists()  # removed once the run ended
@@ -122,11 +125,11 @@ def test_a_node_whose_credentials_are_refused_says_so_in_one_line(authority, tmp
     env = {**os.environ, "IOTAD_CREDENTIALS": str(stale), certificates.ENV_DIR: str(authority),
            certificates.ENV_HOST: "arm"}
     with hub_session(authority, port, {"node-echo": "the run's"}, tmp_path):
-        done = subprocess.run([sys.executable, "-m", "iotad.host", "--config-json", json.dumps(config)],
+        done = subprocess.run([sys.executable, "-m", "iotad.node_host", "--config-json", json.dumps(config)],
                               capture_output=True, text=True, timeout=60, cwd=ROOT, env=env)
     assert done.returncode == 2, done.stderr
     assert done.stderr.strip().splitlines() == [
-        f"iotad.host: error: echo: cannot start on zenoh: not admitted: the hub at tls/127.0.0.1:{port} refused the "
+        f"iotad.node_host: error: echo: cannot start on zenoh: not admitted: the hub at tls/127.0.0.1:{port} refused the "
         "credentials of user 'node-echo': they are not this run's (an agent's HOST.secret from another authority, or "
         "a stale credentials file)"]
 

@@ -2,15 +2,15 @@
 credentials safely (tcp/ links, no --certs, a launcher started by hand with --host) the run is
 refused in one line that says what to do, before anything starts, unless --insecure says to run
 it open; the agents of an open run start their launchers open too."""
-import argparse
 import subprocess
 import sys
 
 from launcher_helpers import ROOT
 from namespaces import split_figure2
 
-from iotad.cli.commands.run import _fleet_for
-from iotad.launcher.system_file import load_system
+from iotad.launcher.options import RunOptions
+from iotad.launcher.run.run_system import fleet_for
+from iotad.launcher.system.system_file import load_system
 
 
 def iotad(*args: str) -> subprocess.CompletedProcess:
@@ -60,8 +60,8 @@ def test_check_says_when_such_a_run_is_refused(tmp_path):
 
 def test_the_agents_of_an_open_run_start_their_launchers_open(tmp_path):
     loaded = load_system(system(tmp_path))
-    args = argparse.Namespace(host=None, local=False, max_size=None, max_duration=None, force=False, agent_timeout=5)
-    open_fleet, host = _fleet_for(loaded, args, 7691, None, insecure=True)
-    assert host == "brain" and "--insecure" in open_fleet.args
-    secured, _ = _fleet_for(loaded, args, 7691, None)
-    assert "--insecure" not in secured.args
+    options = RunOptions(agent_timeout=5)
+    open_fleet, host = fleet_for(loaded, options, 7691, None, insecure=True)
+    assert host == "brain" and all(order.insecure for order in open_fleet.host_orders.values())
+    secured, _ = fleet_for(loaded, options, 7691, None)
+    assert not any(order.insecure for order in secured.host_orders.values())

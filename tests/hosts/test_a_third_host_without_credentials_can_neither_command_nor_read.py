@@ -16,15 +16,16 @@ from launcher_helpers import ROOT
 from namespaces import hosts, split_figure2
 from recorded_systems import check_of_a_real_run
 
-from iotad.host import agent_secret, certificates
+from iotad.machine import agent_secret, certificates
 from iotad.launcher.processes import interrupt_then_kill
 from iotad.recording.mcap_reader import read_recording
 
 PORT = 7616
 ROGUE = r"""
 import sys, time, zenoh
-from iotad.host import certificates, credentials, wire
-from iotad.host.transport import open_session
+from iotad.machine import certificates
+from iotad.node_host import credentials, wire
+from iotad.node_host.transport import open_session
 hub, stranger, own, tools = sys.argv[1:5]
 ROGUE = wire.encode("ROGUE")
 TARGETS = ["iota/split/scheduler/mdl_command", "iota/split/vision/req"]

@@ -1,7 +1,7 @@
 """Code by content hash: an agent runs the hub's version of every file the system file names. A
 file it holds at the hub's path with the same bytes is used there; one it lacks, or holds at
-another version, is fetched from the hub by its sha256 into the agent's cache and the system file
-copy names the cached file; bytes that do not hash to what the order names are refused, with a
+another version, is fetched from the hub by its sha256 into the agent's cache, and the system
+file's declaration reads the name it writes as the cached file; bytes that do not hash to what the order names are refused, with a
 clear error and no run. Checked on the files alone, through a real agent on loopback, and in
 network namespaces where the agent's machine sees a stale checkout, over tcp and over TLS under
 access control (the files then pass through the hub's policy)."""
@@ -20,10 +20,11 @@ import pytest
 from agent_helpers import Lines, start
 from launcher_helpers import ROOT, free_port
 from namespaces import hosts, split_figure2
-from iotad.host import agent_secret, certificates
-from iotad.launcher.code_by_hash import CodeCache, CodeError, localize, named_files, sha256_of
+from iotad.machine import agent_secret, certificates
+from iotad.launcher.hosts.code_by_hash import CodeCache, CodeError, localize, named_files, sha256_of
+from iotad.launcher.system.declaration import read_declaration
 from iotad.launcher.processes import interrupt_then_kill
-from iotad.launcher.system_file import load_system
+from iotad.launcher.system.system_file import check_system
 
 EXAMPLES = ROOT / "examples"
 
@@ -45,7 +46,7 @@ def test_named_files_are_fetched_by_hash_only_where_this_machine_lacks_the_hubs_
     hub = hub_folder(tmp_path)
     system = hub / "split.toml"
     system.write_text(system_text("127.0.0.1", "127.0.0.2"))
-    files = named_files(system, system.read_text())
+    files = named_files(read_declaration(system))
     assert {f["written"] for f in files} == {"code/scheduler.py", "code/requesters.py"}
     served = {f["sha256"]: Path(f["path"]).read_bytes() for f in files}
     asked = []
@@ -56,23 +57,25 @@ def test_named_files_are_fetched_by_hash_only_where_this_machine_lacks_the_hubs_
 
     cache = CodeCache(tmp_path / "agent")
     # the same checkout: nothing fetched, the hub's own file runs
-    assert localize(system.read_text(), str(system), files, cache, fetch, tmp_path / "run") == (None, [])
+    here = {f["written"]: f["path"] for f in files}
+    assert localize(files, cache, fetch) == (here, [])
     assert asked == []
     # this machine holds another version of the requester, and no scheduler at all
     hub_version = (hub / "code/requesters.py").read_bytes()
     (hub / "code/requesters.py").write_text("raise SystemExit('a stale copy')\n")
     (hub / "code/scheduler.py").unlink()
-    copy, said = localize(system.read_text(), str(system), files, cache, fetch, tmp_path / "run")
+    replaced, said = localize(files, cache, fetch)
     assert sorted(asked) == sorted(served) and len(said) == 2
     assert any(line.startswith("code/requesters.py: another version is at") for line in said), said
     assert any(line.startswith("code/scheduler.py: no file is at") for line in said), said
     cached = cache.path_for(sha256_of(hub_version), "requesters.py")
     assert cached.read_bytes() == hub_version
-    checked = load_system(copy)  # the copy checks: its nodes load from the cache
+    checked = check_system(read_declaration(system, files=replaced))  # its nodes load from the cache
     assert checked.nodes["vision"].source["ref"] == f"{cached}:Requester"
+    assert checked.text == system.read_text()  # the hub's file as it is: no copy, no rewrite
     # once cached, a file is not fetched again
     asked.clear()
-    assert localize(system.read_text(), str(system), files, cache, fetch, tmp_path / "run")[1] == []
+    assert localize(files, cache, fetch)[1] == []
     assert asked == []
 
 
@@ -80,34 +83,32 @@ def test_bytes_that_do_not_hash_to_the_named_sha256_are_refused(tmp_path):
     hub = hub_folder(tmp_path)
     system = hub / "split.toml"
     system.write_text(system_text("127.0.0.1", "127.0.0.2"))
-    files = named_files(system, system.read_text())
-    elsewhere = tmp_path / "elsewhere" / "split.toml"  # the hub's paths do not exist on this machine
+    files = named_files(read_declaration(system))
+    # the hub's paths do not exist on this machine
     files = [dict(f, path=str(tmp_path / "elsewhere" / f["written"])) for f in files]
     cache = CodeCache(tmp_path / "agent")
     with pytest.raises(CodeError, match=r"sha256 is [0-9a-f]{12}, not the [0-9a-f]{12} the run names: refused"):
-        localize(system.read_text(), str(elsewhere), files, cache, lambda sha: b"print('not the hub file')\n",
-                 tmp_path / "run")
+        localize(files, cache, lambda sha: b"print('not the hub file')\n")
     assert not list(cache.folder.rglob("*.py"))  # nothing stored under any hash
     with pytest.raises(CodeError, match="not a node's .py or .iota file"):
-        localize("", str(elsewhere), [{"written": "..", "path": "/x/..", "sha256": "ab" * 32}], cache,
-                 lambda sha: b"", tmp_path / "run")
+        localize([{"written": "..", "path": "/x/..", "sha256": "ab" * 32}], cache, lambda sha: b"")
     with pytest.raises(CodeError, match="without its written name, path and sha256"):
-        localize("", str(elsewhere), [{"written": "x.py", "path": "/x.py", "sha256": "../../etc"}], cache,
-                 lambda sha: b"", tmp_path / "run")
+        localize([{"written": "x.py", "path": "/x.py", "sha256": "../../etc"}], cache, lambda sha: b"")
 
 
 def answer_of_a_real_agent(tmp_path: Path, serve_code) -> tuple[dict | None, list[str], object]:
     """A real agent on loopback, ordered to run a system whose files it lacks, by a hub session
     that answers `iota/@code/*` with `serve_code(query)` (None: nothing serves it): its answer,
     its lines and the agent."""
-    from iotad.host.transport import open_session
-    from iotad.launcher.agent import Agent, agent_key, digest
+    from iotad.node_host.transport import open_session
+    from iotad.launcher.hosts.agent import Agent
+    from iotad.launcher.fleet_wire import agent_key, digest
 
     hub = hub_folder(tmp_path)
     system = hub / "split.toml"
     text = system_text("127.0.0.1", "127.0.0.2")
     system.write_text(text)
-    files = [dict(f, path=str(tmp_path / "gone" / f["written"])) for f in named_files(system, text)]
+    files = [dict(f, path=str(tmp_path / "gone" / f["written"])) for f in named_files(read_declaration(system))]
     port = free_port()
     lines = []
     with open_session([f"tcp/127.0.0.1:{port}"], [], credentials=False) as session:
@@ -117,7 +118,7 @@ def answer_of_a_real_agent(tmp_path: Path, serve_code) -> tuple[dict | None, lis
         serving.start()
         try:
             order = json.dumps({"system": text, "path": str(tmp_path / "gone" / "split.toml"), "digest": digest(text),
-                                "files": files, "args": []}).encode()
+                                "files": files, "run": {}}).encode()
             answer = None
             deadline = time.monotonic() + 30
             while answer is None and time.monotonic() < deadline:

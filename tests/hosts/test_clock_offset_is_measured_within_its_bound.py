@@ -6,8 +6,8 @@ import time
 
 import pytest
 
-from iotad.host import transport
-from iotad.host.clock_offset import ClockError, ClockServer, Sample, estimate, measure
+from iotad.node_host import transport
+from iotad.machine.clock_offset import ClockError, ClockServer, Sample, estimate, measure
 
 
 def round_trip(true_offset: float, sent: float, there: float, back: float, hub_time: float = 1e-4) -> Sample:

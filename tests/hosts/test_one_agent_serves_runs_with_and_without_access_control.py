@@ -4,8 +4,8 @@ agent joins each run's hub anew once the last one is gone, with its secret where
 for one. Loopback, TLS, hubs made by the test."""
 from agent_helpers import AgentProcess, hub_session
 
-from iotad.host import agent_secret, certificates
-from iotad.host.transport import free_port, open_session
+from iotad.machine import agent_secret, certificates
+from iotad.node_host.transport import free_port, open_session
 
 
 def test_an_agent_joins_an_open_hub_then_one_under_access_control_then_an_open_one(tmp_path):

@@ -83,8 +83,8 @@ def test_a_host_without_an_agent_is_one_clear_error(tmp_path):
 
 ROGUE = r"""
 import sys, zenoh
-from iotad.host import certificates
-from iotad.host.transport import open_session
+from iotad.machine import certificates
+from iotad.node_host.transport import open_session
 hub, stranger, own = sys.argv[1], sys.argv[2], sys.argv[3]
 for name, endpoint, files in (("tcp", hub.replace("tls/", "tcp/"), None), ("tls without a certificate", hub, None),
                               ("tls with another authority's", hub, certificates.host_files(stranger, "rogue")),

@@ -6,7 +6,7 @@ check`, and nothing but one line where zenoh could not reach the other side; nev
 Before the fix, the cut-off host's launcher ended on `iotad: error: zenoh: close operation timed
 out!` with exit status 2 and no summary, after killing its node, whose own session close had
 outlasted its stop patience: zenoh closes a link to a cut-off peer with SO_LINGER 10 s and gives
-up on the whole close after 10 s (iotad/host/session_close.py). One `iotad run --host` per
+up on the whole close after 10 s (iotad/node_host/session_close.py). One `iotad run --host` per
 network namespace, each with `-o`, as tests/hosts/test_a_host_cut_off_from_the_hub_keeps_recording.py."""
 import re
 import subprocess

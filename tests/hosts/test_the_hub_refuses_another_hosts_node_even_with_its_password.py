@@ -22,8 +22,9 @@ from iotad.launcher.processes import interrupt_then_kill
 PORT = 7617
 THIEF = r"""
 import sys, zenoh
-from iotad.host import certificates, credentials
-from iotad.host.transport import open_session
+from iotad.machine import certificates
+from iotad.node_host import credentials
+from iotad.node_host.transport import open_session
 hub, router, certs, vision, tools = sys.argv[1:6]
 guest = certificates.host_files(certs, "guest")
 for name, endpoint, given, files in (("hub with vision's password", hub, vision, guest),

@@ -7,7 +7,11 @@ import time
 import pytest
 import zenoh
 
-from iotad.host import certificates, transport
+from iotad.machine import certificates
+
+
+
+from iotad.node_host import transport
 
 
 @pytest.fixture

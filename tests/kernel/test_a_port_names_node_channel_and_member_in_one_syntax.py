@@ -7,7 +7,7 @@ from iotad import Composite
 from iotad.kernel.compose import flatten
 from iotad.kernel.model import SpecError
 from iotad.kernel.ports import Port, PortSyntaxError
-from iotad.launcher.declaration import parse_declaration
+from iotad.launcher.system.declaration import parse_declaration
 from system_iotas import Sink, Source
 
 

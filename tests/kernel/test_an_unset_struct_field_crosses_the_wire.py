@@ -6,7 +6,7 @@ import pytest
 
 from iotad.can.frame import Frame
 from iotad.can.frame_log import CAN_BUS_FRAME, bus_frame
-from iotad.host import wire
+from iotad.node_host import wire
 from iotad.kernel.types import Array, BadValue, Float, Int, Struct
 
 POINT = Struct("point", x=Float, y=Float(0, 1), n=Int(0, 9))

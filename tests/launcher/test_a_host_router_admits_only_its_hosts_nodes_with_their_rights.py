@@ -1,4 +1,4 @@
-"""The router of a host that is not the hub's (iotad/launcher/host_router.py) enforces access
+"""The router of a host that is not the hub's (iotad/launcher/access/host_router.py) enforces access
 control for its local clients as the hub does: on its private unix socket it admits arm's node
 and arm's recorder with the passwords it made for them on arm (the agent receives only the
 launcher's), refuses a wrong password and a user of another host, and drops what arm's node may
@@ -14,13 +14,13 @@ import zenoh
 
 from namespaces import split_figure2
 
-from iotad.host import wire
-from iotad.host.credentials import Credentials, CredentialStore, GivenCredentials, load
-from iotad.host.transport import open_session
-from iotad.launcher.access_policy import RECORDER_USER, derive, node_user
-from iotad.launcher.host_access import host_users, launcher_grant, launcher_user
-from iotad.launcher.host_router import HostRouter
-from iotad.launcher.system_file import load_system
+from iotad.node_host import wire
+from iotad.node_host.credentials import Credentials, CredentialStore, GivenCredentials, load
+from iotad.node_host.transport import open_session
+from iotad.launcher.access.access_policy import RECORDER_USER, derive, node_user
+from iotad.launcher.access.host_access import host_users, launcher_grant, launcher_user
+from iotad.launcher.access.host_router import HostRouter
+from iotad.launcher.system.system_file import load_system
 
 
 @pytest.fixture

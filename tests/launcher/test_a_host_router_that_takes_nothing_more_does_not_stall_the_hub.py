@@ -27,14 +27,16 @@ from agent_helpers import authority_for
 from launcher_helpers import IOTAS, ROOT, free_port, wait_until
 from namespaces import hosts_header
 
-from iotad.host import certificates, wire
-from iotad.host.credentials import CredentialStore
-from iotad.host.session_close import close_session
-from iotad.host.transport import open_session
-from iotad.launcher.access_control import AccessControl
-from iotad.launcher.access_policy import RECORDER_USER, node_user
-from iotad.launcher.host_access import launcher_user, router_zid, zenoh_mode
-from iotad.launcher.system_file import load_system
+from iotad.machine import certificates
+
+from iotad.node_host import wire
+from iotad.node_host.credentials import CredentialStore
+from iotad.node_host.session_close import close_session
+from iotad.node_host.transport import open_session
+from iotad.launcher.access.access_control import AccessControl
+from iotad.launcher.access.access_policy import RECORDER_USER, node_user
+from iotad.launcher.access.host_access import launcher_user, router_zid, zenoh_mode
+from iotad.launcher.system.system_file import load_system
 
 import zenoh
 

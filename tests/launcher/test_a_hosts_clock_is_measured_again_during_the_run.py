@@ -7,12 +7,12 @@ import time
 
 import pytest
 
-from iotad.host import transport
-from iotad.host.clock_offset import ClockOffset, ClockServer
-from iotad.launcher.clock_watch import ClockReading, ClockWatch, judge
-from iotad.launcher.access_policy import derive
-from iotad.launcher.declaration import parse_declaration as parse_text
-from iotad.launcher.system_file import load_system
+from iotad.node_host import transport
+from iotad.machine.clock_offset import ClockOffset, ClockServer
+from iotad.launcher.hosts.clock_watch import ClockReading, ClockWatch, judge
+from iotad.launcher.access.access_policy import derive
+from iotad.launcher.system.declaration import parse_declaration as parse_text
+from iotad.launcher.system.system_file import load_system
 from namespaces import split_figure2
 
 LIMIT = 1e-3

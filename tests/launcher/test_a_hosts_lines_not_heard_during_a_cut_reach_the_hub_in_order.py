@@ -1,9 +1,9 @@
 """The lines of a host's run that the hub did not hear live (a network cut drops them: zenoh has
 no route) reach it afterwards, from the lines the host's agent keeps, in their order and marked
 late; lines the agent no longer keeps are counted. Here the two sides' bookkeeping
-(iotad/launcher/agent_lines.py) is driven as the agent and the hub's fleet drive it, with the
+(iotad/launcher/hosts/agent_lines.py) is driven as the agent and the hub's fleet drive it, with the
 cut being lines that never arrive; tests/hosts has the same over a real cut."""
-from iotad.launcher.agent_lines import HeardLines, KeptLines
+from iotad.launcher.hosts.agent_lines import HeardLines, KeptLines
 
 
 def agent_run(lines: list[str], kept: int = 100, run: int = 4242) -> tuple[KeptLines, list[dict]]:

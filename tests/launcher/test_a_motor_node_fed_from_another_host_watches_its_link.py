@@ -4,7 +4,7 @@ the file says) when one of its inputs is bound from a node on another host; on o
 parameter set in the file, or with `link_timeout = 0`, its params are the file's."""
 import pytest
 
-from iotad.launcher.system_file import SystemFileError, load_system
+from iotad.launcher.system.system_file import SystemFileError, load_system
 
 JOINTS = "joints = [{ name = \"j\", node_id = 1 }]"
 

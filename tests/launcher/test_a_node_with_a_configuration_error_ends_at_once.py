@@ -5,10 +5,10 @@ that fails otherwise is still restarted by its policy."""
 import sys
 from pathlib import Path
 
-from iotad.host.node_config import CONFIGURATION_ERROR
+from iotad.node_host.node_config import CONFIGURATION_ERROR
 from iotad.launcher.options import LaunchOptions
-from iotad.launcher.supervision import Launcher
-from iotad.launcher.system_file import load_system
+from iotad.launcher.run.supervision import Launcher
+from iotad.launcher.system.system_file import load_system
 from launcher_helpers import IOTAS, free_port
 from system_iotas import pingpong_system
 

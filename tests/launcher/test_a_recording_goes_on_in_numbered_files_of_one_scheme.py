@@ -5,7 +5,7 @@ recording), even with --force, which replaces only an earlier run's."""
 import os
 import time
 
-from iotad.launcher.recording_paths import continuation_path, next_continuation, unused_recording_path, unwritable
+from iotad.launcher.run.recording_paths import continuation_path, next_continuation, unused_recording_path, unwritable
 
 
 def test_members_and_continuations_are_numbered_the_same_way(tmp_path):

@@ -16,9 +16,9 @@ from launcher_helpers import free_port, launcher, wait_until
 from recorded_systems import check_of_a_real_run
 
 from iotad.cli import main
-from iotad.host import credentials as creds
-from iotad.host import wire
-from iotad.host.transport import open_session
+from iotad.node_host import credentials as creds
+from iotad.node_host import wire
+from iotad.node_host.transport import open_session
 from iotad.recording.mcap_reader import read_recording
 
 ROOT = Path(__file__).resolve().parents[2]

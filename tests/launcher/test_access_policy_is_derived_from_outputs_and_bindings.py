@@ -8,8 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from iotad.launcher.access_policy import RECORDER_USER, TOOLS_USER, derive
-from iotad.launcher.system_file import SystemFileError, load_system
+from iotad.launcher.access.access_policy import RECORDER_USER, TOOLS_USER, derive
+from iotad.launcher.system.system_file import SystemFileError, load_system
 
 ROOT = Path(__file__).resolve().parents[2]
 

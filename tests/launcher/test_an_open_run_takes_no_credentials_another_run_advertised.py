@@ -8,9 +8,9 @@ import subprocess
 import sys
 
 from launcher_helpers import ROOT, free_port, pair_system
-from iotad.host import credentials as creds
-from iotad.launcher.access_control import AccessControl
-from iotad.launcher.system_file import load_system
+from iotad.node_host import credentials as creds
+from iotad.launcher.access.access_control import AccessControl
+from iotad.launcher.system.system_file import load_system
 from iotad.recording.mcap_reader import read_recording
 
 

@@ -11,7 +11,7 @@ import pytest
 
 from iotad.can.frame import Frame
 from iotad.cli import main
-from iotad.launcher.system_file import SystemFileError, load_system
+from iotad.launcher.system.system_file import SystemFileError, load_system
 from iotad.recording.mcap_reader import read_recording
 from system_iotas import PINGPONG_BUS, pingpong_system
 

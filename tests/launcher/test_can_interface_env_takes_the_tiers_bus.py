@@ -9,7 +9,7 @@ import pytest
 from iotad.can.bus import BusUnavailable, open_bus
 from iotad.can.frame import Frame
 from iotad.cli import main
-from iotad.launcher.system_file import SystemFileError, load_system
+from iotad.launcher.system.system_file import SystemFileError, load_system
 
 IOTAS = Path(__file__).resolve().parents[1] / "system_iotas.py"
 SYSTEM = f"""[system]

@@ -7,10 +7,10 @@ from pathlib import Path
 import pytest
 
 from iotad.cli import main
-from iotad.launcher.access_policy import derive
-from iotad.launcher.bus_logger import LOGGER_REF, is_bus_logger
-from iotad.launcher.in_process import compose
-from iotad.launcher.system_file import SystemFileError, load_system
+from iotad.launcher.access.access_policy import derive
+from iotad.launcher.system.bus_logger import LOGGER_REF, is_bus_logger
+from iotad.launcher.system.in_process import compose
+from iotad.launcher.system.system_file import SystemFileError, load_system
 from iotad.recording.mcap_reader import read_recording
 from system_iotas import PINGPONG_BUS, pingpong_system
 

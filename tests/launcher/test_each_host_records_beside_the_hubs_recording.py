@@ -7,8 +7,10 @@ from pathlib import Path
 import pytest
 
 from namespaces import split_figure2
-from iotad.cli.commands.run import _fleet_for, defaults, load_checked
-from iotad.launcher.host_recording import host_recording_path, local_endpoints, pinned
+from iotad.launcher.options import RunOptions
+from iotad.launcher.run.run_system import fleet_for
+from iotad.launcher.system.system_file import load_system
+from iotad.launcher.hosts.host_recording import host_recording_path, local_endpoints, pinned
 
 
 @pytest.mark.parametrize("given, arm", [
@@ -30,12 +32,12 @@ def test_a_listen_port_0_is_pinned_so_that_the_hosts_recorder_can_be_told_where(
 def test_each_agent_is_told_to_record_its_part_beside_the_hubs_recording(tmp_path):
     path = tmp_path / "split.toml"
     path.write_text(split_figure2("split", "127.0.0.1", 7625, "brain", "arm", "127.0.0.1"))
-    system = load_checked(str(path))
-    args = defaults(system_file=str(path), force=True, max_duration=60.0)
-    fleet, host = _fleet_for(system, args, None, str(tmp_path / "rec" / "split.mcap"))
+    system = load_system(path)
+    options = RunOptions(force=True, max_duration=60.0)
+    fleet, host = fleet_for(system, options, None, str(tmp_path / "rec" / "split.mcap"))
     assert host == "brain" and fleet.hosts == ["arm"]
-    assert fleet.args == [] and fleet.host_args == {
-        "arm": ["-o", str(tmp_path / "rec" / "split.arm.mcap"), "--force", "--max-duration", "60.0"]}
+    assert fleet.host_orders == {"arm": RunOptions(host="arm", plain=True, record_to=str(tmp_path / "rec" / "split.arm.mcap"),
+                                                   force=True, max_duration=60.0)}
     # without a recording the agents record nothing either
-    fleet, _ = _fleet_for(system, defaults(system_file=str(path)), None, None)
-    assert fleet.args == ["--no-record"] and fleet.host_args == {}
+    fleet, _ = fleet_for(system, RunOptions(), None, None)
+    assert fleet.host_orders == {"arm": RunOptions(host="arm", plain=True, no_record=True)}

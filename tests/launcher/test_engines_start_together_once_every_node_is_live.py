@@ -19,7 +19,7 @@ import sys
 import time
 from pathlib import Path
 
-# only in the node's own process (`python -m iotad.host`): the launcher imports this file too, to
+# only in the node's own process (`python -m iotad.node_host`): the launcher imports this file too, to
 # check the system before it starts anything
 deadline = time.monotonic() + 60  # never hang: a test that failed before saying go
 while sys.argv[0].endswith("host/__main__.py") and not Path("go").exists() and time.monotonic() < deadline:

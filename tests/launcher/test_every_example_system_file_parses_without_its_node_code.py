@@ -23,7 +23,7 @@ EXAMPLES = sorted(path for path in (ROOT / "examples").glob("**/*.toml") if not 
 
 PROBE = r"""
 import json, sys
-from iotad.launcher.declaration import read_declaration, parse_declaration
+from iotad.launcher.system.declaration import read_declaration, parse_declaration
 declaration = read_declaration(sys.argv[1])
 copy = parse_declaration(open(sys.argv[1]).read())  # as a recording keeps it: no folder
 loaded = sorted(m for m in sys.modules if m.split(".")[0] in ("nodes", "sim", "examples")
@@ -67,7 +67,7 @@ def test_an_example_is_declared_without_its_nodes_code(path):
 
 
 def test_the_declaration_is_what_the_checked_system_is_built_from():
-    from iotad.launcher.system_file import load_system
+    from iotad.launcher.system.system_file import load_system
 
     system = load_system(ROOT / "examples" / "figure2.toml")
     declaration = system.declaration

@@ -15,10 +15,10 @@ import pytest
 
 from iotad.cli import main
 from iotad.launcher.options import LaunchOptions, RecordingOptions
-from iotad.launcher.recorder_supervision import RECORDER_MODULE
-from iotad.launcher.supervision import Launcher
+from iotad.launcher.run.recorder_supervision import RECORDER_MODULE
+from iotad.launcher.run.supervision import Launcher
 from iotad.recording.mcap_reader import read_recording
-from iotad.launcher.system_file import load_system
+from iotad.launcher.system.system_file import load_system
 from launcher_helpers import (IOTAS, ROOT, Observer, children_of, free_port, gone, launcher, pair_system,
                               wait_until)
 
@@ -31,7 +31,7 @@ def stub_argv(*stubbed: str):
         name = Path(config).stem
         if not stubbed or name in stubbed:
             return [sys.executable, str(STUB), config]
-        return [sys.executable, "-m", "iotad.host", config]
+        return [sys.executable, "-m", "iotad.node_host", config]
     return argv
 
 
@@ -292,7 +292,7 @@ def test_recorder_killed_mid_run_is_reported_restarted_and_recoverable(tmp_path)
 def test_a_frozen_recorder_is_killed_and_replaced(tmp_path):
     """A recorder that stops (SIGSTOP, a write hung on a dead disk) gives no sign of life: after
     RECORDER_STALL s the launcher kills it, says why, and a new recorder takes over."""
-    from iotad.launcher.supervision import RECORDER_STALL
+    from iotad.launcher.run.supervision import RECORDER_STALL
 
     port = free_port()
     system_file = pair_system(tmp_path, port)
@@ -426,7 +426,7 @@ params = {{ ignore_signals = true, exit_after = 60 }}
 
 LOADS_ONLY_IN_THE_LAUNCHER = '''
 import sys
-if sys.argv[0].endswith("/iotad/host/__main__.py"):  # the node host (python -m iotad.host): fails at import
+if sys.argv[0].endswith("/iotad/node_host/__main__.py"):  # the node host (python -m iotad.node_host): fails at import
     raise ImportError("no CAN driver in this process")
 from iotad import Int, Iota, Output
 

@@ -7,7 +7,7 @@ import time
 
 import zenoh
 
-from iotad.host import wire
+from iotad.node_host import wire
 from iotad.recording.mcap_reader import read_recording
 from launcher_helpers import Observer, free_port, launcher, wait_until
 

@@ -10,11 +10,11 @@ from pathlib import Path
 import pytest
 import zenoh
 
-from iotad.host import wire
+from iotad.node_host import wire
 from iotad.launcher.options import LaunchOptions
-from iotad.launcher.recorder_supervision import RECORDER_MODULE
-from iotad.launcher.supervision import Launcher
-from iotad.launcher.system_file import load_system
+from iotad.launcher.run.recorder_supervision import RECORDER_MODULE
+from iotad.launcher.run.supervision import Launcher
+from iotad.launcher.system.system_file import load_system
 from iotad.recording.mcap_reader import read_recording
 from launcher_helpers import IOTAS, Observer, children_of, free_port, gone, launcher, pair_system, wait_until
 

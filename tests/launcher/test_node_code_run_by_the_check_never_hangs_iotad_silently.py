@@ -57,7 +57,7 @@ def test_a_node_slow_to_build_is_named_while_iotad_waits(tmp_path, monkeypatch, 
     """Building the nodes to check them runs their code; one that blocks there used to leave
     `iotad run` silent for ever. After SLOW_BUILD seconds it names the node."""
     from iotad.cli import main
-    from iotad.launcher import system_file
+    from iotad.launcher.system import system_file
 
     monkeypatch.setattr(system_file, "SLOW_BUILD", 0.2)
     (tmp_path / "slow.py").write_text(SLOW)

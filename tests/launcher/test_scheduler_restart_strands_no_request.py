@@ -10,7 +10,7 @@ import threading
 import time
 from pathlib import Path
 
-from iotad.host import wire
+from iotad.node_host import wire
 from iotad.recording.mcap_reader import read_recording
 from launcher_helpers import ROOT, Observer, children_of, free_port, launcher
 

@@ -8,8 +8,8 @@ import time
 from pathlib import Path
 
 from iotad.launcher.options import LaunchOptions
-from iotad.launcher.supervision import Launcher
-from iotad.launcher.system_file import load_system
+from iotad.launcher.run.supervision import Launcher
+from iotad.launcher.system.system_file import load_system
 from launcher_helpers import IOTAS, ROOT, free_port, gone, wait_until
 
 STUB = Path(__file__).resolve().parents[1] / "launcher_stub_node.py"
@@ -109,7 +109,7 @@ def test_a_heartbeat_period_not_below_the_heartbeat_timeout_is_a_check_error(tmp
     """Every node would be killed as frozen between two of its heartbeats, over and over."""
     import pytest
 
-    from iotad.launcher.system_file import SystemFileError
+    from iotad.launcher.system.system_file import SystemFileError
 
     def system(period: float, timeout: float) -> Path:
         path = tmp_path / "beat.toml"

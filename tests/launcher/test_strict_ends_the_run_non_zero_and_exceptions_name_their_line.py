@@ -30,7 +30,7 @@ class Ticker(Iota):
             self.scale = 1.0 / 0.0
         main = sys.modules.get("__main__")
         if self.slow_start and (getattr(main, "__spec__", None) is not None
-                                and main.__spec__.name.startswith("iotad.host")):
+                                and main.__spec__.name.startswith("iotad.node_host")):
             time.sleep(self.slow_start)  # its node host never goes live within the run
         self.n = 0
 

@@ -5,8 +5,8 @@ import sys
 
 from iotad.cli import main
 from iotad.launcher.options import LaunchOptions
-from iotad.launcher.supervision import Launcher
-from iotad.launcher.system_file import load_system
+from iotad.launcher.run.supervision import Launcher
+from iotad.launcher.system.system_file import load_system
 from launcher_helpers import IOTAS, free_port
 
 MISS = {"kind": "violation", "t": 19.2022, "iota": "motor", "action": "arm",

@@ -5,7 +5,7 @@ from pathlib import Path
 
 import pytest
 
-from iotad.launcher.system_file import SystemFileError, load_system, with_port
+from iotad.launcher.system.system_file import SystemFileError, load_system, with_port
 
 ROOT = Path(__file__).resolve().parents[2]
 IOTAS = Path(__file__).resolve().parents[1] / "system_iotas.py"
@@ -214,7 +214,7 @@ def test_figure2_configs_follow_the_node_host_contract():
     assert config["connect"] == ["tcp/127.0.0.1:7500"] and config["origin"] == 123.5
     assert config["listen"] == ["tcp/127.0.0.1:0"]
     assert system.node_config("vision", 0.0, [])["inputs"] == {"ack": ["iota/figure2/scheduler/ack/0"]}
-    from iotad.host.node_config import from_dict
+    from iotad.node_host.node_config import from_dict
     from_dict(config)  # the node host accepts it
 
 
@@ -288,7 +288,7 @@ def test_a_node_file_that_calls_os_exit_as_it_loads_is_an_error_not_an_exit(tmp_
     import sys
     (tmp_path / "quits.py").write_text("import os\nos._exit(0)\n")
     path = write(tmp_path, '[[node]]\nname = "d"\npython = "quits.py:Anything"\n')
-    probe = ("import os, sys\nfrom iotad.launcher.system_file import SystemFileError, load_system\n"
+    probe = ("import os, sys\nfrom iotad.launcher.system.system_file import SystemFileError, load_system\n"
              "original = os._exit\ntry:\n    load_system(sys.argv[1])\nexcept SystemFileError as exc:\n"
              "    print(exc)\n    print('put back:', os._exit is original)\n    sys.exit(5)\n")
     done = subprocess.run([sys.executable, "-c", probe, str(path)], capture_output=True, text=True, timeout=60,

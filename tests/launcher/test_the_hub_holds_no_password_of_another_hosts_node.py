@@ -1,6 +1,6 @@
 """Under access control the hub admits only who logs in to it: the hub host's nodes, its recorder,
 tools and fleet session, and each other host's launcher and agent. Another host's nodes log in to
-their host's router (iotad/launcher/host_router.py), which makes their passwords on that host:
+their host's router (iotad/launcher/access/host_router.py), which makes their passwords on that host:
 the hub's `dictionary.txt`, its rules and its credentials folder name none of them, the agent is
 sent its launcher's password alone, and a session that shows the hub a node's real password from
 another host's router (with a certificate of the system's authority) is refused, while the same
@@ -18,15 +18,15 @@ from agent_helpers import authority_for
 from launcher_helpers import free_port, wait_until
 from namespaces import split_figure2
 
-from iotad.host import certificates
-from iotad.host.agent_secret import agent_user
-from iotad.host.credentials import ENV, CredentialStore, load
-from iotad.host.transport import open_session
-from iotad.launcher.access_control import AccessControl
-from iotad.launcher.access_policy import RECORDER_USER, TOOLS_USER, node_user
-from iotad.launcher.host_access import FLEET_USER, launcher_user
-from iotad.launcher.host_router import NO_GOSSIP
-from iotad.launcher.system_file import load_system
+from iotad.machine import certificates
+from iotad.machine.agent_secret import agent_user
+from iotad.node_host.credentials import ENV, CredentialStore, load
+from iotad.node_host.transport import open_session
+from iotad.launcher.access.access_control import AccessControl
+from iotad.launcher.access.access_policy import RECORDER_USER, TOOLS_USER, node_user
+from iotad.launcher.access.host_access import FLEET_USER, launcher_user
+from iotad.launcher.access.host_router import NO_GOSSIP
+from iotad.launcher.system.system_file import load_system
 
 # who logs in to the hub of the Figure 2 split: scheduler on brain (the hub's host), vision on arm
 HUB_USERS = {node_user("scheduler"), RECORDER_USER, TOOLS_USER, FLEET_USER, launcher_user("arm"), agent_user("arm")}

@@ -13,13 +13,15 @@ from agent_helpers import authority_for
 from launcher_helpers import free_port, wait_until
 from namespaces import split_figure2
 
-from iotad.host import certificates, wire
-from iotad.host.credentials import CredentialStore, load
-from iotad.host.transport import open_session
-from iotad.launcher.access_control import AccessControl
-from iotad.launcher.access_policy import node_user
-from iotad.launcher.host_access import launcher_user, zenoh_mode
-from iotad.launcher.system_file import load_system
+from iotad.machine import certificates
+
+from iotad.node_host import wire
+from iotad.node_host.credentials import CredentialStore, load
+from iotad.node_host.transport import open_session
+from iotad.launcher.access.access_control import AccessControl
+from iotad.launcher.access.access_policy import node_user
+from iotad.launcher.access.host_access import launcher_user, zenoh_mode
+from iotad.launcher.system.system_file import load_system
 
 
 @pytest.fixture

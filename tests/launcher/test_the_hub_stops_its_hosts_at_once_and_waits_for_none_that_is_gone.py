@@ -2,14 +2,16 @@
 one after another, and stops waiting for a host whose agent is gone (a host cut off: zenoh's
 lease ran out and its liveliness token went; its agent stops its part when it finds the hub gone)
 or when a second Ctrl-C says hurry. Before, the hub asked each host in turn and waited up to 20 s
-for each, a cut-off host's full 20 s included. The hub's side (iotad/launcher/fleet.py) with its
+for each, a cut-off host's full 20 s included. The hub's side (iotad/launcher/hosts/fleet.py) with its
 agents' answers played by the test."""
 import threading
 
 import zenoh
 
 from launcher_helpers import ROOT, wait_until
-from iotad.launcher.fleet import Fleet
+from iotad.launcher.hosts.fleet import Fleet
+from iotad.launcher.options import RunOptions
+from iotad.launcher.system.system_file import load_system
 
 
 class TokenGone:
@@ -23,7 +25,8 @@ class TokenGone:
 def fleet_of(hosts: list[str], answers: dict[str, int]):
     """A fleet whose `hosts` all run their part; an agent in `answers` answers the stop with that
     exit status, the others never (cut off). The stop requests, in the order they were made."""
-    fleet = Fleet(ROOT / "examples" / "figure2.toml", hosts, ["tcp/127.0.0.1:9"], [])
+    fleet = Fleet(load_system(ROOT / "examples" / "figure2.toml", check=False), hosts, ["tcp/127.0.0.1:9"],
+                  {host: RunOptions(host=host) for host in hosts})
     fleet._started, fleet._present = set(hosts), set(hosts)
     asked: list[str] = []
     never = threading.Event()  # a cut-off agent's answer: never, until the test ends

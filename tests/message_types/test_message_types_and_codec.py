@@ -6,7 +6,7 @@ from hypothesis import given, strategies as st
 
 import channels
 from channels.schema_gen import SCHEMA_DIR, expected_files
-from iotad.host import wire
+from iotad.node_host import wire
 from iotad.kernel.types import BadValue
 
 finite = st.floats(allow_nan=False, allow_infinity=False, width=64)

@@ -10,7 +10,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from iotad.host.wire import START_KIND
+from iotad.node_host.wire import START_KIND
 from iotad.recording.mcap_reader import read_recording
 from launcher_helpers import free_port
 from node_harness import wait_for

@@ -3,7 +3,7 @@ and `iotad replay` take each run from its own start and the spec's initial state
 process had no memory of the old one), and say when it restarted. A real-time recording that
 holds no start of a node (an `iotad record` attached mid-run) is NOT CHECKED, not misjudged."""
 from iotad.cli import main
-from iotad.host import wire
+from iotad.node_host import wire
 from iotad.kernel.clock import VirtualClock
 from iotad.kernel.engine import Engine
 from iotad.recording.engine_sink import record_run

@@ -10,7 +10,8 @@ from pathlib import Path
 
 import pytest
 
-from iotad.cli import main, virtual_run
+from iotad.cli import main
+from iotad.virtual import virtual_run
 from iotad.recording.engine_sink import recording_header
 from iotad.recording.mcap_reader import read_recording
 from iotad.recording.writer_process import CUT_SHORT, RecordingProcess, WriterFailed

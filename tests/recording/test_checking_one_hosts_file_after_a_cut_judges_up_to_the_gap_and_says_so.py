@@ -14,7 +14,7 @@ checks a real one end to end)."""
 import pytest
 
 from iotad.cli import main
-from iotad.host import wire
+from iotad.node_host import wire
 from iotad.kernel.compose import Composite
 from iotad.recording.engine_sink import record_run
 from iotad.recording.mcap_format import FORMAT, GAP_TOPIC, packb

@@ -236,11 +236,11 @@ def test_a_recovered_copy_of_a_cut_recording_says_so_and_is_no_pass(recorded, tm
 def test_long_reads_and_checks_say_what_they_are_doing(recorded, tmp_path, capsys, monkeypatch):
     """Reading a long recording reports how far it is every PROGRESS_EVERY s; check names each
     node as it goes when the recording is long (here: the thresholds made small)."""
-    from iotad.cli.commands import check
+    from iotad.recording import verdict
     from iotad.recording import mcap_reader
 
     monkeypatch.setattr(mcap_reader, "PROGRESS_EVERY", 0.0)
-    monkeypatch.setattr(check, "LONG", 10)
+    monkeypatch.setattr(verdict, "LONG", 10)
     capsys.readouterr()
     assert main(["check", str(recorded)]) == 0
     err = capsys.readouterr().err

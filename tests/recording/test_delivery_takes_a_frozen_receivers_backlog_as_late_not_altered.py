@@ -5,7 +5,7 @@ start, together. The delivery check counts those frames delivered,
 with their latency, and reports no loss, no alteration and no reordering. With frames that are
 all alike (an ODrive's heartbeat is), it used to take an older twin that waited past its window
 for lost, pair the backlog with the newest twins, and call the frames left over 'altered'."""
-from iotad.host import wire
+from iotad.node_host import wire
 from iotad.recording.delivery import check_delivery
 from iotad.recording.mcap_reader import read_recording
 from iotad.recording.mcap_sink import McapSink

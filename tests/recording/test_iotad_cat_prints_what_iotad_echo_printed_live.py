@@ -12,7 +12,7 @@ import pytest
 
 import iotad
 from iotad.cli import main
-from iotad.host.transport import free_port
+from iotad.node_host.transport import free_port
 from iotad.recording.mcap_reader import Recording
 
 ROOT = Path(__file__).resolve().parents[2]

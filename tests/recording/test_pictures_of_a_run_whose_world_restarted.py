@@ -2,7 +2,7 @@
 the launcher): the restarted world begins from a new world, so the Buggy path is not joined
 across the restart and its landmarks are not drawn twice, and the conveyor's counts go on from
 where the first world's ended instead of dropping back to 0; the restart is marked."""
-from iotad.host import wire
+from iotad.node_host import wire
 from sim.worlds.buggy_plot import _runs, buggy_data, plot
 from sim.worlds.conveyor_plot import _across_restarts
 from iotad.recording.mcap_reader import read_recording

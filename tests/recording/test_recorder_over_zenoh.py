@@ -12,10 +12,10 @@ from pathlib import Path
 import pytest
 import zenoh
 
-from iotad.host import wire
+from iotad.node_host import wire
 from iotad.cli import main
 from iotad.recording.mcap_reader import read_recording
-from iotad.host.transport import open_session
+from iotad.node_host.transport import open_session
 from launcher_helpers import free_port
 from node_harness import wait_for
 
@@ -204,7 +204,7 @@ def echo_recorded(tmp_path, session_for):
     recorder = RecorderProcess(tmp_path, ["iota/t/**"], "--from-traces")
     config = {"system": "t", "path": "echo", "source": {"kind": "python", "ref": str(ROOT / "examples/echo.py") + ":Echo"},
               "listen": ["tcp/127.0.0.1:0"], "connect": [f"tcp/127.0.0.1:{recorder.port}"], "heartbeat_period": 0.2}
-    node = subprocess.Popen([sys.executable, "-m", "iotad.host", "--config-json", json.dumps(config)], cwd=ROOT)
+    node = subprocess.Popen([sys.executable, "-m", "iotad.node_host", "--config-json", json.dumps(config)], cwd=ROOT)
     try:
         session = session_for(recorder.port)
         beats = session.declare_subscriber("iota/t/echo/@heartbeat", zenoh.handlers.FifoChannel(16))

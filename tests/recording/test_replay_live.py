@@ -2,11 +2,11 @@
 import threading
 import time
 
-from iotad.host import wire
+from iotad.node_host import wire
 from iotad.recording.engine_sink import record_run
 from iotad.recording.mcap_reader import read_recording
 from iotad.recording.replay import republish
-from iotad.host.transport import free_port, open_session
+from iotad.node_host.transport import free_port, open_session
 from recorded_systems import figure2
 
 

@@ -48,8 +48,8 @@ def test_an_input_at_the_instant_of_a_tick_is_replayed_after_the_tick(tmp_path):
 
 def test_every_node_of_the_can_arm_example_replays_its_recording(tmp_path):
     pytest.importorskip("pybullet")
-    from iotad.launcher.in_process import compose
-    from iotad.launcher.system_file import load_system
+    from iotad.launcher.system.in_process import compose
+    from iotad.launcher.system.system_file import load_system
     system = load_system(ROOT / "examples" / "arm_can.toml")
     path = tmp_path / "arm.mcap"
     root = compose(system)

@@ -13,8 +13,8 @@ import zenoh
 from mcap.reader import make_reader
 
 from iotad.cli import main
-from iotad.host import wire
-from iotad.host.transport import open_session
+from iotad.node_host import wire
+from iotad.node_host.transport import open_session
 from iotad.recording.mcap_format import SET_METADATA
 from iotad.recording.mcap_reader import read_recording, set_files
 from launcher_helpers import free_port

@@ -12,7 +12,7 @@ import pytest
 from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
 from mcap.reader import make_reader
 
-from iotad.cli.foxglove_bridge import Bridge
+from iotad.recording.foxglove_live import Bridge
 from iotad.recording import robot_model
 from iotad.recording.foxglove_scene import SceneTracker
 from iotad.recording.mcap_reader import read_recording

@@ -10,7 +10,7 @@ import time
 import zenoh
 from rosbags.typesys import Stores, get_typestore
 
-from iotad.host.transport import free_port
+from iotad.node_host.transport import free_port
 from iotad.kernel.types import Float
 from iotad.ros2.mapping import parse
 from iotad.ros2.port import Ros2Port

@@ -15,7 +15,7 @@ from pathlib import Path
 import pybullet_data
 import xxhash
 
-from iotad.host.transport import free_port
+from iotad.node_host.transport import free_port
 
 ROOT = Path(__file__).resolve().parents[2]
 HERE = Path(__file__).resolve().parent

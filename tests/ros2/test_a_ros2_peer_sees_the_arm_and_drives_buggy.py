@@ -12,8 +12,8 @@ from pathlib import Path
 
 import xxhash
 
-from iotad.host.transport import free_port
-from iotad.launcher.system_file import load_system
+from iotad.node_host.transport import free_port
+from iotad.launcher.system.system_file import load_system
 from iotad.recording.mcap_reader import read_recording
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -14,7 +14,7 @@ import sys
 import time
 from pathlib import Path
 
-from iotad.host.transport import PeerUnreachable, free_port, open_tool_session
+from iotad.node_host.transport import PeerUnreachable, free_port, open_tool_session
 from iotad.recording.mcap_reader import read_recording
 
 ROOT = Path(__file__).resolve().parents[2]

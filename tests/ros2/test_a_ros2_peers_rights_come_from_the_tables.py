@@ -8,9 +8,9 @@ import subprocess
 import sys
 from pathlib import Path
 
-from iotad.launcher.access_policy import derive
-from iotad.launcher.ros2_peers import grants_for, password
-from iotad.launcher.system_file import load_system
+from iotad.launcher.access.access_policy import derive
+from iotad.launcher.access.ros2_peers import grants_for, password
+from iotad.launcher.system.system_file import load_system
 
 ROOT = Path(__file__).resolve().parents[2]
 BUGGY = (ROOT / "examples" / "buggy" / "buggy.iota").as_posix()

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from iotad.launcher.system_file import SystemFileError, load_system
+from iotad.launcher.system.system_file import SystemFileError, load_system
 
 ROOT = Path(__file__).resolve().parents[2]
 ARM = (ROOT / "examples" / "mdl_ideal_arm.py").as_posix()

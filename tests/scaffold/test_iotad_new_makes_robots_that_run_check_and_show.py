@@ -123,7 +123,7 @@ def test_the_default_robot_is_viewed_live_in_real_time_on_a_can_tier(tmp_path):
     """`iotad run robot.toml --view` on the tier's bus, and a Foxglove client in the same network
     namespace: the 3D scene's joint states carry the robot's joint names."""
     from iotad.can.tiers import TierBus, TierUnavailable
-    from iotad.host.transport import free_port
+    from iotad.node_host.transport import free_port
 
     try:
         bus = TierBus("udp_multicast")

@@ -7,9 +7,9 @@ In virtual time (the notice as an input) and through the node host's enum filter
 import json
 
 from iotad.esprit import load_iota
-from iotad.host.node_config import parse
-from iotad.host.peer_restart import notice_values, peers_of
-from iotad.launcher.system_file import load_system
+from iotad.node_host.node_config import parse
+from iotad.node_host.peer_restart import notice_values, peers_of
+from iotad.launcher.system.system_file import load_system
 
 from scheduling_helpers import ROOT, acks, req, run, story, violations
 

@@ -117,7 +117,7 @@ def test_the_ros2_export_names_the_joints_as_the_joint_map_does(robot, tmp_path)
 def test_the_live_view_draws_the_same_robot_from_the_nodes_specs(robot):
     """`iotad view`'s bridge learns the robot from each node's @spec (as the recording keeps
     them) and sends the URDF and the named joints for each joint-states message."""
-    from iotad.cli.foxglove_bridge import Bridge
+    from iotad.recording.foxglove_live import Bridge
 
     urdf, names, recording = robot
     opened = iotad.open_recording(recording)

@@ -4,7 +4,7 @@ import time
 
 from iotad.can import odrive
 from iotad.can.frame import CAN_FRAME, Frame
-from iotad.host import wire
+from iotad.node_host import wire
 from node_harness import Node, node_config, wait_for, wait_ready
 
 

@@ -4,7 +4,7 @@ or something else, a bad sweep file; and a system file's [sweep] table is checke
 import pytest
 
 from iotad.cli import main
-from iotad.launcher.system_file import SystemFileError, load_system
+from iotad.launcher.system.system_file import SystemFileError, load_system
 
 
 def refused(capsys, *argv) -> str:

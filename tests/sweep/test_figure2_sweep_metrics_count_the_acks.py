@@ -2,7 +2,7 @@
 by value, as the recording has them."""
 from iotad.cli import main
 from iotad.kernel.python_loader import load_object
-from iotad.launcher.system_file import load_system
+from iotad.launcher.system.system_file import load_system
 from iotad.recording.mcap_reader import read_recording
 
 from sweep_iotas import ROOT

@@ -46,9 +46,9 @@ def run(args: argparse.Namespace) -> int:
     import sys
 
     from iotad.cli import CliError
-    from iotad.host import agent_secret
-    from iotad.host.certificates import CertificateError, use
-    from iotad.launcher.agent import main
+    from iotad.machine import agent_secret
+    from iotad.machine.certificates import CertificateError, use
+    from iotad.launcher.hosts.agent import main
 
     tls, secret = None, None
     if args.certs:

@@ -34,7 +34,7 @@ COMMANDS = ("scan", "status", "clear-errors", "arm", "idle", "set-limits", "esto
 def register(sub: argparse._SubParsersAction) -> None:
     from iotad.cli import nonnegative_float, positive_float, positive_int
 
-    from .ls import add_connect
+    from iotad.cli.live import add_connect
 
     parser = sub.add_parser("can", help="bring-up on a CAN bus: scan drives, their status, clear errors, arm, idle, "
                                         "limits, estop (SI units; turns only on the wire)",
@@ -95,10 +95,10 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _open(args: argparse.Namespace):
-    from .candump import _live_bus
+    from iotad.cli.can_bus import live_bus
 
     view = argparse.Namespace(source=args.system, bus=args.bus, interface=args.interface, channel=args.channel)
-    return _live_bus(view)
+    return live_bus(view)
 
 
 def _table(link, args: argparse.Namespace) -> int:
@@ -166,9 +166,9 @@ def held_axes(args: argparse.Namespace) -> dict[tuple[str, int], str]:
     node (liveliness token @alive) whose @spec params carry a joint map."""
     if not args.hub_timeout:
         return {}
-    from iotad.host.transport import DEFAULT_HUB_ENDPOINT, PeerUnreachable, open_tool_session
+    from iotad.node_host.transport import DEFAULT_HUB_ENDPOINT, PeerUnreachable, open_tool_session
 
-    from .ls import list_nodes
+    from iotad.cli.live import list_nodes
 
     try:
         session = open_tool_session(args.connect or [DEFAULT_HUB_ENDPOINT], args.hub_timeout)

@@ -181,7 +181,7 @@ def recorded(args: argparse.Namespace, keep: _Filter) -> int:
     from iotad.can.dump import format_frame
     from iotad.cli import CliError
 
-    from .info import load
+    from iotad.cli.recordings import load
 
     recording = load(args.source)
     canopen = _tracker(args, canopen_nodes(spec.get("params") for spec in recording.specs.values()
@@ -211,45 +211,14 @@ def recorded(args: argparse.Namespace, keep: _Filter) -> int:
     return 0
 
 
-def _live_bus(args: argparse.Namespace):
-    from iotad.can.bus import open_bus, open_env_bus
-    from iotad.cli import CliError
-
-    if args.source:
-        if args.interface or args.channel:
-            raise CliError("give a system file or --interface/--channel, not both")
-        from iotad.launcher.system_file import SystemFileError, load_system
-
-        try:
-            system = load_system(args.source)
-        except SystemFileError as exc:
-            raise CliError(str(exc).splitlines()[0] if str(exc) else "bad system file") from None
-        buses = system.buses
-        if not buses:
-            raise CliError(f"{args.source}: no [[can]] bus")
-        if args.bus is None and len(buses) > 1:
-            raise CliError(f"{args.source} has buses {', '.join(buses)}: choose one with --bus")
-        spec = buses.get(args.bus) if args.bus else next(iter(buses.values()))
-        if spec is None:
-            raise CliError(f"{args.source}: no [[can]] bus named {args.bus!r} (it has {', '.join(buses)})")
-        args.named_canopen = canopen_nodes(node.params for node in system.nodes.values())
-        return open_bus(spec.interface, spec.channel, **spec.options)
-    if args.bus:
-        raise CliError("--bus names a [[can]] bus of a system file: give the file")
-    if args.interface:
-        return open_bus(args.interface, args.channel)
-    if args.channel:
-        raise CliError("--channel needs --interface")
-    return open_env_bus()
-
-
 def live(args: argparse.Namespace, keep: _Filter) -> int:
     from iotad.can.bus import BusUnavailable
     from iotad.can.dump import live_lines
     from iotad.cli import CliError
+    from iotad.cli.can_bus import live_bus
 
     try:
-        bus = _live_bus(args)
+        bus = live_bus(args)
     except BusUnavailable as exc:
         raise CliError(str(exc)) from None
     with bus:

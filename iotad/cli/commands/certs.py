@@ -79,12 +79,11 @@ def _authority_name(args: argparse.Namespace) -> str:
     if args.name:
         return args.name
     if args.system:
-        import tomllib
-
         from iotad.cli import CliError
+        from iotad.launcher.system.declaration import read_toml  # the one reader of a system file's TOML
         try:
-            name = tomllib.loads(Path(args.system).read_text()).get("system", {}).get("name")
-        except (OSError, tomllib.TOMLDecodeError) as exc:
+            name = read_toml(args.system).get("system", {}).get("name")
+        except (OSError, ValueError) as exc:
             raise CliError(f"certs init: {args.system}: {exc}") from None
         if not isinstance(name, str) or not name:
             raise CliError(f"certs init: {args.system} has no [system] name")
@@ -94,7 +93,7 @@ def _authority_name(args: argparse.Namespace) -> str:
 
 def run(args: argparse.Namespace) -> int:
     from iotad.cli import CliError
-    from iotad.host import certificates
+    from iotad.machine import certificates
 
     try:
         if args.certs_action == "init":
@@ -103,15 +102,15 @@ def run(args: argparse.Namespace) -> int:
             print(f"made a certificate authority, {certificates.authority_name(name)!r}: {path} "
                   f"(its key {path.with_name('ca.key')} stays on this machine)")
         elif args.certs_action == "host":
-            from iotad.host import agent_secret
+            from iotad.machine import agent_secret
 
             files = certificates.issue_host(args.dir, args.name, args.address, args.days, args.force)
             secret = agent_secret.write(args.dir, args.name)  # its agent's proof under access control
             print(f"signed {files.certificate} and its key {files.key} for host {args.name!r}, and wrote its "
                   f"agent's secret {secret}; copy them with {files.authority} to that host")
         elif args.certs_action == "secret":
-            from iotad.host import agent_secret
-            from iotad.host.certificates import AUTHORITY_KEY
+            from iotad.machine import agent_secret
+            from iotad.machine.certificates import AUTHORITY_KEY
 
             if not (Path(args.dir) / AUTHORITY_KEY).is_file():  # else derive would read the secret it writes
                 raise certificates.CertificateError(f"no authority's key {Path(args.dir) / AUTHORITY_KEY}: "
@@ -119,7 +118,7 @@ def run(args: argparse.Namespace) -> int:
             print(f"wrote {agent_secret.write(args.dir, args.name)}: host {args.name!r}'s agent secret; copy it "
                   "beside that host's key")
         elif args.certs_action == "ros2":
-            from iotad.launcher.ros2_peers import make_peer, peer_user
+            from iotad.launcher.access.ros2_peers import make_peer, peer_user
 
             path = make_peer(args.dir, args.name, args.connect, args.files_at, args.days, args.force)
             print(f"wrote {path} (rmw_zenoh's session configuration, with the password of user "

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 
 from iotad.cli import nonnegative_float, positive_int
 
@@ -99,13 +98,11 @@ def load_spec(reference: str, name: str, iota: str | None, params: dict):
         raise CliError(f"--spec {reference}: {first}") from None
 
 
-LONG = 100_000  # messages in a recording past which check says what it is doing, on stderr
-
 
 def run(args: argparse.Namespace) -> int:
     from iotad.recording.conformance import check_implements
     from iotad.cli import CliError
-    from iotad.cli.commands.info import load
+    from iotad.cli.recordings import load
     from iotad.recording.mcap_reader import start_time
     from iotad.recording.replay import default_tolerance
 
@@ -128,175 +125,11 @@ def run(args: argparse.Namespace) -> int:
                                   widen=widen, widened=widen.line() if widen is not None else "")
         print("\n".join(report.lines()))
         return 0 if report.ok else 1
-    specs = recording.specs
-    if args.node and args.node not in specs:
-        raise CliError(f"no spec of node {args.node!r} in {args.file} "
-                       f"(nodes with specs: {', '.join(sorted(specs)) or 'none'})")
-    if args.iota or args.param:
-        raise CliError("--iota and --param apply to --spec; without --spec each node is checked against "
-                       "its own spec, with the parameters it ran with")
-    nodes = [args.node] if args.node else sorted(specs)
-    if not nodes:
-        raise CliError(f"{args.file} holds no node specs: nothing to check against")
-    if not recording.messages and recording.complete:
-        # specs and nothing else, in a whole file: what `iotad recover` keeps of a file cut short
-        # before its first chunk (a virtual run writes its messages at the end), which every node
-        # would "conform" to (a file still cut short is INCOMPLETE below: no pass either)
-        raise CliError(f"{args.file} holds no events at all, only {len(specs)} spec(s): nothing to check "
-                       f"(a recording cut short before any message was written?)")
-    all_ok = True
-    limit = 10**9 if args.all else 20
-    # What cannot be checked is said, and is no pass: a node without a (readable) spec, a
-    # recording cut short (its end is missing, and with it what happened there).
-    unchecked = [] if args.node else _unchecked(recording, specs)
-    for node in unchecked:
-        print(f"{node}: NOT CHECKED: the recording holds no readable spec of it "
-              f"(its spec/{node}.json attachment is missing or not a JSON object)")
-    never = [] if args.node else _never_ran(recording, specs, unchecked)
-    for node in never:
-        print(f"{node}: NOT CHECKED: a node of the recorded system file that never ran (the recording holds "
-              f"neither its spec nor any event of it: it never went live)")
-    unchecked += never
-    if not recording.complete:
-        print(f"{args.file}: INCOMPLETE recording ({recording.truncated_reason or 'cut short'}): only what it "
-              f"holds is checked, and a window still open where it ends is not judged; "
-              f"'iotad recover {args.file}' rewrites it whole")
-    if recording.run_error:
-        print(f"{args.file}: the run that made it BROKE OFF with an error of iotad ({recording.run_error}): "
-              f"only what it holds is checked")
-    if recording.recovered_from:
-        print(f"{args.file}: RECOVERED from {recording.recovered_from}: the run's end is not in it, so only what "
-              f"it holds is checked")
-    _merged_notes(recording, args.file)
-    # a long recording takes a while per node (about 2 s per 100,000 events): say what is going on
-    long = len(recording.messages) > LONG
-    from iotad.recording.clock_offsets import widenings
-    widened = widenings(recording)  # the nodes of hosts whose clocks were measured against the hub's
-    partial = []  # nodes judged only up to a gap in their trace (events the recording never heard)
-    for node in nodes:
-        report = _check_node(recording, node, args, tolerance, long, widened.get(node))
-        if report is None:
-            unchecked.append(node)
-            continue
-        all_ok &= report.ok
-        if report.partial:
-            partial.append(node)
-            if _one_hosts_file(recording):
-                report.gaps.append("the recording of its own host holds what this one lacks: join every host's "
-                                   "recording with 'iotad merge' and check the merged file")
-        print("\n".join(report.lines(limit=limit)))
-    conforms = all_ok
-    delivered = None
-    if not args.no_delivery:
-        from iotad.recording.delivery import check_delivery
-        if long:
-            print(f"checking the delivery of {len(recording.messages):,} messages...", file=sys.stderr, flush=True)
-        delivery = check_delivery(recording, tolerance=tolerance, node=args.node)
-        print("\n".join(delivery.lines(limit=limit)))
-        if delivery.checked:
-            delivered = delivery.ok
-            all_ok &= delivery.ok
-    # a node judged only up to a gap is no pass, as a recording cut short is none: what it did
-    # after the gap was not judged
-    whole = recording.complete and not recording.run_error and not recording.recovered_from and not partial
-    if all_ok and not unchecked and whole:
-        verdict = "every node conforms to its spec" + (", every message was delivered as sent" if delivered else "")
-    else:
-        what = [w for w, bad in (("conformance", not conforms), ("delivery", delivered is False),
-                                 (f"{len(unchecked)} node(s) not checked", unchecked),
-                                 (f"{', '.join(partial)} judged only up to a gap in the trace", partial),
-                                 ("the recording is incomplete", not recording.complete),
-                                 ("it was recovered from a cut recording", recording.recovered_from),
-                                 ("the run broke off", recording.run_error)) if bad]
-        verdict = f"PROBLEMS FOUND ({' and '.join(what)})"
-    print(f"check: {verdict} (tolerance {tolerance:g})")
-    return 0 if all_ok and not unchecked and whole else 1
-
-
-def _one_hosts_file(recording) -> bool:
-    """Whether `recording` is one host's recording of a run over hosts (not their merge)."""
-    run = recording.info.get("run")
-    return isinstance(run, dict) and bool(run.get("host")) and not isinstance(recording.info.get("merged"), list)
-
-
-def _merged_notes(recording, file: str) -> None:
-    """A merged recording (`iotad merge`): each host gap it marks, as a note. What the host's own
-    recording held is in the file; a gap says where one recording alone saw a host's events, or
-    where none of the files may have."""
-    from iotad.recording.merge import describe_gap, merged_gaps
-
-    if not isinstance(recording.info.get("merged"), list):
-        return
-    gaps = merged_gaps(recording)
-    print(f"{file}: merged from {', '.join(map(str, recording.info['merged']))}; "
-          f"{len(gaps)} host gap(s) marked" + (":" if gaps else ""))
-    for gap in gaps:
-        print(f"  note: {describe_gap(gap)}")
-
-
-def _check_node(recording, node: str, args: argparse.Namespace, tolerance: float, long: bool, widen=None):
-    """The conformance report of one node against its own spec, or None (said why) when it cannot
-    be checked. Its trace, decoded, is the bulk of the memory a check takes: it is read here, and
-    let go before the next node's is read. `widen`: its host clock's bound over time
-    (`iotad.recording.clock_offsets.Widening`), which its windows are widened by."""
-    from iotad.cli import CliError
-    from iotad.host.wire import START_KIND
-    from iotad.recording.conformance import check_runs
-    from iotad.recording.mcap_reader import start_time
-    from iotad.recording.replay import node_root
-
-    real_time = recording.info.get("clock") != "virtual"
-    events = recording.process_trace(node)
-    if long:
-        print(f"checking {node} ({len(events):,} events)...", file=sys.stderr, flush=True)
-    if args.node and not events and (real_time or recording.run_end is None):
-        # nothing to judge it by; a virtual run's recorded end judges even a silent node
-        raise CliError(f"node {node!r} has no @trace events in {args.file}")
-    # a real-time node whose start is not recorded: from mid-run, or nothing but heartbeats
-    if real_time and (events or recording.info.get("clock") == "real") \
-            and not any(e.get("kind") == START_KIND for e in events):
-        # recorded from mid-run (`iotad record` attached late): the state it was in is unknown
-        print(f"{node}: NOT CHECKED: the recording holds no start of its engine (it began after the node "
-              f"started), so the state the node was in is unknown")
-        return None
-    return check_runs(lambda: node_root(recording, node), events, node=node, tolerance=tolerance,
-                      until=None if real_time else recording.run_end, start=start_time(recording.specs.get(node)),
-                      widen=widen, widened=widen.line() if widen is not None else "")
-
-
-def _never_ran(recording, specs: dict, unchecked: list[str]) -> list[str]:
-    """Nodes of the recorded system file (a real-time run's system.toml) that the recording holds
-    nothing of, where it was made to hold them (its key expressions cover their @trace)."""
-    from iotad.host import wire
-    from iotad.launcher.declaration import SystemFileError
-    from iotad.host.wire import keyexpr_matches
-    from iotad.recording.recorded_system import recorded_declaration
+    from iotad.recording.verdict import CheckError, check_recording
 
     try:
-        declaration = recorded_declaration(recording)
-    except SystemFileError:
-        return []  # the delivery check says what is wrong with it
-    if declaration is None:
-        return []
-    names = declaration.file_nodes
-    keys = recording.info.get("keys")
-    system = recording.system or ""
-
-    def covered(node: str) -> bool:
-        trace = wire.trace_key(system, node)
-        return not isinstance(keys, list) or any(isinstance(k, str) and keyexpr_matches(k, trace) for k in keys)
-
-    seen = set(specs) | set(unchecked) | set(recording.nodes())
-    return sorted(n for n in names if n not in seen and covered(n))
-
-
-def _unchecked(recording, specs: dict) -> list[str]:
-    """Nodes the recording says ran (listed in its metadata, or with events of their own on
-    @trace) but holds no readable spec of. A virtual run's root composite is no node: the
-    engine's violations about its external inputs are all it records."""
-    listed = recording.info.get("nodes")
-    named = {n for n in listed if isinstance(n, str)} if isinstance(listed, list) else set()
-    # only the traces of nodes without a spec are read here: the others are checked anyway
-    return sorted(n for n in (named | set(recording.nodes())) - set(specs)
-                  if n and (n in named or any(e.get("kind") in ("input", "output", "internal")
-                                              for e in recording.trace(n))))
+        return 0 if check_recording(recording, args.file, node=args.node, tolerance=tolerance,
+                                    delivery=not args.no_delivery, limit=10**9 if args.all else 20,
+                                    own_params=not (args.iota or args.param)) else 1
+    except CheckError as exc:
+        raise CliError(str(exc)) from None

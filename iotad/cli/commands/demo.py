@@ -44,16 +44,21 @@ def run(args: argparse.Namespace) -> int:
 
 
 def run_processes(args: argparse.Namespace) -> int:
-    from iotad.cli.commands.run import defaults, launch, load_checked
-    from iotad.host.transport import DEFAULT_HUB_ENDPOINT
+    from iotad.cli import CliError, load_checked
+    from iotad.node_host.transport import DEFAULT_HUB_ENDPOINT
+    from iotad.launcher.options import RunOptions
+    from iotad.launcher.run.run_system import RunError, run_real_time
 
     system = load_checked(str(EXAMPLES / "figure2.toml"))
     port = args.port
     if port is None:
         default = int(DEFAULT_HUB_ENDPOINT.rsplit(":", 1)[1])
         port = default if _port_free(default) else 0
-    options = defaults(until=args.until or 20.0, port=port, no_record=args.no_record, plain=args.plain)
-    return launch(system, options, summary_hook=_answers)
+    options = RunOptions(until=args.until or 20.0, port=port, no_record=args.no_record, plain=args.plain)
+    try:
+        return run_real_time(system, options, summary_hook=_answers)
+    except RunError as exc:
+        raise CliError(str(exc)) from None
 
 
 def _answers(launcher, code: int) -> int:
@@ -63,7 +68,7 @@ def _answers(launcher, code: int) -> int:
     seen: set[str] = set()
     with launcher.tally.lock:
         values = {k: Counter(v) for k, v in launcher.tally.values.items()}
-    from iotad.host import wire
+    from iotad.node_host import wire
     for binding in system.bindings:
         if binding.target.channel != "ack":
             continue
@@ -95,8 +100,8 @@ def run_virtual(args: argparse.Namespace) -> int:
     """The three IOTAs of examples/figure2.toml composed in one process, in virtual time."""
     from iotad.kernel.compose import Composite
     from iotad.kernel.engine import Engine
-    from iotad.cli.commands.run import load_checked
-    from iotad.launcher.system_file import instantiate
+    from iotad.cli import load_checked
+    from iotad.launcher.system.system_file import instantiate
 
     system = load_checked(str(EXAMPLES / "figure2.toml"))
     components = [instantiate(node) for node in system.nodes.values()]

@@ -10,7 +10,7 @@ import time
 
 from iotad.cli import key_expression, positive_float, positive_int
 
-from .ls import add_connect, tool_session
+from iotad.cli.live import add_connect, tool_session
 
 ORDER = 41
 
@@ -72,7 +72,7 @@ def json_record(key: str, seq: int | None, send_ns: int | None, value, gap: int,
 
 
 def run(args: argparse.Namespace) -> int:
-    from iotad.host import wire
+    from iotad.node_host import wire
 
     inbox: queue.SimpleQueue = queue.SimpleQueue()
     session = tool_session(args)

@@ -38,7 +38,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from iotad.cli import CliError
-    from iotad.cli.commands.info import load
+    from iotad.cli.recordings import load
     from iotad.recording.foxglove_export import export_json
 
     if Path(args.output).resolve() == Path(args.file).resolve():
@@ -68,7 +68,7 @@ def _ros2(args: argparse.Namespace) -> int:
     import shutil
 
     from iotad.cli import CliError
-    from iotad.cli.commands.info import load
+    from iotad.cli.recordings import load
     from iotad.recording.rosbag_export import RosbagExportError, export_rosbag
 
     output = Path(args.output)

@@ -9,7 +9,7 @@ import time
 
 from iotad.cli import key_expression, positive_float, positive_int
 
-from .ls import add_connect, tool_session
+from iotad.cli.live import add_connect, tool_session
 
 ORDER = 43
 

@@ -4,7 +4,8 @@ from __future__ import annotations
 import argparse
 import json
 
-from iotad.cli import endpoint, positive_float
+from iotad.cli import positive_float
+from iotad.cli.live import add_connect, list_nodes, tool_session
 
 ORDER = 40
 
@@ -18,27 +19,6 @@ and its code. Each channel line: <- input or -> output, name, type, switching ti
 its zenoh keys. See also: 'iotad echo KEY', 'iotad hz KEY', 'iotad pub KEY VALUE'."""
 
 
-def add_connect(parser: argparse.ArgumentParser) -> None:
-    """The options every introspection command shares."""
-    from iotad.host.transport import DEFAULT_HUB_ENDPOINT
-
-    parser.add_argument("--connect", action="append", metavar="ENDPOINT", type=endpoint,
-                        help=f"zenoh endpoint of the system's hub (default {DEFAULT_HUB_ENDPOINT}, where "
-                             "'iotad run' puts it); repeatable")
-    parser.add_argument("--connect-timeout", type=positive_float, default=3.0, metavar="S",
-                        help="give up when no peer answers within S seconds (default 3)")
-
-
-def tool_session(args: argparse.Namespace):
-    from iotad.cli import CliError
-    from iotad.host.transport import DEFAULT_HUB_ENDPOINT, PeerUnreachable, open_tool_session
-
-    try:
-        return open_tool_session(args.connect or [DEFAULT_HUB_ENDPOINT], args.connect_timeout)
-    except PeerUnreachable as exc:
-        raise CliError(str(exc)) from None
-
-
 def register(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser("ls", help="list the live nodes of running systems and their channels",
                             description=__doc__, epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -48,29 +28,6 @@ def register(sub: argparse._SubParsersAction) -> None:
                         help="seconds to wait for answers (default 2)")
     add_connect(parser)
     parser.set_defaults(func=run)
-
-
-def list_nodes(session, system: str | None, timeout: float) -> list[dict]:
-    """Every live node of `system` (or of all systems), with its `@spec` answer when it gave one."""
-    from iotad.host import wire
-
-    pattern = f"{wire.PREFIX}/{system or '*'}/**/{wire.ALIVE}"
-    nodes = []
-    for reply in session.liveliness().get(pattern, timeout=timeout):
-        if reply.ok is None:
-            continue
-        key = str(reply.ok.key_expr)
-        base = key[:-len(wire.ALIVE) - 1]
-        parts = base.split("/")
-        node = {"system": parts[1], "path": "/".join(parts[2:]), "alive": key, "spec": None}
-        for answer in session.get(f"{base}/{wire.SPEC}", timeout=timeout):
-            if answer.ok is not None:
-                try:
-                    node["spec"] = wire.decode(answer.ok.payload.to_bytes())
-                except wire.WireError:
-                    pass
-        nodes.append(node)
-    return sorted(nodes, key=lambda n: (n["system"], n["path"]))
 
 
 def run(args: argparse.Namespace) -> int:

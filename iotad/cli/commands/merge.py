@@ -36,7 +36,7 @@ def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from iotad.cli import CliError
-    from iotad.cli.commands.info import load
+    from iotad.cli.recordings import load
     from iotad.recording.merge import MergeError, merge, write_merged
 
     output = Path(args.output)

@@ -9,7 +9,7 @@ import time
 
 from iotad.cli import key_expression, nonnegative_float, nonnegative_int, positive_float
 
-from .ls import add_connect, tool_session
+from iotad.cli.live import add_connect, tool_session
 
 ORDER = 42
 
@@ -55,8 +55,8 @@ def run(args: argparse.Namespace) -> int:
 
     import zenoh
 
-    from iotad.host import wire
-    from iotad.host.transport import DEFAULT_HUB_ENDPOINT
+    from iotad.node_host import wire
+    from iotad.node_host.transport import DEFAULT_HUB_ENDPOINT
     from iotad.cli import CliError
     from iotad.kernel.types import HUGE_INT
 
@@ -136,7 +136,7 @@ def _check_allowed(key: str, hub: list[str]) -> None:
     """Under access control the hub drops what a tool publishes outside [system.debug] allow_pub,
     and zenoh does not tell the sender: where the run wrote the tools' keys down, say it here."""
     from iotad.cli import CliError
-    from iotad.host.credentials import CredentialsError, for_endpoints
+    from iotad.node_host.credentials import CredentialsError, for_endpoints
 
     try:
         credentials = for_endpoints(hub)

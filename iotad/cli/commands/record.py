@@ -6,7 +6,7 @@ import sys
 import time
 from pathlib import Path
 
-from iotad.cli import endpoint, key_expression, positive_float
+from iotad.cli import byte_size, endpoint, key_expression, positive_float
 
 ORDER = 30
 
@@ -41,24 +41,6 @@ data). Each file is a whole recording on its own (system file, specs, summary): 
 opens it. -o fig2.mcap is the set file: it lists the files, and 'iotad info/check/replay/export/
 plot fig2.mcap' read the whole set as one recording. A killed recorder cuts only the last file;
 the earlier ones are complete."""
-
-
-def byte_size(text: str) -> int:
-    """`100M`, `1.5G`, `64K`, `4096`: bytes (K, M, G are 1024-based; a trailing B or iB is allowed)."""
-    import argparse as _argparse
-    units = {"": 1, "K": 1024, "M": 1024 ** 2, "G": 1024 ** 3, "T": 1024 ** 4}
-    body = text.strip().upper().removesuffix("IB").removesuffix("B")
-    unit = body[-1:] if body[-1:] in units and body[-1:] else ""
-    try:
-        value = float(body[:-1] if unit else body)
-    except ValueError:
-        raise _argparse.ArgumentTypeError(f"expected a size such as 100M, 1.5G or 65536, got {text!r}") from None
-    if value != value or value in (float("inf"), float("-inf")):
-        raise _argparse.ArgumentTypeError(f"must be a finite size, got {text!r}")
-    size = int(value * units[unit])
-    if not size > 0:
-        raise _argparse.ArgumentTypeError(f"must be a positive size, got {text!r}")
-    return size
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -223,7 +205,7 @@ def _check_system_file(path: str, whole: bool = True) -> None:
     shape), so that the recorder starts at once, beside a system already starting, and imports
     no robot code."""
     from iotad.cli import CliError
-    from iotad.launcher.system_file import SystemFileError, load_system
+    from iotad.launcher.system.system_file import SystemFileError, load_system
 
     try:
         load_system(path, check=whole)

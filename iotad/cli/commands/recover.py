@@ -35,7 +35,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from iotad.cli import CliError
-    from iotad.cli.commands.info import load
+    from iotad.cli.recordings import load
     from iotad.recording.mcap_sink import copy_recording
 
     source = Path(args.file)

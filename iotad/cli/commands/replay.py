@@ -62,7 +62,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from iotad.cli import CliError
-    from iotad.cli.commands.info import load
+    from iotad.cli.recordings import load
     from iotad.recording.mcap_format import RecordingError
     from iotad.recording.replay import default_tolerance, replay_node
 
@@ -95,7 +95,7 @@ def live(args: argparse.Namespace, recording) -> int:
 
     from iotad.cli import CliError
     from iotad.recording.replay import republish
-    from iotad.host.transport import DEFAULT_LISTEN, open_session
+    from iotad.node_host.transport import DEFAULT_LISTEN, open_session
 
     if not RATE_MIN <= args.rate <= RATE_MAX:  # a pace no wait could keep (sleeps past any clock's range)
         raise CliError(f"--rate {args.rate:g}: give a speed factor from {RATE_MIN:g} to {RATE_MAX:g}")

@@ -6,8 +6,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from iotad.cli import port, positive_float, seed
-from iotad.cli.commands.record import byte_size
+from iotad.cli import byte_size, load_checked, port, positive_float, seed
 
 ORDER = 20
 
@@ -113,34 +112,22 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.set_defaults(func=run)
 
 
-def load_checked(path: str):
-    """The system, checked; a `CliError` listing every problem otherwise."""
-    from iotad.cli import CliError
-    from iotad.launcher.system_file import SystemFileError, load_system
-
-    try:
-        return load_system(path)
-    except SystemFileError as exc:
-        raise CliError(str(exc) if len(exc.errors) == 1 else
-                       f"{len(exc.errors)} problems in the system file:\n" + str(exc)) from None
-
-
 def run(args: argparse.Namespace) -> int:
-    system = load_checked(args.system_file)
+    system = load_checked(args.system_file)  # iotad.cli's: the check's errors, one block
     if args.check:
         inputs = sum(1 for b in system.bindings)
         buses = f", {len(system.buses)} CAN bus(es)" if system.buses else ""
         print(f"{system.file}: ok: system {system.name!r}, {len(system.nodes)} nodes, "
               f"{inputs} channel bindings, {len(system.external)} external inputs{buses}")
-        from iotad.launcher.host_access import hub_policy
-        from iotad.launcher.host_router import HostRouter
+        from iotad.launcher.access.host_access import hub_policy
+        from iotad.launcher.access.host_router import HostRouter
 
         others = list(dict.fromkeys(n.host for n in system.nodes.values() if n.host and n.host != system.hub_host))
-        if others:  # as `access_for` decides for the run
+        if others:  # as `launcher.access.decision` decides for the run
             print(f"access control of {system.name}: on when its hub starts the other hosts through their agents "
                   "over tls/ endpoints with --certs; off with --insecure or --local; tcp/ links, and a --host "
                   "launcher the hub's agent did not start, are refused without --insecure (docs/hosts.md)")
-        from iotad.launcher.ros2_peers import grants_for
+        from iotad.launcher.access.ros2_peers import grants_for
 
         policy = hub_policy(system, others)
         policy.grants += grants_for(system, args.certs)  # the ROS 2 machines 'iotad certs ros2' made there
@@ -154,14 +141,7 @@ def run(args: argparse.Namespace) -> int:
         # one of the two is a mistake: a run the user expects recorded would leave no file
         raise CliError(f"-o {args.record_to} names the recording, and --no-record says there is none: give one of them")
     if args.virtual:
-        from iotad.cli.virtual_run import run_virtual
-
-        if args.max_size is not None or args.max_duration is not None:
-            from iotad.cli import CliError
-
-            raise CliError("--max-size and --max-duration split a real-time run's recording, not a --virtual one")
-
-        return run_virtual(system, args)
+        return virtual(system, args)
     for option, value in (("inputs", args.inputs), ("seed", args.seed)):
         if value is not None:
             from iotad.cli import CliError
@@ -170,196 +150,60 @@ def run(args: argparse.Namespace) -> int:
     return launch(system, args)
 
 
-def defaults(**given) -> argparse.Namespace:
-    """`iotad run`'s options as its command line leaves them by default, `given` ones replaced:
-    for a command that launches a system of its own (`iotad demo`), so that `launch` reads every
-    option it knows without guessing which ones a caller set."""
-    parser = argparse.ArgumentParser(add_help=False)
-    register(parser.add_subparsers())
-    args = parser.parse_args(["run", "SYSTEM.toml"])
-    unknown = set(given) - set(vars(args))
-    if unknown:
-        raise TypeError(f"no such option of 'iotad run': {', '.join(sorted(unknown))}")
-    vars(args).update(given)
-    return args
+def virtual(system, args: argparse.Namespace) -> int:
+    """`--virtual`: the library's `run_virtual`, its errors as one line."""
+    from iotad.cli import CliError
+    from iotad.virtual.virtual_run import VirtualOptions, VirtualRunError, run_virtual
+
+    if args.max_size is not None or args.max_duration is not None:
+        raise CliError("--max-size and --max-duration split a real-time run's recording, not a --virtual one")
+    if args.until is None:
+        raise CliError("--virtual needs --until SECONDS (virtual time; the run is as fast as the machine allows)")
+    for option in ("host", "port", "origin", "log_dir"):
+        if getattr(args, option) is not None:
+            raise CliError(f"--{option.replace('_', '-')} is for processes over zenoh, not --virtual")
+    options = VirtualOptions(until=args.until, seed=args.seed, record_to=args.record_to, force=args.force,
+                             no_record=args.no_record, inputs=args.inputs, plain=args.plain,
+                             strict=args.strict)
+    try:
+        return run_virtual(system, options)
+    except VirtualRunError as exc:
+        raise CliError(str(exc)) from None
 
 
-def launch(system, args: argparse.Namespace, summary_hook=None) -> int:
-    import os
-    from pathlib import Path
+def options_of(args: argparse.Namespace):
+    """The library's options of a real-time run, from `iotad run`'s command line."""
+    from iotad.launcher.options import RunOptions
 
-    from iotad.cli import CliError, claim_recording, drop_empty_claim
+    return RunOptions(host=args.host, port=args.port, until=args.until, after_live=args.after_live, origin=args.origin,
+                      log_dir=args.log_dir, plain=args.plain, record_to=args.record_to, no_record=args.no_record,
+                      force=args.force, max_size=args.max_size, max_duration=args.max_duration, local=args.local,
+                      certs=args.certs, agent_timeout=args.agent_timeout, insecure=args.insecure,
+                      strict=args.strict)
 
-    if args.host is not None and args.host not in {n.host for n in system.nodes.values()}:
-        hosts = sorted({n.host for n in system.nodes.values() if n.host}) or ["none declared"]
-        raise CliError(f"{system.file}: no node has host = {args.host!r} (hosts: {', '.join(hosts)})")
-    if args.until is not None and args.until <= 0:
-        raise CliError("--until must be a positive number of seconds")
-    if args.log_dir:
-        log_dir = Path(args.log_dir)
-        try:
-            log_dir.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            raise CliError(f"--log-dir {args.log_dir}: cannot create it: {exc.strerror or exc}") from None
-        if not os.access(log_dir, os.W_OK):
-            raise CliError(f"--log-dir {args.log_dir}: not writable")
-    if args.no_record and (args.max_size or args.max_duration):
-        raise CliError("--max-size and --max-duration split the recording: not with --no-record")
-    if args.record_to and Path(args.record_to).is_dir():
-        raise CliError(f"-o {args.record_to}: is a directory; name the .mcap file to write")
+
+def launch(system, args: argparse.Namespace) -> int:
+    """Run `system` in real time as `args` say (the library's `run_real_time`); errors as one line."""
+    from iotad.cli import CliError
+    from iotad.launcher.run.run_system import RunError, run_real_time
+
     if args.view is not None:
         _view_port_free(args.view)
-    record_to = args.record_to
-    claimed = None  # the recording's name, created empty here so that no other run takes it
-    if record_to and not args.no_record and not args.force and not system.opens_hub(args.host):
-        # another host's part: a launcher started again in the same run (its agent came back)
-        # records the rest of it beside the first part, never over it; `iotad merge` takes both
-        from iotad.launcher.recording_paths import unused_recording_path
-
-        try:
-            record_to = claimed = str(unused_recording_path(record_to, claim=True))
-        except OSError as exc:
-            raise CliError(f"-o {args.record_to}: cannot create it: {exc.strerror or exc}") from None
-    elif record_to and not args.no_record:
-        if claim_recording(record_to, args.force):
-            claimed = record_to
-    elif not args.no_record and system.opens_hub(args.host):
-        # a new name: recordings/<system>-<date>-<time>.mcap, -2 in the same second (another
-        # host's launcher started by hand records only where -o tells it to)
-        import time
-
-        from iotad.launcher.recording_paths import unused_recording_path
-
-        stamp = time.strftime("%Y%m%d-%H%M%S", time.localtime(args.origin or time.time()))
-        try:
-            record_to = claimed = str(unused_recording_path(Path("recordings") / f"{system.name}-{stamp}.mcap",
-                                                            claim=True))
-        except OSError as exc:
-            raise CliError(f"cannot create recordings/ here: {exc.strerror or exc}") from None
-    try:
-        return _launch(system, args, record_to, summary_hook)
-    finally:
-        drop_empty_claim(claimed)  # the run stopped before its recorder wrote anything
-
-
-def _launch(system, args: argparse.Namespace, record_to: str | None, summary_hook=None) -> int:
-    from iotad.cli import CliError
-    from iotad.host.transport import free_port, reachable
-    from iotad.launcher.options import LaunchOptions, RecordingOptions
-    from iotad.launcher.supervision import Launcher, LauncherError
-
-    if not args.local:
-        from iotad.host.zenoh_runtime import use_for
-
-        # before this process's first session, and inherited by its nodes and recorder: a host
-        # cut off longer than zenoh's lease must not leave them without a thread to receive on
-        use_for(system, args.host or system.hub_host)
-    port = args.port
-    if port == 0:
-        port = free_port()
-    _use_certificates(system, args)
-    access = access_for(system, args)
-    # each other host records its own part, under access control too (its launcher is its nodes'
-    # router: iotad/launcher/host_router.py; docs/hosts.md, "The recording")
-    fleet, host = _fleet_for(system, args, port, record_to, insecure=not access.enabled)
-    launch = LaunchOptions(host=host, port=port, until=args.until, after_live=args.after_live,
-                           origin=args.origin, log_dir=args.log_dir, live_table=False if args.plain else None)
-    recording = None if args.no_record or record_to is None else RecordingOptions(
-        record_to, force=args.force, max_size=args.max_size, max_duration=args.max_duration)
-    launcher = Launcher(system, launch, recording, access, fleet=fleet)
-    viewer = None
-    try:
-        if args.view is not None and system.opens_hub(args.host):
+    view = None
+    if args.view is not None:
+        def view(launcher, hub: str):
             import os
 
             from iotad.cli.viewer_process import ViewerProcess
-            from iotad.host.credentials import ENV
+            from iotad.node_host.credentials import ENV
 
             if launcher.access is not None and launcher.access.tools_file():
                 os.environ[ENV] = launcher.access.tools_file()  # the viewer reads with the tools' credentials
-            hub = system.listen[0] if port is None else f"tcp/127.0.0.1:{port}"
-            viewer = ViewerProcess(reachable(hub), system.name, args.view)
-        code = launcher.run()
-    except LauncherError as exc:
-        raise CliError(str(exc)) from None
-    except KeyboardInterrupt:
-        launcher.discard()  # Ctrl-C before the launcher's own handling took over: leave nothing behind
-        raise
-    finally:
-        if viewer is not None:
-            viewer.stop()
-        if launcher.access is not None:
-            launcher.access.close()
-    where = f" (host {launcher.host}" + (f"; hosts {', '.join(fleet.hosts)} through their agents" if fleet else "") + ")"
-    print(f"summary of {system.name}" + (where if launcher.host else "") + ":")
-    for line in launcher.summary():
-        print(line)
-    if fleet is not None and fleet.host_args and launcher.recorder is not None:
-        from iotad.launcher.host_recording import host_recording_path
-
-        others = [str(host_recording_path(record_to, host)) for host in fleet.hosts]
-        print(f"  each other host recorded its part on its own machine: {', '.join(others)}; "
-              f"join them with: iotad merge {record_to} {' '.join(others)} -o MERGED.mcap")
-    if summary_hook is not None:
-        code = summary_hook(launcher, code)
-    if getattr(args, "strict", False) or system.strict:
-        from iotad.launcher.strict_verdict import strict_failures
-
-        failures = strict_failures(sum(launcher.tally.violations.values()),
-                                   [r.name for r in launcher.runs.values() if not r.went_live])
-        for line in failures:
-            print(f"  strict: {line}")
-        code = code or (1 if failures else 0)
-    if sys.stdout is not None:  # None when the shell closed it (>&-)
-        sys.stdout.flush()
-    return code
-
-
-def _use_certificates(system, args: argparse.Namespace) -> None:
-    """--certs: this host's certificates, checked now and handed to every process of the run."""
-    if not args.certs:
-        return
-    from iotad.cli import CliError
-    from iotad.host.certificates import CertificateError, use
-
-    # a system on one machine whose hub listens on tls/ for ROS 2 machines (docs/ros2.md) shows
-    # the certificate of host "hub" ('iotad certs host hub')
-    host = args.host or system.hub_host or "hub"
+            return ViewerProcess(hub, system.name, args.view)
     try:
-        use(args.certs, host)
-    except CertificateError as exc:
+        return run_real_time(system, options_of(args), view=view)
+    except RunError as exc:
         raise CliError(str(exc)) from None
-
-
-def _fleet_for(system, args: argparse.Namespace, port: int | None, record_to: str | None = None,
-               insecure: bool = False):
-    """(the agents of the other hosts or None, the host this launcher runs). A system spread over
-    hosts, started without --host or --local, runs here as its hub host and everywhere else
-    through each host's agent; each of them records its own part beside the hub's recording
-    `record_to` (`host_recording_path`: split.mcap -> split.arm.mcap, on that host). `insecure`:
-    the run is open (--insecure), and so are the launchers the agents start for it."""
-    hosts = [n.host for n in system.nodes.values() if n.host]
-    if args.host is not None or args.local or not hosts:
-        return None, args.host
-    from iotad.host.transport import reachable
-    from iotad.launcher.fleet import Fleet
-    from iotad.launcher.system_file import with_port
-
-    hub = [reachable(e) for e in (with_port(system.listen, port) if port is not None else system.listen)]
-    others = sorted(set(hosts) - {system.hub_host}, key=hosts.index)
-    agent_args = (["--no-record"] if record_to is None else []) + (["--port", str(port)] if port is not None else []) \
-        + (["--insecure"] if insecure else [])
-    host_args = {}
-    if record_to is not None:
-        from iotad.launcher.host_recording import host_recording_path
-
-        split = (["--max-size", str(args.max_size)] if args.max_size is not None else []) \
-            + (["--max-duration", repr(float(args.max_duration))] if args.max_duration is not None else [])
-        host_args = {host: ["-o", str(host_recording_path(record_to, host)), *(["--force"] if args.force else []), *split]
-                     for host in others}
-    fleet = Fleet(system.path, others, hub, agent_args, host_args=host_args,
-                  start_timeout=args.agent_timeout or system.start_timeout)
-    return fleet, system.hub_host
 
 
 def _view_port_free(port: int) -> None:
@@ -376,60 +220,3 @@ def _view_port_free(port: int) -> None:
         except OSError as exc:
             raise CliError(f"--view {port}: cannot serve there: {exc.strerror or exc} (another 'iotad view'?); "
                            "choose another port") from None
-
-
-def access_for(system, args: argparse.Namespace):
-    """Access control for this run (docs/access-control.md): on unless --insecure. A system spread
-    over hosts has it when the hub starts the other hosts through their agents over TLS (the hub
-    hands each agent its host's credentials) and on each host's launcher its agent starts. Where
-    no one could hand the other launchers their credentials (tcp/ links, no --certs, a launcher
-    started by hand with --host), the run is refused unless --insecure says to run it open: a
-    system on a network is secured by default, not by remembering a flag."""
-    import os
-
-    from iotad.cli import CliError
-    from iotad.host.agent_secret import derive
-    from iotad.host.certificates import ENV_DIR, CertificateError
-    from iotad.host.credentials import ENV, CredentialsError, load
-    from iotad.launcher.host_access import launcher_user
-    from iotad.launcher.options import AccessOptions
-
-    if args.insecure:
-        return AccessOptions.off("--insecure")
-    hosts = [node.host for node in system.nodes.values() if node.host]
-    if not hosts:  # --certs: the ROS 2 peers 'iotad certs ros2' made there log in too (docs/ros2.md)
-        from iotad.launcher.ros2_peers import peer_grants
-        try:
-            peer_grants(system, args.certs)  # their passwords, or one line saying what is missing
-        except CertificateError as exc:
-            raise CliError(str(exc)) from None
-        return AccessOptions(certs=args.certs or None)
-    if args.host is not None:
-        given = os.environ.get(ENV)
-        try:
-            own = load(given) if given else None
-        except CredentialsError as exc:
-            raise CliError(str(exc)) from None
-        if own is not None and own.user == launcher_user(args.host):
-            return AccessOptions(given=given)  # started by this host's agent, for the hub's run
-        raise CliError(f"--host {args.host}: no credentials from the hub, so this host's nodes would run without "
-                       "access control: start this host through its agent ('iotad agent', started by the hub's "
-                       "'iotad run'; docs/hosts.md), or give --insecure here and to the hub's launcher to run "
-                       "the system open")
-    if args.local:
-        return AccessOptions.off("--local")
-    certs = args.certs or os.environ.get(ENV_DIR)
-    plain = [endpoint for endpoint in system.listen if not endpoint.startswith(("tls/", "quic/"))]
-    if not certs or plain:
-        how = f"listens on {', '.join(plain)}" if plain else "has no --certs DIR"
-        raise CliError(f"{system.name} spreads over hosts and its hub {how}: its agents could be neither admitted "
-                       "nor sent their credentials safely, so access control would be off. Link the hosts by "
-                       "tls/ endpoints and give --certs DIR ('iotad certs'; docs/hosts.md), run every host "
-                       "here with --local, or give --insecure to run the system open")
-    others = list(dict.fromkeys(host for host in hosts if host != system.hub_host))
-    try:
-        for host in others:
-            derive(certs, host)  # every agent's secret, or one line saying which is missing
-    except CertificateError as exc:
-        raise CliError(str(exc)) from None
-    return AccessOptions(hosts=tuple(others), certs=str(certs))

@@ -11,7 +11,6 @@ from pathlib import Path
 from iotad.cli import CliError, positive_float, positive_int, nonnegative_int
 
 ORDER = 22
-TABLE_EVERY = 10.0  # wall seconds between rewrites of results.csv while a sweep runs (it reads every row)
 
 EPILOG = """\
 examples:
@@ -63,8 +62,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def plan_from(args: argparse.Namespace):
     """The sweep's plan and its system, from the file and the options (options win)."""
-    from iotad.cli.commands.run import load_checked
-    from iotad.cli.sweep_plan import Plan, check_against, make_runs, parse_set, read_sweep_file
+    from iotad.cli import load_checked
+    from iotad.sweep.plan import Plan, check_against, make_runs, parse_set, read_sweep_file
 
     path = Path(args.file)
     if not path.is_file():
@@ -96,45 +95,6 @@ def plan_from(args: argparse.Namespace):
     return plan, system
 
 
-def tasks_for(plan, folder) -> list[dict]:
-    """The runs still to do, each as the plain task a worker runs (sweep_run.run_one)."""
-    return [{"run": run.name, "system": plan.system, "values": run.values, "seed": run.seed, "until": plan.until,
-             "timeout": plan.timeout, "metrics": plan.metrics, "seed_param": plan.seed_param,
-             "recording": str(folder.recording(run.name)),
-             "log": str(folder.log(run.name))}
-            for run in plan.runs if not folder.finished(run.name)]
-
-
-def sweep(plan, folder, jobs: int, ray: str | None = None, progress=None) -> dict:
-    """Run the plan's unfinished runs into `folder`, keeping each row as it comes; returns how
-    it went (`sweep.json`'s last_session). KeyboardInterrupt leaves the finished rows kept."""
-    from iotad.cli.sweep_executors import run_local, run_ray
-
-    todo = tasks_for(plan, folder)
-    counts = {"runs": len(plan.runs), "skipped": len(plan.runs) - len(todo), "ok": 0, "failed": 0}
-    started = time.perf_counter()
-
-    written = [started]
-
-    def done(task: dict, row: dict) -> None:
-        folder.keep(row)
-        counts["ok" if row["status"] == "ok" else "failed"] += 1
-        if time.perf_counter() - written[0] > TABLE_EVERY:  # the table so far, to look at; each row
-            folder.write_table(plan)                         # is kept at once in its own file
-            written[0] = time.perf_counter()
-        if progress is not None:
-            progress(counts, len(todo), time.perf_counter() - started)
-
-    if ray is not None:
-        run_ray(todo, ray or None, jobs, done)
-    else:
-        run_local(todo, jobs, done)
-    folder.write_table(plan)
-    counts["wall_s"] = round(time.perf_counter() - started, 3)
-    counts["executor"] = "ray" if ray is not None else f"local pool of {min(jobs, max(len(todo), 1))}"
-    return counts
-
-
 class Progress:
     """`sweep: 12/40 runs (1 failed; 4 done before), 3.5 runs/min, about 0:01:20 left` on stderr."""
 
@@ -156,9 +116,19 @@ class Progress:
 
 
 def run(args: argparse.Namespace) -> int:
-    from iotad.cli.sweep_plot import plot_summary
-    from iotad.cli.sweep_results import SweepFolder
-    from iotad.cli.virtual_run import cores
+    from iotad.sweep import SweepError
+
+    try:
+        return _run(args)
+    except SweepError as exc:
+        raise CliError(str(exc)) from None
+
+
+def _run(args: argparse.Namespace) -> int:
+    from iotad.sweep.plot import plot_summary
+    from iotad.sweep.results import SweepFolder
+    from iotad.sweep.session import sweep
+    from iotad.virtual.virtual_run import cores
 
     plan, system = plan_from(args)
     folder = SweepFolder(args.output)

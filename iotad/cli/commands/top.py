@@ -10,7 +10,7 @@ import sys
 import time
 
 from iotad.cli import positive_float
-from iotad.cli.commands.ls import add_connect, tool_session
+from iotad.cli.live import add_connect, tool_session
 
 ORDER = 45
 
@@ -50,7 +50,7 @@ def run(args: argparse.Namespace) -> int:
     import zenoh
 
     from iotad.cli.dashboard import Dashboard
-    from iotad.host import wire
+    from iotad.node_host import wire
 
     system = args.system
     scope = f"{wire.PREFIX}/{system or '*'}"

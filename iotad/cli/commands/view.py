@@ -1,7 +1,7 @@
 """`iotad view`: watch a running system in Foxglove. A Foxglove WebSocket server (foxglove-sdk)
 bridges every channel of every live node, with its JSON schema; joint states and planar poses
 also in Foxglove's well-known schemas (3D and plot panels), the schedulers' acks, `mdl_command`
-and every violation on /log, CAN frames decoded by name (iotad/cli/foxglove_bridge.py)."""
+and every violation on /log, CAN frames decoded by name (iotad/recording/foxglove_mapping.py)."""
 from __future__ import annotations
 
 import argparse
@@ -10,7 +10,7 @@ import sys
 import time
 
 from iotad.cli import CliError, port, positive_float
-from iotad.cli.commands.ls import add_connect, tool_session
+from iotad.cli.live import add_connect, tool_session
 
 ORDER = 46
 
@@ -41,11 +41,11 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     import zenoh
 
-    from iotad.host import wire
+    from iotad.node_host import wire
 
     if args.system_file:
-        from iotad.host.transport import reachable
-        from iotad.launcher.system_file import SystemFileError, load_system
+        from iotad.node_host.transport import reachable
+        from iotad.launcher.system.system_file import SystemFileError, load_system
 
         try:
             system = load_system(args.system_file)
@@ -58,7 +58,7 @@ def run(args: argparse.Namespace) -> int:
         import foxglove
     except ImportError:
         raise CliError("iotad view needs foxglove-sdk: pip install 'foxglove-sdk>=0.14'") from None
-    from iotad.cli.foxglove_bridge import Bridge
+    from iotad.recording.foxglove_live import Bridge
 
     if args.host not in ("127.0.0.1", "localhost", "::1"):
         print(f"iotad view: warning: listening on {args.host}: anyone who reaches it sees the system "

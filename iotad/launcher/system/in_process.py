@@ -1,0 +1,40 @@
+"""A whole system file as one composite IOTA, for one process in virtual time (`iotad run
+--virtual`): every node instantiated as its node host would, the file's bindings as the
+composite's, and each `[[can]]` bus as the modelled bus `iotad.can.virtual_bus.CanBus` with
+station k's can_tx -> tx[k] and rx[k] -> can_rx. Nothing else differs from the real-time run,
+which is the point: the same IOTAs, the same channels, the same recording format."""
+from __future__ import annotations
+
+from typing import Any
+
+from iotad.can.canopen_ids import canopen_nodes
+from iotad.kernel.compose import Composite
+from iotad.launcher.system.bus_logger import is_bus_logger
+from iotad.launcher.system.system_file import CAN_RX, CAN_TX, System, instantiate
+
+
+def compose(system: System) -> Composite:
+    """The system as one composite named after it; raises what instantiating a node raises."""
+    from iotad.can.virtual_bus import CanBus
+
+    # a bus's real-time logger (bus_logger.py) is left out: here the bus model logs its frames,
+    # as the [[can]] entry's `log` says (false: no log in either way of running the file)
+    built = {node.name: instantiate(node) for node in system.nodes.values() if not is_bus_logger(system, node.name)}
+    components: list[Any] = list(built.values())
+    binds = [(str(b.source), str(b.target)) for b in system.bindings]
+    for bus in system.buses.values():
+        params = dict(stations=len(bus.stations), bitrate=bus.bitrate, log_frames=bus.log)
+        # a bus with CiA 402 stations logs each frame by family (CANopen or CAN Simple); one of
+        # ODrives only stays the plain model, so its recordings are what they were
+        canopen = canopen_nodes(system.nodes[station].params for station in bus.stations if station in system.nodes)
+        if canopen:
+            from iotad.can.canopen_frame_log import CanopenCanBus
+            components.append(CanopenCanBus(bus.name, canopen=sorted(canopen), **params))
+        else:
+            components.append(CanBus(bus.name, **params))
+        for k, station in enumerate(bus.stations):
+            if hasattr(built.get(station), "can_bus_name"):  # a station that names its bus in what it reports
+                built[station].can_bus_name = bus.name
+            binds.append((f"{station}.{CAN_TX}", f"{bus.name}.tx[{k}]"))
+            binds.append((f"{bus.name}.rx[{k}]", f"{station}.{CAN_RX}"))
+    return Composite(system.name, *components, bind=binds)

@@ -1,0 +1,136 @@
+"""A node's CAN port: its `can_tx` output events sent on a python-can bus, and every frame the
+bus receives posted to the engine as a `can_rx` input event (docs/internals.md "CAN port").
+
+The node's IOTA never sees python-can: it reads and writes `canFrame` values on two channels,
+exactly as it does on the modelled bus of `iotad run --virtual`. So the same IOTA runs against a
+real controller on can0, a simulated one on vcan0, or the bus model in virtual time. Frames are
+received on a thread of their own (python-can blocks) and handed over undecoded-free: the engine
+thread type-checks them like any other input, so a frame and a zenoh input are ordered alike.
+"""
+from __future__ import annotations
+
+import threading
+from typing import Any, Callable
+
+from iotad.can.error_frames import describe_error_frame
+from iotad.can.frame import Frame, FrameError
+from iotad.node_host import wire
+from iotad.node_host.host_clock import RawInput
+from iotad.kernel.types import to_plain
+
+CAN_TX, CAN_RX = "can_tx", "can_rx"
+KEY_PREFIX = "can/"  # an input trace event's `key` for a frame from the bus: can/<bus> (no zenoh key)
+RETRY = 0.1  # s between receive attempts on a bus that fails (an interface gone down): no busy loop
+
+# What the reader thread saw that no IOTA can take, as the violations the host records (on can_rx):
+ERROR_FRAME = "can_error_frame"        # the controller's report of a bus problem (bus off, no ACK...)
+UNUSABLE = "can_frame_unusable"        # a CAN FD frame: an IOTA takes classic frames only
+RECEIVE_FAILED = "can_receive_failed"  # the bus raised on receive
+
+
+class CanPortError(Exception):
+    """The bus named by the node's config cannot be opened; `str()` says why and what to try."""
+
+
+class CanPort:
+    """`post` takes each frame received (a `RawInput` for the engine thread); `now` is the
+    engine's clock, which stamps the problems `take_problems` hands over."""
+
+    def __init__(self, config: dict[str, Any], post: Callable[[RawInput], None],
+                 now: Callable[[], float] = lambda: 0.0):
+        self.config, self.post, self.now = config, post, now
+        self.name = config["bus"]
+        self.key = f"{KEY_PREFIX}{self.name}"  # what an input trace event names as where it came from
+        self.bus = None
+        self.sent = self.received = self.send_errors = self.unusable = 0
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        # violation -> [count, first t, last t, what the first one said]: counted by the reader
+        # thread, handed to the engine thread by `take_problems` (a flood is one record per period)
+        self._problems: dict[str, list] = {}
+        self._problems_lock = threading.Lock()
+
+    def open(self) -> None:
+        from iotad.can.bus import open_bus
+
+        config = self.config
+        try:
+            self.bus = open_bus(config["interface"], config.get("channel"), bitrate=config.get("bitrate"),
+                                **config.get("options", {}))
+        except Exception as exc:  # noqa: BLE001 - python-can raises many kinds; the message is what matters
+            raise CanPortError(f"CAN bus {self.name!r} ({config['interface']} {config.get('channel') or ''}): "
+                               f"cannot open: {exc}") from None
+        self._thread = threading.Thread(target=self._receive, name=f"can {self.name}", daemon=True)
+        self._thread.start()
+
+    def send(self, value: Any) -> str | None:
+        """Put a `canFrame` value on the bus; the reason it could not, or None."""
+        try:
+            self.bus.send(Frame.from_value(value).to_can_message())
+        except FrameError as exc:
+            self.send_errors += 1
+            return f"not a CAN frame: {exc}"
+        except Exception as exc:  # noqa: BLE001 - a full transmit queue, a bus gone down
+            self.send_errors += 1
+            return f"CAN bus {self.name!r} refused a frame: {exc}"
+        self.sent += 1
+        return None
+
+    def _receive(self) -> None:
+        bus, post, stop = self.bus, self.post, self._stop
+        while not stop.is_set():
+            try:
+                message = bus.recv(timeout=0.1)
+            except Exception as exc:  # noqa: BLE001 - python-can raises many kinds
+                if stop.is_set():
+                    return  # the bus is shutting down under us
+                self._problem(RECEIVE_FAILED, f"{type(exc).__name__}: {exc}")
+                stop.wait(RETRY)
+                continue
+            if message is None:
+                continue
+            if getattr(message, "is_error_frame", False):
+                self._problem(ERROR_FRAME, describe_error_frame(message.arbitration_id, message.data))
+                continue
+            try:
+                frame = Frame.from_can_message(message)
+            except FrameError as exc:
+                self.unusable += 1  # CAN FD: not a classic frame any IOTA could take
+                self._problem(UNUSABLE, str(exc))
+                continue
+            self.received += 1
+            post(RawInput(CAN_RX, None, wire.encode(to_plain(frame.to_value())), None, self.key))
+
+    def _problem(self, violation: str, said: str) -> None:
+        t = self.now()
+        with self._problems_lock:
+            entry = self._problems.get(violation)
+            if entry is None:
+                self._problems[violation] = [1, t, t, said]
+            else:
+                entry[0] += 1
+                entry[2] = t
+
+    def take_problems(self) -> list[tuple[str, str, int]]:
+        """(violation, message, count) of each kind of problem the reader thread saw since the
+        last call: error frames, unusable frames, failed receives (engine thread)."""
+        with self._problems_lock:
+            problems, self._problems = self._problems, {}
+        found = []
+        for violation, (count, first, last, said) in problems.items():
+            what = {ERROR_FRAME: f"{count} error frame(s)", UNUSABLE: f"{count} frame(s) no IOTA can take",
+                    RECEIVE_FAILED: f"{count} failed receive(s), retried every {RETRY:g} s"}[violation]
+            found.append((violation, f"CAN bus {self.name!r}: {what} between t={first:.6f} and t={last:.6f}; "
+                                     f"the first: {said}", count))
+        return found
+
+    def close(self) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(1.0)
+        if self.bus is not None:
+            bus, self.bus = self.bus, None
+            try:
+                bus.shutdown()
+            except Exception:  # noqa: BLE001 - closing anyway
+                pass

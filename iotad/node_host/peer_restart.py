@@ -1,0 +1,133 @@
+"""Restart notices: an IOTA learns that a node it waits on has restarted, as an input event.
+
+A restarted node starts from its initial state: whatever it was doing for others (a request it
+was scheduling, a motion program it was running, a joint command it was holding) is gone, and
+whoever waits for its answer would wait forever. So the restart must be visible to them, and in
+the only way an IOTA sees anything: an input. An IOTA that waits on its peers declares
+
+    peer_restart = Input()                       # Python API; ESPRIT: peer_restart()/0
+
+(or an enum of its own channel names, to learn through which of its channels the restarted peer
+was bound) and its node host feeds it one event each time a node bound to one of its inputs (a
+source it waits on) or one of its outputs (a reader that may have lost what it was sent: the MDL
+interpreter lost the program the scheduler sent it) comes back after it went away:
+its liveliness token `iota/<system>/<peer>/@alive` vanished (killed, crashed, stopped by the
+launcher as frozen) and reappeared. A node host declares the token after its subscribers, so a
+request sent on the notice reaches the new process. The notice arrives as an input from the
+node's own key `iota/<system>/<node>/peer_restart`, so it is in the trace and the recording, and
+replay feeds it back like any input; `iotad pub` can send one by hand.
+
+What the IOTA makes of it is its own business (docs/failures.md): the Figure 2 requester takes a
+restart of the scheduler while it waits as an ABORT and goes on with its next request; the
+resume scheduler sends its master's program again when the MDL interpreter restarts.
+
+`PeerWatch` is the piece that does the watching; it needs only a zenoh session, so a Python tool
+that is no IOTA can use it too.
+"""
+from __future__ import annotations
+
+import threading
+from typing import Any, Callable, Iterable
+
+from iotad.node_host import wire
+
+PEER_RESTART = "peer_restart"  # the reserved input channel a node host feeds
+
+
+def peers_of(system: str, own_path: str, inputs: dict[str, list[str]],
+             readers: dict[str, list[str]] | None = None) -> dict[str, list[str]]:
+    """peer node path -> the names of this node's channels bound to that peer: its inputs bound
+    to the peer's outputs (a node config's `inputs`: "chan" or "chan/k" -> keys of the bound
+    outputs), then its outputs the peer reads (`readers`: "chan" or "chan/k" -> node paths)."""
+    peers: dict[str, list[str]] = {}
+
+    def add(peer: str, label: str) -> None:
+        if peer == own_path or peer.startswith("@"):
+            return
+        names = peers.setdefault(peer, [])
+        name = label.split("/", 1)[0]
+        if name not in names:
+            names.append(name)
+
+    for label, keys in inputs.items():
+        for key in keys:
+            parsed = wire.parse_key(key)
+            if parsed is not None and parsed[0] == system:
+                add(parsed[1], label)
+    for label, nodes in (readers or {}).items():
+        for node in nodes:
+            add(node, label)
+    return peers
+
+
+def notice_values(channel_type: Any, channels: Iterable[str]) -> list[Any]:
+    """The values of the notices for a peer bound to `channels` (this node's channel names):
+    one `None` for a channel without a value; for an enum, each of those names that is a member
+    of it (none: the IOTA does not care about that peer)."""
+    if channel_type is None:
+        return [None]
+    members = getattr(channel_type, "members", None)
+    if members is None:
+        raise ValueError(f"input {PEER_RESTART!r} must carry no value or an enum of channel names, "
+                         f"not {channel_type}")
+    return [name for name in channels if name in members]
+
+
+class PeerWatch:
+    """Calls `on_restart(peer_path)` (on a zenoh thread) each time the liveliness token of one of
+    `peers` (node paths of `system`) reappears after it vanished. A token already there when the
+    watch starts, or that first appears later, is a start, not a restart."""
+
+    def __init__(self, session: Any, system: str, peers: Iterable[str], on_restart: Callable[[str], None]):
+        self.system, self.peers = system, set(peers)
+        self._on_restart = on_restart
+        self._lock = threading.Lock()
+        self._present: set[str] = set()
+        self._lost: set[str] = set()
+        self.restarts: dict[str, int] = {}
+        self.subscriber = session.liveliness().declare_subscriber(
+            wire.every_node(system, wire.ALIVE), self._on_sample, history=True)
+
+    def _on_sample(self, sample: Any) -> None:
+        import zenoh
+        path = wire.node_path(sample.key_expr, self.system, wire.ALIVE)
+        if path not in self.peers:
+            return
+        with self._lock:
+            if sample.kind == zenoh.SampleKind.DELETE:
+                if path in self._present:
+                    self._present.discard(path)
+                    self._lost.add(path)
+                return
+            if path in self._present:
+                return  # the same token seen twice (history and live)
+            self._present.add(path)
+            restarted = path in self._lost
+            self._lost.discard(path)
+            if restarted:
+                self.restarts[path] = self.restarts.get(path, 0) + 1
+        if restarted:
+            self._on_restart(path)
+
+    def undeclare(self) -> None:
+        self.subscriber.undeclare()
+
+
+def watch_for_host(session: Any, config: Any, channel_type: Any, post: Callable[[Any], None]) -> PeerWatch | None:
+    """The node host's watch: for a root IOTA with a `peer_restart` input, post a notice to the
+    engine (`post`, never dropped by a full input queue) for each restart of a node bound to
+    one of its inputs or outputs. None when the IOTA has no such input or no peers."""
+    from iotad.node_host.host_clock import RawInput
+
+    peers = peers_of(config.system, config.path, config.inputs, config.readers)
+    if not peers:
+        return None
+    key = wire.channel_key(config.system, config.path, PEER_RESTART)
+    payloads = {peer: [wire.encode(value) for value in notice_values(channel_type, channels)]
+                for peer, channels in peers.items()}
+
+    def restarted(peer: str) -> None:
+        for payload in payloads[peer]:
+            post(RawInput(PEER_RESTART, None, payload, None, key))
+
+    return PeerWatch(session, config.system, peers, restarted)
