@@ -189,6 +189,10 @@ class System:
         return self.declaration.start_gate
 
     @property
+    def strict(self) -> bool:
+        return self.declaration.strict
+
+    @property
     def hosts(self) -> Mapping[str, HostSpec]:
         return self.declaration.hosts
 
