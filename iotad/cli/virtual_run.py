@@ -62,7 +62,7 @@ def _run(system, args: argparse.Namespace, writer) -> int:
 
     inputs = _read_inputs(args.inputs) if args.inputs else []
     try:
-        root = compose(system)
+        root = compose(system, getattr(args, "recording_format", 2))
     except Exception as exc:  # noqa: BLE001 - a node that fails to build: the user's message
         raise CliError(f"{system.file}: cannot compose the system: {type(exc).__name__}: {exc}") from None
     # Every input's node is found before a recording is opened (or, with --force, replaced).
