@@ -215,7 +215,7 @@ class BurstCanBus(Iota):
         self.queued -= 1
         held.duration = frame_bits_of(held.frame, self.stuffing) / self.bitrate
         held.start = now
-        held.end = now + held.duration
+        held.end = plus(now, held.duration)  # on the engine's time grid, as format 1's delivery firing is
         self._deliver(held)
 
     def _rearbitrate(self, now: float) -> None:
@@ -264,7 +264,7 @@ class BurstCanBus(Iota):
                 held = self.waiting[station].pop(position)
                 held.duration = frame_bits_of(held.frame, self.stuffing) / self.bitrate
                 held.start = end
-                held.end = end = end + held.duration
+                held.end = end = plus(end, held.duration)
                 self._deliver(held)
         finally:
             self.waiting = saved
