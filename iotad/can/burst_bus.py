@@ -22,10 +22,10 @@ the engine is asked to carry it:
   frames that ended since the previous burst (possibly none), each with its station, its
   arbitration order on this bus (0, 1, ...), when it was queued, its wire start and end, its bit
   time (`duration`), the frame, and its CAN Simple direction and message name: the bus's frame
-  log (`frames` of format 1) and its `rx` outputs folded into one event. The `load` report also
-  settles the frames that ended by then, so a burst follows each report with what ended; the
-  frames that end after the last report of a run are not in its recording (as in format 1 a
-  frame still on the bus at the end is not).
+  log (`frames` of format 1) and its `rx` outputs folded into one event. A burst also fires as
+  the last frame scheduled ends (`drained`: the bus goes idle), and after a `load` report that
+  settled frames, so every frame is recorded by the end of its busy period; a frame still on the
+  bus when the run ends is not in its recording, as in format 1.
 
 Readers expand a burst into the per-frame events of format 1 (`iotad.recording.bursts`), so
 checks, exports and candump see each frame as before.
@@ -136,6 +136,10 @@ class BurstCanBus(Iota):
         self._others = [[k for k in range(self.stations) if k != s] for s in range(self.stations)]
         self._bit_steps = round(TIME_GRID / self.bitrate)
         self.report_due = self.load_period  # when the next load report fires (a run starts at 0)
+        self.draining = False         # a burst is due when the frames scheduled have ended
+        self.drain_at = 0.0           # then (the last scheduled frame's end)
+        self.drain_after = 0.0        # how long after the schedule was computed
+        self._last_end = 0.0
 
     @property
     def average_load(self) -> float:
@@ -160,6 +164,7 @@ class BurstCanBus(Iota):
         elif round((now - self.current.start) * TIME_GRID) < self._bit_steps:  # in its SOF bit
             self._rearbitrate(now)
         self.scheduled = False
+        self.draining = False
 
     # One firing per instant at which frames were queued (after them all), and one after each
     # load report that settled frames: the frames that ended since the last burst go out, and
@@ -169,6 +174,24 @@ class BurstCanBus(Iota):
     def carried(self):
         self.ended = []
         self._schedule()
+        if self.current is not None:  # the frames' end: a burst then, with what ended until it
+            self.drain_at = self._last_end
+            self.drain_after = self._last_end - esprit_now()
+            self.draining = True
+
+    # When the last frame scheduled ends (the bus goes idle), the frames that ended since the last
+    # burst go out: every frame is recorded by the end of its busy period. A post before then
+    # computes a new schedule (`draining` false, then true again with a window of its own).
+    @burst.action(value=lambda self: self._record_until(self.drain_at), when=lambda self: self.draining,
+                  after=lambda self: self.drain_after)
+    def drained(self):
+        self._settle(esprit_now())
+        self.ended = []
+        self.draining = False
+
+    def _record_until(self, t: float) -> list:
+        self._settle(t)
+        return self._record()
 
     def _record(self) -> list:
         if not self.log_frames:
@@ -254,6 +277,7 @@ class BurstCanBus(Iota):
         current = self.current
         if current is None:
             return
+        self._last_end = current.end
         if not self.queued:
             return
         saved = [list(queue) for queue in self.waiting]
@@ -266,6 +290,7 @@ class BurstCanBus(Iota):
                 held.start = end
                 held.end = end = plus(end, held.duration)
                 self._deliver(held)
+            self._last_end = end
         finally:
             self.waiting = saved
 
