@@ -223,6 +223,8 @@ class Recording:
                 if not starts and event.get("kind") == wire.START_KIND:
                     continue
                 event.setdefault("node", parsed[1])
+                if message.derived:
+                    event["derived"] = True  # read out of a burst (iotad.recording.bursts)
                 # the same few strings are in every event: one copy of each, not one per event (a
                 # long trace holds hundreds of thousands of events: a fifth of their memory)
                 event["kind"], event["action"] = sys.intern(event["kind"]), sys.intern(event["action"])
@@ -242,7 +244,8 @@ class Recording:
         minus the one offset every start record of the run shares), marked `"from": "launcher"`,
         and put after the events of the processes before it (before the first event recorded
         after the new process was spawned)."""
-        events = self.trace(node, starts=True, derived=False)
+        # the node's events as it fired them: a format 2 bus's bursts, not the frames read out of them
+        events = [e for e in self.trace(node, starts=True) if not e.get("derived")]
         for gap in self.trace_gaps(node):
             # the first event heard after the gap carries it: a checker stops there (positions
             # are those of `trace`, before the launcher's start records go in below)
@@ -276,7 +279,8 @@ class Recording:
         behind), each placed in the trace. In trace order: {"position": the index, in
         `trace(node, starts=True)`, of the first event heard after the gap, "missing": how many
         events it lacks, "from_t" / "to_t": the `t` of the events heard either side of it,
-        "log_ns": when the recorder noticed it, "why": what the recording says of it}. A merged
+        "log_ns": when the recorder noticed it, "why": what the recording says of it}; positions
+        count the node's own events, not those read out of a format 2 burst. A merged
         recording keeps only the gaps that no host's file filled."""
         noted = []
         for message in self.messages:
@@ -297,7 +301,7 @@ class Recording:
         keys = {key for _, key, _ in noted}
         on_key: dict[str, list[RecordedMessage]] = {key: [] for key in keys}
         for message in self.messages:
-            if message.topic in keys:
+            if message.topic in keys and not message.derived:  # positions are in the node's own events
                 on_key[message.topic].append(message)
         # per key: where its sequence numbers jump, by the number jumped to (MCAP keeps 32 bits)
         jumps_to: dict[str, dict[int, list[int]]] = {}
