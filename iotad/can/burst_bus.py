@@ -80,7 +80,7 @@ class CanBurstType(Type):
                            "start": number, "end": number, "duration": number, "id": integer,
                            "extended": {"type": "boolean"}, "rtr": {"type": "boolean"}, "dlc": integer,
                            "data": {"type": "array", "items": integer, "minItems": 8, "maxItems": 8},
-                           "direction": {"type": "string"}, "message": {"type": "string"}}}}
+                           "direction": {"type": ["string", "null"]}, "message": {"type": ["string", "null"]}}}}
 
 
 CAN_BURST = CanBurstType()
@@ -106,7 +106,7 @@ class BurstCanBus(Iota):
     stuffing = Param("exact")        # "exact", "worst" or "none"
     station_queue = Param("fifo")    # "fifo" (SocketCAN) or "priority" (lowest id of a station first)
     load_period = Param(0.1)         # seconds between `load` reports; 0: no reports
-    log_frames = Param(True)         # False: bursts carry no frames (the [[can]] entry's log = false)
+    log_frames = Param(True)         # False: no log ([[can]] log = false): bursts name no direction nor message
     queue_limit = Param(1000)        # frames a station's queue holds; one more is refused (0: no limit)
 
     tx = Input(CAN_FRAME, size="stations", switching=0)
@@ -194,15 +194,16 @@ class BurstCanBus(Iota):
         return self._record()
 
     def _record(self) -> list:
-        if not self.log_frames:
-            return []
         out = []
+        log = self.log_frames
         for held in self.ended:
-            record = self._log_record(bus_frame(held.frame, held.station, held.duration))
+            record = bus_frame(held.frame, held.station, held.duration)
+            if log:
+                record = self._log_record(record)
             plain = {"station": held.station, "order": 0, "queued": held.queued, "start": held.start,
                      "end": held.end, "duration": held.duration, "id": record.id, "extended": record.extended,
                      "rtr": record.rtr, "dlc": record.dlc, "data": list(record.data),
-                     "direction": record.direction, "message": record.message}
+                     "direction": record.direction if log else None, "message": record.message if log else None}
             out.append(plain)
         first = self.order - len(out)
         for k, plain in enumerate(out):

@@ -26,16 +26,17 @@ def is_burst(event: Any) -> bool:
 
 
 def frame_events(event: dict, stations: int) -> list[dict]:
-    """The format 1 events of a burst event: per frame, its `frames` log entry, then its `rx[k]`
-    for each other station, at its wire end."""
+    """The format 1 events of a burst event: per frame, its `frames` log entry (none where the
+    bus keeps no log), then its `rx[k]` for each other station, at its wire end."""
     out = []
     iota = event.get("iota")
     for frame in event["value"]:
         if not isinstance(frame, dict):
             continue
         end = frame.get("end")
-        out.append({"t": end, "iota": iota, "action": "frames", "index": None, "kind": "output",
-                    "value": {k: frame.get(k) for k in _LOG_FIELDS}})
+        if frame.get("message") is not None:  # None: a bus without a log ([[can]] log = false)
+            out.append({"t": end, "iota": iota, "action": "frames", "index": None, "kind": "output",
+                        "value": {k: frame.get(k) for k in _LOG_FIELDS}})
         value = {k: frame.get(k) for k in _FRAME_FIELDS}
         for k in range(stations):
             if k != frame.get("station"):
