@@ -155,12 +155,21 @@ class BurstCanBus(Iota):
             return
         now = esprit_now()
         self._settle(now)
-        self.waiting[i].append(_Frame(frame, i, now))
+        held = _Frame(frame, i, now)
+        held.duration = frame_bits_of(frame, self.stuffing) / self.bitrate  # once: it depends on the frame alone
+        self.waiting[i].append(held)
         self.queued += 1
         if self.queued > self.max_waiting:
             self.max_waiting = self.queued
         if self.current is None:
             self._start(now)
+            if not self.queued and not self.ended and not self.draining:
+                # a lone frame on an idle bus: its delivery is queued and nothing else is to be
+                # scheduled, so no firing is needed now, only the burst as it ends (`drained`)
+                self.drain_at = self._last_end = held.end
+                self.drain_after = held.end - now
+                self.draining = True
+                return
         elif round((now - self.current.start) * TIME_GRID) < self._bit_steps:  # in its SOF bit
             self._rearbitrate(now)
         self.scheduled = False
@@ -237,7 +246,6 @@ class BurstCanBus(Iota):
         station, position = self._winner()
         held = self.current = self.waiting[station].pop(position)
         self.queued -= 1
-        held.duration = frame_bits_of(held.frame, self.stuffing) / self.bitrate
         held.start = now
         held.end = plus(now, held.duration)  # on the engine's time grid, as format 1's delivery firing is
         self._deliver(held)
@@ -287,7 +295,6 @@ class BurstCanBus(Iota):
             for _ in range(self.queued):
                 station, position = self._winner()
                 held = self.waiting[station].pop(position)
-                held.duration = frame_bits_of(held.frame, self.stuffing) / self.bitrate
                 held.start = end
                 held.end = end = plus(end, held.duration)
                 self._deliver(held)
