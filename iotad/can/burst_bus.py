@@ -16,6 +16,9 @@ the engine is asked to carry it:
   A frame posted later that wins arbitration over a frame not yet started moves it: its
   deliveries are withdrawn and queued again at the new time, so what receivers get is what the
   format 1 bus delivers.
+- A station may also queue the frames of one instant as one output (`can_tx_burst`, a list of
+  frames, bound to `tx_burst[k]`): one firing and one event of the station instead of one per
+  frame, queued in their order exactly as if posted one by one at that instant.
 - `rx[k]` fires no event of its own: the outputs are there to be bound; what they carry is in
   the bursts.
 - A frame is recorded once its wire times are final (it ended): `burst`'s value is the list of
@@ -86,6 +89,63 @@ class CanBurstType(Type):
 CAN_BURST = CanBurstType()
 
 
+class CanFramesType(Type):
+    """`canFrames`: the frames a station queues at one instant, in its order (a list of canFrame):
+    what a station's `can_tx_burst` output carries to the bus's `tx_burst[k]`."""
+
+    name = "canFrames"
+
+    def check(self, value: Any) -> None:
+        if not isinstance(value, (list, tuple)):
+            raise BadValue(f"frames are a list of canFrame, got {type(value).__name__}")
+        for position, frame in enumerate(value):
+            try:
+                CAN_FRAME.check(frame)
+            except BadValue as exc:
+                raise BadValue(f"[{position}]: {exc}") from None
+
+    def checked_plain(self, value: Any) -> Any:
+        if not isinstance(value, (list, tuple)):
+            raise BadValue(f"frames are a list of canFrame, got {type(value).__name__}")
+        out = []
+        for position, frame in enumerate(value):
+            try:
+                out.append(CAN_FRAME.checked_plain(frame))
+            except BadValue as exc:
+                raise BadValue(f"[{position}]: {exc}") from None
+        return out
+
+    def to_plain(self, value: Any) -> Any:
+        return [CAN_FRAME.to_plain(frame) for frame in value]
+
+    def from_plain(self, plain: Any) -> list:
+        if not isinstance(plain, (list, tuple)):
+            raise BadValue(f"frames are a list of canFrame, got {type(plain).__name__}")
+        out = []
+        for position, frame in enumerate(plain):
+            try:
+                out.append(CAN_FRAME.from_plain(frame))
+            except BadValue as exc:
+                raise BadValue(f"[{position}]: {exc}") from None
+        return out
+
+    def from_checked_plain(self, plain: Any) -> list:
+        return [CAN_FRAME.from_checked_plain(frame) for frame in plain]
+
+    def default(self) -> list:
+        return []
+
+    def json_schema(self) -> dict:
+        return {"type": "array", "title": "canFrames", "items": CAN_FRAME.json_schema()}
+
+    def prepare(self) -> None:
+        CAN_FRAME.prepare()
+
+
+CAN_FRAMES = CanFramesType()
+TX_BURST, CAN_TX_BURST = "tx_burst", "can_tx_burst"  # the bus's input and a station's output of frame lists
+
+
 class _Frame:
     """A frame the bus holds: queued, on the wire, or scheduled to follow."""
 
@@ -110,6 +170,9 @@ class BurstCanBus(Iota):
     queue_limit = Param(1000)        # frames a station's queue holds; one more is refused (0: no limit)
 
     tx = Input(CAN_FRAME, size="stations", switching=0)
+    # a station's frames of one instant in one event (its `can_tx_burst`), queued in their order,
+    # exactly as the same frames posted one by one on `tx[k]` at that instant
+    tx_burst = Input(CAN_FRAMES, size="stations", switching=0)
     rx = Output(CAN_FRAME, size="stations", switching=0)  # bound to the receivers; frames go by wire_delay
     burst = Output(CAN_BURST, switching=0)
     load = Output(Float(0, None), switching=0)
@@ -145,6 +208,17 @@ class BurstCanBus(Iota):
     def average_load(self) -> float:
         """Busy time over elapsed time, as of the last `load` report (0 before the first)."""
         return self.busy_time_reported / self.elapsed if self.elapsed else 0.0
+
+    @tx_burst.input
+    def posted_burst(self, i, frames):
+        refused = None
+        for frame in frames:
+            try:
+                self.posted(i, frame)
+            except Exception as exc:  # noqa: BLE001 - a frame no controller could send: the others go on
+                refused = refused or exc
+        if refused is not None:
+            raise refused  # one violation, naming the first frame refused, as posting it alone would
 
     @tx.input
     def posted(self, i, frame):

@@ -18,7 +18,7 @@ def compose(system: System, recording_format: int = 2) -> Composite:
     """The system as one composite named after it; raises what instantiating a node raises.
     `recording_format` 2 models each bus as `iotad.can.burst_bus.BurstCanBus` (frames in bursts),
     1 as `CanBus` (a firing and an event per frame and receiver), as recordings of format 1 have it."""
-    from iotad.can.burst_bus import BurstCanBus, BurstCanopenCanBus
+    from iotad.can.burst_bus import CAN_TX_BURST, TX_BURST, BurstCanBus, BurstCanopenCanBus
     from iotad.can.virtual_bus import CanBus
 
     # a bus's real-time logger (bus_logger.py) is left out: here the bus model logs its frames,
@@ -36,7 +36,15 @@ def compose(system: System, recording_format: int = 2) -> Composite:
             components.append(model(bus.name, canopen=sorted(canopen), **params))
         else:
             components.append((CanBus if recording_format == 1 else BurstCanBus)(bus.name, **params))
+        by_name = {getattr(c, "instance_name", None): c for c in components}
         for k, station in enumerate(bus.stations):
             binds.append((f"{station}.{CAN_TX}", f"{bus.name}.tx[{k}]"))
             binds.append((f"{bus.name}.rx[{k}]", f"{station}.{CAN_RX}"))
+            # a station that queues an instant's frames as one output (iotad.can.burst_bus)
+            node = by_name.get(station)
+            if node is not None and CAN_TX_BURST in getattr(getattr(node, "iota_spec", None), "channels", {}):
+                if recording_format == 1:
+                    raise ValueError(f"{station} sends frames in bursts ({CAN_TX_BURST}), which recording "
+                                     "format 1's bus cannot take: run it in format 2")
+                binds.append((f"{station}.{CAN_TX_BURST}", f"{bus.name}.{TX_BURST}[{k}]"))
     return Composite(system.name, *components, bind=binds)

@@ -2,7 +2,8 @@
 bus's `burst` becomes the bus's `frames` log entry and its `rx[k]` output for every other station,
 at the frame's wire end, as the format 1 bus (`iotad.can.virtual_bus.CanBus`) recorded them.
 
-`expand(recording)` adds those events to a format 2 recording as it is read (`mcap_reader`), as
+A station's `can_tx_burst` (its frames of one instant in one output) becomes a `can_tx` output
+per frame, at its time, and the bus's `tx_burst[k]` input that took it a `tx[k]` input per frame. `expand(recording)` adds those events to a format 2 recording as it is read (`mcap_reader`), as
 messages marked `derived`: the delivery check, candump, exports and plots see every frame as
 before, while a node's own check and replay (`Recording.process_trace`) see the bus's events as
 it fired them (its bursts). `wire_frames` gives a bus's frames with their wire times from a
@@ -16,6 +17,8 @@ from iotad.host import wire
 from iotad.recording.mcap_format import packb, unpackb
 
 BURST = "burst"
+CAN_TX_BURST = "can_tx_burst"  # a station's frames of one instant, one output (iotad.can.burst_bus)
+TX_BURST = "tx_burst"  # the bus's input they arrive on
 _FRAME_FIELDS = ("id", "extended", "rtr", "dlc", "data")
 _LOG_FIELDS = ("duration", "station", "id", "extended", "rtr", "dlc", "data", "direction", "message")
 
@@ -44,6 +47,20 @@ def frame_events(event: dict, stations: int) -> list[dict]:
     return out
 
 
+def is_station_burst(event: Any) -> bool:
+    """A station's `can_tx_burst` output, or the bus's `tx_burst[k]` input that took it."""
+    return (isinstance(event, dict) and isinstance(event.get("value"), list)
+            and (event.get("action"), event.get("kind")) in ((CAN_TX_BURST, "output"), (TX_BURST, "input")))
+
+
+def sent_events(event: dict) -> list[dict]:
+    """The format 1 events of a station's `can_tx_burst` output (a `can_tx` output per frame) or
+    of the bus's `tx_burst[k]` input (a `tx[k]` input per frame), in order, at the burst's time."""
+    action, kind = ("can_tx", "output") if event["action"] == CAN_TX_BURST else ("tx", "input")
+    return [{"t": event["t"], "iota": event.get("iota"), "action": action, "index": event.get("index"), "kind": kind,
+             "value": frame} for frame in event["value"] if isinstance(frame, dict)]
+
+
 def _stations(recording: Any, node: str) -> int:
     spec = recording.specs.get(node) or {}
     params = spec.get("params") if isinstance(spec, dict) else None
@@ -55,35 +72,40 @@ def expand(recording: Any) -> int:
     """Add the per-frame events of every burst in `recording` (format 2) to its messages, each
     marked `derived`, in log-time order; returns how many frames it expanded."""
     from iotad.recording.mcap_reader import RecordedMessage
-    marker = packb(BURST)
+    markers = (packb(BURST), packb(CAN_TX_BURST), packb(TX_BURST))  # (cheap tests before decoding)
     derived: list = []
     sequences: dict[str, int] = {}
     stations: dict[str, int] = {}
     frames = 0
     for message in recording.messages:
-        if not message.topic.endswith("/" + wire.TRACE) or marker not in message.data:
+        if not message.topic.endswith("/" + wire.TRACE) or not any(m in message.data for m in markers):
             continue
         try:
             event = unpackb(message.data)
         except Exception:  # noqa: BLE001 - damage is the reader's to report, not the expansion's
             continue
-        if not is_burst(event):
-            continue
         parsed = wire.parse_key(message.topic)
         if not parsed:
             continue
         system, node = parsed[0], parsed[1]
-        if node not in stations:
-            stations[node] = _stations(recording, node)
+        if is_burst(event):
+            if node not in stations:
+                stations[node] = _stations(recording, node)
+            events = frame_events(event, stations[node])
+        elif is_station_burst(event):
+            events = sent_events(event)
+        else:
+            continue
         origin = message.log_time - round(float(event["t"]) * _unit(recording) * 1e9)
-        for derived_event in frame_events(event, stations[node]):
+        for derived_event in events:
             t = derived_event["t"]
             if not isinstance(t, (int, float)):
                 continue
             ns = origin + round(t * _unit(recording) * 1e9)
             derived.append(_message(RecordedMessage, message.topic, ns, sequences, dict(derived_event, iota=event.get("iota"))))
-            key = wire.channel_key(system, node, derived_event["action"], derived_event["index"])
-            derived.append(_message(RecordedMessage, key, ns, sequences, derived_event["value"]))
+            if derived_event["kind"] == "output":  # an output is on its channel's key too
+                key = wire.channel_key(system, node, derived_event["action"], derived_event["index"])
+                derived.append(_message(RecordedMessage, key, ns, sequences, derived_event["value"]))
             if derived_event["action"] == "frames":
                 frames += 1
     if derived:
