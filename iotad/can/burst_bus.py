@@ -41,7 +41,7 @@ from iotad.esprit.runtime import esprit_now
 from iotad.kernel.api import Input, Iota, Output, Param
 from iotad.kernel.engine import TIME_GRID, plus
 from iotad.kernel.types import BadValue, Float, Int, Type
-from iotad.kernel.wire_delay import Later, deliver_later
+from iotad.kernel.wire_delay import deliver_later
 
 from .frame import CAN_FRAME, STANDARD_ID_MAX, Frame
 from .frame_log import bus_frame
@@ -149,13 +149,14 @@ TX_BURST, CAN_TX_BURST = "tx_burst", "can_tx_burst"  # the bus's input and a sta
 class _Frame:
     """A frame the bus holds: queued, on the wire, or scheduled to follow."""
 
-    __slots__ = ("frame", "station", "queued", "start", "end", "duration", "due", "later")
+    __slots__ = ("frame", "station", "queued", "start", "end", "duration", "key", "due", "later")
 
-    def __init__(self, frame: Any, station: int, queued: float) -> None:
-        self.frame, self.station, self.queued = frame, station, queued
-        self.start = self.end = self.duration = 0.0
+    def __init__(self, frame: Any, station: int, queued: float, duration: float) -> None:
+        self.frame, self.station, self.queued, self.duration = frame, station, queued, duration
+        self.start = self.end = 0.0
+        self.key = arbitration_key(frame)  # once: it depends on the frame alone, as `duration` does
         self.due = None     # the wire end its deliveries are queued for (None: not queued)
-        self.later = None   # their `Later`
+        self.later = None   # their `LaterDelivery`
 
 
 class BurstCanBus(Iota):
@@ -196,7 +197,7 @@ class BurstCanBus(Iota):
         self.max_waiting = 0
         self.queued = 0
         self.refusals = [0] * self.stations
-        self._others = [[k for k in range(self.stations) if k != s] for s in range(self.stations)]
+        self._others = [tuple(k for k in range(self.stations) if k != s) for s in range(self.stations)]
         self._bit_steps = round(TIME_GRID / self.bitrate)
         self.report_due = self.load_period  # when the next load report fires (a run starts at 0)
         self.draining = False         # a burst is due when the frames scheduled have ended
@@ -228,9 +229,10 @@ class BurstCanBus(Iota):
             self.refusals[i] += 1
             return
         now = esprit_now()
-        self._settle(now)
-        held = _Frame(frame, i, now)
-        held.duration = frame_bits_of(frame, self.stuffing) / self.bitrate  # once: it depends on the frame alone
+        current = self.current
+        if current is not None and current.end <= now:
+            self._settle(now)
+        held = _Frame(frame, i, now, frame_bits_of(frame, self.stuffing) / self.bitrate)
         self.waiting[i].append(held)
         self.queued += 1
         if self.queued > self.max_waiting:
@@ -321,8 +323,9 @@ class BurstCanBus(Iota):
         held = self.current = self.waiting[station].pop(position)
         self.queued -= 1
         held.start = now
-        held.end = plus(now, held.duration)  # on the engine's time grid, as format 1's delivery firing is
-        self._deliver(held)
+        held.end = round((now + held.duration) * TIME_GRID) / TIME_GRID  # on the engine's grid (`plus`),
+        if held.due != held.end:                                          # as format 1's delivery firing is
+            self._deliver(held)
 
     def _rearbitrate(self, now: float) -> None:
         """A frame posted during the SOF bit: arbitration again, the frame that was winning back
@@ -340,18 +343,19 @@ class BurstCanBus(Iota):
 
     def _winner(self) -> tuple:
         """(station, position in its queue) of the frame that wins arbitration now."""
-        waiting = self.waiting
-        stations = [station for station, queue in enumerate(waiting) if queue]
-        if len(stations) == 1 and self.station_queue == "fifo":
-            return stations[0], 0
-        heads = []
-        for station in stations:
-            queue = waiting[station]
-            position = (0 if self.station_queue == "fifo"
-                        else min(range(len(queue)), key=lambda k: arbitration_key(queue[k].frame)))
-            heads.append((arbitration_key(queue[position].frame), station, position))
-        _, station, position = min(heads)  # equal ids (an error on a real bus): the lower station
-        return station, position
+        best = None
+        if self.station_queue == "fifo":
+            for station, queue in enumerate(self.waiting):
+                # the lowest arbitration field wins; equal ids (an error on a real bus): the lower station
+                if queue and (best is None or queue[0].key < best[0]):
+                    best = (queue[0].key, station)
+            return best[1], 0
+        for station, queue in enumerate(self.waiting):
+            if queue:
+                position = min(range(len(queue)), key=lambda k: queue[k].key)
+                if best is None or queue[position].key < best[0]:
+                    best = (queue[position].key, station, position)
+        return best[1], best[2]
 
     def _schedule(self) -> None:
         """Queue every waiting frame's deliveries at the wire end it will have if nothing more is
@@ -370,22 +374,19 @@ class BurstCanBus(Iota):
                 station, position = self._winner()
                 held = self.waiting[station].pop(position)
                 held.start = end
-                held.end = end = plus(end, held.duration)
-                self._deliver(held)
+                held.end = end = round((end + held.duration) * TIME_GRID) / TIME_GRID  # `plus`, inline
+                if held.due != end:
+                    self._deliver(held)
             self._last_end = end
         finally:
             self.waiting = saved
 
     def _deliver(self, held: _Frame) -> None:
         """Queue the frame for every other station at its wire end (again, if that moved)."""
-        if held.due == held.end:
-            return
         if held.later is not None:
             held.later.cancel()
         held.due = held.end
-        later = held.later = Later()
-        for k in self._others[held.station]:
-            deliver_later(self, "rx", k, held.frame, held.end, later)
+        held.later = deliver_later(self, "rx", self._others[held.station], held.frame, held.end)
 
     # How many frames station i's full queue refused: one report per load period (0.1 s if the
     # reports are off) however many came.

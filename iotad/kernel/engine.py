@@ -511,8 +511,9 @@ class Engine:
         self.executing = now
         path, channel, index, value, meta = item
         if meta.__class__ is LaterDelivery:  # a modelled wire's delivery (iotad.kernel.wire_delay)
-            if not meta.later.cancelled:
-                self._deliver(meta.slot, value, now, meta.checked)
+            if not meta.cancelled:
+                for slot, checked in meta.deliveries:
+                    self._deliver(slot, value, now, checked)
             return
         if path is None:
             entry = self.flat.external.get(channel)
