@@ -47,3 +47,20 @@ def test_the_same_file_run_in_virtual_time_writes_format_2_and_checks_clean(tmp_
     capsys.readouterr()
     assert main(["check", str(out)]) == 0
     assert "every node conforms to its spec, every message was delivered as sent" in capsys.readouterr().out
+
+
+def test_a_station_that_sends_bursts_in_real_time_puts_each_frame_on_the_bus(system_can_tier, tmp_path):
+    """A node's `can_tx_burst` (its frames of one instant in one output) goes on a real bus frame
+    by frame, in order: the bus's logger hears each, the echo answers each, and the check reads
+    the burst as a `can_tx` per frame and matches them."""
+    path = run_pingpong(system_can_tier, tmp_path, pinger="CanBurstPinger")
+    recording = read_recording(path)
+    own = [e for e in recording.trace("pinger", derived=False) if e["action"] == "can_tx_burst"]
+    assert len(own) >= 10 and all(len(e["value"]) == 4 for e in own)
+    logged = [f["id"] for f in wire_frames(recording, "can0")]
+    assert len([i for i in logged if i in (0x10, 0x11, 0x12, 0x13)]) >= 40
+    report = check_delivery(recording)
+    links = {link.label: link for link in report.links}
+    for label in ("can can0: pinger -> (bus)", "can can0: pinger -> echo"):
+        assert links[label].problems == 0 and links[label].delivered >= 40, label
+    check_of_a_real_run(path)
