@@ -1,6 +1,6 @@
 """Recording format 2: a virtual run of arm_can records its bus's frames in bursts, and `iotad
 check` still judges every frame: the honest recording passes, and a burst with one frame's data
-altered, one frame dropped, two frames swapped or one wire time shifted is caught. Replay of a
+altered, one frame dropped or duplicated, two frames swapped or one wire time shifted is caught. Replay of a
 node reproduces it from the format 2 file, and the same run in format 1 carries the same frames
 with the same ids, data and wire times (bench/burst_equivalence.py)."""
 import copy
@@ -74,6 +74,17 @@ def test_one_frame_dropped_from_a_burst_is_caught(recorded, tmp_path, capsys):
         del events[k]["value"][0]
         return events
     code, out = _check(_mutated(recorded, tmp_path, drop), capsys)
+    assert code == 1 and "arm_bus" in out
+
+
+def test_one_frame_duplicated_in_a_burst_is_caught(recorded, tmp_path, capsys):
+    def duplicate(events):
+        k = _bursts_with(events, 2)[3]
+        events[k] = copy.deepcopy(events[k])
+        value = events[k]["value"]
+        value.insert(1, copy.deepcopy(value[0]))
+        return events
+    code, out = _check(_mutated(recorded, tmp_path, duplicate), capsys)
     assert code == 1 and "arm_bus" in out
 
 
