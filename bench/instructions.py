@@ -43,10 +43,15 @@ def perf_available() -> str | None:
     return None
 
 
+RECORD = False  # --record: each run recorded (`-o`, written by a second process, counted too)
+
+
 def instructions(tree: Path, system: str, seconds: float) -> int:
-    """User-space instructions of `iotad run SYSTEM --virtual --until seconds --no-record` in `tree`."""
+    """User-space instructions of `iotad run SYSTEM --virtual --until seconds --no-record` in `tree`
+    (with `--record`: `-o FILE --force` instead; perf counts the writer process too)."""
+    recording = ["-o", str(Path(tempfile.gettempdir()) / f"iotad-instructions-{os.getpid()}.mcap"), "--force"]
     command = ["perf", "stat", "-x,", "-e", "instructions:u", sys.executable, "-m", "iotad", "run", system,
-               "--virtual", "--until", repr(seconds), "--no-record"]
+               "--virtual", "--until", repr(seconds), *(recording if RECORD else ["--no-record"])]
     # `python -m iotad` from the tree's root imports the tree's iotad, whatever the venv installed;
     # string hashes fixed, so that sets and dicts of names take the same steps in every run
     done = subprocess.run(command, cwd=tree, capture_output=True, text=True,
@@ -89,7 +94,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--world", action="append", choices=sorted(WORLDS),
                         help="a world to run (repeatable; default: conveyor and buggy)")
     parser.add_argument("--seconds", type=float, default=10.0, help="virtual seconds per run (default: 10)")
+    parser.add_argument("--record", action="store_true",
+                        help="record each run (iotad run -o, its writer process counted too), not --no-record")
     args = parser.parse_args(argv)
+    global RECORD
+    RECORD = args.record
     if not args.seconds > START_ONLY:
         parser.error(f"--seconds must be more than {START_ONLY}")
     why = perf_available()
@@ -100,7 +109,7 @@ def main(argv: list[str] | None = None) -> int:
     with tempfile.TemporaryDirectory(prefix="iotad-bench-") as folder:
         base = extract(args.base, Path(folder))
         print(f"user-space instructions of {args.seconds:g} s of virtual time, start-up taken off "
-              f"(`iotad run --virtual --no-record`); base {args.base}, tree {ROOT}")
+              f"(`iotad run --virtual {'-o FILE' if RECORD else '--no-record'}`); base {args.base}, tree {ROOT}")
         print(f"  {'world':10} {'base M/s':>10} {'tree M/s':>10} {'tree/base':>10}")
         for world in worlds:
             counts = {name: run_instructions(tree, WORLDS[world], args.seconds) / args.seconds / 1e6

@@ -58,6 +58,7 @@ from kernel import ping_pong  # noqa: E402  (bench/kernel.py: the same trivial s
 # time is then not counted: the run "recorded in the engine process" holds the whole cost)
 CLOCK = time.perf_counter
 
+RECORDING_FORMAT = 2  # --format: how the buses are modelled and recorded (1: a firing and an event per frame)
 GOALS = {"buggy": 250.0, "conveyor": 20.0}  # x real time, recorded
 PHYSICS_GOALS = {"conveyor": 2.0}  # the recorded run over its physics-only time, at most
 
@@ -68,7 +69,7 @@ def _run(system, seconds: float, record: Path | None = None, timed=None,
     `separate`: recorded by a writer process (its start-up not counted, as `iotad run` overlaps
     it with building the system; waiting for it to write the last events is)."""
     writer = RecordingProcess() if record is not None and separate else None
-    root = compose(system)
+    root = compose(system, RECORDING_FORMAT)
     if timed is not None:
         timed(root)
     events = [0]
@@ -249,7 +250,11 @@ def main() -> int:
     parser.add_argument("--repeat", type=int, default=3, help="runs of each kind, the best taken (default 3)")
     parser.add_argument("--cpu", action="store_true",
                         help="time the runs in this process's CPU time, not the wall clock's (a shared machine)")
+    parser.add_argument("--format", type=int, choices=(1, 2), default=2,
+                        help="recording format: 2 (default) CAN frames in bursts, 1 a firing and an event per frame")
     args = parser.parse_args()
+    global RECORDING_FORMAT
+    RECORDING_FORMAT = args.format
     if args.seconds <= 0 or args.repeat < 1:
         parser.error("--seconds must be positive and --repeat at least 1")
     if args.cpu:

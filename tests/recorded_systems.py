@@ -57,9 +57,10 @@ def mutate(source, target, node, change, extra=()):
     and the messages `extra` ((topic, t, value) each) added."""
     recording = read_recording(source)
     topic = f"iota/{recording.system}/{node}/@trace"
-    events = [m.value for m in recording.messages if m.topic == topic]
+    # (a format 2 burst's per-frame events are the reader's, not the file's: the copy holds the burst)
+    events = [m.value for m in recording.messages if m.topic == topic and not m.derived]
     events = sorted(change(events), key=lambda e: e["t"])
-    others = [m for m in recording.messages if m.topic != topic]
+    others = [m for m in recording.messages if m.topic != topic and not m.derived]
     others += [RecordedMessage(where, int(t * 1e9), int(t * 1e9), k, packb(value))
                for k, (where, t, value) in enumerate(extra)]
     mutated = [RecordedMessage(topic, int(e["t"] * 1e9), int(e["t"] * 1e9), k, packb(e)) for k, e in enumerate(events)]

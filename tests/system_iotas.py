@@ -2,7 +2,8 @@
 ping-pong system over a CAN bus that many of them run."""
 from pathlib import Path
 
-from iotad import Float, Input, Int, Iota, Output, Param
+from iotad import Float, Input, Int, Internal, Iota, Output, Param
+from iotad.can.burst_bus import CAN_FRAMES
 from iotad.can.frame import CAN_FRAME, Frame
 
 from channels.messages import MODE
@@ -137,6 +138,47 @@ class CanPinger(Iota):
     @can_rx.input
     def heard(self, frame):
         self.received.append(Frame.from_value(frame))
+
+
+class _CanTicker(Iota):
+    """Every `period`, four frames (0x13, 0x10, 0x12, 0x11, with a counter) to send at once."""
+    period = Param(0.01)
+    tick = Internal(switching=0)
+    can_rx = Input(CAN_FRAME, switching=0)
+
+    def init(self):
+        self.n = 0
+        self.outbox = []
+        self.received = []
+
+    @tick.action(after="period")
+    def ticked(self):
+        self.outbox += [Frame(ident, bytes([self.n % 256, ident])).to_value() for ident in (0x13, 0x10, 0x12, 0x11)]
+        self.n += 1
+
+    @can_rx.input
+    def heard(self, frame):
+        self.received.append(Frame.from_value(frame))
+
+
+class CanRowPinger(_CanTicker):
+    """A CAN station that sends four frames at once every `period`, one `can_tx` firing each."""
+    can_tx = Output(CAN_FRAME, switching=0)
+
+    @can_tx.action(value=lambda self: self.outbox[0], when=lambda self: bool(self.outbox), after=0)
+    def sent(self):
+        self.outbox.pop(0)
+
+
+class CanBurstPinger(_CanTicker):
+    """CanRowPinger's frames, the four of an instant in one `can_tx_burst` output (recording
+    format 2's bus takes them on `tx_burst[k]`); its `can_tx` sends nothing."""
+    can_tx = Output(CAN_FRAME, switching=0)
+    can_tx_burst = Output(CAN_FRAMES, switching=0)
+
+    @can_tx_burst.action(value=lambda self: self.outbox, when=lambda self: bool(self.outbox), after=0)
+    def sent_all(self):
+        self.outbox = []
 
 
 class CanTwinPinger(Iota):

@@ -63,6 +63,8 @@ def frame_bits_of(frame, stuffing: str = "exact") -> int:
 
 
 class CanBus(Iota):
+    recording_format = 1  # a recording of a system with this bus is format 1 (iotad.recording.mcap_format)
+
     stations = Param(2)
     bitrate = Param(1_000_000)
     stuffing = Param("exact")        # "exact", "worst" or "none"

@@ -23,6 +23,7 @@ from iotad.kernel.instant import running
 from iotad.kernel.model import ALL_STATE, ANY, INDEX, Action, Channel, is_by_state
 from iotad.kernel.policy import Eager
 from iotad.kernel.types import BadValue, same_checks
+from iotad.kernel.wire_delay import LaterDelivery
 
 INF = math.inf
 STOP = object()  # post this to a real clock's inbox to make `run` return
@@ -509,6 +510,11 @@ class Engine:
     def _external_input(self, item: tuple, now: float) -> None:
         self.executing = now
         path, channel, index, value, meta = item
+        if meta.__class__ is LaterDelivery:  # a modelled wire's delivery (iotad.kernel.wire_delay)
+            if not meta.cancelled:
+                for slot, checked in meta.deliveries:
+                    self._deliver(slot, value, now, checked)
+            return
         if path is None:
             entry = self.flat.external.get(channel)
             if entry is None or entry[0] != "input":

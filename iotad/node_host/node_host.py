@@ -23,7 +23,7 @@ import zenoh
 from iotad.node_host import wire
 from iotad.kernel.compose import Composite, flatten
 from iotad.kernel.engine import INPUT_REFUSALS, Engine
-from iotad.node_host.can_port import CAN_TX, CanPort
+from iotad.node_host.can_port import CAN_TX, CAN_TX_BURST, CanPort
 from iotad.node_host.channel_table import ChannelTable, build, plain_params
 from iotad.node_host.host_clock import HostClock, RawInput
 from iotad.node_host.node_config import ConfigError, NodeConfig
@@ -128,10 +128,12 @@ class NodeHost:
         self.error: BaseException | None = None
         self.can: CanPort | None = None
         self._can_source = None  # the engine (path, channel, index) of the root's can_tx
+        self._can_burst_source = None  # ... of its can_tx_burst: an instant's frames in one output
         if config.can is not None:
             if hasattr(root, "can_bus_name"):  # a station that names its bus in what it reports
                 root.can_bus_name = config.can["bus"]
             self._can_source = next((p.source for p in self.table.outputs if p.name == CAN_TX), None)
+            self._can_burst_source = next((p.source for p in self.table.outputs if p.name == CAN_TX_BURST), None)
             listen_only = bool(config.can.get("listen_only"))  # a bus logger: it hears, never sends
             if (self._can_source is None and not listen_only) or not any(p.name == "can_rx" for p in self.table.inputs):
                 raise ConfigError(f"{config.path}: sits on CAN bus {config.can['bus']!r} but has no "
@@ -316,6 +318,12 @@ class NodeHost:
             problem = self.can.send(event["value"])
             if problem is not None:
                 self._report(event["t"], CAN_TX, None, "can_send_failed", problem)
+        elif self.can is not None and (event["iota"], event["action"], event["index"]) == self._can_burst_source:
+            # an instant's frames as one output (iotad.can.burst_bus): on a real bus, one by one in order
+            for value in event["value"] or ():
+                problem = self.can.send(value)
+                if problem is not None:
+                    self._report(event["t"], CAN_TX_BURST, None, "can_send_failed", problem)
         port[0].put(wire.encode(event["value"]), attachment=wire.encode_attachment(seq, send_ns))
         event["key"], event["seq"], event["send_ns"] = port[2], seq, send_ns
 

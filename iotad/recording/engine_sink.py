@@ -12,7 +12,7 @@ from typing import Any, Iterable
 import msgpack
 
 from iotad.node_host import wire
-from iotad.recording.mcap_format import FORMAT, json_default
+from iotad.recording.mcap_format import FORMAT_VERSION, format_name, json_default
 from iotad.recording.mcap_sink import McapSink, schema_for_topic
 
 _EVENT_KEYS = ("t", "iota", "action", "index", "kind", "value")  # an engine event's, in its order
@@ -40,7 +40,9 @@ def recording_header(root: Any, system: str | None = None, *, time_unit: float =
              for leaf in flat.leaves}
     name = system or root.instance_name
     bindings = [[str(s), str(d)] for s, d in flat.bindings]
-    metadata = {"format": FORMAT, "system": name, "time_unit": time_unit, "origin_ns": origin_ns,
+    # a bus of format 1 (`CanBus`, one event per frame and receiver) makes the recording format 1
+    version = min([getattr(leaf.iota, "recording_format", FORMAT_VERSION) for leaf in flat.leaves] + [FORMAT_VERSION])
+    metadata = {"format": format_name(version), "system": name, "time_unit": time_unit, "origin_ns": origin_ns,
                 "clock": "virtual", "writer": "EngineRecorder", "root": root.instance_name,
                 "nodes": list(specs), "bindings": bindings, "composite": isinstance(root, Composite),
                 **_policy_info(policy)}

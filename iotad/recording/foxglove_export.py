@@ -4,12 +4,15 @@ Every message becomes a JSON object: trace events and struct values already are;
 (an enum name such as "COMMIT", a number, nothing) is wrapped as `{"value": ...}` and its JSON
 Schema wrapped the same way, because Foxglove shows fields of objects. Beside them, the robot in
 3D (`iotad.recording.foxglove_scene`): the arm's model, frames and joint states, Buggy's arena,
-path and pose, in Foxglove's own schemas.
+path and pose, in Foxglove's own schemas. A format 2 bus's bursts go out as they are and, frame by
+frame, on format 1's topics (its `frames` log and `rx/<k>`), as the reader expands them.
 """
 from __future__ import annotations
 
 import json
 from pathlib import Path
+
+from mcap.records import Channel as McapChannel
 
 from iotad.node_host import wire
 from iotad.recording.foxglove_scene import SceneWriter
@@ -45,7 +48,11 @@ def export_json(recording: Recording, output: str | Path, extra_metadata: dict[s
         for message in recording.messages:
             entry = ids.get(message.topic)
             if entry is None:
-                channel = by_topic[message.topic]
+                channel = by_topic.get(message.topic)
+                if channel is None:  # a frame read out of a format 2 burst: its format 1 topic, for Foxglove
+                    channel = by_topic[message.topic] = McapChannel(
+                        id=0, topic=message.topic, message_encoding="json", schema_id=0,
+                        metadata={"derived": "iotad.recording.bursts"})
                 stored = recording.schemas.get(channel.schema_id)
                 try:
                     schema = json.loads(stored.data) if stored is not None else {}

@@ -19,6 +19,11 @@ A recording carries what replay and check need and nothing else must be found:
   `@launcher` or `@heartbeat` payload that was no msgpack map. None of them is written on its
   own key, where every reader takes what it finds for an event.
 
+Metadata `iotad.recording` states the format version (`format`: "iotad-mcap/2"; a file without
+it is format 1). In format 2 a modelled CAN bus's `burst` output holds the frames it carried
+(`iotad.can.burst_bus`) where format 1 had an `rx` output per frame and receiver and a `frames`
+log per frame; readers expand each burst into those events (`iotad.recording.bursts`).
+
 Every message on a `@trace` channel is one trace event, whether the node sent it alone or in a
 burst (the recorder splits bursts). Writing: `mcap_sink`, `engine_sink`; reading: `mcap_reader`;
 file names: `iotad.launcher.run.recording_paths`.
@@ -38,7 +43,28 @@ PROFILE = "iotad"
 GAP_TOPIC = "@recorder/gaps"
 MALFORMED_TOPIC = "@recorder/malformed"  # what a recorder got on @trace that is no event (nor burst), etc.
 MERGE_GAP_TOPIC = "@merge/gaps"  # in a merged recording (`iotad merge`): where a host's events are missing
-FORMAT = "iotad-mcap/1"
+# The recording's format version, in its `iotad.recording` metadata ("format"). Format 2: a
+# modelled CAN bus records the frames it carried in bursts (`iotad.can.burst_bus`), which readers
+# expand into format 1's per-frame events (`iotad.recording.bursts`). A file without the field
+# is format 1.
+FORMAT_VERSION = 2
+FORMAT_PREFIX = "iotad-mcap/"
+FORMAT = f"{FORMAT_PREFIX}{FORMAT_VERSION}"
+
+
+def format_name(version: int) -> str:
+    return f"{FORMAT_PREFIX}{version}"
+
+
+def format_version(info: dict) -> int:
+    """The format version an `iotad.recording` metadata map states (1 where it states none)."""
+    stated = info.get("format")
+    if isinstance(stated, str) and stated.startswith(FORMAT_PREFIX):
+        try:
+            return int(stated[len(FORMAT_PREFIX):])
+        except ValueError:
+            return 1
+    return 1
 SET_METADATA = "iotad.split_set"  # in the set file of a split recording: its member files
 
 # Every message on a `@trace` key is one event in the trace JSONL shape (docs/design.md section 5); a

@@ -25,7 +25,7 @@ from mcap.writer import MCAP0_MAGIC as MCAP_MAGIC
 
 from iotad.node_host import wire
 from iotad.recording.mcap_format import (EXPORTED, GAP_TOPIC, MALFORMED_TOPIC, RUN_END, RUN_ERROR, SET_METADATA,
-                                         RecordingError, packb, trace_event_problem, unpackb)
+                                         RecordingError, format_version, packb, trace_event_problem, unpackb)
 
 
 @dataclass(slots=True)  # a recording holds a million of them: ~100 bytes each saved
@@ -35,6 +35,9 @@ class RecordedMessage:
     publish_time: int
     sequence: int
     data: bytes
+    # made by the reader, not in the file: a format 2 burst's per-frame events (iotad.recording.bursts);
+    # what copies a recording (merge, recover) leaves them out
+    derived: bool = False
 
     @property
     def value(self) -> Any:
@@ -200,12 +203,21 @@ class Recording:
                 found.add(parsed[1])
         return sorted(found)
 
-    def trace(self, node: str | None = None, starts: bool = False) -> list[dict]:
+    @property
+    def format_version(self) -> int:
+        """The recording format it states (`iotad.recording` metadata "format"); 1 where it states none."""
+        return format_version(self.info)
+
+    def trace(self, node: str | None = None, starts: bool = False, derived: bool = True) -> list[dict]:
         """Trace events (from `@trace` keys) of one node or of all, in recorded order; the
-        engine-start records (kind `start`) only with `starts`."""
+        engine-start records (kind `start`) only with `starts`. A format 2 bus's bursts come with
+        the per-frame events they hold (`iotad.recording.bursts`) unless `derived` is False: a
+        node's own check and replay take its events as it fired them."""
         out = []
         for message in self.messages:
             if not message.topic.endswith("/" + wire.TRACE):
+                continue
+            if not derived and message.derived:
                 continue
             parsed = wire.parse_key(message.topic)
             if parsed is None or (node is not None and parsed[1] != node):
@@ -219,6 +231,8 @@ class Recording:
                 if not starts and event.get("kind") == wire.START_KIND:
                     continue
                 event.setdefault("node", parsed[1])
+                if message.derived:
+                    event["derived"] = True  # read out of a burst (iotad.recording.bursts)
                 # the same few strings are in every event: one copy of each, not one per event (a
                 # long trace holds hundreds of thousands of events: a fifth of their memory)
                 event["kind"], event["action"] = sys.intern(event["kind"]), sys.intern(event["action"])
@@ -238,7 +252,8 @@ class Recording:
         minus the one offset every start record of the run shares), marked `"from": "launcher"`,
         and put after the events of the processes before it (before the first event recorded
         after the new process was spawned)."""
-        events = self.trace(node, starts=True)
+        # the node's events as it fired them: a format 2 bus's bursts, not the frames read out of them
+        events = [e for e in self.trace(node, starts=True) if not e.get("derived")]
         for gap in self.trace_gaps(node):
             # the first event heard after the gap carries it: a checker stops there (positions
             # are those of `trace`, before the launcher's start records go in below)
@@ -272,7 +287,8 @@ class Recording:
         behind), each placed in the trace. In trace order: {"position": the index, in
         `trace(node, starts=True)`, of the first event heard after the gap, "missing": how many
         events it lacks, "from_t" / "to_t": the `t` of the events heard either side of it,
-        "log_ns": when the recorder noticed it, "why": what the recording says of it}. A merged
+        "log_ns": when the recorder noticed it, "why": what the recording says of it}; positions
+        count the node's own events, not those read out of a format 2 burst. A merged
         recording keeps only the gaps that no host's file filled."""
         noted = []
         for message in self.messages:
@@ -293,7 +309,7 @@ class Recording:
         keys = {key for _, key, _ in noted}
         on_key: dict[str, list[RecordedMessage]] = {key: [] for key in keys}
         for message in self.messages:
-            if message.topic in keys:
+            if message.topic in keys and not message.derived:  # positions are in the node's own events
                 on_key[message.topic].append(message)
         # per key: where its sequence numbers jump, by the number jumped to (MCAP keeps 32 bits)
         jumps_to: dict[str, dict[int, list[int]]] = {}
@@ -414,6 +430,9 @@ def read_recording(path: str | Path, whole_set: bool = True, salvage: bool = Fal
     if recording.damaged and not salvage:
         raise RecordingError(f"{path}: damaged: {recording.damaged}; its data cannot be trusted. "
                              f"'iotad recover {path}' keeps what comes before the damage")
+    if recording.format_version >= 2:
+        from iotad.recording.bursts import expand
+        expand(recording)  # a burst's frames read as format 1's events, each frame on its own
     return recording
 
 

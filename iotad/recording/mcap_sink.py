@@ -217,6 +217,8 @@ def copy_recording(recording: Recording, output: str | Path, convert: Callable[[
             sink.add_metadata(name, data)
         count = 0
         for message in recording.messages:
+            if message.derived:  # a burst's frames as the reader expanded them: the burst is copied
+                continue
             channel_id = ids.get(message.topic)
             data = message.data
             if channel_id is None:

@@ -195,6 +195,8 @@ class _Join:
             seen: Counter = Counter()
             to_hub = source.to_hub
             for position, message in enumerate(source.recording.messages):
+                if message.derived:  # a burst's frames as the reader expanded them: the burst is merged
+                    continue
                 if message.topic == GAP_TOPIC:
                     try:
                         gap = message.value

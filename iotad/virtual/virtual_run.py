@@ -37,6 +37,7 @@ class VirtualOptions:
     inputs: str | None = None         # an input script (JSONL, times in spec units)
     plain: bool = False               # no progress line rewritten in place on a terminal
     strict: bool = False              # any violation ends the run non-zero (as [system] strict = true)
+    recording_format: int = 2         # 1: each CAN frame as before bursts (docs/design.md, section 5)
 
 
 def run_virtual(system: System, args: VirtualOptions, second_process: bool = True) -> int:
@@ -78,7 +79,7 @@ def _run(system: System, args: VirtualOptions, writer) -> int:
 
     inputs = _read_inputs(args.inputs) if args.inputs else []
     try:
-        root = compose(system)
+        root = compose(system, args.recording_format)
     except Exception as exc:  # noqa: BLE001 - a node that fails to build: the user's message
         raise VirtualRunError(f"{system.file}: cannot compose the system: {type(exc).__name__}: {exc}") from None
     # Every input's node is found before a recording is opened (or, with --force, replaced).

@@ -159,7 +159,7 @@ class CanMotor(Iota):
             self._reset()
 
     def final_can_frames(self) -> list:
-        """The shutdown hook of the node host (iotad/host/node_host.py): the frames it sends on the
+        """The shutdown hook of the node host (iotad/node_host/node_host.py): the frames it sends on the
         bus after the engine stopped, before the bus closes: Estop to every axis."""
         frames = []
         for cls, links in self.families:

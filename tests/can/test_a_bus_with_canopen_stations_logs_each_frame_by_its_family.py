@@ -10,6 +10,7 @@ from iotad.can import canopen as co
 from iotad.can import odrive
 from iotad.can.canopen_frame_log import (CANOPEN_BUS_FRAME, CANOPEN_MESSAGES, CanopenBusLogger, CanopenCanBus,
                                          canopen_classify)
+from iotad.can.burst_bus import BurstCanBus, BurstCanopenCanBus
 from iotad.can.frame import Frame
 from iotad.can.frame_log import CAN_BUS_FRAME, BusLogger
 from iotad.can.virtual_bus import CanBus
@@ -54,20 +55,28 @@ def test_a_canopen_node_ids_frames_are_odrive_frames_where_the_bus_has_no_such_d
 
 
 def bus_log(bus, sent):
+    """The bus's log of the frames it carried: its `frames` outputs (format 1), or the frames of
+    its bursts (format 2), as records of a frame's fields and its direction and message."""
     engine = Engine(bus)
     for t, (station, frame) in enumerate(sent):
         engine.post(None, "tx", frame.to_value(), index=station, t=t * 1e-3)
-    return [e["value"] for e in engine.run(until=0.1) if e["action"] == "frames"]
+    trace = engine.run(until=0.1)
+    fields = ("station", "id", "extended", "rtr", "dlc", "data", "direction", "message")
+    return [{k: f[k] for k in fields} for e in trace if e["kind"] == "output"
+            for f in ([e["value"]] if e["action"] == "frames" else e["value"] if e["action"] == "burst" else [])]
 
 
-def test_the_modelled_bus_logs_canopen_and_odrive_frames_by_family_in_bus_order():
+@pytest.mark.parametrize("canopen_bus, plain_bus", [(CanopenCanBus, CanBus), (BurstCanopenCanBus, BurstCanBus)],
+                         ids=["format1", "format2"])
+def test_the_modelled_bus_logs_canopen_and_odrive_frames_by_family_in_bus_order(canopen_bus, plain_bus):
     sent = [(0, frame) for frame, _, _ in FAMILIES]
-    log = bus_log(CanopenCanBus("bus", stations=2, load_period=0, canopen=sorted(DRIVES)), sent)
+    log = bus_log(canopen_bus("bus", stations=2, load_period=0, canopen=sorted(DRIVES)), sent)
     assert [(r["direction"], r["message"]) for r in log] == [(d, m) for _, d, m in FAMILIES]
-    assert [Frame.from_value(r) for r in log] == [frame for _, frame in sent]
+    assert [Frame.from_value({k: r[k] for k in ("id", "extended", "rtr", "dlc", "data")}) for r in log] \
+        == [frame for _, frame in sent]
     assert {r["station"] for r in log} == {0}
     # the plain CanBus names the same frames as CAN Simple: SYNC is Get_Version's id there, too short
-    plain = bus_log(CanBus("bus", stations=2, load_period=0), sent[:1])
+    plain = bus_log(plain_bus("bus", stations=2, load_period=0), sent[:1])
     assert (plain[0]["id"], plain[0]["message"]) == (0x080, "MALFORMED")
 
 
@@ -99,9 +108,12 @@ def test_iotad_run_picks_the_log_by_the_stations_params():
     assert logger.source["ref"] == CANOPEN_LOGGER_REF and logger.params["canopen"] == [1, 2, 3, 4, 5, 6]
     assert logger.channels["frames"].type is CANOPEN_BUS_FRAME  # the node is checked as it will run
     bus = compose(canopen).components["arm_bus"]
+    assert type(bus) is BurstCanopenCanBus and bus.canopen == [1, 2, 3, 4, 5, 6]  # format 2
+    bus = compose(canopen, 1).components["arm_bus"]
     assert type(bus) is CanopenCanBus and bus.canopen == [1, 2, 3, 4, 5, 6]
     # a bus of ODrives only: the plain logger and model, their params as before
     odrives = load_system(ROOT / "examples" / "arm_can.toml")
     assert odrives.nodes["arm_bus"].source["ref"] == LOGGER_REF and "canopen" not in odrives.nodes["arm_bus"].params
-    bus = compose(odrives).components["arm_bus"]
+    assert type(compose(odrives).components["arm_bus"]) is BurstCanBus  # format 2
+    bus = compose(odrives, 1).components["arm_bus"]
     assert type(bus) is CanBus and BusLogger.frames.type is CAN_BUS_FRAME

@@ -53,7 +53,8 @@ def test_a_virtual_run_has_the_bus_model_and_no_logger_node(tmp_path):
     system = load_system(write(tmp_path))
     root = compose(system)
     assert sorted(root.components) == ["can0", "echo", "pinger"]
-    assert type(root.components["can0"]).__name__ == "CanBus"
+    assert type(root.components["can0"]).__name__ == "BurstCanBus"  # recording format 2
+    assert type(compose(system, 1).components["can0"]).__name__ == "CanBus"  # format 1
     out = tmp_path / "v.mcap"
     assert main(["run", str(tmp_path / "pingpong.toml"), "--virtual", "--until", "0.05", "-o", str(out)]) == 0
     records = [m.value for m in read_recording(out).messages if m.topic == "iota/pingpong/can0/frames"]

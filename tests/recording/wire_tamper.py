@@ -21,7 +21,8 @@ def rewrite(source, target, change):
                 schema_of[message.topic] = (schema.name, json.loads(schema.data)) if schema else ("any", {})
             except (TypeError, ValueError):
                 schema_of[message.topic] = (schema.name, {})
-    messages = change(list(recording.messages))
+    # a format 2 burst's per-frame messages are the reader's, not the file's: the copy holds the burst
+    messages = change([m for m in recording.messages if not m.derived])
     sink = McapSink(target)
     for attachment in recording.attachments:
         sink.attach(attachment.name, attachment.media_type, attachment.data)

@@ -145,8 +145,10 @@ def run(args: argparse.Namespace) -> int:
     chosen = "" if policy in (None, "eager") else \
         f"   policy: {policy}" + (f" (seed {info['seed']})" if "seed" in info else "")
     print(f"  system: {recording.system or '?'}   clock: {info.get('clock', '?')}   writer: {info.get('writer', '?')}"
-          f"{chosen}")
-    print(f"  duration: {recording.duration():.3f} s   messages: {len(recording.messages)}   "
+          f"{chosen}   format: {recording.format_version}")
+    derived = sum(1 for m in recording.messages if m.derived)
+    print(f"  duration: {recording.duration():.3f} s   messages: {len(recording.messages) - derived}"
+          + (f" (and {derived} read out of bursts)" if derived else "") + "   "
           f"attachments: {', '.join(a.name for a in recording.attachments) or 'none'}")
     specs = recording.specs
     trace = recording.trace()  # decoded once: every section below reads it

@@ -76,6 +76,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--agent-timeout", type=positive_float, default=None, metavar="SECONDS",
                         help="how long to wait for the other hosts' agents (default: the system's start_timeout)")
     parser.add_argument("--no-record", action="store_true", help="run without a recorder (no recording)")
+    parser.add_argument("--format", type=int, choices=(1, 2), default=2, dest="recording_format",
+                        help="with --virtual: the recording's format; 2 (default) records each CAN bus's frames "
+                             "in bursts, 1 as an event per frame and receiver (iotad.can.virtual_bus.CanBus)")
     parser.add_argument("--insecure", action="store_true",
                         help="no access control: any process reaching the hub may publish on any key "
                              "(default: each node authenticated, writing only its outputs; docs/access-control.md). "
@@ -164,7 +167,7 @@ def virtual(system, args: argparse.Namespace) -> int:
             raise CliError(f"--{option.replace('_', '-')} is for processes over zenoh, not --virtual")
     options = VirtualOptions(until=args.until, seed=args.seed, record_to=args.record_to, force=args.force,
                              no_record=args.no_record, inputs=args.inputs, plain=args.plain,
-                             strict=args.strict)
+                             strict=args.strict, recording_format=args.recording_format)
     try:
         return run_virtual(system, options)
     except VirtualRunError as exc:

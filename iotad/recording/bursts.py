@@ -1,0 +1,148 @@
+"""Bursts of recording format 2, read as format 1's per-frame events: each frame of a modelled
+bus's `burst` becomes the bus's `frames` log entry and its `rx[k]` output for every other station,
+at the frame's wire end, as the format 1 bus (`iotad.can.virtual_bus.CanBus`) recorded them.
+
+A station's `can_tx_burst` (its frames of one instant in one output) becomes a `can_tx` output
+per frame, at its time, and the bus's `tx_burst[k]` input that took it a `tx[k]` input per frame. `expand(recording)` adds those events to a format 2 recording as it is read (`mcap_reader`), as
+messages marked `derived`: the delivery check, candump, exports and plots see every frame as
+before, while a node's own check and replay (`Recording.process_trace`) see the bus's events as
+it fired them (its bursts). `wire_frames` gives a bus's frames with their wire times from a
+recording of either format, for comparisons of the two.
+"""
+from __future__ import annotations
+
+from typing import Any
+
+from iotad.node_host import wire
+from iotad.recording.mcap_format import packb, unpackb
+
+BURST = "burst"
+CAN_TX_BURST = "can_tx_burst"  # a station's frames of one instant, one output (iotad.can.burst_bus)
+TX_BURST = "tx_burst"  # the bus's input they arrive on
+_FRAME_FIELDS = ("id", "extended", "rtr", "dlc", "data")
+_LOG_FIELDS = ("duration", "station", "id", "extended", "rtr", "dlc", "data", "direction", "message")
+
+
+def is_burst(event: Any) -> bool:
+    return (isinstance(event, dict) and event.get("action") == BURST and event.get("kind") == "output"
+            and isinstance(event.get("value"), list))
+
+
+def frame_events(event: dict, stations: int) -> list[dict]:
+    """The format 1 events of a burst event: per frame, its `frames` log entry (none where the
+    bus keeps no log), then its `rx[k]` for each other station, at its wire end."""
+    out = []
+    iota = event.get("iota")
+    for frame in event["value"]:
+        if not isinstance(frame, dict):
+            continue
+        end = frame.get("end")
+        if frame.get("message") is not None:  # None: a bus without a log ([[can]] log = false)
+            out.append({"t": end, "iota": iota, "action": "frames", "index": None, "kind": "output",
+                        "value": {k: frame.get(k) for k in _LOG_FIELDS}})
+        value = {k: frame.get(k) for k in _FRAME_FIELDS}
+        for k in range(stations):
+            if k != frame.get("station"):
+                out.append({"t": end, "iota": iota, "action": "rx", "index": k, "kind": "output", "value": value})
+    return out
+
+
+def is_station_burst(event: Any) -> bool:
+    """A station's `can_tx_burst` output, or the bus's `tx_burst[k]` input that took it."""
+    return (isinstance(event, dict) and isinstance(event.get("value"), list)
+            and (event.get("action"), event.get("kind")) in ((CAN_TX_BURST, "output"), (TX_BURST, "input")))
+
+
+def sent_events(event: dict) -> list[dict]:
+    """The format 1 events of a station's `can_tx_burst` output (a `can_tx` output per frame) or
+    of the bus's `tx_burst[k]` input (a `tx[k]` input per frame), in order, at the burst's time."""
+    action, kind = ("can_tx", "output") if event["action"] == CAN_TX_BURST else ("tx", "input")
+    return [{"t": event["t"], "iota": event.get("iota"), "action": action, "index": event.get("index"), "kind": kind,
+             "value": frame} for frame in event["value"] if isinstance(frame, dict)]
+
+
+def _stations(recording: Any, node: str) -> int:
+    spec = recording.specs.get(node) or {}
+    params = spec.get("params") if isinstance(spec, dict) else None
+    stations = params.get("stations") if isinstance(params, dict) else None
+    return stations if isinstance(stations, int) and stations > 0 else 2
+
+
+def expand(recording: Any) -> int:
+    """Add the per-frame events of every burst in `recording` (format 2) to its messages, each
+    marked `derived`, in log-time order; returns how many frames it expanded."""
+    from iotad.recording.mcap_reader import RecordedMessage
+    markers = (packb(BURST), packb(CAN_TX_BURST), packb(TX_BURST))  # (cheap tests before decoding)
+    derived: list = []
+    sequences: dict[str, int] = {}
+    stations: dict[str, int] = {}
+    frames = 0
+    for message in recording.messages:
+        if not message.topic.endswith("/" + wire.TRACE) or not any(m in message.data for m in markers):
+            continue
+        try:
+            event = unpackb(message.data)
+        except Exception:  # noqa: BLE001 - damage is the reader's to report, not the expansion's
+            continue
+        parsed = wire.parse_key(message.topic)
+        if not parsed:
+            continue
+        system, node = parsed[0], parsed[1]
+        if is_burst(event):
+            if node not in stations:
+                stations[node] = _stations(recording, node)
+            events = frame_events(event, stations[node])
+        elif is_station_burst(event):
+            events = sent_events(event)
+        else:
+            continue
+        origin = message.log_time - round(float(event["t"]) * _unit(recording) * 1e9)
+        for derived_event in events:
+            t = derived_event["t"]
+            if not isinstance(t, (int, float)):
+                continue
+            ns = origin + round(t * _unit(recording) * 1e9)
+            derived.append(_message(RecordedMessage, message.topic, ns, sequences, dict(derived_event, iota=event.get("iota"))))
+            if derived_event["kind"] == "output":  # an output is on its channel's key too
+                key = wire.channel_key(system, node, derived_event["action"], derived_event["index"])
+                derived.append(_message(RecordedMessage, key, ns, sequences, derived_event["value"]))
+            if derived_event["action"] == "frames":
+                frames += 1
+    if derived:
+        merged = [(m.log_time, 0, k, m) for k, m in enumerate(derived)]
+        merged += [(m.log_time, 1, k, m) for k, m in enumerate(recording.messages)]
+        merged.sort(key=lambda item: item[:3])
+        recording.messages = [item[3] for item in merged]
+    return frames
+
+
+def _unit(recording: Any) -> float:
+    cached = recording.__dict__.get("_burst_unit")
+    if cached is None:
+        cached = recording.__dict__["_burst_unit"] = recording.time_unit
+    return cached
+
+
+def _message(cls: Any, topic: str, ns: int, sequences: dict[str, int], value: Any) -> Any:
+    sequence = sequences.get(topic, 0)
+    sequences[topic] = sequence + 1
+    message = cls(topic, ns, ns, sequence, packb(value))
+    message.derived = True
+    return message
+
+
+def wire_frames(recording: Any, bus: str) -> list[dict]:
+    """Every frame bus `bus` carried, in the order they ended: station, id, extended, rtr, dlc,
+    data and wire end (`end`) and start (`start`), from the bursts of a format 2 recording or
+    the `frames` log of a format 1 one (start = end - duration)."""
+    out = []
+    for event in recording.trace(bus, derived=False):
+        if is_burst(event):
+            for frame in event["value"]:
+                out.append({k: frame[k] for k in ("station", "id", "extended", "rtr", "dlc", "data", "start", "end")})
+        elif event.get("action") == "frames" and event.get("kind") == "output":
+            value = event["value"]
+            out.append({"station": value["station"], "id": value["id"], "extended": value["extended"],
+                        "rtr": value["rtr"], "dlc": value["dlc"], "data": value["data"],
+                        "start": event["t"] - value["duration"], "end": event["t"]})
+    return out
