@@ -68,10 +68,10 @@ def _stations(recording: Any, node: str) -> int:
     return stations if isinstance(stations, int) and stations > 0 else 2
 
 
-def expand(recording: Any) -> int:
+def expand(recording: Any, message_type: type) -> int:
     """Add the per-frame events of every burst in `recording` (format 2) to its messages, each
-    marked `derived`, in log-time order; returns how many frames it expanded."""
-    from iotad.recording.mcap_reader import RecordedMessage
+    marked `derived`, in log-time order; returns how many frames it expanded. `message_type` is
+    the reader's RecordedMessage, passed in so that this module stays below the reader."""
     markers = (packb(BURST), packb(CAN_TX_BURST), packb(TX_BURST))  # (cheap tests before decoding)
     derived: list = []
     sequences: dict[str, int] = {}
@@ -102,10 +102,10 @@ def expand(recording: Any) -> int:
             if not isinstance(t, (int, float)):
                 continue
             ns = origin + round(t * _unit(recording) * 1e9)
-            derived.append(_message(RecordedMessage, message.topic, ns, sequences, dict(derived_event, iota=event.get("iota"))))
+            derived.append(_message(message_type, message.topic, ns, sequences, dict(derived_event, iota=event.get("iota"))))
             if derived_event["kind"] == "output":  # an output is on its channel's key too
                 key = wire.channel_key(system, node, derived_event["action"], derived_event["index"])
-                derived.append(_message(RecordedMessage, key, ns, sequences, derived_event["value"]))
+                derived.append(_message(message_type, key, ns, sequences, derived_event["value"]))
             if derived_event["action"] == "frames":
                 frames += 1
     if derived:

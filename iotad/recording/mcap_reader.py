@@ -432,7 +432,7 @@ def read_recording(path: str | Path, whole_set: bool = True, salvage: bool = Fal
                              f"'iotad recover {path}' keeps what comes before the damage")
     if recording.format_version >= 2:
         from iotad.recording.bursts import expand
-        expand(recording)  # a burst's frames read as format 1's events, each frame on its own
+        expand(recording, RecordedMessage)  # a burst's frames read as format 1's events, each frame on its own
     return recording
 
 
