@@ -60,7 +60,7 @@ def system_variant(folder: Path, *, segment: float | None = None, odrives: dict 
         block = block if n else f"{key} = {value}\n{block}"
     text = f"{head}[node.params]\n{block}[[node.params.joints]]{rest}"
     if bus is not None:
-        text, n = re.subn(r'interface = "[^"]*"[^\n]*\n(channel = "[^"]*"\n)?',
+        text, n = re.subn(r'(?m)^interface = "[^"]*"[^\n]*\n(channel = "[^"]*"\n)?',
                           f'interface = "{bus[0]}"\nchannel = "{bus[1]}"\n', text)
         assert n == 1
     if port is not None:
