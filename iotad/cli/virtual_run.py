@@ -89,13 +89,18 @@ def close_nodes(leaves) -> None:
 def _run_composed(system, args: argparse.Namespace, writer, root, leaves: dict, inputs: list) -> int:
     from iotad.kernel.clock import VirtualClock
     from iotad.kernel.engine import Engine
-    from iotad.kernel.policy import Eager, Random
+    from iotad.kernel.policy import PolicyError
+    from iotad.launcher.run_policy import run_policy
     from iotad.launcher.recording_paths import unused_recording_path
     from iotad.recording.engine_sink import EngineRecorder, recording_header
     from iotad.recording.mcap_format import RUN_END, RUN_ERROR
     from iotad.recording.mcap_sink import McapSink
     from iotad.recording.writer_process import WriterFailed
 
+    try:
+        policy = run_policy(system, getattr(args, "policy", None), args.seed)
+    except PolicyError as exc:
+        raise CliError(str(exc)) from None
     inputs = [_external_entry(entry, system, args.inputs) for entry in inputs]
     posts = [(_input_path(entry.get("iota"), root.instance_name, leaves, args.inputs), entry)
              for entry in inputs]
@@ -140,7 +145,6 @@ def _run_composed(system, args: argparse.Namespace, writer, root, leaves: dict, 
         except WriterFailed as exc:  # "cannot write: ..." in the writer's words, or how it died
             drop_empty_claim(output if claimed else None)
             raise CliError(f"-o {output}: {exc}") from None
-    policy = Eager() if args.seed is None else Random(args.seed)
     if output is not None:
         header = recording_header(root, system.name, time_unit=system.time_unit, policy=policy,
                                   external=sorted(str(port) for port in system.external))
@@ -245,7 +249,13 @@ def _run_composed(system, args: argparse.Namespace, writer, root, leaves: dict, 
         print(f"  recording: {output}{where}  (iotad info|check|plot {output})")
     if interrupted:
         return 130
-    return 1 if engine.halted or raised else 0
+    code = 1 if engine.halted or raised else 0
+    if not stop and not engine.halted:  # a whole run: its goals (a part of one would miss them)
+        from iotad.cli.goal_report import report_goals
+        met = report_goals(system, output, counts["violation"])
+        if met is False and getattr(args, "goals", False):
+            return code or 1
+    return code
 
 
 class _Stop:

@@ -107,6 +107,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--seed", type=seed, default=None, metavar="N",
                         help="with --virtual: fire at random times within each window (policy random(N)); default: "
                              "every action at the earliest time its window allows (eager)")
+    parser.add_argument("--policy", metavar="NAME",
+                        help="with --virtual: when in its window each action fires: eager (default), latest, "
+                             "random or random:SEED (--seed N is random:N); a node's own policy in the system "
+                             "file holds for that node (docs/stress.md)")
+    parser.add_argument("--goals", action="store_true",
+                        help="with --virtual: exit 1 when a goal of the system file's [goals] is missed "
+                             "(without it the verdicts are printed, the exit status is the run's)")
     parser.set_defaults(func=run)
 
 
@@ -154,8 +161,13 @@ def run(args: argparse.Namespace) -> int:
 
             raise CliError("--max-size and --max-duration split a real-time run's recording, not a --virtual one")
 
+        if args.goals and not system.goals:
+            from iotad.cli import CliError
+
+            raise CliError(f"--goals: {system.file} has no [goals] table (docs/stress.md)")
         return run_virtual(system, args)
-    for option, value in (("inputs", args.inputs), ("seed", args.seed)):
+    for option, value in (("inputs", args.inputs), ("seed", args.seed), ("policy", args.policy),
+                          ("goals", args.goals or None)):
         if value is not None:
             from iotad.cli import CliError
 
