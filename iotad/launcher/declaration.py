@@ -164,6 +164,7 @@ class Declaration:
     sweep_metrics: str | None = None
     # [goals]: what a run must achieve, over the metrics (iotad/launcher/goals.py, docs/stress.md)
     goals: tuple[Goal, ...] = ()
+    goals_until: float | None = None  # [goals] until: the virtual seconds they are stated for
 
     @property
     def file(self) -> str:
@@ -500,7 +501,7 @@ class _Parser:
         """`[goals]`: conditions over the run's metrics (goals.py parses them; nothing is evaluated)."""
         if "goals" not in self.data:
             return
-        goals, errors = parse_goals(self.data["goals"])
+        goals, until, errors = parse_goals(self.data["goals"])
         for line in errors:
             self.errors.append(f"{self.file}: {line}")
         measured = [goal for goal in goals if goal.metric not in BUILTIN]
@@ -508,6 +509,7 @@ class _Parser:
             self.error("[goals]", f"{measured[0].metric} is measured by no [sweep] metrics hook (only "
                        f"{', '.join(BUILTIN)} is counted without one)")
         self.settings["goals"] = tuple(goals)
+        self.settings["goals_until"] = until
 
     def parse_buses(self) -> None:
         for number, raw in enumerate(self.table_list("can"), 1):

@@ -3,6 +3,7 @@
     [goals]
     placed = ">= 18"          # the [sweep] metrics hook's `placed`
     violations = "== 0"       # counted in every run, with or without a hook
+    until = 150               # (optional) the virtual seconds of run the goals are stated for
 
 A goal is a metric, a comparison (>=, <=, ==, !=, >, <) and a number: parsed here, never
 evaluated as Python. `iotad run --virtual` says whether each held; `iotad stress` runs a system
@@ -18,6 +19,7 @@ from typing import Any, Callable, Mapping
 
 # metrics every run has, whatever its hook: the violation events its engine recorded
 BUILTIN = ("violations",)
+UNTIL = "until"  # not a metric: how long a run the goals are stated for (`iotad stress`'s default --until)
 _OPERATORS: dict[str, Callable[[Any, Any], bool]] = {
     ">=": operator.ge, "<=": operator.le, "==": operator.eq, "!=": operator.ne, ">": operator.gt, "<": operator.lt}
 _CONDITION = re.compile(r"^\s*(>=|<=|==|!=|>|<)\s*([-+]?(\d+(\.\d*)?|\.\d+)([eE][-+]?\d+)?)\s*$")
@@ -74,17 +76,26 @@ def parse_goal(metric: Any, condition: Any) -> Goal:
     return Goal(metric, match.group(1), bound)
 
 
-def parse_goals(raw: Any) -> tuple[list[Goal], list[str]]:
-    """The goals of a `[goals]` table, and one error line per entry that does not parse."""
+def parse_goals(raw: Any) -> tuple[list[Goal], float | None, list[str]]:
+    """The goals of a `[goals]` table, its `until` (None: not given), and one error line per
+    entry that does not parse."""
     if not isinstance(raw, dict):
-        return [], ["[goals]: must be a table of metric = \"condition\", e.g. placed = \">= 18\""]
-    goals, errors = [], []
+        return [], None, ["[goals]: must be a table of metric = \"condition\", e.g. placed = \">= 18\""]
+    goals, errors, until = [], [], None
     for metric, condition in raw.items():
+        if metric == UNTIL:
+            if isinstance(condition, (int, float)) and not isinstance(condition, bool) \
+                    and 0 < condition < math.inf:
+                until = float(condition)
+            else:
+                errors.append(f"[goals] until = {_written(condition)}: the virtual seconds of a run the goals "
+                              "are stated for, a number > 0")
+            continue
         try:
             goals.append(parse_goal(metric, condition))
         except GoalError as exc:
             errors.append(str(exc))
-    return goals, errors
+    return goals, until, errors
 
 
 def judge(goals: list[Goal], metrics: Mapping[str, Any]) -> list[Verdict]:

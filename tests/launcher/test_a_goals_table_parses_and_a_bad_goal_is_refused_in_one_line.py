@@ -49,3 +49,10 @@ def test_a_goal_over_a_metric_no_hook_measures_is_refused():
 def test_a_goal_key_must_be_a_metric_name():
     with pytest.raises(GoalError, match=r"\[goals\] 'a b'"):
         parse_goal("a b", ">= 1")
+
+
+def test_until_says_how_long_a_run_the_goals_are_stated_for():
+    declaration = parse_declaration(HEAD + '\n[goals]\nuntil = 20\ncommits = ">= 3"\n')
+    assert list(declaration.errors) == [] and declaration.goals_until == 20.0 and len(declaration.goals) == 1
+    bad = parse_declaration(HEAD + '\n[goals]\nuntil = "long"\n')
+    assert len(bad.errors) == 1 and "[goals] until = \"long\"" in bad.errors[0]
