@@ -69,7 +69,7 @@ def _run_virtual(task: dict, checked) -> int:
         values, seed = {**values, task["seed_param"]: seed}, None
     system = apply(checked, values)
     args = argparse.Namespace(until=task["until"], seed=seed, record_to=task["recording"], force=True,
-                              no_record=False, inputs=None, plain=True)
+                              no_record=False, inputs=None, plain=True, policy=task.get("policy"))
     # every core already runs a run: the recording is written in this process, not a second one
     return run_virtual(system, args, second_process=False)
 
@@ -85,6 +85,9 @@ def measure(task: dict, code: int) -> dict[str, Any]:
     end = (recording.run_end or 0.0) * recording.time_unit
     if code != 0 or end < task["until"] * (1 - 1e-9):  # a Ctrl-C stops a run early, cleanly
         raise RuntimeError(f"the run ended at t = {end:g} s of {task['until']:g} (exit status {code})")
+    if task.get("goals"):  # iotad stress: the hook's metrics and the run's violations, as goals read them
+        from iotad.recording.run_metrics import run_metrics
+        return run_metrics(recording, task.get("metrics"))
     if not task.get("metrics"):
         return {}
     hook = load_object(task["metrics"])

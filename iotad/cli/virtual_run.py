@@ -250,7 +250,9 @@ def _run_composed(system, args: argparse.Namespace, writer, root, leaves: dict, 
     if interrupted:
         return 130
     code = 1 if engine.halted or raised else 0
-    if not stop and not engine.halted:  # a whole run: its goals (a part of one would miss them)
+    # a whole run of `iotad run` (a sweep's and a stress run's are measured by their worker):
+    # its goals (a part of a run would miss them)
+    if not stop and not engine.halted and getattr(args, "goals", None) is not None:
         from iotad.cli.goal_report import report_goals
         met = report_goals(system, output, counts["violation"])
         if met is False and getattr(args, "goals", False):
