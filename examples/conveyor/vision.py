@@ -40,7 +40,8 @@ class VisionControl(Iota):
                                  # that no legal schedule, the random policy's, lets it fall behind)
     priority = Param(1)
     epoch = Param(1000.0)        # s: tracking has no end of its own
-    timeout = Param(1.0)         # s it may wait (pending or suspended) before the scheduler drops it
+    timeout = Param(1.5)         # s it may wait (pending or suspended) before the scheduler drops it: more
+                                 # than the scheduler may take to start it (R + mdl_command's 1 + R: 1.02 s)
     look_height = Param(0.30)    # m: height of the grasp point while looking (the camera ~0.28 m above objects)
     move_time = Param(0.8)       # s: the move to the looking pose
     gain = Param(3.0)            # joint1 rad/s per rad of bearing error

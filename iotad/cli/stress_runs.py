@@ -168,28 +168,35 @@ class Divergence:
     """Where the first failing run's outputs part from the eager run's."""
 
     run: str                            # its policy
-    first: Any                          # divergence.Difference, or None: no output differs
+    first: Any                          # divergence.Difference: the earliest output that differs; None: none
     window: Any                         # firing_window.Window of `first`, or None
+    decision: Any = None                # the earliest difference on a channel of decisions, if not `first`
+    decision_window: Any = None
     per_node: list = field(default_factory=list)
 
 
 def diverging_firing(plan: StressPlan, folder: StressFolder, system: Any, policy: str) -> Divergence:
     """The earliest output of the `policy` run whose value differs from the eager run's, the
-    window it fired in (the run made again up to it), and the first difference of each node."""
-    from iotad.kernel.policy import parse_policy
+    earliest such on a channel of decisions, the windows they fired in (the run made again up to
+    each), and the first difference of each node."""
     from iotad.launcher.run_policy import run_policy
-    from iotad.recording.divergence import differences, first_per_node
+    from iotad.recording.divergence import differences, first_decision, first_per_node
     from iotad.recording.firing_window import firing_window
 
     found = differences(folder.recording(run_name(policy)), folder.recording(run_name(REFERENCE)))
-    if not found:
-        return Divergence(policy, None, None)
-    first = next((d for d in found if d.t is not None), found[0])
-    window = None
-    if first.t is not None:
-        parse_policy(policy)  # (the plan's own names: they parse)
-        window = firing_window(system, run_policy(system, policy), first.iota, first.action, first.index, first.t)
-    return Divergence(policy, first, window, first_per_node(found, system.name))
+    first = next((d for d in found if d.t is not None), None)
+    if first is None:
+        return Divergence(policy, None, None, per_node=first_per_node(found, system.name))
+
+    def window(difference):
+        return firing_window(system, run_policy(system, policy), difference.iota, difference.action,
+                             difference.index, difference.t)
+
+    decision = first_decision(found, plan.until / system.time_unit)
+    if decision is first:
+        decision = None
+    return Divergence(policy, first, window(first), decision, window(decision) if decision else None,
+                      first_per_node(found, system.name))
 
 
 def _write_atomic(path: Path, text: str) -> None:

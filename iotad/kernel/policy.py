@@ -18,6 +18,14 @@ from typing import Any, Mapping
 HORIZON = 1.0  # spec time units an unbounded window is capped at, after its earliest time
 
 
+def on_grid(t: float, not_before: float) -> float:
+    """`t` on the engine's time grid (1e-9 of a time unit, as `engine.plus` puts window ends), never
+    before `not_before`: a capped window's end 1 after a timeout's start is the same instant as
+    that timeout, so the two fire in the order of their declaration, as any two due at once."""
+    grid = round(t * 1e9) / 1e9
+    return grid if grid >= not_before else not_before
+
+
 class Eager:
     """Fire at the earliest allowed time (the window's lower bound, or the switching time)."""
 
@@ -44,7 +52,7 @@ class Latest:
         if latest < earliest or math.isinf(earliest):
             return earliest
         if math.isinf(latest):
-            return earliest + self.horizon
+            return on_grid(earliest + self.horizon, earliest)
         return latest
 
     def __str__(self) -> str:

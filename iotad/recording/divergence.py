@@ -2,13 +2,15 @@
 outputs whose values differ, the k-th output of a channel against the k-th of the same channel.
 
 Timing alone is no divergence: under another policy every firing may move inside its window
-and the run still do the same. What matters is the first output whose value differs, and the
-first of each node, which say where the run took another path.
+and the run still do the same. What matters is the first output whose value differs, the first
+of each node, and the first on a channel of decisions (at most one output a second: a
+scheduler's acks, a planner's goals, not a sensor's readings), which say where the run took
+another path.
 """
 from __future__ import annotations
 
 from collections import deque
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Iterator
 
@@ -34,6 +36,7 @@ class Difference:
     value: Any
     reference_t: float | None
     reference_value: Any
+    reference_outputs: int = 0  # how many outputs the reference made on this channel in all
 
     @property
     def when(self) -> float:
@@ -115,7 +118,16 @@ def differences(run: str | Path, reference: str | Path) -> list[Difference]:
         if queue and key not in found:
             reference_t, reference_value = queue[0]
             found[key] = Difference(*key, counts_run.get(key, 0), None, NONE, reference_t, reference_value)
+    found = {key: replace(difference, reference_outputs=counts_ref.get(key, 0)) for key, difference in found.items()}
     return sorted(found.values(), key=lambda d: (d.when, d.iota, d.action, str(d.index)))
+
+
+def first_decision(found: list[Difference], span: float) -> Difference | None:
+    """The earliest difference on a channel of decisions, not of streams: one that the reference
+    run used at most once a second of its `span` (engine time units) on average, as a scheduler's
+    acks and commands, a planner's goals (sensor readings, CAN frames and setpoints, many a
+    second, differ as soon as any timing does). Only outputs the run made."""
+    return next((d for d in found if d.t is not None and d.reference_outputs <= max(span, 1.0)), None)
 
 
 def first_per_node(found: list[Difference], root: str = "") -> list[Difference]:

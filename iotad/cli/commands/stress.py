@@ -140,7 +140,14 @@ def _report_divergence(plan, folder, system, first) -> None:
     print(f"    {difference.line(system.time_unit)}")
     if found.window is not None:
         print(f"    {found.window.line(system.time_unit)}")
-    others = [d for d in found.per_node if d is not difference][:8]
+    decision = found.decision
+    if decision is not None:
+        print(f"  earliest decision that differs (a channel of at most one output a second): "
+              f"{decision.iota}.{decision.channel} at t={decision.t * system.time_unit:.4f} s")
+        print(f"    {decision.line(system.time_unit)}")
+        if found.decision_window is not None:
+            print(f"    {found.decision_window.line(system.time_unit)}")
+    others = [d for d in found.per_node if d is not difference and d is not decision][:8]
     if others:
         print("  the first difference of each other node:")
         for other in others:
