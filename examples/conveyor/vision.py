@@ -64,6 +64,7 @@ class VisionControl(Iota):
         self.out_error = None
         self.out_near = None
         self.out_req = None
+        self.req_free = 0.0         # when req's switching time allows the next request
         self.acks = []
 
     # ------------------------------------------------------------------ inputs
@@ -99,10 +100,13 @@ class VisionControl(Iota):
     def sent_near(self):
         self.out_near = None
 
+    # within `react` of when req's switching time allows it (docs/stress.md): a request waits out
+    # the switching time after the last one, and no longer
     @req.action(value=lambda self: self.out_req, when=lambda self: self.out_req is not None,
-                within=(0, lambda self: REQ_SWITCHING + self.react))  # it may wait out req's switching time
+                within=(0, lambda self: max(0.0, self.req_free - esprit_now()) + self.react))
     def sent_req(self):
         self.out_req = None
+        self.req_free = esprit_now() + REQ_SWITCHING
 
     # ------------------------------------------------------------------ the work
     def _look(self, frame) -> None:
