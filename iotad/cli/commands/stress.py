@@ -82,7 +82,8 @@ def run(args: argparse.Namespace) -> int:
         line = f"stress: {finished}/{todo} runs ({failed} failed), {rate:.1f} runs/min"
         print("\r" + line if live else line, end="" if live else "\n", file=sys.stderr, flush=True)
 
-    print(f"stress of {system.name}: {len(plan.policies())} runs (eager, latest, random:0..{plan.seeds - 1}), "
+    seeds = f", random:0..{plan.seeds - 1}" if plan.seeds else ""
+    print(f"stress of {system.name}: {len(plan.policies())} runs (eager, latest{seeds}), "
           f"{plan.until:g} s virtual each, into {folder.folder}", file=sys.stderr)
     try:
         how = stress(plan, folder, args.jobs or cores(), args.ray, progress)
