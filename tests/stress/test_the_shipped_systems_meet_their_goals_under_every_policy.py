@@ -3,7 +3,7 @@ latest and 20 random seeds (`iotad stress`, docs/stress.md).
 
 Figure 2 runs in every suite (22 runs of 20 s: a few CPU seconds). Buggy, the MDL arm and the
 conveyor cost minutes of CPU each at their goals' length (the conveyor: 22 runs of 150 s, about
-7 minutes of one core), more than the suite's budget: they run with IOTAD_SLOW_TESTS=1
+5 minutes of one core idle, an hour on the loaded 2-core machine), more than the suite's budget: they run with IOTAD_SLOW_TESTS=1
 (`IOTAD_SLOW_TESTS=1 pytest -m slow tests/stress`), and bench/stress.py prints the same figures."""
 import os
 from pathlib import Path
