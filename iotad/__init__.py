@@ -22,14 +22,14 @@ from .kernel.clock import RealClock, VirtualClock
 from .kernel.compose import Composite
 from .kernel.engine import Engine
 from .kernel.model import IotaSpec, SpecError
-from .kernel.policy import Eager, Random
+from .kernel.policy import Eager, Latest, Random
 from .kernel.input_script import run_script
 from .kernel.types import Array, Bool, Enum, Float, Int, Struct
 
 __version__ = "0.1.0"
 
 __all__ = ["Array", "Bool", "Composite", "Eager", "Engine", "Enum", "Float", "Input", "Int", "Internal",
-           "Iota", "IotaSpec", "Output", "Param", "Random", "RealClock", "SpecError", "Struct",
+           "Iota", "IotaSpec", "Latest", "Output", "Param", "Random", "RealClock", "SpecError", "Struct",
            "VirtualClock", "open_recording", "run_script", "__version__"]
 
 

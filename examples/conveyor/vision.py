@@ -40,7 +40,8 @@ class VisionControl(Iota):
                                  # that no legal schedule, the random policy's, lets it fall behind)
     priority = Param(1)
     epoch = Param(1000.0)        # s: tracking has no end of its own
-    timeout = Param(1.0)         # s it may wait (pending or suspended) before the scheduler drops it
+    timeout = Param(1.5)         # s it may wait (pending or suspended) before the scheduler drops it: more
+                                 # than the scheduler may take to start it (R + mdl_command's 1 + R: 1.02 s)
     look_height = Param(0.30)    # m: height of the grasp point while looking (the camera ~0.28 m above objects)
     move_time = Param(0.8)       # s: the move to the looking pose
     gain = Param(3.0)            # joint1 rad/s per rad of bearing error
@@ -63,6 +64,7 @@ class VisionControl(Iota):
         self.out_error = None
         self.out_near = None
         self.out_req = None
+        self.req_free = 0.0         # when req's switching time allows the next request
         self.acks = []
 
     # ------------------------------------------------------------------ inputs
@@ -98,10 +100,13 @@ class VisionControl(Iota):
     def sent_near(self):
         self.out_near = None
 
+    # within `react` of when req's switching time allows it (docs/stress.md): a request waits out
+    # the switching time after the last one, and no longer
     @req.action(value=lambda self: self.out_req, when=lambda self: self.out_req is not None,
-                within=(0, lambda self: REQ_SWITCHING + self.react))  # it may wait out req's switching time
+                within=(0, lambda self: max(0.0, self.req_free - esprit_now()) + self.react))
     def sent_req(self):
         self.out_req = None
+        self.req_free = esprit_now() + REQ_SWITCHING
 
     # ------------------------------------------------------------------ the work
     def _look(self, frame) -> None:

@@ -22,7 +22,8 @@ from . import commands
 GROUPS = (
     ("try it", ("demo", "new")),
     ("specify and simulate an IOTA (virtual time, one process)", ("spec",)),
-    ("run a system (one process per IOTA, over zenoh), or sweep it in virtual time", ("run", "agent", "certs", "sweep")),
+    ("run a system (one process per IOTA, over zenoh), or sweep or stress it in virtual time",
+     ("run", "agent", "certs", "sweep", "stress")),
     ("record and examine a recording (MCAP)", ("record", "info", "replay", "check", "plot", "export", "recover",
                                                "candump", "cat")),
     ("watch a running system", ("top", "view", "ls", "echo", "pub", "hz")),

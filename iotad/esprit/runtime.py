@@ -123,6 +123,12 @@ def any_of(start: int, stop: int, body: Any) -> bool:
 
 
 # ---------------------------------------------------------------- time, reset, inhibit
+def later_of(a: float, b: float) -> float:
+    """`a - b` when positive, else 0: how long until time `a` from time `b` (an extern for specs
+    whose window waits out a switching time: nodes/scheduler/resume.iota's mdl_command)."""
+    return a - b if a > b else 0.0
+
+
 def esprit_now() -> float:
     """`now()`: the time of the firing (or enabling) in progress, in spec time units.
 

@@ -83,7 +83,7 @@ class ActionInstance:
 
     __slots__ = ("leaf", "action", "index", "slot", "rank", "enabled", "gen", "te", "lower", "upper",
                  "fire_at", "affects", "iota", "when", "value", "do", "after", "before", "reads", "dynamic",
-                 "failing", "reevaluate", "lower_bound", "upper_bound")
+                 "failing", "reevaluate", "lower_bound", "upper_bound", "policy", "eager")
 
     def __init__(self, leaf: Leaf, action: Action, index: int | None, slot: Slot, rank: int):
         self.leaf, self.action, self.index, self.slot, self.rank = leaf, action, index, slot, rank
@@ -102,6 +102,8 @@ class ActionInstance:
         self.dynamic = _dynamic_writes(action)
         self.failing = False  # its precondition raised at its last evaluation
         self.reads = _concrete(action.reads, index)
+        self.policy: Any = None  # its firing policy (the engine's, or its node's: `PerNode`)
+        self.eager = True        # that policy is `Eager`: `_enable` schedules without a call
 
 
 def bind(fn: Callable | None, iota: Any, index: int | None) -> Callable | None:
@@ -210,6 +212,8 @@ class Engine:
                         slot.dynamic = _dynamic_writes(action) if self.track_dependencies else ()
                         continue
                     instance = ActionInstance(leaf, action, index, slot, rank)
+                    instance.policy = policy = self.policy_of(leaf)
+                    instance.eager = policy.__class__ is Eager
                     if not self.track_dependencies:
                         instance.dynamic = ()
                     rank += 1
@@ -228,6 +232,11 @@ class Engine:
             slot.deliveries = [(target, same_checks(slot.type, target.type)) for target in slot.targets]
         for channel_type in {id(slot.type): slot.type for slot in self.slots.values() if slot.type is not None}.values():
             channel_type.prepare()
+
+    def policy_of(self, leaf: Leaf) -> Any:
+        """The policy of `leaf`'s actions: the engine's, or the one a `PerNode` policy gives its node."""
+        for_leaf = getattr(self.policy, "for_leaf", None)
+        return self.policy if for_leaf is None else for_leaf(leaf.path)
 
     def _affected(self, leaf: Leaf, writes: frozenset, index: int | None) -> list[ActionInstance]:
         """Instances of `leaf` whose precondition reads a cell that `writes` (at `index`) may change.
@@ -660,7 +669,7 @@ class Engine:
         slot = instance.slot
         if slot.last + slot.switching > earliest:
             earliest = max(earliest, plus(slot.last, slot.switching))
-        if earliest <= instance.upper and self.policy.__class__ is Eager:
+        if earliest <= instance.upper and instance.eager:
             instance.fire_at = earliest  # `_schedule`'s usual case, without the call
             heapq.heappush(self._heap, (earliest, instance.rank, instance.gen, instance))
             return
@@ -673,10 +682,10 @@ class Engine:
                             f"{action.label}: switching time {instance.slot.switching:g} puts its earliest "
                             f"firing at {earliest:.6g}, past its window's end {instance.upper:.6g}")
             fire_at = earliest
-        elif self.policy.__class__ is Eager:
+        elif instance.eager:
             fire_at = earliest  # Eager.choose, without the call
         else:
-            fire_at = self.policy.choose(earliest, instance.upper)
+            fire_at = instance.policy.choose(earliest, instance.upper)
         instance.fire_at = fire_at
         heapq.heappush(self._heap, (fire_at, instance.rank, instance.gen, instance))
 

@@ -178,8 +178,8 @@ def from_dict(data: Any, where: str = "config") -> NodeConfig:
             raise ConfigError(f"{where}: {key} must map \"channel\" or \"channel/index\" to a list of {what}")
         setattr(config, key, {k: list(v) for k, v in value.items()})
     if "policy" in data:
-        if data["policy"] not in ("eager", "random"):
-            raise ConfigError(f"{where}: policy must be \"eager\" or \"random\"")
+        if data["policy"] not in ("eager", "latest", "random"):
+            raise ConfigError(f"{where}: policy must be \"eager\", \"latest\" or \"random\"")
         config.policy = data["policy"]
     if "seed" in data:
         if not isinstance(data["seed"], int) or isinstance(data["seed"], bool):

@@ -174,7 +174,12 @@ class EngineRecorder:
 
 def _policy_info(policy: Any) -> dict[str, Any]:
     """How the run chose firing times within windows (replay repeats an eager run by itself, and
-    follows the recorded times of any other): {"policy": "eager"} or {"policy": "random", "seed": 7}."""
+    follows the recorded times of any other): {"policy": "eager"}, {"policy": "latest"},
+    {"policy": "random", "seed": 7}, or a policy per node's own `info()` ("per-node", its default
+    and its nodes' policies)."""
+    info = getattr(policy, "info", None)
+    if callable(info):
+        return info()
     name = getattr(policy, "name", "eager")
     seed = getattr(policy, "seed", None)
     return {"policy": name} if seed is None else {"policy": name, "seed": seed}

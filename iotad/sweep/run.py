@@ -67,7 +67,8 @@ def _run_virtual(task: dict, checked) -> int:
     if task.get("seed_param"):  # the seed is a node's (a world's), and the policy eager
         values, seed = {**values, task["seed_param"]: seed}, None
     system = apply(checked, values)
-    options = VirtualOptions(until=task["until"], seed=seed, record_to=task["recording"], force=True, plain=True)
+    options = VirtualOptions(until=task["until"], seed=seed, record_to=task["recording"], force=True, plain=True,
+                             policy=task.get("policy"))
     # every core already runs a run: the recording is written in this process, not a second one
     return run_virtual(system, options, second_process=False)
 
@@ -83,6 +84,9 @@ def measure(task: dict, code: int) -> dict[str, Any]:
     end = (recording.run_end or 0.0) * recording.time_unit
     if code != 0 or end < task["until"] * (1 - 1e-9):  # a Ctrl-C stops a run early, cleanly
         raise RuntimeError(f"the run ended at t = {end:g} s of {task['until']:g} (exit status {code})")
+    if task.get("goals"):  # iotad stress: the hook's metrics and the run's violations, as goals read them
+        from iotad.recording.run_metrics import run_metrics
+        return run_metrics(recording, task.get("metrics"))
     if not task.get("metrics"):
         return {}
     hook = load_object(task["metrics"])

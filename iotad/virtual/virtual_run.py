@@ -38,6 +38,8 @@ class VirtualOptions:
     plain: bool = False               # no progress line rewritten in place on a terminal
     strict: bool = False              # any violation ends the run non-zero (as [system] strict = true)
     recording_format: int = 2         # 1: each CAN frame as before bursts (docs/design.md, section 5)
+    policy: str | None = None         # eager, latest or random:SEED (None: eager, or random(seed) with seed)
+    goals: bool | None = None         # None: goals not judged; False: judged and printed; True: a miss exits 1
 
 
 def run_virtual(system: System, args: VirtualOptions, second_process: bool = True) -> int:
@@ -106,11 +108,16 @@ def close_nodes(leaves) -> None:
 def _run_composed(system: System, args: VirtualOptions, writer, root, leaves: dict, inputs: list) -> int:
     from iotad.kernel.clock import VirtualClock
     from iotad.kernel.engine import Engine
-    from iotad.kernel.policy import Eager, Random
+    from iotad.kernel.policy import PolicyError
+    from iotad.launcher.run_policy import run_policy
     from iotad.recording.engine_sink import EngineRecorder, recording_header
     from iotad.recording.mcap_format import RUN_END, RUN_ERROR
     from iotad.recording.writer_process import WriterFailed
 
+    try:
+        policy = run_policy(system, args.policy, args.seed)
+    except PolicyError as exc:
+        raise VirtualRunError(str(exc)) from None
     inputs = [_external_entry(entry, system, args.inputs) for entry in inputs]
     posts = [(_input_path(entry.get("iota"), root.instance_name, leaves, args.inputs), entry)
              for entry in inputs]
@@ -129,7 +136,6 @@ def _run_composed(system: System, args: VirtualOptions, writer, root, leaves: di
     sinks.append(count)
     if not args.no_record:
         output, sink = _open_recording(system, args, writer)
-    policy = Eager() if args.seed is None else Random(args.seed)
     if output is not None:
         header = recording_header(root, system.name, time_unit=system.time_unit, policy=policy,
                                   external=sorted(str(port) for port in system.external))
@@ -242,7 +248,15 @@ def _run_composed(system: System, args: VirtualOptions, writer, root, leaves: di
             print(f"  strict: {line}")
         if failures:
             return 1
-    return 1 if engine.halted or raised else 0
+    code = 1 if engine.halted or raised else 0
+    # a whole run of `iotad run` (a sweep's and a stress run's are measured by their worker):
+    # its goals (a part of a run would miss them)
+    if not stop and not engine.halted and args.goals is not None:
+        from iotad.virtual.goal_report import report_goals
+        met = report_goals(system, output, counts["violation"])
+        if met is False and args.goals:
+            return code or 1
+    return code
 
 
 def _open_recording(system: System, args: VirtualOptions, writer):

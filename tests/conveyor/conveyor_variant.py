@@ -18,7 +18,8 @@ if str(FOLDER) not in sys.path:  # the example's modules import their neighbours
 def system_variant(folder: Path, *, cube_count: int = 2, cube_interval: float = 6.0,
                    bus: tuple[str, str] | None = None) -> Path:
     text = EXAMPLE.read_text()
-    text = text.replace('python = "conveyor/', f'python = "{FOLDER}/').replace('spec = "conveyor/', f'spec = "{FOLDER}/')
+    text = text.replace('python = "conveyor/', f'python = "{FOLDER}/').replace('spec = "conveyor/', f'spec = "{FOLDER}/') \
+        .replace('metrics = "conveyor/', f'metrics = "{FOLDER}/')
     text, n = re.subn(r"cube_count = \d+, cube_interval = [\d.]+",
                       f"cube_count = {cube_count}, cube_interval = {cube_interval}", text)
     assert n == 1, "the example's world_options changed: update tests/conveyor/conveyor_variant.py"

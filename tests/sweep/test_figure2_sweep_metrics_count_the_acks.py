@@ -14,5 +14,8 @@ def test_commits_aborts_and_rejects_are_the_acks(tmp_path, capsys):
     recording = read_recording(tmp_path / "fig2.mcap")
     acks = [e["value"] for e in recording.trace("scheduler") if e["kind"] == "output" and e["action"] == "ack"]
     metrics = load_object(load_system(ROOT / "examples" / "figure2.toml", check=False).sweep_metrics)(recording)
-    assert metrics == {"commits": acks.count("COMMIT"), "aborts": acks.count("ABORT"), "rejects": acks.count("REJECT")}
+    counted = {name: metrics[name] for name in ("commits", "aborts", "rejects")}
+    assert counted == {"commits": acks.count("COMMIT"), "aborts": acks.count("ABORT"), "rejects": acks.count("REJECT")}
+    assert metrics["unanswered"] == len([e for e in recording.trace("scheduler")
+                                         if e["kind"] == "input" and e["action"] == "req"]) - len(acks)
     assert metrics["commits"] > 0 and metrics["rejects"] > 0

@@ -144,6 +144,9 @@ def run(args: argparse.Namespace) -> int:
     policy = info.get("policy")
     chosen = "" if policy in (None, "eager") else \
         f"   policy: {policy}" + (f" (seed {info['seed']})" if "seed" in info else "")
+    if isinstance(info.get("nodes"), dict):  # a policy per node (iotad.kernel.policy.PerNode)
+        chosen += f" ({info.get('default', 'eager')}; " + \
+            ", ".join(f"{node}: {name}" for node, name in info["nodes"].items()) + ")"
     print(f"  system: {recording.system or '?'}   clock: {info.get('clock', '?')}   writer: {info.get('writer', '?')}"
           f"{chosen}   format: {recording.format_version}")
     derived = sum(1 for m in recording.messages if m.derived)

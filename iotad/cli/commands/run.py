@@ -112,6 +112,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--strict", action="store_true",
                         help="end the run non-zero (exit 1) on any violation (a node's exception included) or a "
                              "node that never went live, as [system] strict = true does")
+    parser.add_argument("--policy", metavar="NAME",
+                        help="with --virtual: when in its window each action fires: eager (default), latest, "
+                             "random or random:SEED (--seed N is random:N); a node's own policy in the system "
+                             "file holds for that node (docs/stress.md)")
+    parser.add_argument("--goals", action="store_true",
+                        help="with --virtual: exit 1 when a goal of the system file's [goals] is missed "
+                             "(without it the verdicts are printed, the exit status is the run's)")
     parser.set_defaults(func=run)
 
 
@@ -145,7 +152,8 @@ def run(args: argparse.Namespace) -> int:
         raise CliError(f"-o {args.record_to} names the recording, and --no-record says there is none: give one of them")
     if args.virtual:
         return virtual(system, args)
-    for option, value in (("inputs", args.inputs), ("seed", args.seed)):
+    for option, value in (("inputs", args.inputs), ("seed", args.seed), ("policy", args.policy),
+                          ("goals", args.goals or None)):
         if value is not None:
             from iotad.cli import CliError
 
@@ -165,9 +173,12 @@ def virtual(system, args: argparse.Namespace) -> int:
     for option in ("host", "port", "origin", "log_dir"):
         if getattr(args, option) is not None:
             raise CliError(f"--{option.replace('_', '-')} is for processes over zenoh, not --virtual")
+    if args.goals and not system.goals:
+        raise CliError(f"--goals: {system.file} has no [goals] table (docs/stress.md)")
     options = VirtualOptions(until=args.until, seed=args.seed, record_to=args.record_to, force=args.force,
                              no_record=args.no_record, inputs=args.inputs, plain=args.plain,
-                             strict=args.strict, recording_format=args.recording_format)
+                             strict=args.strict, recording_format=args.recording_format,
+                             policy=args.policy, goals=args.goals)
     try:
         return run_virtual(system, options)
     except VirtualRunError as exc:

@@ -72,8 +72,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                      help="set a parameter (repeatable); V is JSON (N=3, T=0.5, on=true) or an enum member")
     run.add_argument("--inputs", metavar="SCRIPT.jsonl",
                      help='input script: one {"t", "action", "index", "value"} object a line (default: no inputs)')
-    run.add_argument("--policy", choices=("eager", "random"), default="eager",
-                     help="eager: fire at the earliest allowed time (default); random: anywhere in the window")
+    run.add_argument("--policy", choices=("eager", "latest", "random"), default="eager",
+                     help="eager: fire at the earliest allowed time (default); latest: at the latest; "
+                          "random: anywhere in the window")
     run.add_argument("--seed", type=seed, default=0, metavar="S", help="seed of the random policy (default 0)")
     run.set_defaults(func=cmd_run)
 

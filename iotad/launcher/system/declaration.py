@@ -29,6 +29,7 @@ from iotad.node_host.transport import DEFAULT_HUB_ENDPOINT, endpoint_problem, re
 from iotad.kernel.ports import Port
 from iotad.kernel.text_file import read_text_file
 from iotad.kernel.types import HUGE_INT
+from iotad.launcher.goals import BUILTIN, Goal, parse_goals
 
 RESTART_MODES = ("never", "on-failure", "always")
 LOOPBACK_LISTEN = ["tcp/127.0.0.1:0"]
@@ -46,7 +47,7 @@ _SYSTEM_KEYS = {"name", "time_unit", "endpoints", "hub_host", "heartbeat_period"
 TABLE_HINT = {"external": " (a top-level key must come before the first table; or put it in [system])"}
 _NODE_KEYS = {"name", "spec", "iota", "python", "params", "restart", "max_restarts", "backoff", "host",
               "after", "policy", "seed", "required", "input_queue"}
-_TOP_KEYS = {"system", "node", "bind", "external", "hosts", "can", "ros2", "sweep"}
+_TOP_KEYS = {"system", "node", "bind", "external", "hosts", "can", "ros2", "sweep", "goals"}
 _SWEEP_KEYS = {"metrics"}
 _CAN_KEYS = {"name", "interface", "channel", "bitrate", "stations", "options", "log"}
 
@@ -184,6 +185,9 @@ class Declaration:
     # [sweep] metrics: "file.py:function" (absolute where the file has a folder) or "module:function",
     # what `iotad sweep` measures each run with (docs/sweeps.md); nothing else reads it
     sweep_metrics: str | None = None
+    # [goals]: what a run must achieve, over the metrics (iotad/launcher/goals.py, docs/stress.md)
+    goals: tuple[Goal, ...] = ()
+    goals_until: float | None = None  # [goals] until: the virtual seconds they are stated for
 
     @property
     def file(self) -> str:
@@ -277,6 +281,7 @@ class _Parser:
         self.parse_nodes()
         self.parse_buses()
         self.parse_sweep()
+        self.parse_goals()
         self.add_bus_loggers()  # one implicit node per logged bus, named after it
         self.check_after()  # after the loggers: a node may start after a bus's logger
         raw_system = self.data.get("system")
@@ -479,7 +484,8 @@ class _Parser:
             self.error(entry, f"after must be a list of node names, got {raw.get('after')!r}")
         else:
             node["after"] = after
-        self.take(raw, "policy", node, entry, lambda v: v in ("eager", "random"), "\"eager\" or \"random\"")
+        self.take(raw, "policy", node, entry, lambda v: v in ("eager", "latest", "random"),
+                  "\"eager\", \"latest\" or \"random\"")
         self.take(raw, "seed", node, entry, lambda v: _whole(v) and 0 <= v < 2**64, "a whole number from 0 to 2**64 - 1")
         self.take(raw, "required", node, entry, _flag, "true or false")
         self.take(raw, "input_queue", node, entry, _queue_size, "a whole number of inputs >= 1")
@@ -555,6 +561,20 @@ class _Parser:
         if where.endswith(".py") and self.base is not None:  # as python = "file.py:Class": relative to
             ref = f"{(self.base / where).resolve()}:{function}"  # this file; `iotad sweep` looks for it
         self.settings["sweep_metrics"] = ref
+
+    def parse_goals(self) -> None:
+        """`[goals]`: conditions over the run's metrics (goals.py parses them; nothing is evaluated)."""
+        if "goals" not in self.data:
+            return
+        goals, until, errors = parse_goals(self.data["goals"])
+        for line in errors:
+            self.errors.append(f"{self.file}: {line}")
+        measured = [goal for goal in goals if goal.metric not in BUILTIN]
+        if measured and "sweep_metrics" not in self.settings:
+            self.error("[goals]", f"{measured[0].metric} is measured by no [sweep] metrics hook (only "
+                       f"{', '.join(BUILTIN)} is counted without one)")
+        self.settings["goals"] = tuple(goals)
+        self.settings["goals_until"] = until
 
     def parse_buses(self) -> None:
         for number, raw in enumerate(self.table_list("can"), 1):

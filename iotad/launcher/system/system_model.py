@@ -193,6 +193,14 @@ class System:
         return self.declaration.strict
 
     @property
+    def goals(self) -> tuple:
+        return self.declaration.goals
+
+    @property
+    def goals_until(self) -> float | None:
+        return self.declaration.goals_until
+
+    @property
     def hosts(self) -> Mapping[str, HostSpec]:
         return self.declaration.hosts
 
