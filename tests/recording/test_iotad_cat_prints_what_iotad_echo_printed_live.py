@@ -22,16 +22,31 @@ KEYS = "iota/figure2/**"
 def test_cat_prints_exactly_the_lines_echo_printed_of_the_same_run(tmp_path, capsys):
     port = free_port()
     out = tmp_path / "fig2.mcap"
-    echo = subprocess.Popen([sys.executable, "-m", "iotad", "echo", KEYS, "--connect", f"tcp/127.0.0.1:{port}"],
-                            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    # the run first, echo once its hub is up: an echo started before it gives up after its
+    # --connect-timeout, and on a loaded machine the hub came up later than that (echo heard nothing)
+    run = subprocess.Popen([sys.executable, "-m", "iotad", "run", "examples/figure2.toml", "--until", "6",
+                            "--after-live", "--port", str(port), "--insecure", "-o", str(out), "--plain"],
+                           cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    echo = None
     try:
-        run = subprocess.run([sys.executable, "-m", "iotad", "run", "examples/figure2.toml", "--until", "6",
-                              "--after-live", "--port", str(port), "--insecure", "-o", str(out), "--plain"],
-                             cwd=ROOT, capture_output=True, text=True, timeout=120)
-        assert run.returncode == 0, run.stdout + run.stderr
+        said = []
+        for line in run.stdout:
+            said.append(line)
+            if " hub: " in line:
+                break
+        assert any(" hub: " in line for line in said), "".join(said)
+        echo = subprocess.Popen([sys.executable, "-m", "iotad", "echo", KEYS, "--connect", f"tcp/127.0.0.1:{port}",
+                                 "--connect-timeout", "60"],
+                                cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        rest, _ = run.communicate(timeout=120)
+        assert run.returncode == 0, "".join(said) + rest
     finally:
-        echo.send_signal(signal.SIGINT)
-        live, _ = echo.communicate(timeout=20)
+        if run.poll() is None:
+            run.kill()
+            run.communicate()
+        if echo is not None:
+            echo.send_signal(signal.SIGINT)
+            live, _ = echo.communicate(timeout=20)
     live = live.splitlines()
     assert main(["cat", str(out), KEYS]) == 0
     recorded = capsys.readouterr().out.splitlines()
