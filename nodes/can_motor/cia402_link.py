@@ -90,6 +90,7 @@ class Cia402Link(DriveLink):
         self.started = False          # NMT START went out in this arming: its TPDOs are due
         self.operational_seen = False  # since then, a TPDO or an OPERATIONAL heartbeat came
         self.unanswered = 0           # SYNCs since the last statusword while one is due
+        self.stop_sent = False        # a quick stop went out for an enabled drive held in FAULT (UNCOMMANDED_STATE)
 
     # ------------------------------------------------------------------ start-up
     def _configuration(self, master_id: int, master_period: float, lost_after: int,
@@ -459,5 +460,14 @@ class Cia402Link(DriveLink):
             axis.lost = False
             events.append("FOUND")
         events += self.node.drive_enabled(self.index, self.enabled)
+        if self.enabled and axis.phase == FAULT and not axis.link_stopped and not self.stop_sent:
+            # enabled while the node holds it in FAULT: another master (`iotad can arm`) enabled
+            # it; only the node's reset (estop = false) clears a held FAULT, so it is stopped
+            # again (a quick stop, once per episode), as an ODrive in closed loop is sent IDLE
+            self.node.send(self.stop_frames() + self.after_stop_frames([self]))
+            self.stop_sent = True
+            events.append("UNCOMMANDED_STATE")
+        elif not self.enabled:
+            self.stop_sent = False
         for event in events:
             self.node.report(self.index, event)
