@@ -50,7 +50,8 @@ JOINT_EVENT = Enum("jointEvent",
                    "NMT_PRE_OPERATIONAL",  # CiA 402: its heartbeat says PRE-OPERATIONAL while armed or arming
                    "NMT_STOPPED",        # CiA 402: its heartbeat says STOPPED while armed or arming
                    "TPDO_TIMEOUT",       # CiA 402: no statusword for tpdo_timeout SYNCs: LOST
-                   "UNCOMMANDED_STATE",  # ODrive: closed loop, or an axis error, that the node did not command
+                   "UNCOMMANDED_STATE",  # closed loop (ODrive) or OPERATION ENABLED (CiA 402, held in FAULT),
+                                         # or an ODrive axis error, that the node did not command: stopped again
                    "REARM_LIMIT",        # auto_rearm gave up: rearm_limit re-arms in a row; FAULT until a reset
                    "SCALE_MISMATCH")     # CiA 402: the drive's units contradict the joint table's (disarm_reason:
                                          # the object, requested: the table's value, applied: the drive's); FAULT

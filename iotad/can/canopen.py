@@ -392,7 +392,18 @@ def _sdo_fields(kind: str, data: bytes) -> dict:
     return fields
 
 
+# The error register's bits (CiA 301 0x1001, the second byte of an EMCY), bit 0 first; bit 6 is reserved.
+ERROR_REGISTER_BITS = ("generic", "current", "voltage", "temperature", "communication", "device profile",
+                       "reserved", "manufacturer specific")
+
+
+def error_register_names(register: int) -> list[str]:
+    """The names of the bits set in an error register (CiA 301 0x1001), bit 0 first."""
+    return [name for bit, name in enumerate(ERROR_REGISTER_BITS) if register >> bit & 1]
+
+
 def emcy_name(code: int) -> str:
+    """An EMCY error code by name: its own (CiA 301, CiA 402) where EMCY_CODES has it, else its class's."""
     if code in EMCY_CODES:
         return EMCY_CODES[code]
     described = EmcyError(code, 0, b"", 0.0).get_desc()

@@ -43,8 +43,11 @@ def fault_text(exc: BaseException) -> str:
 class NodeViolation(Exception):
     """Raised by a node's own code (an action's `do` block, after its state changes) to record a
     violation it found itself: the engine records `{"violation": code, "message": str(self)}` on
-    the action's channel, not a runtime_error, and the node goes on."""
+    the action's channel, not a runtime_error, and the node goes on. Keyword `fields` (plain
+    values: numbers, strings, lists of them) go into that record beside the message, so that a
+    tool can read what the message says in words."""
 
-    def __init__(self, code: str, message: str):
+    def __init__(self, code: str, message: str, /, **fields):
         super().__init__(message)
         self.code = code
+        self.fields = fields

@@ -706,8 +706,9 @@ class Engine:
             for sink in sinks:
                 sink(event)
 
-    def _violation(self, t: float, path: str, channel: str, index: int | None, code: str, message: str) -> None:
-        self._emit(t, path, channel, index, "violation", {"violation": code, "message": message})
+    def _violation(self, t: float, path: str, channel: str, index: int | None, code: str, message: str,
+                   fields: dict | None = None) -> None:
+        self._emit(t, path, channel, index, "violation", {"violation": code, "message": message, **(fields or {})})
 
     def _runtime_error(self, t: float, instance: ActionInstance, part: str, exc: Exception) -> None:
         self._fault(t, instance.leaf.path, instance.action.channel, instance.index,
@@ -719,7 +720,7 @@ class Engine:
         from iotad.kernel.code_fault import NodeViolation, fault_text, fault_traceback, fault_where
 
         if isinstance(exc, NodeViolation):  # the node found it and says what it is
-            self._violation(t, path, channel, index, exc.code, str(exc))
+            self._violation(t, path, channel, index, exc.code, str(exc), exc.fields)
             return
         self._emit(t, path, channel, index, "violation",
                    {"violation": "runtime_error", "message": f"{label}: {fault_text(exc)}",

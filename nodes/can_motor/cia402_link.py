@@ -26,6 +26,7 @@ from typing import Any, Sequence
 from iotad.can import canopen as co
 from iotad.can.frame import Frame, FrameError
 from iotad.can.odrive import EncodeError
+from iotad.kernel.code_fault import NodeViolation
 
 from .drive_link import ARMED, ARMING, FAULT, UNARMED, DriveLink
 from .joint_map import JointMapError
@@ -89,6 +90,7 @@ class Cia402Link(DriveLink):
         self.started = False          # NMT START went out in this arming: its TPDOs are due
         self.operational_seen = False  # since then, a TPDO or an OPERATIONAL heartbeat came
         self.unanswered = 0           # SYNCs since the last statusword while one is due
+        self.stop_sent = False        # a quick stop went out for an enabled drive held in FAULT (UNCOMMANDED_STATE)
 
     # ------------------------------------------------------------------ start-up
     def _configuration(self, master_id: int, master_period: float, lost_after: int,
@@ -186,23 +188,33 @@ class Cia402Link(DriveLink):
         constant over the gear ratio (0x6092, 0x6091) where it has them, else its encoder
         increments per turn (0x608F); the rated torque (0x6076, mNm) scales torque actual. A value
         the joint table states explicitly must agree; one it does not state is taken from the
-        drive. Returns (object, table's, drive's) of the first contradiction, else None."""
+        drive. The gear ratio (0x6091: motor revolutions per driving shaft revolution) is the
+        table's `gear_ratio` (motor turns per joint turn): stated in both, they must agree; stated
+        by the drive only, the drive's is taken (positions and efforts through the table's 1.0
+        would be off by the drive's ratio). Returns (object, table's, drive's) of the first
+        contradiction, else None."""
         def ratio(index: int) -> float | None:
             top, bottom = self.scale.get((index, 1)), self.scale.get((index, 2))
             return top / bottom if top and bottom else None
 
         table = self.table_joint
-        gear, feed, resolution = ratio(0x6091) or 1.0, ratio(0x6092), ratio(0x608F)
+        drive_gear, feed, resolution = ratio(0x6091), ratio(0x6092), ratio(0x608F)
+        gear = drive_gear or 1.0
         units, index = (feed / gear, 0x6092) if feed else (resolution, 0x608F)
         rated = self.scale.get((0x6076, 0))
         rated = rated / 1000.0 if rated else None
         if units and "counts_per_turn" in table.explicit and not math.isclose(units, table.counts_per_turn, rel_tol=1e-9):
             return index, table.counts_per_turn, units
+        if drive_gear and "gear_ratio" in table.explicit and not math.isclose(drive_gear, table.gear_ratio,
+                                                                               rel_tol=1e-9):
+            return 0x6091, table.gear_ratio, drive_gear
         if rated and table.rated_torque is not None and not math.isclose(rated, table.rated_torque, rel_tol=1e-6):
             return 0x6076, table.rated_torque, rated
         if rated is None and table.rated_torque is None:
             return 0x6076, 0.0, 0.0  # no rated torque anywhere: its torque actual means nothing
-        self.joint = dataclasses.replace(table, counts_per_turn=units or table.counts_per_turn)
+        self.joint = dataclasses.replace(table, counts_per_turn=units or table.counts_per_turn,
+                                         gear_ratio=drive_gear if drive_gear and "gear_ratio" not in table.explicit
+                                         else table.gear_ratio)
         self.rated_torque = rated or table.rated_torque
         return None
 
@@ -210,13 +222,24 @@ class Cia402Link(DriveLink):
         """The one line that says why the drive is refused (after SCALE_MISMATCH)."""
         index, table, drive = self.mismatch
         name = {0x6076: "rated torque (0x6076, N.m)", 0x608F: "increments per motor turn (0x608F)",
-                0x6092: "position units per motor turn (0x6092 / 0x6091)"}[index]
+                0x6092: "position units per motor turn (0x6092 / 0x6091)",
+                0x6091: "gear ratio (0x6091, motor revolutions per shaft revolution)"}[index]
         if index == 0x6076 and not drive:
             return (f"joint {self.joint.name}: the drive gives no rated torque (0x6076) and the joint table none "
                     "(rated_torque): its torque actual cannot be scaled; not armed")
-        key = "rated_torque" if index == 0x6076 else "counts_per_turn"
+        key = {0x6076: "rated_torque", 0x6091: "gear_ratio"}.get(index, "counts_per_turn")
         return (f"joint {self.joint.name}: the joint table's {key} = {table:g} contradicts the drive's {name} = "
                 f"{drive:g}; not armed (fix the table or the drive)")
+
+    def emcy_violation(self, code: int, register: int) -> NodeViolation:
+        """The recorded `drive_emcy` violation of one EMCY: the joint by name, the error code by
+        name and the error register's bits by name (joint_status carries the numbers only)."""
+        name, bits = co.emcy_name(code), co.error_register_names(register)
+        message = (f"joint {self.joint.name!r} (CANopen node id {self.node_id}): EMCY 0x{code:04X} {name}, "
+                   f"error register 0x{register:02X} ({', '.join(bits) or 'no error'}); the axis is "
+                   f"{self.axis.phase}")
+        return NodeViolation("drive_emcy", message, joint=self.joint.name, node_id=self.node_id, code=code,
+                             name=name, register=register, register_bits=bits, phase=self.axis.phase)
 
     # ------------------------------------------------------------------ state from the drive
     @property
@@ -363,6 +386,7 @@ class Cia402Link(DriveLink):
             axis.error_register = message.fields["register"]
             for event in node.drive_not_enabled(self.index, "EMCY") if code else ["EMCY"]:
                 node.report(self.index, event)
+            raise self.emcy_violation(code, axis.error_register)  # recorded by name; the node goes on
         elif kind == "SDO_RESPONSE":
             frames, event = self.on_sdo(message.fields)
             node.send(frames)
@@ -436,5 +460,14 @@ class Cia402Link(DriveLink):
             axis.lost = False
             events.append("FOUND")
         events += self.node.drive_enabled(self.index, self.enabled)
+        if self.enabled and axis.phase == FAULT and not axis.link_stopped and not self.stop_sent:
+            # enabled while the node holds it in FAULT: another master (`iotad can arm`) enabled
+            # it; only the node's reset (estop = false) clears a held FAULT, so it is stopped
+            # again (a quick stop, once per episode), as an ODrive in closed loop is sent IDLE
+            self.node.send(self.stop_frames() + self.after_stop_frames([self]))
+            self.stop_sent = True
+            events.append("UNCOMMANDED_STATE")
+        elif not self.enabled:
+            self.stop_sent = False
         for event in events:
             self.node.report(self.index, event)

@@ -90,7 +90,10 @@ def test_a_held_axis_is_refused_unless_forced(drives, capsys):
         args = ["can", "arm", "--node", "5", "--interface", "virtual", "--channel", drives.channel,
                 "--connect", endpoint, "--hub-timeout", "2"]
         assert main(args) == 2
-        assert "node 5 (cia402) is held by the running motor node held/motor" in capsys.readouterr().err
+        err = capsys.readouterr().err
+        assert "node 5 (cia402) is held by the running motor node held/motor" in err
+        # what clears a held FAULT is the node's own reset (docs/can_motor.md), and the refusal says how
+        assert "re-armed by its reset: iotad pub iota/held/motor/estop false" in err
         with drives.lock:
             drives.drives[5].fault(0x2310)
         clear = ["can", "clear-errors", *args[2:]]

@@ -89,7 +89,8 @@ def test_an_emcy_is_an_event_with_its_code(bench):
     bench.run(0.05)
     emcy = bench.status(0, "EMCY")
     assert len(emcy) == 1 and emcy[0]["axis_error"] == 0x2310
-    assert co.emcy_name(0x2310) == "continuous over-current"
+    (violation,) = bench.violations()  # and by name (test_every_emcy_is_a_recorded_violation_...)
+    assert violation["value"]["name"] == "continuous over-current"
 
 
 @settings(max_examples=150, deadline=None)
@@ -100,5 +101,7 @@ def test_no_frame_on_a_drives_ids_crashes_the_node(ident, data, rtr):
     value = Frame.remote(ident, len(data)).to_value() if rtr else Frame(ident, data).to_value()
     bench.hear(0.01, value)
     bench.run(0.03)
-    assert not bench.violations()
+    # a well-formed EMCY is a recorded drive_emcy (by name); nothing else, and never a runtime_error
+    assert [v["value"]["violation"] for v in bench.violations()] == (
+        ["drive_emcy"] if ident == 0x083 and len(data) == 8 and not rtr else [])
     assert len(bench.events("can_rx", kind="input")) == 1

@@ -197,7 +197,9 @@ def _refuse_if_held(args: argparse.Namespace, protocol: str) -> None:
     holder = held_axes(args).get((protocol, args.node))
     if holder:
         raise CliError(f"node {args.node} ({protocol}) is held by the running motor node {holder}: a command now "
-                       "would fight it; stop that system, or give --force")
+                       "would fight it (it stops a drive armed behind its back); an axis it holds in FAULT is "
+                       f"re-armed by its reset: iotad pub iota/{holder}/estop false; or stop that system, "
+                       "or give --force")
 
 
 def _command(link, args: argparse.Namespace, protocol: str) -> int:
