@@ -17,6 +17,7 @@ import zenoh
 from iotad.node_host import wire
 from iotad.node_host.transport import open_session
 from iotad.launcher.processes import interrupt_then_kill
+from iotad.recording.recorder import CONNECT_RETRY
 
 ROOT = Path(__file__).resolve().parents[1]
 IOTAS = Path(__file__).resolve().parent / "system_iotas.py"
@@ -127,7 +128,10 @@ class Observer:
 
     def __init__(self, system: str, hub: str):
         self.system = system
-        self.session = open_session(connect=[hub])
+        # zenoh retries `connect` at 1 s doubling to 4 s: an observer made before its launcher's hub
+        # listened linked seconds late on a loaded machine and missed the first @trace bursts (the
+        # interpreter-restart test saw no mdl_command taken); every 100 ms, as a recorder does
+        self.session = open_session(connect=[hub], extra=CONNECT_RETRY)
         self.alive: queue.Queue = queue.Queue()   # (monotonic, path, present)
         self.events: queue.Queue = queue.Queue()  # (monotonic, event dict)
         base = f"{wire.PREFIX}/{system}"
