@@ -13,7 +13,7 @@ import zenoh
 from iotad.node_host import wire
 from iotad.launcher.options import LaunchOptions
 from iotad.launcher.run.recorder_supervision import RECORDER_MODULE
-from iotad.launcher.run.node_supervision import count_trace
+from iotad.launcher.run.tally import count_trace
 from iotad.launcher.run.supervision import Launcher
 from iotad.launcher.system.system_file import load_system
 from iotad.recording.mcap_reader import read_recording

@@ -16,6 +16,7 @@ from iotad.machine.clock_offset import ClockServer
 from iotad.kernel.clock import wall
 from iotad.node_host.stop_signals import Flag
 from iotad.launcher.access.access_control import AccessControl
+from iotad.launcher.run.tally import Tally, count_trace
 from iotad.launcher.system.system_file import System
 
 
@@ -30,12 +31,14 @@ class Hub:
     its launcher on a known port). `origin`: the run's origin (None: the hub's own now, or the one
     the hub answers). `stop`: set when a stop is asked (ends the waits for the hub). `events`:
     the launcher's queue, which gets ("clock", reading) for each later measurement of this host's
-    clock. `view`: the status view, whose `line` says what happens."""
+    clock. `view`: the status view, whose `line` says what happens. `tally`: what every node's
+    trace carries is counted there, from the session's first moment."""
 
     def __init__(self, system: System, host: str | None, endpoints: list[str], *, access: AccessControl | None,
-                 recorded: bool, origin: float | None, steady: Any, stop: Flag, events: queue.Queue, view: Any):
+                 recorded: bool, origin: float | None, steady: Any, stop: Flag, events: queue.Queue, view: Any,
+                 tally: Tally):
         self.system, self.host, self.endpoints, self.access = system, host, endpoints, access
-        self.view, self._steady, self._stop, self._events = view, steady, stop, events
+        self.view, self._steady, self._stop, self._events, self.tally = view, steady, stop, events, tally
         self.origin = origin
         self.hub_origin: float | None = None   # another host's launcher: the origin the hub answered
         self.clock: dict | None = None         # another host's launcher: its clock offset, as measured at start
@@ -100,6 +103,10 @@ class Hub:
             self.view.line(line)
         self._publisher = session.declare_publisher(wire.launcher_key(system.name))
         self._declared.append(self._publisher)
+        # outputs are counted from the nodes' traces (iotad/launcher/run/tally.py), from before
+        # this host waits for the hub's origin: another host's nodes may run by then
+        self._declared.append(session.declare_subscriber(wire.every_node(system.name, wire.TRACE),
+                                                         lambda sample: count_trace(self.tally, system.name, sample)))
         if self.opens_hub:
             if self.origin is None:
                 self.origin = wall()

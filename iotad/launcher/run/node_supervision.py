@@ -24,25 +24,24 @@ from iotad.launcher.options import LaunchOptions
 from iotad.launcher.processes import FAILED_TO_START, describe_exit, log_tail, stop_all
 from iotad.launcher.run.hub import Hub
 from iotad.launcher.run.node_run import NodeRun, NodeState
-from iotad.launcher.run.tally import Tally
 from iotad.launcher.system.system_file import System
 
 
 class NodeSupervisor:
     """The nodes `runs` of `system` on `host`, supervised through `hub`, whose session it
-    subscribes to on construction (every node's token, heartbeat and trace, on any host).
+    subscribes to on construction (every node's token and heartbeat, on any host).
 
-    `tally`: what the traces carry is counted there. `view`: the status view. `want_stop(reason,
+    `view`: the status view. `want_stop(reason,
     line)`: a required node ended for good, the run must stop. `others_started`: this launcher's
     fleet starts the other hosts' nodes (their first liveliness then counts for --after-live)."""
 
     def __init__(self, system: System, host: str | None, runs: dict[str, NodeRun], hub: Hub, *,
                  launch: LaunchOptions, node_argv: Callable[[str], list[str]], run_dir: Path,
-                 access: AccessControl | None, tally: Tally, view: Any, hurry: Flag,
+                 access: AccessControl | None, view: Any, hurry: Flag,
                  want_stop: Callable[[str, str], None], others_started: bool, events: queue.Queue):
         self.system, self.host, self.runs, self.hub = system, host, runs, hub
         self.options, self.node_argv, self.run_dir, self.access = launch, node_argv, run_dir, access
-        self.tally, self.view, self._hurry, self._want_stop = tally, view, hurry, want_stop
+        self.view, self._hurry, self._want_stop = view, hurry, want_stop
         self.others_started, self._events = others_started, events
         self.alive_paths: set[str] = set()
         self.ever_alive: set[str] = set()  # every node path that has shown its token, on any host
@@ -56,7 +55,6 @@ class NodeSupervisor:
         hub.declare(session.liveliness().declare_subscriber(
             wire.every_node(system.name, wire.ALIVE), self._on_liveliness, history=True))
         hub.declare(session.declare_subscriber(wire.every_node(system.name, wire.HEARTBEAT), self._on_heartbeat))
-        hub.declare(session.declare_subscriber(wire.every_node(system.name, wire.TRACE), self.on_trace))
 
     # ------------------------------------------------------------------ zenoh callbacks (their threads)
     def _on_liveliness(self, sample: Any) -> None:
@@ -70,10 +68,6 @@ class NodeSupervisor:
         run = self.runs.get(path) if path is not None else None
         if run is not None and run.state in (NodeState.STARTING, NodeState.RUNNING, NodeState.LOST):
             run.last_beat = time.monotonic()  # one attribute store: safe across threads
-
-    def on_trace(self, sample: Any) -> None:
-        """A trace burst (or one event) of any node: its outputs and violations, counted."""
-        count_trace(self.tally, self.system.name, sample)
 
     # ------------------------------------------------------------------ the launcher's turns
     def note_live(self) -> None:
@@ -321,18 +315,4 @@ def status_rows(runs: dict[str, NodeRun], now: float) -> list[tuple]:
     return rows
 
 
-def count_trace(tally: Tally, system_name: str, sample: Any) -> None:
-    """Outputs are counted from the nodes' traces, not from their keys: a subscriber to every
-    channel key would wake this process for every message, which the nodes pay for."""
-    path = wire.node_path(sample.key_expr, system_name, wire.TRACE)
-    try:
-        events = wire.trace_events(wire.decode(sample.payload.to_bytes()))  # a burst, or one event
-    except wire.WireError:
-        return
-    for event in events:
-        tally.trace(path or "?", event)
-        if isinstance(event, dict) and event.get("kind") == "output" and isinstance(event.get("key"), str):
-            tally.channel(event["key"], event.get("value"))
-
-
-__all__ = ["NodeSupervisor", "count_trace", "settle", "status_rows", "stop_nodes"]
+__all__ = ["NodeSupervisor", "settle", "status_rows", "stop_nodes"]

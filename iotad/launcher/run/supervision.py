@@ -117,11 +117,12 @@ class Launcher:
             # answers clock queries on, and what another host measures its offset on
             self.hub = Hub(self.system, self.host, self.endpoints, access=self.access,
                            recorded=self._recording is not None, origin=self.options.origin,
-                           steady=steady_wall(), stop=self._stop_asked, events=self.events, view=self.view)
-            # subscribed before the recorder and the other hosts start: their nodes are counted from the first
+                           steady=steady_wall(), stop=self._stop_asked, events=self.events, view=self.view,
+                           tally=self.tally)
+            # subscribed before the recorder and the other hosts start: their tokens are seen from the first
             self.nodes = NodeSupervisor(
                 self.system, self.host, self.runs, self.hub, launch=self.options, node_argv=self.node_argv,
-                run_dir=self.run_dir, access=self.access, tally=self.tally, view=self.view, hurry=self._hurry,
+                run_dir=self.run_dir, access=self.access, view=self.view, hurry=self._hurry,
                 want_stop=self._want_stop, others_started=self.fleet is not None, events=self.events)
             self.recorder = self._start_recorder(self.hub)
             self._start_fleet()
