@@ -4,7 +4,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from iotad.recording.foxglove_mapping import LOG_TOPIC, json_schema, log_lines, topic_of, views
+from iotad.recording.foxglove_mapping import (LOG_TOPIC, described_channels, joint_names, log_lines, log_message,
+                                             topic_of, typed, views)
 
 
 class Bridge:
@@ -33,14 +34,11 @@ class Bridge:
 
     def describe(self, spec: dict) -> None:
         self.scene.learn(spec)  # a URDF the drives load, the joint names of a joint map
-        for channel in spec.get("channels") or []:
-            for key in channel.get("keys") or []:
-                self.types[key] = channel.get("type_name")
-                self.schemas[topic_of(key)] = json_schema(channel)
+        for key, type_name, schema in described_channels(spec):
+            self.types[key] = type_name
+            self.schemas[topic_of(key)] = schema
 
     def message(self, key: str, value: Any, stamp_ns: int) -> None:
-        from foxglove.messages import JointState, JointStates, Pose, PoseInFrame, Quaternion, Timestamp, Vector3
-
         for topic, kind, message in views(key, self.types.get(key), value):
             if kind == "json":
                 channel = self._json.get(topic)
@@ -53,19 +51,13 @@ class Bridge:
                 channel = table.get(topic)
                 if channel is None:
                     channel = table[topic] = maker(topic)
-                stamp = Timestamp(stamp_ns // 1_000_000_000, stamp_ns % 1_000_000_000)
-                if kind == "joints":
-                    joints = message["joints"]
-                    parsed = key.split("/")  # iota/<system>/<path...>/<channel>: the joint map's names if known
-                    names = self.scene.robots.names_for("/".join(parsed[2:-1]), len(joints))
-                    if names:
-                        joints = [dict(j, name=name) for j, name in zip(joints, names)]
-                    typed = JointStates(timestamp=stamp, joints=[JointState(**j) for j in joints])
-                else:
-                    typed = PoseInFrame(timestamp=stamp, frame_id="world", pose=Pose(
-                        position=Vector3(x=message["x"], y=message["y"], z=message["z"]),
-                        orientation=Quaternion(x=0.0, y=0.0, z=message["qz"], w=message["qw"])))
-                channel.log(typed, log_time=stamp_ns)
+                if kind == "joints":  # the joint map's names, where known
+                    from iotad.node_host.wire import parse_key
+
+                    path = (parse_key(key) or ("", "/".join(key.split("/")[2:-1])))[1]
+                    message = {"joints": joint_names(message["joints"],
+                                                     self.scene.robots.names_for(path, len(message["joints"])))}
+                channel.log(typed(kind, message, stamp_ns), log_time=stamp_ns)
             self.sent += 1
         for topic, message in self.scene.feed(key, value, stamp_ns):
             channel = self._scene.get(topic)
@@ -93,10 +85,6 @@ class Bridge:
         return None if path is None else path.read_bytes()
 
     def trace(self, path: str, events: list, stamp_ns: int) -> None:
-        from foxglove.messages import Log, LogLevel, Timestamp
-
         for _, level, line in log_lines(path, events):
-            level_value = LogLevel.Warning if level == "warning" else LogLevel.Info
-            self.log_channel.log(Log(timestamp=Timestamp(stamp_ns // 1_000_000_000, stamp_ns % 1_000_000_000),
-                                     level=level_value, message=line, name=path), log_time=stamp_ns)
+            self.log_channel.log(log_message(path, level, line, stamp_ns), log_time=stamp_ns)
             self.sent += 1

@@ -1,5 +1,7 @@
 """How iotad's channels show in Foxglove: topics, schemas and the well-known views of a value
-(pure functions, no server; `foxglove_live.Bridge` serves them for `iotad view`).
+(pure functions, no server), one mapping for both writers: `foxglove_live.Bridge` serves it for
+`iotad view`, `foxglove_export.export_json` writes it for `iotad export --json`, so that a live
+system and its recording show the same topics with the same values.
 
 Every channel of every live node becomes a Foxglove channel with the channel type's JSON schema,
 topic `/<node path>/<channel>[/<k>]`, each message logged at its send time (the wire attachment's
@@ -18,8 +20,8 @@ that the 3D and plot panels work without configuration:
   the meshes' `package://` URLs are answered as assets from pybullet_data (`asset`).
 
 `/log` (`foxglove.Log`) carries the schedulers' acks and `mdl_command` as info lines and every
-violation as a warning, from the nodes' `@trace`. The mapping is pure (`views`), so it is tested
-without a server, and any writer of Foxglove data (live or from a recording) can use it.
+violation as a warning, from the nodes' `@trace`. The mapping is pure (`views`, `log_lines`), so
+it is tested without a server; `typed` and `log_message` make foxglove-sdk's messages of it.
 """
 from __future__ import annotations
 
@@ -102,6 +104,45 @@ def log_lines(path: str, events: list) -> Iterator[tuple[float, str, str]]:
                                                    f"{detail.get('message', '')}")
         elif kind == "output" and action in LOGGED_OUTPUTS:
             yield event.get("t", 0.0), "info", f"{path}.{label} = {value}"
+
+
+def described_channels(spec: dict) -> Iterator[tuple[str, str | None, dict]]:
+    """(key, type name, Foxglove JSON schema) of every channel key a node's `@spec` describes."""
+    for channel in spec.get("channels") or []:
+        if not isinstance(channel, dict):
+            continue
+        for key in channel.get("keys") or []:
+            yield key, channel.get("type_name"), json_schema(channel)
+
+
+def joint_names(joints: list[dict], names: list[str] | None) -> list[dict]:
+    """The joints named as the node's joint map names them (`names`), where known."""
+    return [dict(j, name=name) for j, name in zip(joints, names)] if names else joints
+
+
+def typed(kind: str, message: dict, stamp_ns: int) -> Any:
+    """The foxglove-sdk message of a well-known view of `views` ("joints" or "pose")."""
+    from foxglove.messages import JointState, JointStates, Pose, PoseInFrame, Quaternion, Vector3
+
+    if kind == "joints":
+        return JointStates(timestamp=_stamp(stamp_ns), joints=[JointState(**j) for j in message["joints"]])
+    return PoseInFrame(timestamp=_stamp(stamp_ns), frame_id="world", pose=Pose(
+        position=Vector3(x=message["x"], y=message["y"], z=message["z"]),
+        orientation=Quaternion(x=0.0, y=0.0, z=message["qz"], w=message["qw"])))
+
+
+def log_message(path: str, level: str, line: str, stamp_ns: int) -> Any:
+    """One /log line of `log_lines` as a foxglove-sdk `Log`."""
+    from foxglove.messages import Log, LogLevel
+
+    return Log(timestamp=_stamp(stamp_ns), level=LogLevel.Warning if level == "warning" else LogLevel.Info,
+               message=line, name=path)
+
+
+def _stamp(stamp_ns: int) -> Any:
+    from foxglove.messages import Timestamp
+
+    return Timestamp(stamp_ns // 1_000_000_000, stamp_ns % 1_000_000_000)
 
 
 def json_schema(described: dict) -> dict:

@@ -319,19 +319,23 @@ class SceneWriter:
 
     def feed(self, key: str, value: Any, stamp_ns: int) -> None:
         for topic, message in self.tracker.feed(key, value, stamp_ns):
-            if isinstance(message, dict):
-                data, name, encoding, schema_encoding, schema_data = (
-                    self._json.dumps(message).encode(), URDF_SCHEMA["title"], "json", "jsonschema",
-                    self._json.dumps(URDF_SCHEMA).encode())
-            else:
-                schema = message.get_schema()
-                data, name, encoding, schema_encoding, schema_data = (
-                    message.encode(), schema.name, schema.encoding, schema.encoding, schema.data)
-            channel = self.channels.get(topic)
-            if channel is None:
-                schema_id = self.schemas.get(name)
-                if schema_id is None:
-                    schema_id = self.schemas[name] = self.writer.register_schema(name, schema_encoding, schema_data)
-                channel = self.channels[topic] = self.writer.register_channel(topic, encoding, schema_id, {})
-            self.writer.add_message(channel, stamp_ns, data, stamp_ns, self.count)
-            self.count += 1
+            self.write(topic, message, stamp_ns)
+
+    def write(self, topic: str, message: Any, stamp_ns: int) -> None:
+        """One message on `topic`: a foxglove-sdk message (protobuf), or the URDF (JSON)."""
+        if isinstance(message, dict):
+            data, name, encoding, schema_encoding, schema_data = (
+                self._json.dumps(message).encode(), URDF_SCHEMA["title"], "json", "jsonschema",
+                self._json.dumps(URDF_SCHEMA).encode())
+        else:
+            schema = message.get_schema()
+            data, name, encoding, schema_encoding, schema_data = (
+                message.encode(), schema.name, schema.encoding, schema.encoding, schema.data)
+        channel = self.channels.get(topic)
+        if channel is None:
+            schema_id = self.schemas.get(name)
+            if schema_id is None:
+                schema_id = self.schemas[name] = self.writer.register_schema(name, schema_encoding, schema_data)
+            channel = self.channels[topic] = self.writer.register_channel(topic, encoding, schema_id, {})
+        self.writer.add_message(channel, stamp_ns, data, stamp_ns, self.count)
+        self.count += 1

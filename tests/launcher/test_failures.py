@@ -188,7 +188,7 @@ params = {{ token = true, beat = true, exit_after = 60 }}
 """)
     run, lines = in_process(tmp_path, path, node_argv=stub_argv(), until=0.5)
     assert run.run() == 0, texts(lines)
-    hub = run.hub[0]
+    hub = run.endpoints[0]
     assert f"hub: {hub} (tools attach with --connect {hub}, e.g. iotad top --connect {hub})" in texts(lines)
 
 

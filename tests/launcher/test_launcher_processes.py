@@ -13,6 +13,7 @@ import zenoh
 from iotad.node_host import wire
 from iotad.launcher.options import LaunchOptions
 from iotad.launcher.run.recorder_supervision import RECORDER_MODULE
+from iotad.launcher.run.tally import count_trace
 from iotad.launcher.run.supervision import Launcher
 from iotad.launcher.system.system_file import load_system
 from iotad.recording.mcap_reader import read_recording
@@ -264,9 +265,9 @@ def test_summary_reads_trace_bursts_and_single_events(tmp_path):
            "key": "iota/pair/src/out", "seq": 0, "send_ns": 1}
     bad = {"t": 0.2, "iota": "src", "action": "x", "index": None, "kind": "violation",
            "value": {"violation": "v", "message": "m"}}
-    run._on_trace(sample(wire.encode_burst([wire.start_event(0.0, "src", 1.0, 1), out, 7, out, bad])))
-    run._on_trace(sample(wire.encode(out)))  # the old form: one event a sample
-    run._on_trace(sample(b"\xc1"))
-    run._on_trace(sample(wire.encode("neither")))
+    count_trace(run.tally, "pair", sample(wire.encode_burst([wire.start_event(0.0, "src", 1.0, 1), out, 7, out, bad])))
+    count_trace(run.tally, "pair", sample(wire.encode(out)))  # the old form: one event a sample
+    count_trace(run.tally, "pair", sample(b"\xc1"))
+    count_trace(run.tally, "pair", sample(wire.encode("neither")))
     assert sum(run.tally.values["iota/pair/src/out"].values()) == 3
     assert run.tally.violations["src"] == 1

@@ -57,7 +57,7 @@ def run(args: argparse.Namespace) -> int:
                                      "stopped_at": recording.truncated_reason or "footer",
                                      "damaged": recording.damaged}}
     count = export_json(recording, args.output, extra)
-    print(f"wrote {count} JSON messages to {args.output}")
+    print(f"wrote {count} messages for Foxglove to {args.output}")
     if extra is not None:
         print(f"{args.file} is cut short ({recording.damaged or recording.truncated_reason or 'no footer'}): the copy "
               f"holds what it holds, and its metadata says so (iotad.recovered)")

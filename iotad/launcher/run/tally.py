@@ -8,6 +8,7 @@ from collections import Counter
 from dataclasses import dataclass, field
 from typing import Any
 
+from iotad.node_host import wire
 from iotad.launcher.run.violation_examples import ViolationExamples
 
 VALUE_LABELS = 32             # distinct values counted per channel for the summary; then "*"
@@ -37,3 +38,18 @@ class Tally:
                 value = event.get("value") or {}
                 message = value.get("message") if isinstance(value, dict) else value
                 self.examples.add(f"{path} t={event.get('t', 0):.3f}: {message}", event.get("index"))
+
+
+def count_trace(tally: Tally, system_name: str, sample: Any) -> None:
+    """A `@trace` sample of any node (a burst, or one event), counted in `tally`. Outputs are
+    counted from the nodes' traces, not from their keys: a subscriber to every channel key would
+    wake this process for every message, which the nodes pay for."""
+    path = wire.node_path(sample.key_expr, system_name, wire.TRACE)
+    try:
+        events = wire.trace_events(wire.decode(sample.payload.to_bytes()))  # a burst, or one event
+    except wire.WireError:
+        return
+    for event in events:
+        tally.trace(path or "?", event)
+        if isinstance(event, dict) and event.get("kind") == "output" and isinstance(event.get("key"), str):
+            tally.channel(event["key"], event.get("value"))
