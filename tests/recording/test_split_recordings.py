@@ -15,6 +15,7 @@ from mcap.reader import make_reader
 from iotad.cli import main
 from iotad.node_host import wire
 from iotad.node_host.transport import open_session
+from iotad.recording.foxglove_mapping import topic_of
 from iotad.recording.mcap_format import SET_METADATA
 from iotad.recording.mcap_reader import read_recording, set_files
 from launcher_helpers import free_port
@@ -137,7 +138,8 @@ def test_split_set_of_three_or_more_files_reads_back_as_the_unsplit_recording(tm
     assert f"{KEY}" in capsys.readouterr().out
     assert main(["export", str(split.output), "--json", "-o", str(tmp_path / "json.mcap")]) == 0
     with open(tmp_path / "json.mcap", "rb") as stream:  # a JSON copy, for Foxglove: iotad's reader refuses it
-        exported = sum(1 for _, channel, _ in make_reader(stream).iter_messages() if channel.topic == KEY)
+        # on the topic `iotad view` shows the channel on (the shared Foxglove mapping)
+        exported = sum(1 for _, channel, _ in make_reader(stream).iter_messages() if channel.topic == topic_of(KEY))
     assert exported == source.sent
 
 
