@@ -95,39 +95,30 @@ class CanFramesType(Type):
 
     name = "canFrames"
 
-    def check(self, value: Any) -> None:
-        if not isinstance(value, (list, tuple)):
-            raise BadValue(f"frames are a list of canFrame, got {type(value).__name__}")
-        for position, frame in enumerate(value):
-            try:
-                CAN_FRAME.check(frame)
-            except BadValue as exc:
-                raise BadValue(f"[{position}]: {exc}") from None
-
-    def checked_plain(self, value: Any) -> Any:
+    @staticmethod
+    def _each(value: Any, convert) -> list:
+        """`convert` applied to each frame of `value`, a bad one named by its position."""
         if not isinstance(value, (list, tuple)):
             raise BadValue(f"frames are a list of canFrame, got {type(value).__name__}")
         out = []
         for position, frame in enumerate(value):
             try:
-                out.append(CAN_FRAME.checked_plain(frame))
+                out.append(convert(frame))
             except BadValue as exc:
                 raise BadValue(f"[{position}]: {exc}") from None
         return out
+
+    def check(self, value: Any) -> None:
+        self._each(value, CAN_FRAME.check)
+
+    def checked_plain(self, value: Any) -> Any:
+        return self._each(value, CAN_FRAME.checked_plain)
 
     def to_plain(self, value: Any) -> Any:
         return [CAN_FRAME.to_plain(frame) for frame in value]
 
     def from_plain(self, plain: Any) -> list:
-        if not isinstance(plain, (list, tuple)):
-            raise BadValue(f"frames are a list of canFrame, got {type(plain).__name__}")
-        out = []
-        for position, frame in enumerate(plain):
-            try:
-                out.append(CAN_FRAME.from_plain(frame))
-            except BadValue as exc:
-                raise BadValue(f"[{position}]: {exc}") from None
-        return out
+        return self._each(plain, CAN_FRAME.from_plain)
 
     def from_checked_plain(self, plain: Any) -> list:
         return [CAN_FRAME.from_checked_plain(frame) for frame in plain]

@@ -26,7 +26,7 @@ def test_a_listen_port_0_is_pinned_so_that_the_hosts_recorder_can_be_told_where(
     endpoints = pinned(["tcp/127.0.0.1:0", "tcp/127.0.0.1:7447", "unixsock-stream//tmp/x"])
     port = int(endpoints[0].rpartition(":")[2])
     assert 0 < port < 65536 and endpoints[1:] == ["tcp/127.0.0.1:7447", "unixsock-stream//tmp/x"]
-    assert local_endpoints(["tcp/0.0.0.0:7500", "tcp/10.0.0.2:0"]) == ["tcp/127.0.0.1:7500"]
+    assert local_endpoints(["tcp/0.0.0.0:7500", "tcp/10.0.0.2:0"]) == ["tcp/127.0.0.1:7500"]  # loopback-ok: test data, the 0.0.0.0 is what is refused
 
 
 def test_each_agent_is_told_to_record_its_part_beside_the_hubs_recording(tmp_path):
