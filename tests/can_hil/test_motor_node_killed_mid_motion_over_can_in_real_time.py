@@ -14,6 +14,7 @@ than the example's, so that the kill lands mid-motion, and the axes beat every 1
 heartbeat says IDLE soon after the watchdog trips.
 """
 import json
+import sys
 
 import pytest
 
@@ -42,7 +43,7 @@ def run(system_can_tier, tmp_path_factory):
                             motor={"heartbeat_period": "0.01", "lost_after": "20", "encoder_period": "0.05"},
                             backoff=RESTART_AFTER)
     recording = folder / "arm.mcap"
-    result = system_can_tier.run([str(ROOT / ".venv" / "bin" / "python"), str(ROOT / "tests" / "can_hil" / "arm_driver.py"),
+    result = system_can_tier.run([sys.executable, str(ROOT / "tests" / "can_hil" / "arm_driver.py"),
                            str(system), str(recording), "--kill-after", str(KILL_AFTER), "--run-for", "14"],
                           timeout=400, cwd=str(ROOT)).check()
     driver = json.loads(next(line for line in result.output.splitlines() if line.startswith("DRIVER {"))[7:])

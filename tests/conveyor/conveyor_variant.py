@@ -9,7 +9,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[2]
 EXAMPLE = ROOT / "examples" / "conveyor.toml"
 FOLDER = ROOT / "examples" / "conveyor"
-IOTAD = str(ROOT / ".venv" / "bin" / "iotad")
+IOTAD = str(Path(sys.executable).with_name("iotad"))  # the venv running the tests, also in a worktree
 
 if str(FOLDER) not in sys.path:  # the example's modules import their neighbours by name
     sys.path.insert(0, str(FOLDER))
