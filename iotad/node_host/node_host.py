@@ -171,6 +171,7 @@ class NodeHost:
         self._trace_pub = session.declare_publisher(wire.trace_key(config.system, config.path),
                                                     congestion_control=block, priority=zenoh.Priority.DATA_LOW)
         self._trace_seq = 0
+        self._process: tuple[int, int] | None = None  # (pid, started_ns) once the engine started
         self._beat_pub = session.declare_publisher(f"{base}/{wire.HEARTBEAT}")
         self._declared += [self._trace_pub, self._beat_pub]
         if self.can is not None:
@@ -255,7 +256,11 @@ class NodeHost:
             self.engine.start()
         finally:
             del clock.now
-        self._trace_buffer.insert(0, wire.start_event(t0, self.root.instance_name, time.time(), os.getpid()))
+        started_ns = time.time_ns()
+        # every burst names this process from now on: a recorder that missed this start record (a
+        # restart while its host was cut off) still tells the new process from the one before
+        self._process = (os.getpid(), started_ns)
+        self._trace_buffer.insert(0, wire.start_event(t0, self.root.instance_name, started_ns / 1e9, os.getpid()))
         self._flush_trace()
 
     def alive(self) -> bool:
@@ -347,7 +352,7 @@ class NodeHost:
         # One sample per burst (docs/internals.md "Wire"): a receiver is woken once per burst, not
         # per event; seq counts events, so a receiver sees how many it missed.
         seq = self._trace_seq
-        self._trace_pub.put(wire.encode_burst(buffer), attachment=wire.encode_attachment(seq))
+        self._trace_pub.put(wire.encode_burst(buffer), attachment=wire.encode_attachment(seq, None, self._process))
         self._trace_seq = seq + len(buffer)
         buffer.clear()
 

@@ -13,6 +13,11 @@
   (when it had the attachment): a trace-sourced recorder rebuilds every message from these.
 - The first event a node host puts on `@trace` is `start_event(...)` (kind `start`): the engine's
   start time `t` in the node's clock, when every precondition was first evaluated.
+- Each `@trace` burst's attachment also names the process that sent it: `[seq, send_time_ns,
+  pid, started_ns]`, `started_ns` the wall time of its `start` event. A node restarted where a
+  recorder could not hear it (its host cut off) numbers its trace from 0 again, so its sequence
+  numbers may show no jump: the process does (`trace_process`). A two-element attachment (older
+  node hosts, third-party publishers) names none.
 - Launcher events (node start, exit, restart) go on `iota/<system>/@launcher`; a launcher's start
   gate is a liveliness token on `gate_key(system, host)`; the launcher of a host other than the
   hub's publishes the hub's origin on its clock on `host_origin_key(system, host)`.
@@ -189,15 +194,35 @@ def trace_events(value: Any) -> list:
     raise WireError(f"malformed @trace payload: {type(value).__name__}, neither an event dict nor a burst (list)")
 
 
-def encode_attachment(sequence: int, send_time_ns: int | None = None) -> bytes:
-    return msgpack.packb([sequence, time.time_ns() if send_time_ns is None else send_time_ns])
+def encode_attachment(sequence: int, send_time_ns: int | None = None,
+                      process: tuple[int, int] | None = None) -> bytes:
+    """`[sequence, send_time_ns]`; with `process` (a `@trace` burst's: pid, started_ns) four elements."""
+    fields = [sequence, time.time_ns() if send_time_ns is None else send_time_ns]
+    return msgpack.packb(fields if process is None else [*fields, *process])
 
 
 def decode_attachment(attachment: bytes | None) -> tuple[int, int] | None:
+    """(sequence, send_time_ns) of an attachment, whatever follows them; None if it has none."""
     if not attachment:
         return None
     try:
-        sequence, send_ns = msgpack.unpackb(attachment)
-        return int(sequence), int(send_ns)
+        fields = msgpack.unpackb(attachment)
+        return int(fields[0]), int(fields[1])
     except Exception:  # noqa: BLE001
         return None
+
+
+def trace_process(fields: Any) -> tuple[int, int] | None:
+    """(pid, started_ns) of the process that sent a `@trace` burst, from its decoded attachment's
+    fields; None where it names none (an older node host)."""
+    if isinstance(fields, (list, tuple)) and len(fields) >= 4 and all(isinstance(f, int) for f in fields[2:4]):
+        return int(fields[2]), int(fields[3])
+    return None
+
+
+def restart_note(key: str, expected: int, got: int, process: tuple[int, int]) -> dict:
+    """A recorder's note (on its gaps topic) that a new process began sending on the `@trace` key
+    `key`: its first burst heard has `seq` `got`, so its first `got` events (its `start` record
+    first) were not heard; `expected` is the `seq` the process before would have sent next."""
+    return {"key": key, "expected": 0, "got": got, "missing": got, "after": expected,
+            "process": {"pid": process[0], "started_ns": process[1]}}

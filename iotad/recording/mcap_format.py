@@ -78,7 +78,9 @@ TRACE_SCHEMA = {
 GAP_SCHEMA = {
     "title": "iotad sequence gap", "type": "object",
     "properties": {"key": {"type": "string"}, "expected": {"type": "integer"}, "got": {"type": "integer"},
-                   "missing": {"type": "integer"}}}
+                   "missing": {"type": "integer"},
+                   # a new process of a node, its first `got` trace events not heard (wire.restart_note)
+                   "after": {"type": "integer"}, "process": {"type": "object"}}}
 MERGE_GAP_SCHEMA = {
     "title": "iotad host gap of a merged recording", "type": "object",
     "properties": {"host": {"type": ["string", "null"]}, "from_ns": {"type": "integer"}, "to_ns": {"type": "integer"},

@@ -251,19 +251,42 @@ class Recording:
         process with no start record, one is made at its `live` time (node clock = wall clock
         minus the one offset every start record of the run shares), marked `"from": "launcher"`,
         and put after the events of the processes before it (before the first event recorded
-        after the new process was spawned)."""
+        after the new process was spawned). A process restarted while the recorder could not hear
+        it (its host cut off), whose start record and first events are not here, gets one made
+        from the recorder's note of it (`wire.restart_note`, marked `"from": "recorder"`), before
+        the first event heard of it, which carries the gap: the process before is judged up to
+        its last event heard, the new one from its own start, never one as the other."""
         # the node's events as it fired them: a format 2 bus's bursts, not the frames read out of them
         events = [e for e in self.trace(node, starts=True) if not e.get("derived")]
+        restarts = []
         for gap in self.trace_gaps(node):
             # the first event heard after the gap carries it: a checker stops there (positions
-            # are those of `trace`, before the launcher's start records go in below)
-            events[gap.pop("position")]["missed"] = gap
+            # are those of `trace`, before the start records go in below)
+            position = gap.pop("position")
+            events[position]["missed"] = gap
+            if isinstance(gap.get("process"), dict):
+                restarts.append((position, gap))
         starts = [e for e in events if e.get("kind") == wire.START_KIND]
         value = starts[0].get("value") if starts else None
         if not isinstance(value, dict) or not isinstance(value.get("wall"), (int, float)):
             return events  # an in-process recording, or nothing to anchor the launcher's times on
         offset = float(value["wall"]) - float(starts[0]["t"])
         recorded = {e["value"].get("pid") for e in starts if isinstance(e.get("value"), dict)}
+        for position, gap in reversed(restarts):
+            # a process whose start record was not heard (restarted while its host was cut off):
+            # its start record made from the recorder's note, so that it is judged as a new run
+            process = gap["process"]
+            pid, started = process.get("pid"), process.get("started_ns")
+            if pid in recorded or not isinstance(started, int):
+                del events[position]["missed"]  # its start is here after all (a merged file)
+                continue
+            recorded.add(pid)
+            t = started / 1e9 - offset
+            gap["why"] = (f"its process was restarted unheard: pid {pid} started at t={t:.6g}, and its start "
+                          f"and first events were not heard; " + gap["why"])
+            events.insert(position, {"t": t, "iota": starts[0].get("iota", node), "action": starts[0].get("action", "@start"),
+                                     "index": None, "kind": wire.START_KIND, "node": node,
+                                     "value": {"wall": started / 1e9, "pid": pid, "from": "recorder"}})
         launcher = [e for e in self.launcher_events() if e.get("node") == node and isinstance(e.get("t_ns"), int)]
         spawned = {e.get("pid"): e["t_ns"] for e in launcher if e.get("event") in ("start", "restart")}
         for live in launcher:
@@ -287,7 +310,8 @@ class Recording:
         behind), each placed in the trace. In trace order: {"position": the index, in
         `trace(node, starts=True)`, of the first event heard after the gap, "missing": how many
         events it lacks, "from_t" / "to_t": the `t` of the events heard either side of it,
-        "log_ns": when the recorder noticed it, "why": what the recording says of it}; positions
+        "log_ns": when the recorder noticed it, "why": what the recording says of it, and for a
+        new process whose start was not heard, "process": its pid and started_ns}; positions
         count the node's own events, not those read out of a format 2 burst. A merged
         recording keeps only the gaps that no host's file filled."""
         noted = []
@@ -320,19 +344,31 @@ class Recording:
                     found.setdefault(messages[k].sequence, []).append(k)
         for log_ns, key, gap in noted:
             messages = on_key[key]
-            # the message whose sequence number jumped to `got`: the one the recorder noticed it
-            # on (its receipt time), else the first (a merge moves receipt times onto the hub's clock)
-            jumps = jumps_to[key].get(gap["got"] & 0xFFFFFFFF)
-            if not jumps:
-                continue
-            at = next((k for k in jumps if messages[k].log_time == log_ns), jumps[0])
+            process = gap.get("process")
+            if isinstance(process, dict):
+                # a new process (`wire.restart_note`): its first event heard, which may follow the
+                # one before with no jump (both number from 0); received with the note
+                got = gap["got"] & 0xFFFFFFFF
+                heard = [k for k in range(1, len(messages)) if messages[k].sequence == got]
+                at = next((k for k in heard if messages[k].log_time == log_ns),
+                          next((k for k in heard if messages[k].log_time >= log_ns), None))
+                if at is None:
+                    continue
+            else:
+                # the message whose sequence number jumped to `got`: the one the recorder noticed it
+                # on (its receipt time), else the first (a merge moves receipt times onto the hub's clock)
+                jumps = jumps_to[key].get(gap["got"] & 0xFFFFFFFF)
+                if not jumps:
+                    continue
+                at = next((k for k in jumps if messages[k].log_time == log_ns), jumps[0])
             try:
                 times = [messages[k].value.get("t") for k in (at - 1, at)]
             except (RecordingError, AttributeError):
                 continue  # no trace events: `trace` names the damage
             if all(isinstance(t, (int, float)) and not isinstance(t, bool) for t in times):
                 out.append({"position": at, "missing": gap["got"] - gap["expected"], "from_t": float(times[0]),
-                            "to_t": float(times[1]), "log_ns": log_ns})
+                            "to_t": float(times[1]), "log_ns": log_ns,
+                            **({"process": dict(process)} if isinstance(process, dict) else {})})
         launcher = self.launcher_events() if out else []
         for gap in out:
             gap["why"] = self._why_missed(node, gap["from_t"], gap["to_t"], launcher)

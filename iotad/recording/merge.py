@@ -316,10 +316,30 @@ class _Join:
             if ident in seen:
                 continue
             seen.add(ident)
+            if isinstance(gap.get("process"), dict):
+                # a new process's first events (wire.restart_note): filled where its start record
+                # is here (sequence numbers alone would match the process before it)
+                if not self._start_of(messages, ident[0], gap["process"].get("pid")):
+                    left.append((t, gap))
+                continue
             have = sequences.get(ident[0], set())
             if not all(seq & 0xFFFFFFFF in have for seq in range(ident[1], min(ident[2], ident[1] + 1_000_000))):
                 left.append((t, gap))
         return left
+
+    @staticmethod
+    def _start_of(messages: list[RecordedMessage], key: str, pid) -> bool:
+        """Whether `messages` hold the start record that the process `pid` sent on `key`."""
+        for message in messages:
+            if message.topic == key and message.sequence == 0:
+                try:
+                    value = message.value
+                except RecordingError:
+                    continue
+                if isinstance(value, dict) and value.get("kind") == wire.START_KIND \
+                        and isinstance(value.get("value"), dict) and value["value"].get("pid") == pid:
+                    return True
+        return False
 
     # ------------------------------------------------------------- the file
     def _recording(self, messages: list[RecordedMessage], gaps: list[dict],

@@ -345,6 +345,7 @@ class Recorder:
         last: dict[str, tuple[int, int]] = {}
         # per @trace key: the `seq` its next burst should have (the last one's + its length)
         following: dict[str, int] = {}
+        processes: dict[str, list] = {}  # per @trace key: the process its last burst named
         unpack_attachment = msgpack.unpackb
         write = sink.fast_writer()  # one per sink: it sets sink.write_pair and sink.commit
         burst = functools.partial(self._burst, write, sink.write_pair)
@@ -374,17 +375,27 @@ class Recorder:
                     attachment = sample.attachment
                     if attachment is not None:
                         try:
-                            sequence, publish_ns = unpack_attachment(attachment.to_bytes())
+                            fields = unpack_attachment(attachment.to_bytes())
+                            sequence, publish_ns = int(fields[0]), int(fields[1])
                         except Exception:  # noqa: BLE001 - a foreign publisher's attachment
-                            sequence, publish_ns = 0, receipt_ns
+                            fields, sequence, publish_ns = (), 0, receipt_ns
+                        # a @trace burst names its process (pid, started_ns): a restart unheard
+                        # (its host cut off) numbers from 0 again, with or without a jump
+                        process = fields[2:4] if len(fields) > 3 else None
                         previous = last.get(key)
                         if previous is not None:
                             if sequence == previous[0] and publish_ns == previous[1]:
                                 stats["duplicates"] += 1  # one sample through two overlapping key expressions
                                 continue
                             expected = following.get(key, previous[0] + 1)
-                            if sequence > expected:
+                            known = processes.get(key)
+                            if process is not None and known is not None and process != known:
+                                if sequence > 0:  # its start record is among what was not heard
+                                    self._restarted(key, expected, sequence, process, receipt_ns)
+                            elif sequence > expected:
                                 self._gap(key, expected, sequence, receipt_ns)
+                        if process is not None:
+                            processes[key] = process
                         last[key] = (sequence, publish_ns)
                     data = sample.payload.to_bytes()
                     if key.endswith(_TRACE):
@@ -590,6 +601,15 @@ class Recorder:
         channel_id = self.sink.channel(GAP_TOPIC, "iotad.gap", schema_for_topic(GAP_TOPIC, {}, {})[1])
         self.sink.write(channel_id, receipt_ns, receipt_ns, self.stats["gaps"] - 1,
                         packb({"key": key, "expected": expected, "got": got, "missing": missing}))
+
+    def _restarted(self, key: str, expected: int, got: int, process: list, receipt_ns: int) -> None:
+        """A new process of a node whose first `got` trace events (its start record first) were not
+        heard: noted with the gaps (`wire.restart_note`), so that a reader judges it afresh."""
+        self.stats["gaps"] += 1
+        self.stats["missing"] += got
+        channel_id = self.sink.channel(GAP_TOPIC, "iotad.gap", schema_for_topic(GAP_TOPIC, {}, {})[1])
+        self.sink.write(channel_id, receipt_ns, receipt_ns, self.stats["gaps"] - 1,
+                        packb(wire.restart_note(key, expected, got, (int(process[0]), int(process[1])))))
 
     def _new_channel(self, key: str) -> int:
         parsed = wire.parse_key(key)
