@@ -41,7 +41,8 @@ class Fleet:
         self.exits: dict[str, int] = {}
         self.lost: list[str] = []  # hosts whose agent is gone now
         self.returns: dict[str, int] = {}  # host -> how many times it came back after it was lost
-        # told ("lost" | "back", host) from a zenoh thread: the launcher marks that host's nodes
+        # told ("lost" | "back" | "resumed" | "exited", host) from a zenoh thread: the launcher
+        # marks that host's nodes (or, for a part that ended by itself, decides the run's fate)
         self.notify: Callable[[str, str], None] | None = None
         self._stop = None
         self._closing = False
@@ -243,7 +244,12 @@ class Fleet:
             code = -1
         with self._changed:
             self.exits[host] = code
+            # its part ended by itself (not asked to stop): the launcher hears it at once, so
+            # that a part that fails as it starts ends the run now, not at its --until
+            by_itself = host in self._started and host not in self._asked_to_stop and not self._closing
             self._changed.notify_all()
+        if by_itself and self.notify is not None:
+            self.notify("exited", host)
 
     def _print(self, host: str, lines: list[tuple[str, bool]]) -> None:
         for text, late in lines:

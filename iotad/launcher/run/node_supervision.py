@@ -55,6 +55,9 @@ class NodeSupervisor:
         hub.declare(session.liveliness().declare_subscriber(
             wire.every_node(system.name, wire.ALIVE), self._on_liveliness, history=True))
         hub.declare(session.declare_subscriber(wire.every_node(system.name, wire.HEARTBEAT), self._on_heartbeat))
+        self.failed_elsewhere: set[str] = set()  # other hosts' nodes their launcher gave up
+        if others_started:
+            hub.declare(session.declare_subscriber(wire.launcher_key(system.name), self._on_launcher_event))
 
     # ------------------------------------------------------------------ zenoh callbacks (their threads)
     def _on_liveliness(self, sample: Any) -> None:
@@ -62,6 +65,18 @@ class NodeSupervisor:
         path = wire.node_path(sample.key_expr, self.system.name, wire.ALIVE)
         if path is not None:
             self._events.put(("alive", path, sample.kind == zenoh.SampleKind.PUT, time.monotonic()))
+
+    def _on_launcher_event(self, sample: Any) -> None:
+        """Another host's launcher gave a node of its up (a configuration error, its restarts
+        spent): it will not be live, and --after-live must not wait for it."""
+        try:
+            event = wire.decode(sample.payload.to_bytes())
+        except wire.WireError:
+            return
+        if isinstance(event, dict) and event.get("event") == "giveup":
+            node = event.get("node")
+            if node in self.system.nodes and node not in self.runs:
+                self._events.put(("gaveup", node))
 
     def _on_heartbeat(self, sample: Any) -> None:
         path = wire.node_path(sample.key_expr, self.system.name, wire.HEARTBEAT)
@@ -196,7 +211,13 @@ class NodeSupervisor:
         --after-live's seconds are the whole system's. The start gates stay each host's own."""
         if not self.others_started:
             return True
-        return all(name in self.ever_alive for name in self.system.nodes if name not in self.runs)
+        return all(name in self.ever_alive or name in self.failed_elsewhere
+                   for name in self.system.nodes if name not in self.runs)
+
+    def gave_up_elsewhere(self, name: str) -> None:
+        """Its host's launcher gave `name` up for good (its own lines say why): it counts as
+        ended, as a node of this host that failed for good does."""
+        self.failed_elsewhere.add(name)
 
     def here_live(self) -> bool:
         """This host's nodes are all live (`everyone_live`); a hub host that holds no node of its

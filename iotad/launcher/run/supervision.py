@@ -88,6 +88,7 @@ class Launcher:
         self.recorder: RecorderSupervisor | None = None
         self._live_at: float | None = None  # with after_live: when every node was first live
         self._stop_reason: str | None = None
+        self._host_failed = False  # another host's part exited by itself before the system ran whole
         self._interrupts = 0
         # Set by signal handlers, hence lock-free flags, not threading.Events (iotad.node_host.stop_signals)
         self._stop_asked = Flag()  # a stop was asked for (signal or request_stop)
@@ -133,7 +134,8 @@ class Launcher:
             self._restore_signals(previous)
         if self._stop_reason in _SIGNAL_STATUS:
             return _SIGNAL_STATUS[self._stop_reason]
-        failed = any(r.state in (NodeState.FAILED, NodeState.DOWN) for r in self.runs.values()) or self.never_live() \
+        failed = self._host_failed or any(r.state in (NodeState.FAILED, NodeState.DOWN) for r in self.runs.values()) \
+            or self.never_live() \
             or (self.fleet is not None and self.fleet.failures())
         # a recorder that died mid-run left a gap between its files: what happened then is lost
         return 1 if failed or (self.recorder is not None and self.recorder.incomplete) else 0
@@ -277,8 +279,35 @@ class Launcher:
                 self.recorder.exited(item[1], item[2])
         elif kind == "clock":
             self.hub.clock_measured(item[1])
+        elif kind == "gaveup":
+            self.nodes.gave_up_elsewhere(item[1])
+        elif kind == "host" and item[1] == "exited":
+            self._host_exited(item[2])
         elif kind == "host":
             self.nodes.host_changed(item[1], item[2])
+
+    def _host_exited(self, host: str) -> None:
+        """Another host's part ended by itself (its launcher exited; not asked to stop). Before
+        every node of that host had been live, or with a required node of its, the system cannot
+        run whole: the run stops now, saying why in one line, rather than at its --until (or
+        never, with --after-live). Else its nodes are down and the run goes on (its exit status
+        will be 1), as for a node that failed for good."""
+        code = self.fleet.exits.get(host)
+        nodes = [name for name, spec in self.system.nodes.items() if spec.host == host]
+        required = [name for name in nodes if self.system.nodes[name].required]
+        never = [name for name in nodes if name not in self.nodes.ever_alive]
+        if never or required:
+            why = (f"before {', '.join(never)} had been live" if never
+                   else f"and {', '.join(required)} {'is' if len(required) == 1 else 'are'} required")
+            line = f"host {host}: its part exited with {code} {why} (its lines above say why): stopping every node"
+            self.hub.launcher_event("host_failed", line, code=code, quiet=True, failed_host=host)
+            self._host_failed = True
+            self._want_stop("host failed", line)
+            return
+        self.view.line(f"host {host}: its part exited with {code} by itself; its nodes ({', '.join(nodes)}) are down")
+        for name in nodes:
+            self.hub.publish({"event": "down", "node": name, "host": host, "pid": None, "code": code,
+                              "t_ns": time.time_ns(), "message": f"host {host}: its part exited with {code}"})
 
     def _want_stop(self, reason: str, line: str) -> None:
         """The run stops for `reason` (the first one given is the one it stops for)."""
