@@ -304,6 +304,9 @@ class Launcher:
             self._host_failed = True
             self._want_stop("host failed", line)
             return
+        if code == 0:  # every node of it ended, as a node's script may end: nothing failed
+            self.view.line(f"host {host}: its part ended by itself (exit 0): its nodes ({', '.join(nodes)}) ended")
+            return
         self.view.line(f"host {host}: its part exited with {code} by itself; its nodes ({', '.join(nodes)}) are down")
         for name in nodes:
             self.hub.publish({"event": "down", "node": name, "host": host, "pid": None, "code": code,
