@@ -6,8 +6,11 @@ directory, never in the repository or a recording: one `USER.json` per user (`{"
 "password"}`, random passwords of 192 bits) and the hub's `dictionary.txt` (`user:password`
 lines, what zenoh's `transport/auth/usrpwd/dictionary_file` reads). A child of the launcher
 learns its file from the environment variable `IOTAD_CREDENTIALS`; a command-line tool started by
-hand finds the tools' file through a pointer `hub-PORT` in the per-user directory
-`$TMPDIR/iotad-UID` (0700), which `iotad run` writes once its hub listens on PORT.
+hand finds the tools' file through a pointer `hub-PORT-netN` in the per-user directory
+`$TMPDIR/iotad-UID` (0700), which `iotad run` writes once its hub listens on PORT; N names the
+network namespace the hub listens in. A port number alone names no hub: a run under access control
+in another namespace (another test "host", a container) on the same port is another hub, and a
+tool or recorder that showed its password to an open hub here would be refused, for ever.
 """
 from __future__ import annotations
 
@@ -86,11 +89,28 @@ def _port(endpoint: str) -> str | None:
     return match.group(1) if match else None
 
 
+def network_namespace() -> str:
+    """This process's network namespace, as the kernel numbers it ("" where it cannot be read):
+    two hubs on one port in two namespaces are two hubs."""
+    try:
+        return str(os.stat("/proc/self/ns/net").st_ino)
+    except OSError:
+        return ""
+
+
+def pointer_path(folder: Path, port: int) -> Path:
+    """The pointer to the tools' credentials of a hub on `port` in this network namespace."""
+    namespace = network_namespace()
+    return folder / (f"hub-{port}-net{namespace}" if namespace else f"hub-{port}")
+
+
 def for_endpoints(endpoints: Iterable[str]) -> Credentials | None:
     """A tool's credentials for a hub at `endpoints`: `IOTAD_CREDENTIALS` when set (set but empty:
     none, as the launcher of an open run tells its processes), else the ones a running `iotad run`
-    advertised for that port (only from a private directory of this user; the pointer of a run
-    whose launcher is gone, killed before it could remove it, is ignored)."""
+    advertised for that port in this network namespace (only from a private directory of this
+    user; the pointer of a run whose launcher is gone, killed before it could remove it, is
+    ignored; one named by its port alone, as runs wrote them before, only where it says nothing of
+    another namespace)."""
     if ENV in os.environ:
         return from_env()
     folder = user_dir()
@@ -98,13 +118,19 @@ def for_endpoints(endpoints: Iterable[str]) -> Credentials | None:
         return None
     for endpoint in endpoints:
         port = _port(endpoint)
-        pointer = folder / f"hub-{port}"
-        if port is None or not pointer.is_file():
+        if port is None:
             continue
+        pointer = pointer_path(folder, port)
+        if not pointer.is_file():
+            pointer = folder / f"hub-{port}"  # written by an older run, or where /proc is not
+            if not pointer.is_file():
+                continue
         try:
-            target, owner = _read_pointer(pointer)
+            target, owner, namespace = _read_pointer(pointer)
         except OSError:
             continue
+        if namespace is not None and namespace != network_namespace():
+            continue  # a hub on this port in another network namespace: another hub
         if owner is not None and not _alive(owner):
             continue  # a run killed before it took its pointer back: its hub is gone or another's
         if _private_dir(target.parent) and target.is_file():
@@ -115,12 +141,13 @@ def for_endpoints(endpoints: Iterable[str]) -> Credentials | None:
     return None
 
 
-def _read_pointer(pointer: Path) -> tuple[Path, int | None]:
-    """A pointer's credentials file and the pid of the launcher that wrote it (None in a pointer
-    written before the pid was kept)."""
+def _read_pointer(pointer: Path) -> tuple[Path, int | None, str | None]:
+    """A pointer's credentials file, the pid of the launcher that wrote it and the network
+    namespace of its hub (None in a pointer written before they were kept)."""
     lines = pointer.read_text().splitlines()
     owner = lines[1].strip() if len(lines) > 1 else ""
-    return Path(lines[0].strip() if lines else ""), int(owner) if owner.isdigit() else None
+    namespace = lines[2].strip() if len(lines) > 2 and lines[2].strip() else None
+    return Path(lines[0].strip() if lines else ""), int(owner) if owner.isdigit() else None, namespace
 
 
 def _alive(pid: int) -> bool:
@@ -182,10 +209,10 @@ class CredentialStore:
             port = _port(endpoint)
             if port is None:
                 continue
-            pointer = folder / f"hub-{port}"
+            pointer = pointer_path(folder, port)
             temporary = folder / f".hub-{port}.{os.getpid()}"
             temporary.unlink(missing_ok=True)
-            self._write(temporary, f"{self.file_of(user)}\n{os.getpid()}\n")
+            self._write(temporary, f"{self.file_of(user)}\n{os.getpid()}\n{network_namespace()}\n")
             os.replace(temporary, pointer)
             self.pointer = pointer
             return

@@ -15,7 +15,7 @@ from iotad.recording.mcap_reader import read_recording
 
 
 def pointer_of(port: int):
-    return creds.user_dir() / f"hub-{port}"
+    return creds.pointer_path(creds.user_dir(), port)
 
 
 def dead_pid() -> int:
