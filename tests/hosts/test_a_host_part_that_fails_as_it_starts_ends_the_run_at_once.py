@@ -85,3 +85,34 @@ def test_a_host_part_that_fails_as_it_starts_ends_the_run_at_once_saying_why(tmp
     assert any(e.get("event") == "live" and e.get("node") == "tick" for e in events), events
     stopped = [e for e in events if e.get("event") == "exit" and e.get("node") == "tick"]
     assert len(stopped) == 1 and stopped[0]["code"] == 0 and stopped[0]["t_ns"] > failed[0]["t_ns"], stopped
+
+
+def test_a_node_that_fails_for_good_on_another_host_does_not_hold_the_run(tmp_path):
+    """arm's part runs on (a pulse of its own is live), its two CAN stations given up: the hub
+    hears arm's launcher give them up (its `giveup` events) and counts them as ended, as it does
+    its own nodes that failed for good: --after-live's seconds begin, the run ends, exit 1.
+    Before, the hub waited for their liveliness for ever."""
+    text = system_text("{hub}", "{arm}") + f"""
+[[node]]
+name = "beat"
+host = "arm"
+python = "{IOTAS}:Pulse"
+params = {{ period = 0.1 }}
+"""
+    with hosts("brain", "arm", net=NET) as net:
+        hub = net.addresses[("brain", "arm")]
+        path = tmp_path / "fails.toml"
+        path.write_text(text.replace("{hub}", hub).replace("{arm}", net.addresses["arm"]))
+        with agent(net, "arm", f"tcp/{hub}:{PORT}"):
+            done = subprocess.run(net.exec("brain", sys.executable, "-m", "iotad", "run", str(path), "--insecure",
+                                           "--plain", "--until", "2", "--after-live", "--no-record"),
+                                  capture_output=True, text=True, timeout=300, cwd=ROOT)
+    out = done.stdout
+    assert done.returncode == 1, out[-3000:] + done.stderr[-2000:]
+    assert "every node is live: --until 2 s counts from now" in out, out[-3000:]
+    assert "--until 2 s after every node was live reached: stopping" in out, out[-3000:]
+    assert "its part exited" not in out, out[-3000:]  # arm's part ran on: beat was live
+    for name in ("can0", "echo", "pinger"):
+        assert (f"  {name}: FAILED FOR GOOD on host arm (its lines above say why); the run's exit status is 1"
+                in out), out[-3000:]
+    assert "  host arm: exit 130 (stopped by this run)" in out, out[-3000:]

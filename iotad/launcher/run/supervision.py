@@ -135,7 +135,7 @@ class Launcher:
         if self._stop_reason in _SIGNAL_STATUS:
             return _SIGNAL_STATUS[self._stop_reason]
         failed = self._host_failed or any(r.state in (NodeState.FAILED, NodeState.DOWN) for r in self.runs.values()) \
-            or self.never_live() \
+            or self.never_live() or (self.nodes is not None and self.nodes.failed_elsewhere) \
             or (self.fleet is not None and self.fleet.failures())
         # a recorder that died mid-run left a gap between its files: what happened then is lost
         return 1 if failed or (self.recorder is not None and self.recorder.incomplete) else 0
@@ -412,6 +412,9 @@ class Launcher:
         if not self._own_dir or any(r.state in (NodeState.FAILED, NodeState.DOWN) for r in self.runs.values()):
             lines.append(f"  configs and logs: {self.run_dir}")
         if self.fleet is not None:
+            elsewhere = self.nodes.failed_elsewhere if self.nodes is not None else set()
+            lines += [f"  {name}: FAILED FOR GOOD on host {self.system.nodes[name].host} (its lines above say why); "
+                      "the run's exit status is 1" for name in sorted(elsewhere)]
             lines += [f"  host {host}: {self.fleet.outcome(host)}" for host in self.fleet.hosts]
         return lines
 
