@@ -150,12 +150,13 @@ def test_the_recorder_notes_a_new_process_whose_start_it_did_not_hear(tmp_path):
     assert marked == [(7.5, 5)], marked
 
 
-def hubs_file(tmp_path, noted: bool = True):
+def hubs_file(tmp_path, noted: bool = True, host: str = "brain"):
     """The hub's recording of 12 s (a virtual run's events as node hosts publish them, received 1 ms
     after): tick on brain heard whole; beat on arm heard up to the cut, its first process killed
     at KILLED, the second started at RESTARTED by arm's launcher, heard from the cut's end on,
     with the recorder's note of the new process (`noted`), and the hub's launcher's `down` and
-    `host_back` of arm."""
+    `host_back` of arm. `host="arm"`: arm's own recording of the same run, every event of beat's
+    two processes (and the launchers' events), its clock the hub's."""
     virtual = tmp_path / "virtual.mcap"
     record_run(Composite("long", Pulse("tick", period=0.5), Pulse("beat", period=0.5)), virtual, until=12)
     ran = read_recording(virtual)
@@ -167,6 +168,8 @@ def hubs_file(tmp_path, noted: bool = True):
                  "beat": [(0.0, OLD_PID, [e for e in outputs["beat"] if e["t"] < KILLED]),
                           (RESTARTED, NEW_PID, [dict(e, t=e["t"] + RESTARTED) for e in outputs["beat"]
                                                 if e["t"] + RESTARTED <= 12])]}
+    if host == "arm":
+        del processes["tick"]  # the hub's recording has brain's nodes
     for node, runs in processes.items():
         trace = wire.trace_key("long", node)
         expected = 0  # the seq the recorder expects next
@@ -176,7 +179,7 @@ def hubs_file(tmp_path, noted: bool = True):
                 if event["kind"] == "output":
                     event = dict(event, key=wire.channel_key("long", node, "out"), seq=event["value"],
                                  send_ns=ns(event["t"]))
-                if node == "beat" and CUT[0] < event["t"] < CUT[1]:
+                if host == "brain" and node == "beat" and CUT[0] < event["t"] < CUT[1]:
                     heard = False  # sent into the closed links: the hub's recorder never got it
                     continue
                 received = ns(event["t"]) + 1_000_000
@@ -193,11 +196,13 @@ def hubs_file(tmp_path, noted: bool = True):
     messages.append((launcher, ns(BACK), ns(BACK), 1,
                      {"event": "host_back", "node": None, "host": "arm", "pid": 1, "code": None, "t_ns": ns(BACK),
                       "message": "host arm: back; its nodes ran on while it was cut off (beat)", "resumed": True}))
-    path = tmp_path / "long.mcap"
+    path = tmp_path / ("long.mcap" if host == "brain" else f"long.{host}.mcap")
     sink = McapSink(path)
+    run = {"host": host, "hub": host == "brain", "origin": ORIGIN}
+    if host != "brain":
+        run["clock"] = {"offset": 0.0, "bound": 0.0002, "samples": 16, "measured_ns": ns(-1)}
     sink.add_metadata("iotad.recording", {"format": FORMAT, "system": "long", "clock": "real", "source": "traces",
-                                          "writer": "iotad run", "time_unit": 1.0,
-                                          "run": {"host": "brain", "hub": True, "origin": ORIGIN}})
+                                          "writer": "iotad run", "time_unit": 1.0, "run": run})
     sink.attach("system.toml", "application/toml", SYSTEM.encode())
     for node, spec in ran.specs.items():
         sink.add_spec(node, dict(spec, origin=ORIGIN), ns(0))
@@ -240,3 +245,20 @@ def test_replay_of_the_hubs_file_replays_the_first_process_and_says_the_restart(
     assert code == 0, out
     assert out.splitlines()[0].startswith("beat: replay agrees: 6 output events"), out
     assert "its process was restarted unheard: pid 202 started at t=5.5" in out, out
+
+
+def test_the_merge_with_arms_own_file_judges_both_processes_whole(hub_file, tmp_path, capsys):
+    """arm's own recording holds the new process's start and first events: in the merge the note
+    is filled (its start record is there), and both processes are judged whole, no gap said."""
+    from iotad.recording.merge import merge, write_merged
+
+    merged = tmp_path / "merged.mcap"
+    write_merged(merge([hub_file, hubs_file(tmp_path, host="arm")]), merged)
+    assert not [m for m in read_recording(merged).messages if m.topic == GAP_TOPIC], "the note is filled"
+    code = main(["check", str(merged), "--all", "--no-delivery"])
+    out = capsys.readouterr().out
+    lines = out.splitlines()
+    # 10 outputs of the first process (t=0.5..5) and 13 of the second (t=6..12)
+    assert "beat: 23 events, 23 firings checked, 0 problem(s)" in lines, out
+    assert "  restarted at t=5.5: each run of its process is checked from its own start" in lines, out
+    assert "GAP" not in out and code == 0, out
