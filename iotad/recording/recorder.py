@@ -376,7 +376,7 @@ class Recorder:
                     if attachment is not None:
                         try:
                             fields = unpack_attachment(attachment.to_bytes())
-                            sequence, publish_ns = int(fields[0]), int(fields[1])
+                            sequence, publish_ns = fields[0], fields[1]
                         except Exception:  # noqa: BLE001 - a foreign publisher's attachment
                             fields, sequence, publish_ns = (), 0, receipt_ns
                         # a @trace burst names its process (pid, started_ns): a restart unheard
