@@ -262,3 +262,10 @@ def test_the_merge_with_arms_own_file_judges_both_processes_whole(hub_file, tmp_
     assert "beat: 23 events, 23 firings checked, 0 problem(s)" in lines, out
     assert "  restarted at t=5.5: each run of its process is checked from its own start" in lines, out
     assert "GAP" not in out and code == 0, out
+
+
+def test_info_names_the_new_process_among_the_sequence_gaps(hub_file, capsys):
+    assert main(["info", str(hub_file)]) == 0
+    out = capsys.readouterr().out
+    assert ("    iota/long/beat/@trace: a new process (pid 202) first heard at #3, its start and first 3 event(s) "
+            "not; the one before would have sent #7 next") in out.splitlines(), out

@@ -189,7 +189,12 @@ def run(args: argparse.Namespace) -> int:
     gaps = recording.gaps()
     print(f"  sequence gaps: {len(gaps)} ({sum(g.get('missing', 0) for g in gaps)} messages missing)")
     for gap in gaps[:args.violations]:
-        print(f"    {gap['key']}: expected #{gap['expected']}, got #{gap['got']}")
+        process = gap.get("process")
+        if isinstance(process, dict):  # a restart the recorder did not hear (wire.restart_note)
+            print(f"    {gap['key']}: a new process (pid {process.get('pid')}) first heard at #{gap['got']}, its "
+                  f"start and first {gap['got']} event(s) not; the one before would have sent #{gap.get('after')} next")
+        else:
+            print(f"    {gap['key']}: expected #{gap['expected']}, got #{gap['got']}")
     if len(gaps) > args.violations:
         print(f"    ... {len(gaps) - args.violations} more (--violations N lists more)")
     _host_gaps(recording, args.violations)
