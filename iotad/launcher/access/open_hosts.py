@@ -11,7 +11,7 @@ the socket's send buffer), and the node's put waited on the engine's thread unti
 link (`wait_before_close`, 5 s) or the lease ran out. Measured with three hosts, arm cut for 12 s,
 a pulse on brain sending 250 a second to a sink on each host: the pulse fired nothing for 5.7 s,
 and neither its sink on brain nor the one on base heard anything meanwhile
-(tests/hosts/test_in_an_open_run_a_cut_host_holds_up_no_publisher.py).
+(tests/hosts/test_a_host_cut_past_the_lease_holds_up_no_publisher_on_the_others.py).
 
 How: zenoh's `qos/network` overwrite, on egress, in two items applied in order: every put, delete
 and query leaves with DROP, then those toward this host's own sessions get BLOCK back. zenoh names

@@ -1,22 +1,28 @@
-"""In an open run (`--insecure`: every node a zenoh peer, meshed directly across the hosts), a cut of
-one host (arm) longer than zenoh's lease (10 s) holds up no publisher of the other hosts: a node on
-brain whose output also goes to arm keeps firing on time and its other readers, on brain and on
-base, keep taking it, every message, through the whole cut.
+"""A cut of one host (arm) longer than zenoh's lease (10 s) holds up no publisher of the other hosts:
+a node on brain whose output also goes to arm keeps firing on time, and its other readers, on brain
+and on base, keep taking it, every message, through the whole cut; in an open run (`--insecure`:
+every node a zenoh peer, meshed directly across the hosts) and under access control.
 
 brain, arm and base in network namespaces (a star around brain), started as a person would: an
-agent on arm and on base, one `iotad run --insecure` on brain. `tick` on brain sends PERIOD s apart
-to `far` on arm, `low` on base and `near` on brain. arm's link is cut for CUT s.
+agent on arm and on base, one `iotad run` on brain. `tick` on brain sends PERIOD s apart to `far`
+on arm, `low` on base and `near` on brain. arm's link is cut for CUT s.
 
-Before the fix the nodes published with congestion control BLOCK toward every peer, the other
-hosts' too: cut off, the link's queue toward arm filled (an express output takes a batch of its
-own, and a queue holds two a priority, behind the socket's send buffer), and `tick`'s put waited
-on it, on its engine's thread, until zenoh closed the link (`wait_before_close`, 5 s) or the lease
-did: `tick` fired late for seconds, and neither `near` on its own host nor `low` on base heard
-anything meanwhile. Now each node's session sends what goes to another host with DROP, and keeps
-BLOCK toward its own host's sessions (iotad/node_host/open_run_qos.py), so that its host's recorder
-still loses nothing."""
+Before the fix, in an open run, the nodes published with congestion control BLOCK toward every
+peer, the other hosts' too: cut off, the link's queue toward arm filled (an express output takes a
+batch of its own, and a queue holds two a priority, behind the socket's send buffer), and `tick`'s
+put waited on it, on its engine's thread, until zenoh closed the link (`wait_before_close`, 5 s) or
+the lease did: `tick` fired nothing for 3.9 to 5.7 s, and neither `near` on its own host nor `low`
+on base heard anything meanwhile. Now each node's session sends what goes to another host with
+DROP, and keeps BLOCK toward its own host's sessions (iotad/launcher/access/open_hosts.py), so that
+its host's recorder still loses nothing. Under access control only the hub and the hosts' routers
+link the hosts, and they forward to other hosts with DROP (`host_access.across_hosts_settings`):
+that case held up nothing before either."""
 import subprocess
 import sys
+
+import pytest
+
+from agent_helpers import authority_for
 
 from cut_recording import cut_arm_while_running, per_second
 from launcher_helpers import IOTAS, ROOT
@@ -27,7 +33,8 @@ from iotad.recording.delivery import check_delivery
 from iotad.recording.mcap_reader import read_recording
 from iotad.recording.merge import merge
 
-PORT, NET = 7671, 221
+# a port and a network of each case's own, so that the two can run side by side
+PORTS, NETS = {False: 7671, True: 7673}, {False: 221, True: 222}
 CUT = 12.0        # s: just over the lease (10 s)
 AFTER_HEAL = 3.0  # s of traffic once the hub has arm back
 PERIOD = 0.004    # s between two of tick's outputs: 250 a second, enough to fill the cut link's queue
@@ -35,8 +42,10 @@ NODES = [("tick", "brain", "Pulse"), ("near", "brain", "FreeSink"), ("far", "arm
          ("low", "base", "FreeSink")]
 
 
-def system_text(hub: str, arm: str, base: str) -> str:
-    text = hosts_header("open3", hub, PORT, "brain", "arm", arm) + f'[hosts.base]\nlisten = ["tcp/{base}:0"]\n'
+def system_text(hub: str, arm: str, base: str, secure: bool) -> str:
+    scheme = "tls" if secure else "tcp"
+    text = hosts_header("open3", hub, PORTS[secure], "brain", "arm", arm, scheme) + \
+        f'[hosts.base]\nlisten = ["{scheme}/{base}:0"]\n'
     for name, host, iota in NODES:
         params = f"params = {{ period = {PERIOD} }}" if iota == "Pulse" else ""
         text += f'\n[[node]]\nname = "{name}"\nhost = "{host}"\npython = "{IOTAS}:{iota}"\n{params}\n'
@@ -45,17 +54,23 @@ def system_text(hub: str, arm: str, base: str) -> str:
     return text
 
 
-def test_in_an_open_run_a_cut_host_holds_up_no_publisher(tmp_path):
+@pytest.mark.parametrize("secure", [False, True], ids=["open", "under access control"])
+def test_a_host_cut_past_the_lease_holds_up_no_publisher_on_the_others(tmp_path, secure):
+    """The open run, and the same under access control (where the hub and the hosts' routers send
+    to other hosts with DROP: `host_access.across_hosts_settings`), which held up nothing before either."""
     files = {host: tmp_path / (f"open3.{host}.mcap" if host != "brain" else "open3.mcap") for host in ("brain", "arm", "base")}
-    with hosts("brain", "arm", "base", net=NET) as net:
+    with hosts("brain", "arm", "base", net=NETS[secure]) as net:
         hub, arm, base = net.addresses[("brain", "arm")], net.addresses["arm"], net.addresses["base"]
         path = tmp_path / "open3.toml"
-        path.write_text(system_text(hub, arm, base))
+        path.write_text(system_text(hub, arm, base, secure))
         log = tmp_path / "run.log"
-        connect = f"tcp/{hub}:{PORT}"
-        with agent(net, "arm", connect, "--workdir", str(tmp_path / "arm-agent")), \
-                agent(net, "base", connect, "--workdir", str(tmp_path / "base-agent")), log.open("w") as out:
-            run = subprocess.Popen(net.exec("brain", sys.executable, "-m", "iotad", "run", str(path), "--insecure",
+        connect = f"{'tls' if secure else 'tcp'}/{hub}:{PORTS[secure]}"
+        access = ("--certs", str(authority_for(tmp_path / "certs", {"brain": [hub], "arm": [arm], "base": [base]}))) \
+            if secure else ("--insecure",)
+        certs = access if secure else ()
+        with agent(net, "arm", connect, "--workdir", str(tmp_path / "arm-agent"), *certs), \
+                agent(net, "base", connect, "--workdir", str(tmp_path / "base-agent"), *certs), log.open("w") as out:
+            run = subprocess.Popen(net.exec("brain", sys.executable, "-m", "iotad", "run", str(path), *access,
                                             "--plain", "--until", "120", "-o", str(files["brain"])),
                                    stdout=out, stderr=subprocess.STDOUT, text=True, cwd=ROOT, start_new_session=True)
             try:
