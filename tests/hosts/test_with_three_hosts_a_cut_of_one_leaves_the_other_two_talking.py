@@ -151,5 +151,10 @@ def test_with_three_hosts_a_cut_of_one_leaves_the_other_two_talking(tmp_path, pe
         [str(f) for f in problems if f.code != "lost" or f.link != beat][:5]
     first_lost = min(f.t for f in problems)
     resumed = min(t for t, _ in delivered if t > first_lost)
+    before = sorted((t, latency) for t, latency in delivered if t < first_lost)[-3:]
+    print("MARGINS", {"cut": cut, "on_its_way": on_its_way, "first_lost": first_lost, "margin": first_lost - (cut - on_its_way),
+                      "last_delivered_before": before, "healed": healed, "resumed": resumed,
+                      "lost_after_resumed": [f.t for f in problems if f.t >= resumed][:5],
+                      "other_problems": [str(f) for f in problems if f.code != "lost" or f.link != beat][:5]})
     assert cut - on_its_way <= first_lost < healed < resumed, (cut, first_lost, healed, resumed)
     assert all(f.t < resumed for f in problems), ([str(f) for f in problems if f.t >= resumed][:5], resumed)
