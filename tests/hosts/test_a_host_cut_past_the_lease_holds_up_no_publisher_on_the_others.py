@@ -24,7 +24,7 @@ import pytest
 
 from agent_helpers import authority_for
 
-from cut_recording import cut_arm_while_running, per_second
+from cut_recording import cut_arm_while_running, per_second, received_after
 from launcher_helpers import IOTAS, ROOT
 from namespaces import agent, hosts, hosts_header
 
@@ -91,6 +91,9 @@ def test_a_host_cut_past_the_lease_holds_up_no_publisher_on_the_others(tmp_path,
         before = per_second(recordings[host], "open3", node, kind, cut_at - 2.0, cut_at)
         during = per_second(recordings[host], "open3", node, kind, cut_at, healed_at)
         assert all(n >= nominal // 5 for n in [*before.values(), *during.values()]), (host, node, before, during)
+    # after the heal tick reaches arm again: the cut recovered
+    assert received_after(recordings["arm"], "open3", "far", "input", healed_at) > 0, \
+        per_second(recordings["arm"], "open3", "far", "input", cut_at, healed_at + AFTER_HEAL)
     # and nothing of what tick sent them was lost (not judged: what was in flight at the end)
     report = check_delivery(merge(files.values()).recording)
     links = {link.nodes: link for link in report.links if link.kind == "binding"}
