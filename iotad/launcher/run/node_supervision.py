@@ -53,8 +53,8 @@ class NodeSupervisor:
         self.gate_open = not system.start_gate  # start_gate = false: no gate, as if always open
         self.system_live = False  # every node has been live (or ended) once: the system runs
         session = hub.session
-        # an open run over hosts: each node sends to other hosts with DROP, to this host's sessions
-        # with BLOCK (iotad/launcher/access/open_hosts.py)
+        # an open run over hosts: what each node sends with BLOCK goes to other hosts with DROP, to
+        # this host's sessions as sent (iotad/launcher/access/open_hosts.py)
         secured = access is not None and access.store is not None
         self.open_hosts = OpenHosts({name: run.policy.max_restarts for name, run in runs.items()},
                                     str(session.info.zid())) if OpenHosts.applies(system, host, secured) else None
