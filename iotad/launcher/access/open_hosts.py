@@ -9,15 +9,15 @@ link that wants it, and waits while that link's queue is full: toward a host tha
 queue fills (an express output takes a batch of its own, and a queue holds two a priority, behind
 the socket's send buffer), and the node's put waited on the engine's thread until zenoh closed the
 link (`wait_before_close`, 5 s) or the lease ran out. Measured with three hosts, arm cut for 12 s,
-a pulse on brain sending 250 a second to a sink on each host: the pulse fired nothing for 5.7 s,
+a pulse on brain sending 250 a second to a sink on each host: the pulse fired nothing for 3.9 to 5.7 s,
 and neither its sink on brain nor the one on base heard anything meanwhile
 (tests/hosts/test_a_host_cut_past_the_lease_holds_up_no_publisher_on_the_others.py).
 
 How: zenoh's `qos/network` overwrite, on egress, in items applied in order: every put, delete and
 query sent with BLOCK leaves with DROP (and batched), then those toward this host's own sessions
-get back what they were sent with (`settings`). zenoh names
-a link's other end by its zenoh id only (an interface or a protocol tells a link to this host's
-launcher from one to another host: both are TCP on the host's address), so each node's session
+get back what they were sent with (`settings`). Of a link's other end zenoh's overwrite knows
+its zenoh id, its interface and its protocol, and neither of the last two tells a link to this
+host's launcher from one to another host (both are TCP on the host's address), so each node's session
 takes an id this host's launcher derives from a secret of its own run, the node's name and its
 restart count, and every node of the host is told all the ids its neighbours may have (each
 restart up to the node's `max_restarts`) and the launcher's own. A restarted node has a new id,
