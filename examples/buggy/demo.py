@@ -60,7 +60,7 @@ try next:
   .venv/bin/iotad run examples/buggy.toml --virtual --until 120 -o recordings/buggy.mcap   # 2 minutes, one process, seconds
   .venv/bin/iotad plot recordings/buggy.mcap -o recordings/buggy.png
   .venv/bin/iotad run examples/buggy-hungry.toml --virtual --until 120 -o recordings/buggy-hungry.mcap   # bolder when hungry
-  .venv/bin/iotad export {rel(recording)} -o buggy-foxglove.mcap --json   # open in Foxglove: plot body/pose.x, .y
+  .venv/bin/iotad export {rel(recording)} -o buggy-foxglove.mcap --json   # open in Foxglove: plot /body/pose.x, .y
   make test""")
     return 0
 

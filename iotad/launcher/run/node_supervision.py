@@ -20,6 +20,7 @@ from iotad.node_host import wire
 from iotad.node_host.node_config import CONFIGURATION_ERROR
 from iotad.node_host.stop_signals import Flag
 from iotad.launcher.access.access_control import AccessControl
+from iotad.launcher.access.open_hosts import OpenHosts
 from iotad.launcher.options import LaunchOptions
 from iotad.launcher.processes import FAILED_TO_START, describe_exit, log_tail, stop_all
 from iotad.launcher.run.hub import Hub
@@ -52,6 +53,11 @@ class NodeSupervisor:
         self.gate_open = not system.start_gate  # start_gate = false: no gate, as if always open
         self.system_live = False  # every node has been live (or ended) once: the system runs
         session = hub.session
+        # an open run over hosts: what each node sends with BLOCK goes to other hosts with DROP, to
+        # this host's sessions as sent (iotad/launcher/access/open_hosts.py)
+        secured = access is not None and access.store is not None
+        self.open_hosts = OpenHosts({name: run.policy.max_restarts for name, run in runs.items()},
+                                    str(session.info.zid())) if OpenHosts.applies(system, host, secured) else None
         hub.declare(session.liveliness().declare_subscriber(
             wire.every_node(system.name, wire.ALIVE), self._on_liveliness, history=True))
         hub.declare(session.declare_subscriber(wire.every_node(system.name, wire.HEARTBEAT), self._on_heartbeat))
@@ -254,6 +260,8 @@ class NodeSupervisor:
         routed = self.access is not None and self.access.router is not None
         config = self.system.node_config(run.name, hub.origin, hub.local if routed else hub.endpoints + hub.local)
         config["restarts"] = run.restarts  # its heartbeats say it: a tool attached later counts them
+        if self.open_hosts is not None:
+            config["zenoh"] = {**config.get("zenoh", {}), **self.open_hosts.node_settings(run.name, run.restarts)}
         if not self.gate_open:  # a node (re)started after the gate opened starts its engine at once
             config["start_gate"] = self.gate_key
         if hub.clock_watch is not None:  # its clock follows this host's measurements of the hub's
