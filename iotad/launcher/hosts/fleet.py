@@ -57,6 +57,7 @@ class Fleet:
         self._asked_to_stop: set[str] = set()  # a host that exits after this was stopped, not failed
         self._present: set[str] = set()
         self._started: set[str] = set()
+        self._early_exits: dict[str, dict] = {}  # host -> its part's exit, heard before its order's answer
         self._changed = threading.Condition()
         self._declared: list = []
         self._heard: dict[str, HeardLines] = {host: HeardLines() for host in self.hosts}
@@ -132,6 +133,9 @@ class Fleet:
         with self._changed:
             self._started.add(host)
             self.exits.pop(host, None)  # a host back after it was lost: its earlier run is over
+            early = self._early_exits.pop(host, None)
+        if early is not None and early.get("run") == answer.get("pid"):
+            self._exited(host, early)  # this part exited before its agent's answer came
         self._ran_on[host] = bool(answer.get("already"))
         how = "already runs its part" if answer.get("already") else "runs its nodes"
         self.say(f"host {host}: its agent {how} (pid {answer.get('pid')})")
@@ -243,6 +247,10 @@ class Fleet:
         except (TypeError, ValueError):
             code = -1
         with self._changed:
+            if host not in self._started and not self._closing:
+                # the part exited before the answer to its order reached this hub: taken with it
+                self._early_exits[host] = payload
+                return
             self.exits[host] = code
             # its part ended by itself (not asked to stop): the launcher hears it at once, so
             # that a part that fails as it starts ends the run now, not at its --until
