@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
 import signal
 import sys
 import tempfile
@@ -42,6 +43,7 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "tests"))
 
 PORT, NET = 7671, 221
+NODE_LINE = re.compile(r"^[\w/]+: \d+ events, \d+ firings checked, \d+ problem")
 COLOURS = {"partition": "tab:red", "slow": "tab:orange", "stop": "tab:purple", "kill": "black"}
 
 
@@ -73,6 +75,19 @@ def campaign(folder: Path, minutes: float, schedule: list, say) -> tuple:
     return run, read_campaign(run)
 
 
+def again(folder: Path, minutes: float):
+    """(campaign, reading) of a kept folder, read again; None if there is none."""
+    from bad_day_reading import read_campaign
+    from bad_day_run import Campaign, conveyor_over_three_hosts
+
+    if not (folder / "faults.json").exists():
+        return None
+    text, machine = conveyor_over_three_hosts("10.0.0.1", PORT, "10.0.0.2", "10.0.0.3")
+    run = Campaign(None, folder, PORT, text, machine, [], minutes * 60)
+    run.load()
+    return run, read_campaign(run)
+
+
 def report(run, reading, baseline) -> None:
     say = print
     say("\nper fault (safe: every axis IDLE or not closed loop, from the fault, on the arm's recorded frames; "
@@ -84,7 +99,8 @@ def report(run, reading, baseline) -> None:
             safe += f" (axes {item.unsafe} never safe)"
         if item.silence is not None:
             safe += f", {item.silence * 1e3:.0f} ms after its last setpoint (motor node's clock)"
-        recovered = "-" if not item.touched else ("NEVER" if item.recovered is None else f"{item.recovered:.2f} s")
+        recovered = f"{item.recovered:.2f} s" if item.recovered is not None else "NEVER" if item.touched or (
+            fault.target == "recorder") else "-"
         cut = "" if item.commands_while_cut is None else f"; commands while cut: {item.commands_while_cut}"
         missed = f" NOT MADE: {item.done.missed}" if item.done.missed else ""
         say(f"  {fault.at:6.1f} s  {fault.describe():55s} safe {safe}; recovered {recovered}{cut}{missed}")
@@ -97,9 +113,10 @@ def report(run, reading, baseline) -> None:
     restarts = [e for e in reading.events if e["event"] == "exit" and "restart" in str(e.get("message", ""))]
     say(f"launcher events: {dict(sorted(counts.items()))}; node restarts: {len(restarts)}; "
         f"agents started again by their supervisor: {len(run.agent_restarts)}")
-    for event in reading.events:
-        if event["event"] in ("exit", "stale", "lost", "down", "host_back", "giveup"):
-            say(f"    {run.seconds(event['log_time']):7.1f} s  [{event.get('host') or 'brain'}] "
+    for event in reading.events:  # those of the campaign, not of the stop at its end
+        if event["event"] in ("exit", "stale", "lost", "down", "host_back", "giveup") \
+                and run.seconds(event["log_time"]) < run.length:
+            say(f"    {run.seconds(event['log_time']):7.1f} s  {event['event']:9s} [{event.get('host') or 'brain'}] "
                 f"{event.get('node') or ''}: {str(event.get('message', ''))[:110]}")
     if reading.merge_error:
         say(f"merge of {', '.join(p.name for p in run.files())}: FAILED: {reading.merge_error}")
@@ -110,9 +127,16 @@ def report(run, reading, baseline) -> None:
         say(f"    [{gap.get('host')}] {run.seconds(gap['from_ns']):.1f}-{run.seconds(gap['to_ns']):.1f} s, "
             f"{gap.get('events')} event(s): {gap['reason'][:90]}\n        cause: {gap['cause'] or 'NO FAULT EXPLAINS IT'}")
     say(f"iotad check of the {'merged' if reading.merged else 'hub'} recording (exit {reading.check_code}):")
-    lines = reading.check.splitlines()
-    for line in lines[:3] + (["    ..."] if len(lines) > 8 else []) + lines[-5:]:
-        say(f"    {line[:160]}")
+    for line in reading.check.splitlines():  # its verdicts: per node, the delivery, the whole
+        if NODE_LINE.match(line) or line.startswith(("delivery:", "check:")):
+            say(f"    {line[:150]}")
+    explained = [p for p in reading.problems if p["cause"]]
+    say(f"  of the {len(reading.problems)} problems it lists (check.txt beside the recordings has them all), "
+        f"{len(explained)} fall within a fault's window (from 1 s before it to its end and settling); "
+        f"the others, first ones:" if len(explained) < len(reading.problems) else
+        f"  all {len(reading.problems)} problems it lists fall within a fault's window")
+    for problem in [p for p in reading.problems if not p["cause"]][:6]:
+        say(f"      {problem['where']}: {problem['line'][:140]}")
     if reading.placed is not None:
         against = "" if baseline is None else f" against {baseline.placed} in the fault-free run " \
                                               f"({100 * reading.placed / max(1, baseline.placed):.0f} %)"
@@ -184,6 +208,8 @@ def main() -> int:
     parser.add_argument("--png", default="bad-day.png", help="the timeline picture (default: bad-day.png)")
     parser.add_argument("--keep", metavar="DIR", help="keep the recordings, system files and outputs in DIR")
     parser.add_argument("--schedule-only", action="store_true", help="print the schedule and stop")
+    parser.add_argument("--report", metavar="DIR", help="no run: the figures and picture again from a folder that "
+                        "--keep kept (DIR/bad-day, and DIR/fault-free if there)")
     args = parser.parse_args()
     run_seed = args.seed
     from bad_day_run import HOSTS
@@ -198,6 +224,14 @@ def main() -> int:
     for fault in schedule:
         print(f"  {fault.at:6.1f} s  {fault.describe()}")
     if args.schedule_only:
+        return 0
+    if args.report:
+        kept = [again(Path(args.report) / part, args.minutes) for part in ("fault-free", "bad-day")]
+        run, reading = kept[1]
+        baseline = kept[0][1] if kept[0] else None
+        report(run, reading, baseline)
+        timeline(run, reading, baseline, Path(args.png))
+        print(f"timeline: {args.png}")
         return 0
     signal.signal(signal.SIGINT, interrupted)
     signal.signal(signal.SIGTERM, interrupted)

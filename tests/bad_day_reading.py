@@ -5,6 +5,7 @@ were heard again (recovered) and what the launchers restarted; each gap of the m
 named with the fault that caused it. Shared by bench/bad_day.py and its short campaign test."""
 from __future__ import annotations
 
+import re
 import subprocess
 import sys
 from dataclasses import dataclass, field
@@ -50,6 +51,7 @@ class Reading:
     check_code: int | None = None
     placements: list[float] = field(default_factory=list)  # s into the campaign of each cube placed
     placed: int | None = None
+    problems: list[dict] = field(default_factory=list)  # those `iotad check` listed, each with its "cause"
 
 
 def takes_setpoints_away(fault, machine) -> bool:
@@ -135,20 +137,27 @@ def launcher_events(recording, system: str, kinds=("exit", "live", "stale", "los
 
 def cause_of(gap: dict, done: list[Done], machine) -> str:
     """The fault of `done` that explains `gap` (a gap of the merge, or a recorder's sequence gap):
-    one of the gap's host whose window (from its start to its end and the time it settles) holds
-    the gap's start; '' if none."""
+    the latest begun of those on the gap's host whose window (from its start to its end and the
+    time it settles) holds the gap's start and whose kind can make such a gap (a recording cut
+    short, begun late or ended early: a kill of that host's recorder, agent or launcher; events
+    that did not reach the hub: a partition, a slowed link, a stop or a kill on that host); ''
+    if none."""
     from fault_schedule import settle
 
-    start, host = gap.get("from_ns", 0), gap.get("host")
-    for made in done:
+    start, host, reason = gap.get("from_ns", 0), gap.get("host"), gap.get("reason", "")
+    own_file = any(words in reason for words in ("cut short", "began after", "ended before", "between its recordings"))
+    found = ""
+    for made in sorted(done, key=lambda d: d.start_ns):
         fault = made.fault
         window = (made.start_ns - SLACK_NS, made.end_ns + int(settle(fault) * 1e9) + SLACK_NS)
-        if not window[0] <= start <= window[1]:
+        if not window[0] <= start <= window[1] or made.missed:
+            continue
+        if own_file and not (fault.kind == "kill" and fault.target in ("recorder", "agent", "launcher")):
             continue
         hosts = {fault.host} | ({machine.nodes[fault.target[5:]]} if fault.target.startswith("node:") else set())
         if host is None or host in hosts:
-            return f"{fault.describe()} at {fault.at:.1f} s"
-    return ""
+            found = f"{fault.describe()} at {fault.at:.1f} s"
+    return found
 
 
 def read_campaign(campaign: Campaign, check: bool = True) -> Reading:
@@ -203,11 +212,53 @@ def read_campaign(campaign: Campaign, check: bool = True) -> Reading:
         done = subprocess.run([sys.executable, "-m", "iotad", "check", str(target)], capture_output=True, text=True,
                               timeout=600, cwd=Path(__file__).resolve().parents[1])
         out.check, out.check_code = (done.stdout + done.stderr).strip(), done.returncode
+        (folder / "check.txt").write_text(out.check + "\n")
+        origin = float(recording.info["run"]["origin"])
+        out.problems = check_problems(out.check)
+        for problem in out.problems:
+            problem["cause"] = problem_cause(problem["t"] + origin - campaign.began_ns / 1e9, campaign.done,
+                                             campaign.began_ns)
     try:
         out.placements, out.placed = placements(recording, campaign)
     except RecordingError:
         pass  # not the conveyor
     return out
+
+
+PROBLEM = re.compile(r"^\s+t=(?P<t>[-\d.e]+) \[(?P<kind>[a-z_ ]+)\] (?P<text>.*)$")
+NODE_HEADER = re.compile(r"^(?P<node>[\w/]+): \d+ events, \d+ firings checked, (?P<count>\d+) problem")
+
+
+def check_problems(text: str) -> list[dict]:
+    """The problems `iotad check` listed (its report's `t=... [kind] ...` lines): t (s of the run),
+    kind (late, expired, lost...), where (the node whose section it is in, or the link a delivery
+    line names) and the line."""
+    out, node = [], None
+    for line in text.splitlines():
+        header = NODE_HEADER.match(line)
+        if header:
+            node = header["node"]
+            continue
+        if line.startswith("delivery"):
+            node = None
+        found = PROBLEM.match(line)
+        if found:
+            where = node or found["text"].split(":", 1)[0]
+            out.append({"t": float(found["t"]), "kind": found["kind"], "where": where, "line": line.strip()})
+    return out
+
+
+def problem_cause(second: float, done: list[Done], began_ns: int) -> str:
+    """The fault in whose window (from a second before it to its end and the time it settles) the
+    campaign's `second` falls (the campaign began at wall-clock `began_ns`); '' if none."""
+    from fault_schedule import settle
+
+    found = ""
+    for made in done:
+        start, end = (made.start_ns - began_ns) / 1e9, (made.end_ns - began_ns) / 1e9
+        if start - 1.0 <= second <= end + settle(made.fault):
+            found = f"{made.fault.describe()} at {made.fault.at:.1f} s"
+    return found
 
 
 def host_of_file(path: Path, system: str) -> str | None:

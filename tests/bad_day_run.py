@@ -17,6 +17,7 @@ from fault_injection import Injector, kill_leftovers
 from fault_schedule import Fault
 from partition_run import multicast_on_loopback, split_arm_system
 
+from iotad.can.tiers import UDP_GROUP
 from iotad.launcher.processes import interrupt_then_kill
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -53,6 +54,7 @@ def conveyor_over_three_hosts(hub: str, port: int, arm: str, camera: str) -> tup
         text = text.replace(f'[[node]]\nname = "{name}"\n', f'[[node]]\nname = "{name}"\nhost = "{host}"\n', 1)
     text = text.replace('"conveyor/', f'"{ROOT}/examples/conveyor/')
     # arm's namespace has a veth end besides its loopback; the bus's group is routed to the loopback
+    text = text.replace('interface = "env"', f'interface = "udp_multicast"\nchannel = "{UDP_GROUP}"', 1)
     text = text.replace('stations = ["motor", "sim"]', 'stations = ["motor", "sim"]\n'
                         'options = { allow_real_interfaces = true }', 1)
     return text, Machine("conveyor", hosts, "interpreter", "motor", "sim", tuple(range(1, 8)))
@@ -150,7 +152,9 @@ class Campaign:
                                         "-o", str(self.recording))
         deadline = time.monotonic() + timeout
         while self.output().count("start gate open") < len(HOSTS):
-            if time.monotonic() > deadline or self.procs["run"].poll() is not None:
+            # a host whose part failed to start says so in one line; the hub would wait for it
+            # (issue 46: "a failed start waited out"): the campaign cannot begin, say why at once
+            if time.monotonic() > deadline or self.procs["run"].poll() is not None or "] iotad: error:" in self.output():
                 raise AssertionError(f"the run did not open every host's start gate within {timeout:g} s:\n"
                                      + self.output()[-4000:])
             time.sleep(0.2)
@@ -252,6 +256,7 @@ class Campaign:
 
         saved = json.loads((self.folder / "faults.json").read_text())
         self.began_ns, self.agent_restarts = saved["began_ns"], [tuple(a) for a in saved["agent_restarts"]]
+        self.length = saved["length"]
         self.done = [Done(**{**d, "fault": Fault(**d["fault"])}) for d in saved["done"]]
 
     def files(self) -> list[Path]:

@@ -5,6 +5,7 @@ recover between them. The same seed and arguments draw the same schedule. Shared
 bench/bad_day.py and its short campaign in tests/hosts/."""
 from __future__ import annotations
 
+import math
 import random
 from dataclasses import dataclass
 
@@ -93,7 +94,8 @@ def draw_schedule(seed: int, length: float, nodes: dict[str, str], cut_hosts: tu
                 break
             continue
         faults.append(fault)
-        t = round(fault.end + settle(fault) + draw.uniform(0.0, 2.0), 1)
+        # up to the next tenth of a second: never sooner than the settling allows
+        t = math.ceil((fault.end + settle(fault) + draw.uniform(0.0, 2.0)) * 10 - 1e-9) / 10
     return faults
 
 
