@@ -103,6 +103,7 @@ def report(run, reading, baseline) -> None:
             fault.target == "recorder") else "-"
         cut = "" if item.commands_while_cut is None else f"; commands while cut: {item.commands_while_cut}"
         missed = f" NOT MADE: {item.done.missed}" if item.done.missed else ""
+        missed += f" ({item.note})" if item.note else ""
         say(f"  {fault.at:6.1f} s  {fault.describe():55s} safe {safe}; recovered {recovered}{cut}{missed}")
     cut = [f for f in reading.faults if f.commands_while_cut is not None]
     say(f"commands that reached an axis while arm was cut: {sum(f.commands_while_cut for f in cut)} "

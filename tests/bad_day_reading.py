@@ -38,6 +38,7 @@ class FaultReading:
     commands_while_cut: int | None = None
     recovered: float | None = None
     touched: tuple[str, ...] = ()
+    note: str = ""
 
 
 @dataclass
@@ -194,6 +195,14 @@ def read_campaign(campaign: Campaign, check: bool = True) -> Reading:
         if not made.missed and takes_setpoints_away(fault, machine):
             until = max(made.end_ns, made.start_ns + 1_000_000_000)
             reading.safe, reading.unsafe = time_to_safe(arm_frames, machine.node_ids, made.start_ns, until)
+            drives_after = any(n in machine.node_ids and cmd == HEARTBEAT and made.start_ns + 200_000_000 < t <= until
+                               for t, n, cmd, data in arm_frames)
+            if reading.unsafe and not drives_after:
+                # the simulated drives are a node of the arm's host and died with it: nothing is
+                # left to be safe or unsafe (real drives stay powered, and their watchdogs disarm)
+                reading.note = f"the simulated drives ({machine.drives}) stopped with their host: axes " \
+                               f"{reading.unsafe} not told IDLE before"
+                reading.safe, reading.unsafe = None, []
             if fault.kind == "partition":
                 partition = read_partition(recording, machine.name, made.start_ns, made.end_ns, machine.node_ids,
                                            machine.motor, machine.drives)

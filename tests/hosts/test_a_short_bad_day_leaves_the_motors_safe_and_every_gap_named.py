@@ -66,6 +66,10 @@ def test_a_short_bad_day_leaves_the_motors_safe_and_every_gap_named(tmp_path):
     for item in made:
         if item.safe is not None:  # a stop of the motor node: its drives' watchdogs make the axes safe
             assert not item.unsafe, (item.done.fault, item.unsafe)
+    # every process a fault stopped or killed, and every node a cut or slowed link held off, was
+    # heard again at the hub (the killed recorder: a new file begun) before the run ended
+    assert all(item.recovered is not None for item in made if item.touched or item.done.fault.target == "recorder"), \
+        [(item.done.fault.describe(), item.recovered) for item in made]
     # every gap of the merge named with the fault that caused it
     unexplained = [gap for gap in reading.gaps if not gap["cause"]]
     assert unexplained == [], unexplained
