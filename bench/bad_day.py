@@ -155,7 +155,7 @@ def timeline(run, reading, baseline, path: Path) -> None:
     import matplotlib.pyplot as plt
 
     rows = {"brain": 3, "arm": 2, "camera": 1}
-    figure, (top, bottom) = plt.subplots(2, 1, figsize=(14, 6.5), sharex=True, height_ratios=[3, 2])
+    figure, (top, bottom) = plt.subplots(2, 1, figsize=(15, 6.5), sharex=True, height_ratios=[3, 2])
     for item in reading.faults:
         fault, made = item.done.fault, item.done
         y, start, end = rows[fault.host], run.seconds(made.start_ns), run.seconds(made.end_ns)
@@ -169,6 +169,8 @@ def timeline(run, reading, baseline, path: Path) -> None:
             top.plot([start + item.safe], [y - 0.32], marker="v", color="tab:green", markersize=7)
         if item.recovered is not None:
             top.plot([end + item.recovered], [y - 0.32], marker="^", color="tab:blue", markersize=7)
+        elif item.touched or fault.target == "recorder":
+            top.annotate("never heard again", (end, y - 0.4), fontsize=7, color="magenta")
     for gap in reading.gaps:
         y = rows.get(gap.get("host") or "brain", 3) - 0.45
         top.plot([run.seconds(gap["from_ns"]), run.seconds(gap["to_ns"])], [y, y], linewidth=3,
@@ -181,7 +183,7 @@ def timeline(run, reading, baseline, path: Path) -> None:
         plt.Line2D([], [], color="tab:blue", marker="^", lw=0, label="heard again"),
         plt.Line2D([], [], color="tab:brown", lw=3, label="gap (cause named)"),
         plt.Line2D([], [], color="magenta", lw=3, label="gap (no cause)")]
-    top.legend(handles=handles, fontsize=7, loc="upper right", ncol=4)
+    top.legend(handles=handles, fontsize=7, loc="upper left", bbox_to_anchor=(1.005, 1.0))
     top.set_title(f"a bad day: the conveyor over brain, arm, camera; seed {run_seed}, {run.length:g} s", fontsize=10)
     for what, data, style in (("this run", reading, "-"), ("fault-free", baseline, "--")):
         if data is not None and data.placements is not None:
@@ -190,7 +192,7 @@ def timeline(run, reading, baseline, path: Path) -> None:
                         label=f"{what}: {len(times)} placed")
     bottom.set_ylabel("cubes placed")
     bottom.set_xlabel("s into the campaign (from every host's start gate)")
-    bottom.legend(fontsize=8, loc="upper left")
+    bottom.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.005, 1.0))
     figure.tight_layout()
     figure.savefig(path, dpi=110)
     plt.close(figure)
