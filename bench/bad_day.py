@@ -121,7 +121,7 @@ def report(run, reading, baseline) -> None:
                 f"{event.get('node') or ''}: {str(event.get('message', ''))[:110]}")
     if reading.merge_error:
         say(f"merge of {', '.join(p.name for p in run.files())}: FAILED: {reading.merge_error}")
-    else:
+    if reading.merged:
         say(f"merged {len(run.files())} recordings ({', '.join(p.name for p in run.files())}): "
             f"{len(reading.gaps)} gap(s)")
     for gap in reading.gaps:

@@ -136,28 +136,41 @@ def launcher_events(recording, system: str, kinds=("exit", "live", "stale", "los
     return out
 
 
-def cause_of(gap: dict, done: list[Done], machine) -> str:
+def cause_of(gap: dict, done: list[Done], machine, end_ns: int | None = None) -> str:
     """The fault of `done` that explains `gap` (a gap of the merge, or a recorder's sequence gap):
     the latest begun of those on the gap's host whose window (from its start to its end and the
     time it settles) holds the gap's start and whose kind can make such a gap (a recording cut
     short, begun late or ended early: a kill of that host's recorder, agent or launcher; events
-    that did not reach the hub: a partition, a slowed link, a stop or a kill on that host); ''
-    if none."""
+    that did not reach the hub: a partition, a slowed link, a stop or a kill on that host, or a
+    kill of the hub's recorder, whatever the host); past the campaign's end (`end_ns`), the run's
+    stop; '' if none."""
     from fault_schedule import settle
 
     start, host, reason = gap.get("from_ns", 0), gap.get("host"), gap.get("reason", "")
     own_file = any(words in reason for words in ("cut short", "began after", "ended before", "between its recordings"))
+    hub_lacks = "did not reach the hub" in reason
     found = ""
     for made in sorted(done, key=lambda d: d.start_ns):
         fault = made.fault
+        if made.missed:
+            continue
+        if fault.kind == "kill" and fault.target == "recorder" and fault.host == "brain" and hub_lacks \
+                and start >= made.start_ns - SLACK_NS:
+            # what the hub's recorder did not write after its kill: every host's events, until the
+            # run's end where its later file is not in the merge (`iotad merge` refuses a hub's
+            # recording in two files)
+            found = f"{fault.describe()} at {fault.at:.1f} s"
+            continue
         window = (made.start_ns - SLACK_NS, made.end_ns + int(settle(fault) * 1e9) + SLACK_NS)
-        if not window[0] <= start <= window[1] or made.missed:
+        if not window[0] <= start <= window[1]:
             continue
         if own_file and not (fault.kind == "kill" and fault.target in ("recorder", "agent", "launcher")):
             continue
         hosts = {fault.host} | ({machine.nodes[fault.target[5:]]} if fault.target.startswith("node:") else set())
         if host is None or host in hosts:
             found = f"{fault.describe()} at {fault.at:.1f} s"
+    if not found and end_ns is not None and start >= end_ns:
+        found = "the run's stop (Ctrl-C) after the campaign"
     return found
 
 
@@ -167,11 +180,27 @@ def read_campaign(campaign: Campaign, check: bool = True) -> Reading:
     machine, folder = campaign.machine, campaign.folder
     files = campaign.files()
     merged_path, merge_error, merged = folder / f"{machine.name}.merged.mcap", "", None
+    later_hub_files = [path for path in files if host_of_file(path, machine.name) is None
+                       and path.name != campaign.recording.name]
     try:
         merged = merge(files)
         write_merged(merged, merged_path)
     except (MergeError, RecordingError, OSError) as error:
         merge_error, merged_path = f"{type(error).__name__}: {error}", None
+    if merged_path is None and later_hub_files:
+        # the merge refuses a hub's recording that a restarted recorder continued in NAME_1.mcap
+        # ("two recordings of the hub"): merge without it, then add its messages (on the hub's
+        # clock already) so that what the hub heard after its recorder's restart is read too
+        try:
+            merged = merge([path for path in files if path not in later_hub_files])
+            write_merged(merged, merged_path := folder / f"{machine.name}.merged.mcap")
+            merge_error += f"; merged without {', '.join(p.name for p in later_hub_files)}, whose messages are " \
+                           "read beside the merge"
+            for path in later_hub_files:
+                merged.recording.messages.extend(read_recording(path, salvage=True).messages)
+            merged.recording.messages.sort(key=lambda m: m.log_time)
+        except (MergeError, RecordingError, OSError) as error:
+            merge_error, merged_path = merge_error + f"; and without the later hub files: {error}", None
     if merged_path is not None:
         recording = merged.recording  # as written (reading it again would take as long as the merge)
         gaps = [dict(g) for g in merged.gaps]
@@ -187,7 +216,7 @@ def read_campaign(campaign: Campaign, check: bool = True) -> Reading:
                          "events": value.get("missing", 0),
                          "reason": f"recorder sequence gap on {value.get('key', '?')}"})
     for gap in gaps:
-        gap["cause"] = cause_of(gap, campaign.done, machine)
+        gap["cause"] = cause_of(gap, campaign.done, machine, campaign.began_ns + int(campaign.length * 1e9))
     arm_frames = frames(recording, machine.name, machine.motor, machine.drives)
     readings = []
     for made in campaign.done:
