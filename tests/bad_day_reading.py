@@ -124,7 +124,7 @@ def heard_again(recording, system: str, nodes: tuple[str, ...], after_ns: int) -
 
 
 def launcher_events(recording, system: str, kinds=("exit", "live", "stale", "lost", "down", "host_back", "giveup")) -> list[dict]:
-    out = []
+    out, seen = [], set()
     for message in recording.messages:
         if message.topic == f"iota/{system}/@launcher":
             try:
@@ -132,7 +132,10 @@ def launcher_events(recording, system: str, kinds=("exit", "live", "stale", "los
             except RecordingError:
                 continue
             if isinstance(value, dict) and value.get("event") in kinds:
-                out.append({**value, "log_time": message.log_time})
+                key = (value.get("event"), value.get("node"), value.get("host"), value.get("t_ns"))
+                if key not in seen:  # a hub's later file read beside the merge holds copies
+                    seen.add(key)
+                    out.append({**value, "log_time": message.log_time})
     return out
 
 
