@@ -312,24 +312,28 @@ class Partition:
     silence: float | None          # on the motor node's own clock: from the last setpoint it took to its first IDLE
 
 
-def read_partition(recording: Path, system: str, cut_ns: int, heal_ns: int) -> Partition:
+def read_partition(recording, system: str, cut_ns: int, heal_ns: int, node_ids=NODE_IDS, motor: str = "motor",
+                   drives: str = "odrives") -> Partition:
+    """`recording`: a path, or a recording already read (a merge); `motor` and `drives` name the
+    motor node and the drives' node, `node_ids` the axes."""
     from iotad.recording.mcap_reader import read_recording
 
     frames, events, trace = [], {"LINK_LOST": 0, "LINK_FOUND": 0}, []
-    senders = (f"iota/{system}/motor/can_tx", f"iota/{system}/odrives/can_tx")
-    for message in read_recording(recording).messages:
-        if message.topic == f"iota/{system}/motor/@trace" and message.publish_time >= cut_ns - 1_000_000_000:
+    senders = (f"iota/{system}/{motor}/can_tx", f"iota/{system}/{drives}/can_tx")
+    messages = read_recording(recording).messages if isinstance(recording, (str, Path)) else recording.messages
+    for message in messages:
+        if message.topic == f"iota/{system}/{motor}/@trace" and message.publish_time >= cut_ns - 1_000_000_000:
             trace.append(message.value)
         if message.topic in senders:
             value = message.value
             frames.append((message.publish_time, value["id"] >> 5, value["id"] & 0x1F, bytes(value["data"])))
-        elif message.topic.startswith(f"iota/{system}/motor/joint_status/"):
+        elif message.topic.startswith(f"iota/{system}/{motor}/joint_status/"):
             event = message.value["event"]
             if event in events and cut_ns <= message.publish_time:
                 events[event] += 1
     frames.sort()
     safe: dict[int, float | None] = {}
-    for node in NODE_IDS:
+    for node in node_ids:
         idle = [t for t, n, cmd, data in frames if n == node and cmd == SET_AXIS_STATE and cut_ns <= t < heal_ns
                 and data[0] == IDLE]
         states = [data[0] for t, n, cmd, data in frames if n == node and cmd == SET_AXIS_STATE and t < cut_ns]
