@@ -135,6 +135,7 @@ class CanFramesType(Type):
 
 CAN_FRAMES = CanFramesType()
 TX_BURST, CAN_TX_BURST = "tx_burst", "can_tx_burst"  # the bus's input and a station's output of frame lists
+TX_BURSTS = "tx_bursts"  # the param of a station that can send either way (True: in bursts)
 
 
 class _Frame:

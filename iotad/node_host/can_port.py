@@ -20,6 +20,7 @@ from iotad.kernel.types import to_plain
 
 CAN_TX, CAN_RX = "can_tx", "can_rx"
 CAN_TX_BURST = "can_tx_burst"  # a node's frames of one instant as one output, sent one by one (iotad.can.burst_bus)
+TX_BURSTS = "tx_bursts"  # the param of a station that can send either way; its host sets it true
 KEY_PREFIX = "can/"  # an input trace event's `key` for a frame from the bus: can/<bus> (no zenoh key)
 RETRY = 0.1  # s between receive attempts on a bus that fails (an interface gone down): no busy loop
 

@@ -23,7 +23,7 @@ import zenoh
 from iotad.node_host import wire
 from iotad.kernel.compose import Composite, flatten
 from iotad.kernel.engine import INPUT_REFUSALS, Engine
-from iotad.node_host.can_port import CAN_TX, CAN_TX_BURST, CanPort
+from iotad.node_host.can_port import CAN_TX, CAN_TX_BURST, TX_BURSTS, CanPort
 from iotad.node_host.channel_table import ChannelTable, build, plain_params
 from iotad.node_host.host_clock import HostClock, RawInput
 from iotad.node_host.node_config import ConfigError, NodeConfig
@@ -132,6 +132,8 @@ class NodeHost:
         if config.can is not None:
             if hasattr(root, "can_bus_name"):  # a station that names its bus in what it reports
                 root.can_bus_name = config.can["bus"]
+            if TX_BURSTS in getattr(getattr(root, "iota_spec", None), "params", ()) and TX_BURSTS not in config.params:
+                root.tx_bursts = True  # a station that can send either way: an instant's frames in one output
             self._can_source = next((p.source for p in self.table.outputs if p.name == CAN_TX), None)
             self._can_burst_source = next((p.source for p in self.table.outputs if p.name == CAN_TX_BURST), None)
             listen_only = bool(config.can.get("listen_only"))  # a bus logger: it hears, never sends
