@@ -62,10 +62,13 @@ def sent_events(event: dict) -> list[dict]:
 
 
 def _stations(recording: Any, node: str) -> int:
+    """The stations of the modelled bus `node`, whose `rx[k]` a burst stands for; 0 for a real
+    bus's logger (iotad.can.frame_log.BusLogger), which has no `stations` and no `rx`: its bursts
+    are its log alone."""
     spec = recording.specs.get(node) or {}
     params = spec.get("params") if isinstance(spec, dict) else None
     stations = params.get("stations") if isinstance(params, dict) else None
-    return stations if isinstance(stations, int) and stations > 0 else 2
+    return stations if isinstance(stations, int) and stations > 0 else 0
 
 
 def expand(recording: Any, message_type: type) -> int:
@@ -76,6 +79,8 @@ def expand(recording: Any, message_type: type) -> int:
     derived: list = []
     sequences: dict[str, int] = {}
     stations: dict[str, int] = {}
+    floors: dict[str, int] = {}  # per bus's trace topic: the log time of the last frame expanded
+    real_time = (getattr(recording, "info", None) or {}).get("clock") != "virtual"
     frames = 0
     for message in recording.messages:
         if not message.topic.endswith("/" + wire.TRACE) or not any(m in message.data for m in markers):
@@ -97,17 +102,24 @@ def expand(recording: Any, message_type: type) -> int:
         else:
             continue
         origin = message.log_time - round(float(event["t"]) * _unit(recording) * 1e9)
+        # a bus's frames in the order it carried them: in real time each burst's log time carries
+        # its own publishing delay, so frames of two bursts timed from each could swap places
+        floor = floors.get(message.topic, 0) if real_time and is_burst(event) else None
         for derived_event in events:
             t = derived_event["t"]
             if not isinstance(t, (int, float)):
                 continue
             ns = origin + round(t * _unit(recording) * 1e9)
+            if floor is not None:
+                ns = floor = max(ns, floor)
             derived.append(_message(message_type, message.topic, ns, sequences, dict(derived_event, iota=event.get("iota"))))
             if derived_event["kind"] == "output":  # an output is on its channel's key too
                 key = wire.channel_key(system, node, derived_event["action"], derived_event["index"])
                 derived.append(_message(message_type, key, ns, sequences, derived_event["value"]))
             if derived_event["action"] == "frames":
                 frames += 1
+        if floor is not None:
+            floors[message.topic] = floor
     if derived:
         merged = [(m.log_time, 0, k, m) for k, m in enumerate(derived)]
         merged += [(m.log_time, 1, k, m) for k, m in enumerate(recording.messages)]
