@@ -202,6 +202,42 @@ class BurstCanBus(Iota):
         """The log record of a frame (a bus with CANopen stations names it again)."""
         return record
 
+    def frames_at_end(self, now: float) -> list[dict]:
+        """The frames a run that stops at `now` leaves unrecorded, each as a burst records a frame
+        plus `state`: "ended" (it ended by `now`, its burst still to come), "on the wire" or
+        "queued", with the wire start and end it has or would have had had the run gone on
+        (nothing more posted). `iotad run --virtual` writes them in the recording's end
+        (`iotad.can_at_end`), so that the check can tell a frame cut at the end from one lost.
+        Computed on copies: the bus is left as it was."""
+        timed = [(held, held.start, held.end) for held in self.ended]
+        current = self.current
+        if current is not None:
+            timed.append((current, current.start, current.end))
+        end = current.end if current is not None else now
+        saved = self.waiting
+        self.waiting = [list(queue) for queue in saved]
+        try:
+            for _ in range(self.queued):
+                station, position = self._winner()
+                held = self.waiting[station].pop(position)
+                start, end = end, round((end + held.duration) * TIME_GRID) / TIME_GRID  # `plus`, inline
+                timed.append((held, start, end))
+        finally:
+            self.waiting = saved
+        first = self.order - len(self.ended)
+        records = []
+        for k, (held, start, end) in enumerate(timed):
+            record = bus_frame(held.frame, held.station, held.duration)
+            if self.log_frames:
+                record = self._log_record(record)
+            state = "ended" if end <= now else "on the wire" if start < now else "queued"
+            records.append({"station": held.station, "order": first + k, "queued": held.queued, "start": start,
+                            "end": end, "duration": held.duration, "id": record.id, "extended": record.extended,
+                            "rtr": record.rtr, "dlc": record.dlc, "data": list(record.data),
+                            "direction": record.direction if self.log_frames else None,
+                            "message": record.message if self.log_frames else None, "state": state})
+        return records
+
     # -- the bus model, computed lazily: frames start and end between firings
     def _settle(self, now: float) -> None:
         """Every frame that ended by `now` ends (in order), the next starting as each ends."""
