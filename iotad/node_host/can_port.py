@@ -4,8 +4,9 @@ bus receives posted to the engine as a `can_rx` input event (docs/internals.md "
 The node's IOTA never sees python-can: it reads and writes `canFrame` values on two channels,
 exactly as it does on the modelled bus of `iotad run --virtual`. So the same IOTA runs against a
 real controller on can0, a simulated one on vcan0, or the bus model in virtual time. Frames are
-received on a thread of their own (python-can blocks) and handed over undecoded-free: the engine
-thread type-checks them like any other input, so a frame and a zenoh input are ordered alike.
+received on a thread of their own (python-can blocks) and handed over as plain values (no wire
+format carried them, so no msgpack round trip): the engine thread type-checks them like any other
+input, so a frame and a zenoh input are ordered alike.
 """
 from __future__ import annotations
 
@@ -14,9 +15,7 @@ from typing import Any, Callable
 
 from iotad.can.error_frames import describe_error_frame
 from iotad.can.frame import Frame, FrameError
-from iotad.node_host import wire
-from iotad.node_host.host_clock import RawInput
-from iotad.kernel.types import to_plain
+from iotad.node_host.host_clock import DecodedInput
 
 CAN_TX, CAN_RX = "can_tx", "can_rx"
 CAN_TX_BURST = "can_tx_burst"  # a node's frames of one instant as one output, sent one by one (iotad.can.burst_bus)
@@ -35,10 +34,10 @@ class CanPortError(Exception):
 
 
 class CanPort:
-    """`post` takes each frame received (a `RawInput` for the engine thread); `now` is the
+    """`post` takes each frame received (a `DecodedInput` for the engine thread); `now` is the
     engine's clock, which stamps the problems `take_problems` hands over."""
 
-    def __init__(self, config: dict[str, Any], post: Callable[[RawInput], None],
+    def __init__(self, config: dict[str, Any], post: Callable[[DecodedInput], None],
                  now: Callable[[], float] = lambda: 0.0):
         self.config, self.post, self.now = config, post, now
         self.name = config["bus"]
@@ -101,7 +100,9 @@ class CanPort:
                 self._problem(UNUSABLE, str(exc))
                 continue
             self.received += 1
-            post(RawInput(CAN_RX, None, wire.encode(to_plain(frame.to_value())), None, self.key))
+            value = frame.to_value()  # its plain form as a payload would carry it, without the msgpack round trip
+            post(DecodedInput(CAN_RX, None, {"id": value.id, "extended": value.extended, "rtr": value.rtr,
+                                             "dlc": value.dlc, "data": value.data}, None, self.key))
 
     def _problem(self, violation: str, said: str) -> None:
         t = self.now()
