@@ -77,6 +77,7 @@ class SimulatedOdrives(Iota):
     tx_bursts = Param(False)
 
     can_rx = Input(CAN_FRAME, switching=0)
+    can_rx_burst = Input(CAN_FRAMES, switching=0)  # the frames its port received together (real time), in order
     can_tx = Output(CAN_FRAME, switching=0)
     can_tx_burst = Output(CAN_FRAMES, switching=0)  # with tx_bursts: the answers of an instant, in order
     step = Internal(switching=0)
@@ -103,6 +104,11 @@ class SimulatedOdrives(Iota):
     @can_rx.input
     def received(self, value):
         self._receive(value)
+
+    @can_rx_burst.input
+    def received_together(self, frames):
+        for value in frames:
+            self._receive(value)
 
     @step.action(within=(lambda self: self.step_period, lambda self: self.step_period + self.timing_slack))
     def stepped(self):

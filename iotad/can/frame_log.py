@@ -41,7 +41,7 @@ from iotad.kernel.types import Array, Bool, Enum, Float, Int, Struct
 
 from . import odrive
 from .bit_timing import frame_bits
-from .burst_types import CAN_BURST
+from .burst_types import CAN_BURST, CAN_FRAMES
 from .frame import CAN_FRAME, Frame, FrameError
 
 _FRAME_RECORD = CAN_FRAME.record
@@ -120,6 +120,7 @@ class BusLogger(Iota):
     batch = Param(0.005)
 
     can_rx = Input(CAN_FRAME, switching=0)
+    can_rx_burst = Input(CAN_FRAMES, switching=0)  # the frames its port received together, in order
     frames = Output(CAN_BUS_FRAME, switching=0)  # format 1's log, a record per frame: not sent any more
     burst = Output(CAN_BURST, switching=0)
 
@@ -142,6 +143,11 @@ class BusLogger(Iota):
                          "rtr": record.rtr, "dlc": record.dlc, "data": list(record.data),
                          "direction": record.direction, "message": record.message})
         self.order += 1
+
+    @can_rx_burst.input
+    def heard_together(self, frames):
+        for value in frames:
+            self.heard(value)
 
     def logged_frame(self, record):
         """The record logged for a frame heard (a bus with CANopen stations names its frames by

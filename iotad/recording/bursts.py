@@ -3,7 +3,8 @@ bus's `burst` becomes the bus's `frames` log entry and its `rx[k]` output for ev
 at the frame's wire end, as the format 1 bus (`iotad.can.virtual_bus.CanBus`) recorded them.
 
 A station's `can_tx_burst` (its frames of one instant in one output) becomes a `can_tx` output
-per frame, at its time, and the bus's `tx_burst[k]` input that took it a `tx[k]` input per frame. `expand(recording)` adds those events to a format 2 recording as it is read (`mcap_reader`), as
+per frame, at its time, and the bus's `tx_burst[k]` input that took it a `tx[k]` input per frame;
+a real-time station's `can_rx_burst` (what its CAN port received together) a `can_rx` input per frame. `expand(recording)` adds those events to a format 2 recording as it is read (`mcap_reader`), as
 messages marked `derived`: the delivery check, candump, exports and plots see every frame as
 before, while a node's own check and replay (`Recording.process_trace`) see the bus's events as
 it fired them (its bursts). `wire_frames` gives a bus's frames with their wire times from a
@@ -19,6 +20,7 @@ from iotad.recording.mcap_format import packb, unpackb
 BURST = "burst"
 CAN_TX_BURST = "can_tx_burst"  # a station's frames of one instant, one output (iotad.can.burst_bus)
 TX_BURST = "tx_burst"  # the bus's input they arrive on
+CAN_RX_BURST = "can_rx_burst"  # a real-time station's frames received together, one input (iotad.node_host.can_port)
 _FRAME_FIELDS = ("id", "extended", "rtr", "dlc", "data")
 _LOG_FIELDS = ("duration", "station", "id", "extended", "rtr", "dlc", "data", "direction", "message")
 
@@ -47,18 +49,25 @@ def frame_events(event: dict, stations: int) -> list[dict]:
     return out
 
 
+_PER_FRAME = {(CAN_TX_BURST, "output"): "can_tx", (TX_BURST, "input"): "tx", (CAN_RX_BURST, "input"): "can_rx"}
+
+
 def is_station_burst(event: Any) -> bool:
-    """A station's `can_tx_burst` output, or the bus's `tx_burst[k]` input that took it."""
+    """A station's `can_tx_burst` output, the bus's `tx_burst[k]` input that took it, or a real-time
+    station's `can_rx_burst` input (the frames its CAN port received together)."""
     return (isinstance(event, dict) and isinstance(event.get("value"), list)
-            and (event.get("action"), event.get("kind")) in ((CAN_TX_BURST, "output"), (TX_BURST, "input")))
+            and (event.get("action"), event.get("kind")) in _PER_FRAME)
 
 
 def sent_events(event: dict) -> list[dict]:
-    """The format 1 events of a station's `can_tx_burst` output (a `can_tx` output per frame) or
-    of the bus's `tx_burst[k]` input (a `tx[k]` input per frame), in order, at the burst's time."""
-    action, kind = ("can_tx", "output") if event["action"] == CAN_TX_BURST else ("tx", "input")
+    """The format 1 events of a station's `can_tx_burst` output (a `can_tx` output per frame), of
+    the bus's `tx_burst[k]` input (a `tx[k]` input per frame) or of a station's `can_rx_burst` input
+    (a `can_rx` input per frame, from where the burst came: its `key`), in order, at its time."""
+    kind = event["kind"]
+    action = _PER_FRAME[(event["action"], kind)]
+    extra = {"key": event["key"]} if kind == "input" and "key" in event else {}
     return [{"t": event["t"], "iota": event.get("iota"), "action": action, "index": event.get("index"), "kind": kind,
-             "value": frame} for frame in event["value"] if isinstance(frame, dict)]
+             "value": frame, **extra} for frame in event["value"] if isinstance(frame, dict)]
 
 
 def _stations(recording: Any, node: str) -> int:
@@ -75,7 +84,7 @@ def expand(recording: Any, message_type: type) -> int:
     """Add the per-frame events of every burst in `recording` (format 2) to its messages, each
     marked `derived`, in log-time order; returns how many frames it expanded. `message_type` is
     the reader's RecordedMessage, passed in so that this module stays below the reader."""
-    markers = (packb(BURST), packb(CAN_TX_BURST), packb(TX_BURST))  # (cheap tests before decoding)
+    markers = (packb(BURST), packb(CAN_TX_BURST), packb(TX_BURST), packb(CAN_RX_BURST))  # (cheap tests first)
     derived: list = []
     sequences: dict[str, int] = {}
     stations: dict[str, int] = {}

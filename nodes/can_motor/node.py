@@ -92,6 +92,9 @@ class CanMotor(Iota):
     # Sized per joint map (see `_sized`); the declarations here are for six joints.
     setpoints = Input(joint_setpoints(6), switching=0)
     can_rx = Input(CAN_FRAME, switching=0)
+    # the frames a real bus's port received together (its node host, in real time), in their order:
+    # one input instead of one per frame, taken exactly as each on can_rx at this instant
+    can_rx_burst = Input(CAN_FRAMES, switching=0)
     estop = Input(Bool, switching=0)
     can_tx = Output(CAN_FRAME, switching=0)
     can_tx_burst = Output(CAN_FRAMES, switching=0)  # with tx_bursts: an instant's frames, in order
@@ -156,6 +159,11 @@ class CanMotor(Iota):
     @can_rx.input
     def on_can_rx(self, value):
         self._receive(value)
+
+    @can_rx_burst.input
+    def on_can_rx_burst(self, frames):
+        for value in frames:
+            self._receive(value)
 
     @estop.input
     def on_estop(self, value):

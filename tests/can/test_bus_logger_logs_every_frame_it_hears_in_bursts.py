@@ -69,3 +69,11 @@ def test_the_duration_is_the_frames_bit_time_at_the_bus_bitrate():
 def test_a_batch_longer_than_the_lag_is_refused():
     with pytest.raises(ValueError, match="batch"):
         BusLogger("can0", batch=0.5, lag=0.1)
+
+
+def test_frames_its_port_received_together_are_logged_as_if_heard_one_by_one():
+    together = Engine(BusLogger("can0"), VirtualClock())
+    together.post(None, "can_rx_burst", [COMMAND.to_value(), ASK.to_value(), HEARTBEAT.to_value()], t=0.1)
+    together.run(1.0)
+    out = [f for e in together.trace if e["action"] == "burst" for f in e["value"]]
+    assert out == [f for _, value in bursts([(0.1, COMMAND), (0.1, ASK), (0.1, HEARTBEAT)]) for f in value]

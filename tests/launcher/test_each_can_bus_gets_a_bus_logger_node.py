@@ -31,8 +31,8 @@ def test_the_logger_is_a_node_named_after_the_bus_that_opens_it_listen_only(tmp_
     assert logger.source == {"kind": "python", "ref": LOGGER_REF}
     assert logger.params == {"bitrate": 500_000, "lag": 100.0, "batch": 5.0}  # 0.1 s, 5 ms in the system's ms
     assert (logger.restart, logger.required) == ("on-failure", False)
-    assert {c.name: c.direction for c in logger.channels.values()} == {"can_rx": "input", "frames": "output",
-                                                                       "burst": "output"}
+    assert {c.name: c.direction for c in logger.channels.values()} == {
+        "can_rx": "input", "can_rx_burst": "input", "frames": "output", "burst": "output"}
     config = system.node_config("can0", 0.0, ["tcp/127.0.0.1:7447"])
     assert config["can"] == {"bus": "can0", "interface": "socketcan", "channel": "vcan0", "bitrate": 500_000,
                              "options": {}, "listen_only": True}
