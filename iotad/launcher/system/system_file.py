@@ -292,6 +292,8 @@ class _Checker:
                     self.error(node.entry, f"input {PEER_RESTART} (restart notices from the node host) must be "
                                            f"one plain input with no value or an enum of channel names")
                 bound.add(Port(node.name, PEER_RESTART, None))
+            if Port(node.name, CAN_RX, None) in bound | system.external:
+                bound.add(Port(node.name, CAN_RX_BURST, None))  # the same frames, received together
             missing = [str(Port(node.name, channel.name, k)) for channel in node.channels.values()
                        if channel.direction == "input" for k in channel.members()
                        if Port(node.name, channel.name, k) not in bound | system.external]
