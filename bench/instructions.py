@@ -14,7 +14,11 @@ Where `perf` cannot count (a virtual machine without a PMU: "instructions:u <not
 the system is built as `iotad run --virtual` builds it, with valgrind's instrumentation off, then
 callgrind is switched on and counts the instructions inside `engine.run` alone (called through
 `sys.call_tracing`, the C function callgrind's `--toggle-collect` watches), so start-up needs no
-second run. Slower (about 10 CPU s of start-up and some 50x the run itself), as exact. With
+second run. Slower (about 10 CPU s of start-up and some 50x the run itself), as exact.
+`--physics` counts, in one more run, the instructions inside PyBullet's API functions (its C
+code: stepping, ray casts, the camera) and prints each run over them: the issue's "recorded over
+physics-only", in instructions (a floor of the physics: the world's Python around PyBullet, which
+bench/worlds.py's split counts as physics too, is not in it). With
 `--record` the run is recorded as `iotad run -o` records it, by a writer process, whose own
 instructions valgrind does not count: the engine's process alone (what bench/worlds.py's
 "recorded (writer process)" times).
@@ -83,12 +87,18 @@ def valgrind_available() -> str | None:
     return None
 
 
-def valgrind_instructions(tree: Path, system: str, seconds: float) -> int:
+# The C functions of PyBullet's Python API (pybullet_stepSimulation, pybullet_getCameraImage...):
+# what callgrind counts for --physics, PyBullet's own work (the world's Python around it is not)
+PHYSICS_FUNCTIONS = "pybullet_*"
+
+
+def valgrind_instructions(tree: Path, system: str, seconds: float, inside: str = "sys_call_tracing") -> int:
     """Instructions of `engine.run` alone of `seconds` of `system` in `tree`, counted by callgrind
-    (`inner_run` below, run in `tree` with this file)."""
+    (`inner_run` below, run in `tree` with this file); `inside=PHYSICS_FUNCTIONS`: those inside
+    PyBullet's API functions during the run."""
     out = Path(tempfile.gettempdir()) / f"iotad-instructions-{os.getpid()}.callgrind"
     command = ["valgrind", "--tool=callgrind", "--instr-atstart=no", "--collect-atstart=no",
-               "--toggle-collect=sys_call_tracing", f"--callgrind-out-file={out}",
+               f"--toggle-collect={inside}", f"--callgrind-out-file={out}",
                sys.executable, str(Path(__file__).resolve()), "--inner", system, repr(seconds)]
     if RECORD:
         command.append("--inner-record")
@@ -136,6 +146,8 @@ def inner_run(system_file: str, seconds: float, record: bool) -> None:
     if writer is not None:
         sys.call_tracing(writer.finish, ())  # the last batch's packing and sending, counted
         Path(writer.output).unlink(missing_ok=True)
+    # off before the worlds close (PyBullet's disconnect is no part of the run)
+    subprocess.run(["callgrind_control", "--instr=off", str(os.getpid())], stdout=subprocess.DEVNULL, check=True)
 
 
 def run_instructions(tree: Path, system: str, seconds: float) -> int:
@@ -171,6 +183,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seconds", type=float, default=10.0, help="virtual seconds per run (default: 10)")
     parser.add_argument("--record", action="store_true",
                         help="record each run (iotad run -o, its writer process counted too), not --no-record")
+    parser.add_argument("--physics", action="store_true",
+                        help="valgrind only: also count PyBullet's own instructions (its API's C functions) "
+                             "and print each run over them (the issue's recorded over physics-only)")
     parser.add_argument("--counter", choices=("auto", "perf", "valgrind"), default="auto",
                         help="what counts: perf stat, or valgrind's callgrind (auto: perf where it can count)")
     parser.add_argument("--inner", nargs=2, metavar=("SYSTEM", "SECONDS"), help=argparse.SUPPRESS)
@@ -200,11 +215,18 @@ def main(argv: list[str] | None = None) -> int:
                if COUNTER == "valgrind" else
                f"perf, start-up taken off, `iotad run --virtual {'-o FILE' if RECORD else '--no-record'}`")
         print(f"user-space instructions of {args.seconds:g} s of virtual time ({how}); base {args.base}, tree {ROOT}")
-        print(f"  {'world':10} {'base M/s':>10} {'tree M/s':>10} {'tree/base':>10}")
+        physics = args.physics and COUNTER == "valgrind"
+        print(f"  {'world':10} {'base M/s':>10} {'tree M/s':>10} {'tree/base':>10}"
+              + (f" {'PyBullet M/s':>13} {'base/PyBullet':>14} {'tree/PyBullet':>14}" if physics else ""))
         for world in worlds:
             counts = {name: run_instructions(tree, WORLDS[world], args.seconds) / args.seconds / 1e6
                       for name, tree in (("base", base), ("tree", ROOT))}
-            print(f"  {world:10} {counts['base']:10.1f} {counts['tree']:10.1f} {counts['tree'] / counts['base']:9.3f}x")
+            line = f"  {world:10} {counts['base']:10.1f} {counts['tree']:10.1f} {counts['tree'] / counts['base']:9.3f}x"
+            if physics:  # the same world steps the same way in both trees: counted in the tree
+                pybullet = valgrind_instructions(ROOT, WORLDS[world], args.seconds, PHYSICS_FUNCTIONS) / args.seconds / 1e6
+                line += (f" {pybullet:13.1f} {counts['base'] / pybullet:13.2f}x {counts['tree'] / pybullet:13.2f}x"
+                         if pybullet else f" {'0':>13} {'-':>14} {'-':>14}")
+            print(line)
     return 0
 
 
