@@ -182,7 +182,8 @@ def main(argv: list[str] | None = None) -> int:
                         help="a world to run (repeatable; default: conveyor and buggy)")
     parser.add_argument("--seconds", type=float, default=10.0, help="virtual seconds per run (default: 10)")
     parser.add_argument("--record", action="store_true",
-                        help="record each run (iotad run -o, its writer process counted too), not --no-record")
+                        help="record each run as iotad run -o does (perf counts its writer process too; valgrind the "
+                             "engine's process alone), not --no-record")
     parser.add_argument("--physics", action="store_true",
                         help="valgrind only: also count PyBullet's own instructions (its API's C functions) "
                              "and print each run over them (the issue's recorded over physics-only)")
