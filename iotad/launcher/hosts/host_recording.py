@@ -24,6 +24,21 @@ def host_recording_path(path: str | Path, host: str) -> Path:
     return path.with_name(f"{stem}.{host}{suffix or '.mcap'}")
 
 
+def host_files(path: str | Path, host: str, heard: list[str] | None = None) -> list[Path]:
+    """Every file host `host` recorded the run to, as far as the hub knows: its first file
+    (`host_recording_path`) and each file its launcher said a restarted recorder went on in
+    (`heard`, in order: `split.arm_1.mcap`...)."""
+    first = host_recording_path(path, host)
+    return [first, *(Path(f) for f in heard or [] if Path(f) != first)]
+
+
+def join_command(hub_files: list[str | Path], hosts: dict[str, list[Path]]) -> str:
+    """The `iotad merge` that joins every file of a run: the hub's (each part, in order), then
+    each host's."""
+    files = [str(f) for f in hub_files] + [str(f) for files in hosts.values() for f in files]
+    return f"iotad merge {' '.join(files)} -o MERGED.mcap"
+
+
 def pinned(endpoints: list[str]) -> list[str]:
     """`endpoints` with port 0 replaced by a port free now on the same address: a recorder and
     the host's nodes must be told where its launcher listens."""
@@ -55,4 +70,4 @@ def run_info(host: str, hub: bool, origin: float, clock: dict[str, Any] | None =
     return info
 
 
-__all__ = ["host_recording_path", "local_endpoints", "pinned", "run_info"]
+__all__ = ["host_files", "host_recording_path", "join_command", "local_endpoints", "pinned", "run_info"]
