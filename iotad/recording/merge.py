@@ -20,6 +20,11 @@ also while the hub was out of reach. Each file's metadata says whose it is (`iot
   host's nodes outside its own recording (it began late or ended early), a host recording cut
   short, and a host of the system file whose recording was not given. A recorder's own sequence
   gap is kept only where no other file filled it.
+- **Several files of one host.** A host's recording, the hub's included, may be in several
+  files: its recorder was restarted (`split_1.mcap`, `split.arm_1.mcap`) or its launcher
+  (`split.arm-2.mcap`). They are one recording, ordered by their first message; the stretch
+  between a killed recorder's file and its successor's is a gap that says so, with how the old
+  recorder ended (the launcher's `recorder` event `restarted`, which the new file holds).
 """
 from __future__ import annotations
 

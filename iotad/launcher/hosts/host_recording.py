@@ -6,7 +6,9 @@ reach reaches only that host. So every other host's launcher records too, on its
 recorder is a client of that launcher's own session (which every node of the host also connects
 to), never of the hub, so that a cut link to the hub loses nothing of the host's events. Its
 file is the hub's `-o` path with the host's name before `.mcap` (`split.mcap` -> `split.arm.mcap`),
-a relative one counted from the agent's working folder (docs/hosts.md, "The recording").
+a relative one counted from the agent's working folder (docs/hosts.md, "The recording"); a
+restarted recorder goes on in `split.arm_1.mcap`, which the host's launcher announces to the hub,
+so that the run's `join them with: iotad merge ...` line names every file.
 """
 from __future__ import annotations
 
