@@ -23,7 +23,7 @@ from iotad.recording.mcap_format import RecordingError
 from iotad.recording.mcap_reader import read_recording
 from iotad.recording.merge import merged_gaps
 
-PORT = 7679
+PORT = 7683
 
 
 def traced(recording) -> set:
