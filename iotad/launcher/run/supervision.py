@@ -331,8 +331,10 @@ class Launcher:
             self._host_failed = True
             self._want_stop("host failed", line)
             return
+        backoff = restart.get("in_s")
+        backoff = f"{backoff:g}" if isinstance(backoff, (int, float)) else backoff
         line = (f"host {host}: its part was killed (exit {code}); its agent starts it again in "
-                f"{restart.get('in_s')} s (restart {restart.get('attempt')} of {restart.get('of')}); "
+                f"{backoff} s (restart {restart.get('attempt')} of {restart.get('of')}); "
                 f"its nodes ({', '.join(nodes)}) are down until they are live again")
         self.hub.launcher_event("host_part_restarted", line, code=code, restarted_host=host,
                                 attempt=restart.get("attempt"), of=restart.get("of"), backoff_s=restart.get("in_s"))
