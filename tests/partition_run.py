@@ -370,9 +370,10 @@ def silence_of(trace: list[dict]) -> float | None:
     for event in sorted(trace, key=lambda e: e["t"]):
         if event["action"] == "setpoints" and event["kind"] == "input":
             taken = event["t"]
-        elif event["action"] == "can_tx" and event["kind"] == "output" and taken is not None:
-            frame = event["value"]
-            if frame["id"] & 0x1F == SET_AXIS_STATE and frame["data"][0] == IDLE:
+        elif event["action"] in ("can_tx", "can_tx_burst") and event["kind"] == "output" and taken is not None:
+            # a frame alone, or the frames of one instant as one output (a station that bursts)
+            sent = event["value"] if event["action"] == "can_tx_burst" else [event["value"]]
+            if any(frame["id"] & 0x1F == SET_AXIS_STATE and frame["data"][0] == IDLE for frame in sent):
                 return event["t"] - taken
     return None
 
