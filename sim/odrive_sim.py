@@ -39,6 +39,7 @@ from collections import deque
 from typing import Any
 
 from iotad import Input, Internal, Iota, Output, Param
+from iotad.can.burst_bus import CAN_FRAMES
 from iotad.can.frame import CAN_FRAME, Frame, FrameError
 from iotad.can.odrive import CONTROL_MODE, INPUT_MODE, decode
 from iotad.esprit.runtime import esprit_now
@@ -71,9 +72,14 @@ class SimulatedOdrives(Iota):
     torque_constant = Param(1.0)    # Nm/A: Set_Limits' Current_Limit times this is the torque limit
     timing_slack = Param(0.005)     # s a step or cyclic frame may be late in real time (window width)
     max_catch_up = Param(24)        # physics steps one late step may take to catch the clock up (0.1 s)
+    # True: the answers waiting at one instant go out as one `can_tx_burst` (one firing); False: one
+    # `can_tx` each. `iotad run` sets it where the bus takes bursts (as for the motor node).
+    tx_bursts = Param(False)
 
     can_rx = Input(CAN_FRAME, switching=0)
+    can_rx_burst = Input(CAN_FRAMES, switching=0)  # the frames its port received together (real time), in order
     can_tx = Output(CAN_FRAME, switching=0)
+    can_tx_burst = Output(CAN_FRAMES, switching=0)  # with tx_bursts: the answers of an instant, in order
     step = Internal(switching=0)
 
     def init(self):
@@ -98,6 +104,11 @@ class SimulatedOdrives(Iota):
     @can_rx.input
     def received(self, value):
         self._receive(value)
+
+    @can_rx_burst.input
+    def received_together(self, frames):
+        for value in frames:
+            self._receive(value)
 
     @step.action(within=(lambda self: self.step_period, lambda self: self.step_period + self.timing_slack))
     def stepped(self):
@@ -129,10 +140,17 @@ class SimulatedOdrives(Iota):
 
     # A deadline on every output: a spec that allowed any delay would let a legal schedule (the
     # random policy's, `--seed`) fall behind without limit and still pass `iotad check`.
-    @can_tx.action(value=lambda self: self.outbox[0], when=lambda self: len(self.outbox) > 0,
+    @can_tx.action(value=lambda self: self.outbox[0], when=lambda self: len(self.outbox) > 0 and not self.tx_bursts,
                    within=(0, "timing_slack"))
     def answered(self):
         self.outbox.popleft()
+
+    # The same answers in the same order, all those waiting in one firing (CiA 402: every drive's
+    # TPDOs of a SYNC); the bus queues them as posted one by one at this instant.
+    @can_tx_burst.action(value=lambda self: list(self.outbox), when=lambda self: self.tx_bursts and len(self.outbox) > 0,
+                         within=(0, "timing_slack"))
+    def answered_all(self):
+        self.outbox.clear()
 
     # (`when`: a subclass may drive no ODrive axis at all, sim/cia402_sim.py)
     @can_tx.action(value=lambda self: self.axes[self.next_heartbeat].heartbeat().to_value(),

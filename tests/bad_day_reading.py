@@ -159,9 +159,8 @@ def cause_of(gap: dict, done: list[Done], machine, end_ns: int | None = None) ->
             continue
         if fault.kind == "kill" and fault.target == "recorder" and fault.host == "brain" and hub_lacks \
                 and start >= made.start_ns - SLACK_NS:
-            # what the hub's recorder did not write after its kill: every host's events, until the
-            # run's end where its later file is not in the merge (`iotad merge` refuses a hub's
-            # recording in two files)
+            # what the hub's recorder did not write after its kill: every host's events, until
+            # its successor wrote the hub's next file
             found = f"{fault.describe()} at {fault.at:.1f} s"
             continue
         window = (made.start_ns - SLACK_NS, made.end_ns + int(settle(fault) * 1e9) + SLACK_NS)
@@ -183,27 +182,11 @@ def read_campaign(campaign: Campaign, check: bool = True) -> Reading:
     machine, folder = campaign.machine, campaign.folder
     files = campaign.files()
     merged_path, merge_error, merged = folder / f"{machine.name}.merged.mcap", "", None
-    later_hub_files = [path for path in files if host_of_file(path, machine.name) is None
-                       and path.name != campaign.recording.name]
     try:
         merged = merge(files)
         write_merged(merged, merged_path)
     except (MergeError, RecordingError, OSError) as error:
         merge_error, merged_path = f"{type(error).__name__}: {error}", None
-    if merged_path is None and later_hub_files:
-        # the merge refuses a hub's recording that a restarted recorder continued in NAME_1.mcap
-        # ("two recordings of the hub"): merge without it, then add its messages (on the hub's
-        # clock already) so that what the hub heard after its recorder's restart is read too
-        try:
-            merged = merge([path for path in files if path not in later_hub_files])
-            write_merged(merged, merged_path := folder / f"{machine.name}.merged.mcap")
-            merge_error += f"; merged without {', '.join(p.name for p in later_hub_files)}, whose messages are " \
-                           "read beside the merge"
-            for path in later_hub_files:
-                merged.recording.messages.extend(read_recording(path, salvage=True).messages)
-            merged.recording.messages.sort(key=lambda m: m.log_time)
-        except (MergeError, RecordingError, OSError) as error:
-            merge_error, merged_path = merge_error + f"; and without the later hub files: {error}", None
     if merged_path is not None:
         recording = merged.recording  # as written (reading it again would take as long as the merge)
         gaps = [dict(g) for g in merged.gaps]

@@ -40,102 +40,14 @@ from typing import Any
 from iotad.esprit.runtime import esprit_now
 from iotad.kernel.api import Input, Iota, Output, Param
 from iotad.kernel.engine import TIME_GRID, plus
-from iotad.kernel.types import BadValue, Float, Int, Type
+from iotad.kernel.types import Float, Int
 from iotad.kernel.wire_delay import deliver_later
 
+from .burst_types import (BURST_FIELDS, CAN_BURST, CAN_FRAMES, CAN_TX_BURST, TX_BURST, TX_BURSTS,  # noqa: F401
+                          CanBurstType, CanFramesType)
 from .frame import CAN_FRAME, STANDARD_ID_MAX, Frame
 from .frame_log import bus_frame
 from .virtual_bus import arbitration_key, frame_bits_of
-
-BURST_FIELDS = ("station", "order", "queued", "start", "end", "duration", "id", "extended", "rtr", "dlc", "data",
-                "direction", "message")
-
-
-class CanBurstType(Type):
-    """`canBurst`: a list of the frames a bus carried, each a map of `BURST_FIELDS` (a frame of
-    a CAN_BUS_FRAME's fields plus station, order, queued, start and end)."""
-
-    name = "canBurst"
-
-    def check(self, value: Any) -> None:
-        if value.__class__ is not list:
-            raise BadValue(f"a burst is a list of frames, got {type(value).__name__}")
-        for position, frame in enumerate(value):
-            if frame.__class__ is not dict or len(frame) != len(BURST_FIELDS):
-                raise BadValue(f"[{position}]: a burst's frame is a map of {', '.join(BURST_FIELDS)}")
-            for name in BURST_FIELDS:
-                if name not in frame:
-                    raise BadValue(f"[{position}]: a burst's frame has no {name}")
-
-    def checked_plain(self, value: Any) -> Any:
-        self.check(value)
-        return value
-
-    def default(self) -> list:
-        return []
-
-    def json_schema(self) -> dict:
-        number = {"type": "number"}
-        integer = {"type": "integer"}
-        return {"type": "array", "title": "canBurst", "items": {
-            "type": "object", "required": list(BURST_FIELDS),
-            "properties": {"station": {"type": ["integer", "null"]}, "order": integer, "queued": number,
-                           "start": number, "end": number, "duration": number, "id": integer,
-                           "extended": {"type": "boolean"}, "rtr": {"type": "boolean"}, "dlc": integer,
-                           "data": {"type": "array", "items": integer, "minItems": 8, "maxItems": 8},
-                           "direction": {"type": ["string", "null"]}, "message": {"type": ["string", "null"]}}}}
-
-
-CAN_BURST = CanBurstType()
-
-
-class CanFramesType(Type):
-    """`canFrames`: the frames a station queues at one instant, in its order (a list of canFrame):
-    what a station's `can_tx_burst` output carries to the bus's `tx_burst[k]`."""
-
-    name = "canFrames"
-
-    @staticmethod
-    def _each(value: Any, convert) -> list:
-        """`convert` applied to each frame of `value`, a bad one named by its position."""
-        if not isinstance(value, (list, tuple)):
-            raise BadValue(f"frames are a list of canFrame, got {type(value).__name__}")
-        out = []
-        for position, frame in enumerate(value):
-            try:
-                out.append(convert(frame))
-            except BadValue as exc:
-                raise BadValue(f"[{position}]: {exc}") from None
-        return out
-
-    def check(self, value: Any) -> None:
-        self._each(value, CAN_FRAME.check)
-
-    def checked_plain(self, value: Any) -> Any:
-        return self._each(value, CAN_FRAME.checked_plain)
-
-    def to_plain(self, value: Any) -> Any:
-        return [CAN_FRAME.to_plain(frame) for frame in value]
-
-    def from_plain(self, plain: Any) -> list:
-        return self._each(plain, CAN_FRAME.from_plain)
-
-    def from_checked_plain(self, plain: Any) -> list:
-        return [CAN_FRAME.from_checked_plain(frame) for frame in plain]
-
-    def default(self) -> list:
-        return []
-
-    def json_schema(self) -> dict:
-        return {"type": "array", "title": "canFrames", "items": CAN_FRAME.json_schema()}
-
-    def prepare(self) -> None:
-        CAN_FRAME.prepare()
-
-
-CAN_FRAMES = CanFramesType()
-TX_BURST, CAN_TX_BURST = "tx_burst", "can_tx_burst"  # the bus's input and a station's output of frame lists
-
 
 class _Frame:
     """A frame the bus holds: queued, on the wire, or scheduled to follow."""
@@ -289,6 +201,42 @@ class BurstCanBus(Iota):
     def _log_record(self, record):
         """The log record of a frame (a bus with CANopen stations names it again)."""
         return record
+
+    def frames_at_end(self, now: float) -> list[dict]:
+        """The frames a run that stops at `now` leaves unrecorded, each as a burst records a frame
+        plus `state`: "ended" (it ended by `now`, its burst still to come), "on the wire" or
+        "queued", with the wire start and end it has or would have had had the run gone on
+        (nothing more posted). `iotad run --virtual` writes them in the recording's end
+        (`iotad.can_at_end`), so that the check can tell a frame cut at the end from one lost.
+        Computed on copies: the bus is left as it was."""
+        timed = [(held, held.start, held.end) for held in self.ended]
+        current = self.current
+        if current is not None:
+            timed.append((current, current.start, current.end))
+        end = current.end if current is not None else now
+        saved = self.waiting
+        self.waiting = [list(queue) for queue in saved]
+        try:
+            for _ in range(self.queued):
+                station, position = self._winner()
+                held = self.waiting[station].pop(position)
+                start, end = end, round((end + held.duration) * TIME_GRID) / TIME_GRID  # `plus`, inline
+                timed.append((held, start, end))
+        finally:
+            self.waiting = saved
+        first = self.order - len(self.ended)
+        records = []
+        for k, (held, start, end) in enumerate(timed):
+            record = bus_frame(held.frame, held.station, held.duration)
+            if self.log_frames:
+                record = self._log_record(record)
+            state = "ended" if end <= now else "on the wire" if start < now else "queued"
+            records.append({"station": held.station, "order": first + k, "queued": held.queued, "start": start,
+                            "end": end, "duration": held.duration, "id": record.id, "extended": record.extended,
+                            "rtr": record.rtr, "dlc": record.dlc, "data": list(record.data),
+                            "direction": record.direction if self.log_frames else None,
+                            "message": record.message if self.log_frames else None, "state": state})
+        return records
 
     # -- the bus model, computed lazily: frames start and end between firings
     def _settle(self, now: float) -> None:

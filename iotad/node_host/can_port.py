@@ -4,8 +4,9 @@ bus receives posted to the engine as a `can_rx` input event (docs/internals.md "
 The node's IOTA never sees python-can: it reads and writes `canFrame` values on two channels,
 exactly as it does on the modelled bus of `iotad run --virtual`. So the same IOTA runs against a
 real controller on can0, a simulated one on vcan0, or the bus model in virtual time. Frames are
-received on a thread of their own (python-can blocks) and handed over undecoded-free: the engine
-thread type-checks them like any other input, so a frame and a zenoh input are ordered alike.
+received on a thread of their own (python-can blocks) and handed over as plain values (no wire
+format carried them, so no msgpack round trip): the engine thread type-checks them like any other
+input, so a frame and a zenoh input are ordered alike.
 """
 from __future__ import annotations
 
@@ -14,12 +15,13 @@ from typing import Any, Callable
 
 from iotad.can.error_frames import describe_error_frame
 from iotad.can.frame import Frame, FrameError
-from iotad.node_host import wire
-from iotad.node_host.host_clock import RawInput
-from iotad.kernel.types import to_plain
+from iotad.node_host.host_clock import DecodedInput
 
 CAN_TX, CAN_RX = "can_tx", "can_rx"
 CAN_TX_BURST = "can_tx_burst"  # a node's frames of one instant as one output, sent one by one (iotad.can.burst_bus)
+CAN_RX_BURST = "can_rx_burst"  # a node's input of the frames received together, in order (a list of canFrame)
+BURST_MAX = 64  # frames at most in one can_rx_burst (what a waiting socket holds is taken in these)
+TX_BURSTS = "tx_bursts"  # the param of a station that can send either way; its host sets it true
 KEY_PREFIX = "can/"  # an input trace event's `key` for a frame from the bus: can/<bus> (no zenoh key)
 RETRY = 0.1  # s between receive attempts on a bus that fails (an interface gone down): no busy loop
 
@@ -34,12 +36,13 @@ class CanPortError(Exception):
 
 
 class CanPort:
-    """`post` takes each frame received (a `RawInput` for the engine thread); `now` is the
+    """`post` takes each frame received (a `DecodedInput` for the engine thread); `now` is the
     engine's clock, which stamps the problems `take_problems` hands over."""
 
-    def __init__(self, config: dict[str, Any], post: Callable[[RawInput], None],
-                 now: Callable[[], float] = lambda: 0.0):
+    def __init__(self, config: dict[str, Any], post: Callable[[DecodedInput], None],
+                 now: Callable[[], float] = lambda: 0.0, burst: bool = False):
         self.config, self.post, self.now = config, post, now
+        self.burst = burst  # the node takes the frames received together as one `can_rx_burst` input
         self.name = config["bus"]
         self.key = f"{KEY_PREFIX}{self.name}"  # what an input trace event names as where it came from
         self.bus = None
@@ -78,7 +81,7 @@ class CanPort:
         return None
 
     def _receive(self) -> None:
-        bus, post, stop = self.bus, self.post, self._stop
+        bus, post, stop, key = self.bus, self.post, self._stop, self.key
         while not stop.is_set():
             try:
                 message = bus.recv(timeout=0.1)
@@ -90,17 +93,44 @@ class CanPort:
                 continue
             if message is None:
                 continue
-            if getattr(message, "is_error_frame", False):
-                self._problem(ERROR_FRAME, describe_error_frame(message.arbitration_id, message.data))
+            plain = self._plain(message)
+            if not self.burst:
+                if plain is not None:
+                    post(DecodedInput(CAN_RX, None, plain, None, key))
                 continue
-            try:
-                frame = Frame.from_can_message(message)
-            except FrameError as exc:
-                self.unusable += 1  # CAN FD: not a classic frame any IOTA could take
-                self._problem(UNUSABLE, str(exc))
-                continue
-            self.received += 1
-            post(RawInput(CAN_RX, None, wire.encode(to_plain(frame.to_value())), None, self.key))
+            # what else the bus already holds goes with it, in one input (`can_rx_burst`): a node
+            # that fell behind catches up in one step, not one per frame
+            frames = [] if plain is None else [plain]
+            while len(frames) < BURST_MAX:
+                try:
+                    message = bus.recv(timeout=0)
+                except Exception:  # noqa: BLE001 - the next blocking receive says what it is
+                    break
+                if message is None:
+                    break
+                plain = self._plain(message)
+                if plain is not None:
+                    frames.append(plain)
+            if len(frames) == 1:
+                post(DecodedInput(CAN_RX, None, frames[0], None, key))
+            elif frames:
+                post(DecodedInput(CAN_RX_BURST, None, frames, None, key))
+
+    def _plain(self, message: Any) -> dict | None:
+        """The canFrame plain value of a message received (as a payload would carry it, without the
+        msgpack round trip), or None for what no IOTA can take (recorded as a problem)."""
+        if getattr(message, "is_error_frame", False):
+            self._problem(ERROR_FRAME, describe_error_frame(message.arbitration_id, message.data))
+            return None
+        try:
+            frame = Frame.from_can_message(message)
+        except FrameError as exc:
+            self.unusable += 1  # CAN FD: not a classic frame any IOTA could take
+            self._problem(UNUSABLE, str(exc))
+            return None
+        self.received += 1
+        value = frame.to_value()
+        return {"id": value.id, "extended": value.extended, "rtr": value.rtr, "dlc": value.dlc, "data": value.data}
 
     def _problem(self, violation: str, said: str) -> None:
         t = self.now()

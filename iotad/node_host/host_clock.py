@@ -46,6 +46,13 @@ class RawInput:
         self.key = key  # the key it arrived on (the node's own input key, or a bound output's)
 
 
+class DecodedInput(RawInput):
+    """An input a port hands over already as its plain value (`payload`): the CAN port's frames,
+    which no wire format carried, go to the engine without a msgpack round trip."""
+
+    __slots__ = ()
+
+
 class HostClock(RealClock):
     TRACE_BATCH = 64  # flush the trace at least this often under a flood of inputs
 
@@ -161,6 +168,9 @@ class HostClock(RealClock):
                 item = self._decode(item)
                 if item is None:
                     continue
+            elif item.__class__ is DecodedInput:
+                self.current_input = item
+                item = (None, item.name, item.index, item.payload, item.attachment)
             elif item is STOP:
                 self.report_overflow()
                 self._flush_trace()

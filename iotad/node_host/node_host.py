@@ -23,7 +23,7 @@ import zenoh
 from iotad.node_host import wire
 from iotad.kernel.compose import Composite, flatten
 from iotad.kernel.engine import INPUT_REFUSALS, Engine
-from iotad.node_host.can_port import CAN_TX, CAN_TX_BURST, CanPort
+from iotad.node_host.can_port import CAN_RX_BURST, CAN_TX, CAN_TX_BURST, TX_BURSTS, CanPort
 from iotad.node_host.channel_table import ChannelTable, build, plain_params
 from iotad.node_host.host_clock import HostClock, RawInput
 from iotad.node_host.node_config import ConfigError, NodeConfig
@@ -132,13 +132,16 @@ class NodeHost:
         if config.can is not None:
             if hasattr(root, "can_bus_name"):  # a station that names its bus in what it reports
                 root.can_bus_name = config.can["bus"]
+            if TX_BURSTS in getattr(getattr(root, "iota_spec", None), "params", ()) and TX_BURSTS not in config.params:
+                root.tx_bursts = True  # a station that can send either way: an instant's frames in one output
             self._can_source = next((p.source for p in self.table.outputs if p.name == CAN_TX), None)
             self._can_burst_source = next((p.source for p in self.table.outputs if p.name == CAN_TX_BURST), None)
             listen_only = bool(config.can.get("listen_only"))  # a bus logger: it hears, never sends
             if (self._can_source is None and not listen_only) or not any(p.name == "can_rx" for p in self.table.inputs):
                 raise ConfigError(f"{config.path}: sits on CAN bus {config.can['bus']!r} but has no "
                                   f"can_tx output and can_rx input")
-            self.can = CanPort(config.can, self.clock.post, self.clock.now)
+            self.can = CanPort(config.can, self.clock.post, self.clock.now,
+                               burst=any(p.name == CAN_RX_BURST for p in self.table.inputs))
         # the ROS 2 bridge (iotad/ros2/bridge.py) says what its port speaks; no other IOTA has one
         self.ros2 = None
         ros2_config = getattr(root, "ros2_port", None)

@@ -3,7 +3,8 @@ bus's `burst` becomes the bus's `frames` log entry and its `rx[k]` output for ev
 at the frame's wire end, as the format 1 bus (`iotad.can.virtual_bus.CanBus`) recorded them.
 
 A station's `can_tx_burst` (its frames of one instant in one output) becomes a `can_tx` output
-per frame, at its time, and the bus's `tx_burst[k]` input that took it a `tx[k]` input per frame. `expand(recording)` adds those events to a format 2 recording as it is read (`mcap_reader`), as
+per frame, at its time, and the bus's `tx_burst[k]` input that took it a `tx[k]` input per frame;
+a real-time station's `can_rx_burst` (what its CAN port received together) a `can_rx` input per frame. `expand(recording)` adds those events to a format 2 recording as it is read (`mcap_reader`), as
 messages marked `derived`: the delivery check, candump, exports and plots see every frame as
 before, while a node's own check and replay (`Recording.process_trace`) see the bus's events as
 it fired them (its bursts). `wire_frames` gives a bus's frames with their wire times from a
@@ -19,6 +20,7 @@ from iotad.recording.mcap_format import packb, unpackb
 BURST = "burst"
 CAN_TX_BURST = "can_tx_burst"  # a station's frames of one instant, one output (iotad.can.burst_bus)
 TX_BURST = "tx_burst"  # the bus's input they arrive on
+CAN_RX_BURST = "can_rx_burst"  # a real-time station's frames received together, one input (iotad.node_host.can_port)
 _FRAME_FIELDS = ("id", "extended", "rtr", "dlc", "data")
 _LOG_FIELDS = ("duration", "station", "id", "extended", "rtr", "dlc", "data", "direction", "message")
 
@@ -47,35 +49,47 @@ def frame_events(event: dict, stations: int) -> list[dict]:
     return out
 
 
+_PER_FRAME = {(CAN_TX_BURST, "output"): "can_tx", (TX_BURST, "input"): "tx", (CAN_RX_BURST, "input"): "can_rx"}
+
+
 def is_station_burst(event: Any) -> bool:
-    """A station's `can_tx_burst` output, or the bus's `tx_burst[k]` input that took it."""
+    """A station's `can_tx_burst` output, the bus's `tx_burst[k]` input that took it, or a real-time
+    station's `can_rx_burst` input (the frames its CAN port received together)."""
     return (isinstance(event, dict) and isinstance(event.get("value"), list)
-            and (event.get("action"), event.get("kind")) in ((CAN_TX_BURST, "output"), (TX_BURST, "input")))
+            and (event.get("action"), event.get("kind")) in _PER_FRAME)
 
 
 def sent_events(event: dict) -> list[dict]:
-    """The format 1 events of a station's `can_tx_burst` output (a `can_tx` output per frame) or
-    of the bus's `tx_burst[k]` input (a `tx[k]` input per frame), in order, at the burst's time."""
-    action, kind = ("can_tx", "output") if event["action"] == CAN_TX_BURST else ("tx", "input")
+    """The format 1 events of a station's `can_tx_burst` output (a `can_tx` output per frame), of
+    the bus's `tx_burst[k]` input (a `tx[k]` input per frame) or of a station's `can_rx_burst` input
+    (a `can_rx` input per frame, from where the burst came: its `key`), in order, at its time."""
+    kind = event["kind"]
+    action = _PER_FRAME[(event["action"], kind)]
+    extra = {"key": event["key"]} if kind == "input" and "key" in event else {}
     return [{"t": event["t"], "iota": event.get("iota"), "action": action, "index": event.get("index"), "kind": kind,
-             "value": frame} for frame in event["value"] if isinstance(frame, dict)]
+             "value": frame, **extra} for frame in event["value"] if isinstance(frame, dict)]
 
 
 def _stations(recording: Any, node: str) -> int:
+    """The stations of the modelled bus `node`, whose `rx[k]` a burst stands for; 0 for a real
+    bus's logger (iotad.can.frame_log.BusLogger), which has no `stations` and no `rx`: its bursts
+    are its log alone."""
     spec = recording.specs.get(node) or {}
     params = spec.get("params") if isinstance(spec, dict) else None
     stations = params.get("stations") if isinstance(params, dict) else None
-    return stations if isinstance(stations, int) and stations > 0 else 2
+    return stations if isinstance(stations, int) and stations > 0 else 0
 
 
 def expand(recording: Any, message_type: type) -> int:
     """Add the per-frame events of every burst in `recording` (format 2) to its messages, each
     marked `derived`, in log-time order; returns how many frames it expanded. `message_type` is
     the reader's RecordedMessage, passed in so that this module stays below the reader."""
-    markers = (packb(BURST), packb(CAN_TX_BURST), packb(TX_BURST))  # (cheap tests before decoding)
+    markers = (packb(BURST), packb(CAN_TX_BURST), packb(TX_BURST), packb(CAN_RX_BURST))  # (cheap tests first)
     derived: list = []
     sequences: dict[str, int] = {}
     stations: dict[str, int] = {}
+    floors: dict[str, int] = {}  # per bus's trace topic: the log time of the last frame expanded
+    real_time = (getattr(recording, "info", None) or {}).get("clock") != "virtual"
     frames = 0
     for message in recording.messages:
         if not message.topic.endswith("/" + wire.TRACE) or not any(m in message.data for m in markers):
@@ -97,17 +111,24 @@ def expand(recording: Any, message_type: type) -> int:
         else:
             continue
         origin = message.log_time - round(float(event["t"]) * _unit(recording) * 1e9)
+        # a bus's frames in the order it carried them: in real time each burst's log time carries
+        # its own publishing delay, so frames of two bursts timed from each could swap places
+        floor = floors.get(message.topic, 0) if real_time and is_burst(event) else None
         for derived_event in events:
             t = derived_event["t"]
             if not isinstance(t, (int, float)):
                 continue
             ns = origin + round(t * _unit(recording) * 1e9)
+            if floor is not None:
+                ns = floor = max(ns, floor)
             derived.append(_message(message_type, message.topic, ns, sequences, dict(derived_event, iota=event.get("iota"))))
             if derived_event["kind"] == "output":  # an output is on its channel's key too
                 key = wire.channel_key(system, node, derived_event["action"], derived_event["index"])
                 derived.append(_message(message_type, key, ns, sequences, derived_event["value"]))
             if derived_event["action"] == "frames":
                 frames += 1
+        if floor is not None:
+            floors[message.topic] = floor
     if derived:
         merged = [(m.log_time, 0, k, m) for k, m in enumerate(derived)]
         merged += [(m.log_time, 1, k, m) for k, m in enumerate(recording.messages)]

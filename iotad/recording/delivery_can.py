@@ -323,9 +323,20 @@ def _unlogged(acc: Accounts, rows: Rows, bus: str, matching: _Matching, log: lis
     end = max((m.t for m in log if m.t is not None), default=None)
     # a real-time log is a node (iotad.can.frame_log.BusLogger): it logs only while it runs
     logger = acc.life.get(bus) if not acc.virtual and bus not in acc.system.bus_nodes else None
+    cut = _cut_at_end(acc, bus, list(matching.links))
     for s, k, t_sent, frame in matching.unmatched():
         down = _logger_down(logger, bus, t_sent, window) if logger is not None else None
-        if down is not None:
+        under_way = cut[s].get(frame) if cut is not None else None
+        if under_way:  # the run's end says where it was: judged by that, not left in flight
+            state, start, ended = under_way.pop(0)
+            if state == "ended":  # carried: it ended before the run did, its burst still to come
+                matching.links[s].delivered += 1
+                matching.links[s].latencies.append((ended - t_sent) * acc.unit)
+                continue
+            verdict = "unjudged"
+            reason = (f"cut at the end: {state} when the run ended at t={acc.recording.can_at_end_t:.6g} (it would "
+                      f"have gone on the bus at t={start:.6g}, ended at t={ended:.6g}; the recording's end lists it)")
+        elif down is not None:
             verdict, reason = "unjudged", down
         elif fifo and k < matching.last_taken.get(s, -1):
             verdict, reason = "lost", f"the bus carried frames {s} sent after it"
@@ -333,9 +344,31 @@ def _unlogged(acc: Accounts, rows: Rows, bus: str, matching: _Matching, log: lis
             verdict, reason = "lost", f"the bus logger {bus} was running"
         elif end is not None and t_sent + window <= end:
             verdict, reason = "lost", f"the bus logged frames until t={end:.6g}"
+        elif cut is not None:
+            verdict, reason = "lost", "the bus neither carried it nor held it when the run ended (its end lists what it held)"
         else:
             verdict, reason = "unjudged", "in flight (queued or on the bus) when the run ended"
         _unmatched_frame(rows, matching.links[s], verdict, reason, t_sent, frame, "never went on the bus")
+
+
+def _cut_at_end(acc: Accounts, bus: str, stations: list[str]) -> dict[str, dict[tuple, list]] | None:
+    """Per station: each frame the modelled bus still held when a virtual run ended -> [(state,
+    wire start, wire end)], its sends in order (`iotad.can_at_end`); None where the recording does
+    not say (format 1, a real bus, a run that broke off): its frames under way are not judged."""
+    if not acc.virtual or acc.recording.run_end is None or acc.recording.can_at_end_t is None:
+        return None
+    held = acc.recording.can_at_end
+    frames = held.get(bus)
+    if frames is None:
+        frames = next((v for k, v in held.items() if k.rsplit("/", 1)[-1] == bus), None)
+    if frames is None:
+        return None
+    cut: dict[str, dict[tuple, list]] = {s: {} for s in stations}
+    for f in frames:
+        station = f.get("station")
+        if isinstance(station, int) and 0 <= station < len(stations):
+            cut[stations[station]].setdefault(_frame(f), []).append((f.get("state"), f.get("start"), f.get("end")))
+    return cut
 
 
 def _logger_down(life: Life, bus: str, t: float, window: float) -> str | None:

@@ -87,8 +87,10 @@ def export_json(recording: Recording, output: str | Path, extra_metadata: dict[s
                     channel = by_topic.get(message.topic)
                     stored = recording.schemas.get(channel.schema_id) if channel is not None else None
                     types[message.topic] = stored.name if stored is not None else None
-                    mapped.setdefault(topic_of(message.topic), json_schema(
-                        {"schema": _stored_raw(recording, channel), "type_name": types[message.topic]}))
+                    raw = _stored_raw(recording, channel)
+                    if stored is None:  # a frame the reader derived from a burst: its node's spec says
+                        types[message.topic], raw = _spec_channel(recording, parsed[1], parsed[2])
+                    mapped.setdefault(topic_of(message.topic), json_schema({"schema": raw, "type_name": types[message.topic]}))
                 type_name = types[message.topic]
                 for topic, kind, view in views(message.topic, type_name, value):
                     if kind == "json":
@@ -115,6 +117,18 @@ def export_json(recording: Recording, output: str | Path, extra_metadata: dict[s
     finally:
         sink.finish()
     return count
+
+
+def _spec_channel(recording: Recording, node: str, name: str) -> tuple[str | None, dict]:
+    """(type name, JSON schema) of channel `name` of `node` as its recorded spec declares it (a
+    `can_tx` read back from a `can_tx_burst`, a bus's `rx` and `frames` from its bursts)."""
+    spec = recording.specs.get(node)
+    channels = spec.get("channels") if isinstance(spec, dict) else None
+    for channel in channels if isinstance(channels, list) else ():
+        if isinstance(channel, dict) and channel.get("name") == name:
+            schema = channel.get("schema")
+            return channel.get("type"), schema if isinstance(schema, dict) else {}
+    return None, {}
 
 
 def _stored_raw(recording: Recording, channel: Any) -> dict:

@@ -104,6 +104,10 @@ RUN_ERROR = "iotad.run_error"
 # metadata of a virtual run that ended as it should: the time its engine ran to (spec units). Every
 # node ran until then, so a window that closed before it and never fired is a deadline missed.
 RUN_END = "iotad.run_end"
+# metadata of a virtual run that ended as it should, for each modelled bus (`BurstCanBus`) that still
+# held frames: {"t": the end, "buses": {bus: [frames as a burst holds them, plus "state": "ended",
+# "on the wire" or "queued"]}}: the frames cut at the end, which no burst records
+CAN_AT_END = "iotad.can_at_end"
 EXPORTED = "iotad.exported"  # metadata of a JSON copy (`iotad export --json`): which file it copies
 
 

@@ -24,7 +24,7 @@ from mcap.stream_reader import CRCValidationError, StreamReader
 from mcap.writer import MCAP0_MAGIC as MCAP_MAGIC
 
 from iotad.node_host import wire
-from iotad.recording.mcap_format import (EXPORTED, GAP_TOPIC, MALFORMED_TOPIC, RUN_END, RUN_ERROR, SET_METADATA,
+from iotad.recording.mcap_format import (CAN_AT_END, EXPORTED, GAP_TOPIC, MALFORMED_TOPIC, RUN_END, RUN_ERROR, SET_METADATA,
                                          RecordingError, format_version, packb, trace_event_problem, unpackb)
 
 
@@ -87,6 +87,27 @@ class Recording:
         damaged = meta.get("damaged")
         how = f"damaged: {damaged}" if damaged else f"cut short: {meta.get('stopped_at') or '?'}"
         return f"{meta.get('from') or 'a recording'} ({how})"
+
+    @property
+    def can_at_end(self) -> dict[str, list[dict]]:
+        """{bus: the frames it still held when a virtual run ended (`iotad.can_at_end`: ended with
+        their burst to come, on the wire, or queued; each with `state`)}; {} where none or unsaid."""
+        meta = self.metadata.get(CAN_AT_END)
+        try:
+            buses = json.loads(meta.get("buses", "{}")) if meta is not None else {}
+        except (TypeError, ValueError):
+            return {}
+        return {bus: [f for f in frames if isinstance(f, dict)] for bus, frames in buses.items()
+                if isinstance(frames, list)} if isinstance(buses, dict) else {}
+
+    @property
+    def can_at_end_t(self) -> float | None:
+        """When the frames of `can_at_end` were under way: the run's end."""
+        meta = self.metadata.get(CAN_AT_END)
+        try:
+            return float(json.loads(meta.get("t", "null"))) if meta is not None else None
+        except (TypeError, ValueError):
+            return None
 
     @property
     def run_end(self) -> float | None:

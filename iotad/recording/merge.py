@@ -20,6 +20,11 @@ also while the hub was out of reach. Each file's metadata says whose it is (`iot
   host's nodes outside its own recording (it began late or ended early), a host recording cut
   short, and a host of the system file whose recording was not given. A recorder's own sequence
   gap is kept only where no other file filled it.
+- **Several files of one host.** A host's recording, the hub's included, may be in several
+  files: its recorder was restarted (`split_1.mcap`, `split.arm_1.mcap`) or its launcher
+  (`split.arm-2.mcap`). They are one recording, ordered by their first message; the stretch
+  between a killed recorder's file and its successor's is a gap that says so, with how the old
+  recorder ended (the launcher's `recorder` event `restarted`, which the new file holds).
 """
 from __future__ import annotations
 
@@ -110,7 +115,8 @@ def merge(paths: Iterable[str | Path], read: Any = None) -> Merged:
         raise MergeError("a file is given twice: give each host's recording once")
     sources = [_source(path, read(path)) for path in paths]
     _same_run(sources)
-    sources.sort(key=lambda s: not s.hub)  # the hub's first: its copy wins where no host owns one
+    # the hub's first (its copy wins where no host owns one), each host's files in the order written
+    sources.sort(key=lambda s: (not s.hub, _first_time(s)))
     return _Join(sources).run()
 
 
@@ -142,10 +148,13 @@ def _same_run(sources: list[Source]) -> None:
         if abs(origins[0] - origins[1]) > ORIGIN_TOLERANCE:
             raise MergeError(f"{first.path} and {other.path} are recordings of different runs of {a.system!r} "
                              f"(they began at {origins[0]:.6f} and {origins[1]:.6f} on the hub's clock)")
-    hubs = [s.path for s in sources if s.hub]
-    if len(hubs) > 1:
-        raise MergeError(f"two recordings of the hub: {', '.join(hubs)}; give the hub's once "
-                         "(a split recording: its set file, which reads as one)")
+    # several files of one host, the hub included, are one recording that its recorder's restart
+    # (kill -9, frozen) or its launcher's split: `_host_gaps` names the stretch between them
+
+
+def _first_time(source: Source) -> int:
+    messages = source.recording.messages
+    return source.to_hub(messages[0].log_time) if messages else 1 << 64
 
 
 class _Join:
@@ -237,7 +246,9 @@ class _Join:
         own (one file, or several when its launcher was started again during the run), and the
         hosts whose recording was not given."""
         gaps: list[dict] = []
-        hub = next((k for k, s in enumerate(self.sources) if s.hub), None)
+        hubs = {k for k, s in enumerate(self.sources) if s.hub}
+        at_hub = set().union(*(held[k] for k in hubs)) if hubs else set()
+        ends = self._recorder_news(chosen)
         start = ordered[0][0] if ordered else 0
         end = ordered[-1][0] if ordered else 0
         by_host: dict[str | None, list[int]] = {}
@@ -246,11 +257,11 @@ class _Join:
         for host, indices in by_host.items():
             mine = set().union(*(held[si] for si in indices))
             own = sorted((t, key) for key, (t, _, _, m) in chosen.items() if self._traced(m) and self.owner(m) == host)
-            if hub is not None and hub not in indices:
+            if hubs and not hubs & set(indices):
                 # events of this host's nodes that its recording holds and the hub's does not
                 run: list[int] = []
                 for t, key in [*own, (None, None)]:
-                    if key is not None and key in mine and key not in held[hub]:
+                    if key is not None and key in mine and key not in at_hub:
                         run.append(t)
                     elif run:
                         gaps.append(self._gap(host, run[0], run[-1], len(run),
@@ -272,7 +283,19 @@ class _Join:
                 high = spans[k][0] if k < len(spans) else 1 << 64
                 here = [t for t in outside if low < t < high]
                 after = spans[k - 1] if k else None
-                if after is not None and not after[2].recording.complete:
+                if after is not None and not after[2].recording.complete and k < len(spans) \
+                        and (spans[k][2].name in ends["restarted"] or after[2].name in ends["ended"]):
+                    # the launcher restarted its recorder, which went on in the next file
+                    ended = ends["ended"].get(after[2].name)
+                    gaps.append(self._gap(host, after[1], high, len(here),
+                                          f"its recorder was restarted: {after[2].name} was cut short "
+                                          f"({ended or after[2].recording.truncated_reason or 'no footer'}) "
+                                          f"at t={after[1] / 1e9 - self.origin:.3f} s, and the recording goes on "
+                                          f"in {spans[k][2].name} from t={high / 1e9 - self.origin:.3f} s; "
+                                          + (f"{len(here)} event(s) of its nodes in between only other recordings "
+                                             "hold" if here else "no other recording holds an event of its nodes "
+                                             "in between")))
+                elif after is not None and not after[2].recording.complete:
                     gaps.append(self._gap(host, after[1], high if k < len(spans) else max(end, after[1]), len(here),
                                           f"its recording ({after[2].name}) was cut short "
                                           f"({after[2].recording.truncated_reason or 'no footer'})"))
@@ -294,6 +317,29 @@ class _Join:
                                                        "the other recordings is here"))
         gaps.sort(key=lambda g: (g["from_ns"], g["host"]))
         return gaps
+
+    def _recorder_news(self, chosen: dict) -> dict[str, dict[str, str]]:
+        """What the launchers said of their recorders (`@launcher` events "recorder", by file
+        name): "ended" -> how a file's recorder ended (its exit, as its launcher described it),
+        "restarted" -> the files a restarted recorder went on in."""
+        news: dict[str, dict[str, str]] = {"ended": {}, "restarted": {}}
+        for _, _, _, message in chosen.values():
+            if not message.topic.endswith("/" + wire.LAUNCHER):
+                continue
+            try:
+                value = message.value
+            except RecordingError:
+                continue
+            if not isinstance(value, dict) or value.get("event") != "recorder" or not isinstance(value.get("file"), str):
+                continue
+            name, text = Path(value["file"]).name, str(value.get("message", ""))
+            if value.get("code") is not None:
+                news["ended"][name] = text.split(";", 1)[0].removeprefix("recorder: ")
+            elif "restarted" in text:
+                news["restarted"][name] = text
+                if isinstance(value.get("after"), str) and value.get("ended"):  # the last one's end, said again
+                    news["ended"].setdefault(Path(value["after"]).name, str(value["ended"]))
+        return news
 
     def _gap(self, host: str | None, from_ns: int, to_ns: int, events: int, reason: str) -> dict:
         return {"host": host, "from_ns": int(from_ns), "to_ns": int(to_ns),

@@ -12,6 +12,14 @@ it is); anything else is a command, an array whose first element names it:
     ["open", PATH]          first: the file to write; the writer answers `ready` on its stdout
                             (or prints why it cannot write it on stderr, and exits 2)
     ["header", HEADER]      `recording_header(...)`: the specs and metadata
+    ["events", BYTES]       a batch of events, the pickle of their list, made of plain Python
+                            objects only (None, bool, int, float, str, bytes, list, tuple, dict of
+                            exactly those classes): for the engine's process a third less work
+                            than packing each event with msgpack (one call per batch, and each
+                            key and name written once, then referred to). The writer reads the
+                            same objects back and packs them as it would the maps; a batch with
+                            anything else (a numpy float, an IntEnum) goes as one map per event,
+                            which msgpack packs as it always did
     ["metadata", NAME, MAP] a metadata record (the run's end, or the error that broke it off)
     ["finish"]              the run is over: write the summary and exit 0
 
@@ -28,7 +36,9 @@ off in the middle of a batch) it still writes a whole file, with what came and a
 from __future__ import annotations
 
 import fcntl
+import io
 import os
+import pickle
 import signal
 import subprocess
 import sys
@@ -47,6 +57,32 @@ PIPE_SIZE = 1 << 20  # bytes the pipe holds (Linux's default most, /proc/sys/fs/
 READ_SIZE = 1 << 20  # bytes the writer reads at a time
 CUT_SHORT = "the run's process ended without finishing its recording (killed, or stopped hard)"
 HARD_STOP_WAIT = 5.0  # s a writer gets to finish its file after a hard stop
+
+
+class _NotPlain(Exception):
+    """A batch holds an object `_plain_pickle` does not take."""
+
+
+class _PlainPickler(pickle.Pickler):
+    """Pickles None, bool and exactly int, float, str, bytes, list, tuple and dict (with set and
+    frozenset, the objects the C pickler handles without asking `reducer_override`; msgpack
+    refuses a set on either side); anything else raises `_NotPlain`."""
+
+    def reducer_override(self, obj: Any) -> Any:
+        raise _NotPlain(type(obj).__name__)
+
+
+def _plain_pickle(value: Any) -> bytes:
+    out = io.BytesIO()
+    _PlainPickler(out, protocol=pickle.HIGHEST_PROTOCOL).dump(value)
+    return out.getvalue()
+
+
+class _PlainUnpickler(pickle.Unpickler):
+    """Reads what `_PlainPickler` wrote: no class is ever looked up (nor a module imported)."""
+
+    def find_class(self, module: str, name: str) -> Any:
+        raise pickle.UnpicklingError(f"the engine's batch names a class ({module}.{name}): not plain data")
 
 
 class WriterFailed(RecordingError):
@@ -82,6 +118,8 @@ class RecordingProcess:
             pass  # a smaller limit (pipe-max-size): slower, not wrong
         self._pack = msgpack.Packer(use_bin_type=True).pack
         self._parts: list[bytes] = []
+        self._events: list[dict] = []  # events not yet in `_parts` (an event's value is never
+        # changed once emitted: the engine's own trace keeps them so too)
         self._torn = False      # a write was broken off in the middle: the stream ends there
         self._failed: str | None = None
         self.finished = False
@@ -108,14 +146,26 @@ class RecordingProcess:
         self._send()
 
     def __call__(self, event: dict) -> None:
-        parts = self._parts
-        parts.append(self._pack(event))
-        if len(parts) >= BATCH:
+        events = self._events
+        events.append(event)
+        if len(events) >= BATCH:
             self._send()
 
     def add_metadata(self, name: str, data: dict[str, Any]) -> None:
+        self._batch()  # the events before it go first
         self._parts.append(self._pack(["metadata", name, data]))
         self._send()
+
+    def _batch(self) -> None:
+        """The events not yet packed into `_parts`, as one `events` command (or one map each)."""
+        events = self._events
+        if not events:
+            return
+        self._events = []
+        try:
+            self._parts.append(self._pack(["events", _plain_pickle(events)]))
+        except _NotPlain:  # msgpack writes such a value as its base type (a numpy float as a float)
+            self._parts += map(self._pack, events)
 
     def finish(self) -> None:
         """Everything to the writer, then wait for it to write the summary and exit."""
@@ -124,6 +174,7 @@ class RecordingProcess:
         self.finished = True
         try:
             if not self._torn and self._failed is None:
+                self._batch()
                 self._parts.append(self._pack(["finish"]))
                 self._send()
         finally:
@@ -163,6 +214,7 @@ class RecordingProcess:
             raise WriterFailed(self._failed)
         if self._torn:
             return
+        self._batch()
         self._torn = True  # until every byte is out
         data = memoryview(b"".join(self._parts))
         self._parts = []
@@ -256,6 +308,12 @@ def _write_events(sink: McapSink, items: Iterator[Any]) -> tuple[bool, float]:
                 raise ValueError("an event came before the recording's header")
             recorder(item)
             t = item["t"]
+        elif item[0] == "events":
+            if recorder is None:
+                raise ValueError("an event came before the recording's header")
+            for event in _PlainUnpickler(io.BytesIO(item[1])).load():
+                recorder(event)
+                t = event["t"]
         elif item[0] == "header":
             recorder = EngineRecorder.from_header(sink, item[1])
         elif item[0] == "metadata":

@@ -111,7 +111,7 @@ def _run_composed(system: System, args: VirtualOptions, writer, root, leaves: di
     from iotad.kernel.policy import PolicyError
     from iotad.launcher.run_policy import run_policy
     from iotad.recording.engine_sink import EngineRecorder, recording_header
-    from iotad.recording.mcap_format import RUN_END, RUN_ERROR
+    from iotad.recording.mcap_format import CAN_AT_END, RUN_END, RUN_ERROR
     from iotad.recording.writer_process import WriterFailed
 
     try:
@@ -211,6 +211,11 @@ def _run_composed(system: System, args: VirtualOptions, writer, root, leaves: di
         # windows that closed before it are judged
         if output is not None:
             sink.add_metadata(RUN_END, {"t": engine.now()})
+            # each modelled bus's frames still under way (none too), so that the check tells them from lost ones
+            cut = {leaf.iota.instance_name: leaf.iota.frames_at_end(engine.now()) for leaf in engine.flat.leaves
+                   if callable(getattr(leaf.iota, "frames_at_end", None))}
+            if cut:
+                sink.add_metadata(CAN_AT_END, {"t": engine.now(), "buses": cut})
     finally:
         if output is not None:
             try:

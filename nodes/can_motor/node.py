@@ -41,6 +41,7 @@ from typing import Any
 
 from channels.joints import joint_setpoints, joint_states
 from channels.motor import BAD_FRAME, JOINT_STATUS
+from iotad.can.burst_bus import CAN_FRAMES
 from iotad.can.frame import CAN_FRAME, Frame, FrameError
 from iotad.can.odrive import EncodeError
 from iotad.kernel.api import Input, Internal, Iota, Output, Param
@@ -83,12 +84,20 @@ class CanMotor(Iota):
     link_timeout = Param(0.0)       # s without setpoints (once they came) before the axes go IDLE; 0: off
     rearm_limit = Param(3)          # auto_rearm: re-arms in a row (each after twice the last wait) before FAULT
     rearm_window = Param(10.0)      # s armed after which an axis's re-arms in a row start again from none
+    # True: the frames of one instant (a tick's, a setpoints message's) go out as one `can_tx_burst`
+    # output, one firing; False: one `can_tx` output each. `iotad run` sets it on a bus that takes
+    # bursts (recording format 2's model, a real bus through the node host), where the file does not.
+    tx_bursts = Param(False)
 
     # Sized per joint map (see `_sized`); the declarations here are for six joints.
     setpoints = Input(joint_setpoints(6), switching=0)
     can_rx = Input(CAN_FRAME, switching=0)
+    # the frames a real bus's port received together (its node host, in real time), in their order:
+    # one input instead of one per frame, taken exactly as each on can_rx at this instant
+    can_rx_burst = Input(CAN_FRAMES, switching=0)
     estop = Input(Bool, switching=0)
     can_tx = Output(CAN_FRAME, switching=0)
+    can_tx_burst = Output(CAN_FRAMES, switching=0)  # with tx_bursts: an instant's frames, in order
     joint_states = Output(joint_states(6), switching=0)
     joint_status = Output(JOINT_STATUS, size=6, switching=0)
     bad_frame = Output(BAD_FRAME, switching=0)
@@ -151,6 +160,11 @@ class CanMotor(Iota):
     def on_can_rx(self, value):
         self._receive(value)
 
+    @can_rx_burst.input
+    def on_can_rx_burst(self, frames):
+        for value in frames:
+            self._receive(value)
+
     @estop.input
     def on_estop(self, value):
         if value:
@@ -194,10 +208,17 @@ class CanMotor(Iota):
         self._tick()
 
     # ------------------------------------------------------------------ outputs
-    @can_tx.action(value=lambda self: self.tx[0].to_value(), when=lambda self: bool(self.tx),
+    @can_tx.action(value=lambda self: self.tx[0].to_value(), when=lambda self: bool(self.tx) and not self.tx_bursts,
                    within=(0, "reaction_time"))
     def sent_frame(self):
         self.tx.popleft()
+
+    # The same frames in the same order, all those waiting in one firing: the bus queues them as
+    # if posted one by one at this instant (iotad/can/burst_bus.py), so the wire is the same.
+    @can_tx_burst.action(value=lambda self: [frame.to_value() for frame in self.tx],
+                         when=lambda self: self.tx_bursts and bool(self.tx), within=(0, "reaction_time"))
+    def sent_frames(self):
+        self.tx.clear()
 
     @joint_status.action(value=lambda self, i: _status(i, self.axes[i], self.reports[i][0]),
                          when=lambda self, i: bool(self.reports[i]), within=(0, "reaction_time"))

@@ -85,7 +85,7 @@ def test_the_real_time_logger_names_frames_by_family_too():
     for t, (frame, _, _) in enumerate(FAMILIES):
         engine.post(None, "can_rx", frame.to_value(), t=t * 1e-3)
     engine.run(1.0)
-    log = [e["value"] for e in engine.trace if e["action"] == "frames" and e["kind"] == "output"]
+    log = [f for e in engine.trace if e["action"] == "burst" and e["kind"] == "output" for f in e["value"]]
     assert [(r["direction"], r["message"], r["station"]) for r in log] == [(d, m, None) for _, d, m in FAMILIES]
 
 

@@ -21,5 +21,5 @@ def test_a_congested_virtual_bus_checks_clean(tmp_path, capsys):
     capsys.readouterr()
     assert main(["check", str(out)]) == 0
     report = capsys.readouterr().out
-    assert "in flight (queued or on the bus) when the run ended" in report  # the queue it ended with
+    assert "cut at the end: queued when the run ended at t=3" in report  # the queue it ended with
     assert "[lost]" not in report and "[reordered]" not in report and "[altered]" not in report

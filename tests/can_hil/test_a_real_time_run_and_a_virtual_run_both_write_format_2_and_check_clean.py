@@ -1,8 +1,8 @@
 """Recording format 2 in both ways of running one system file: the CAN ping-pong run in real
 time over a CAN tier (`system_can_tier`: udp_multicast in a private network namespace here) and
 the same file run in virtual time both state format 2 and both check clean. In real time nothing
-models the bus: its logger records each frame it hears on `frames`, as before; in virtual time
-the modelled bus records bursts, read back frame by frame. Either way each station's frames are
+models the bus: its logger records the frames it hears in bursts (each at its arrival, no
+station); in virtual time the modelled bus records bursts; both are read back frame by frame. Either way each station's frames are
 matched against the bus's log and the other station's receipts."""
 import sys
 from pathlib import Path
@@ -23,7 +23,9 @@ def test_a_real_time_run_on_a_can_tier_writes_format_2_and_checks_clean(system_c
     path = run_pingpong(system_can_tier, tmp_path)
     recording = read_recording(path)
     assert recording.format_version == 2
-    assert not [e for e in recording.trace("can0") if is_burst(e)]  # a real bus's log: frame by frame
+    logger_bursts = [e for e in recording.trace("can0", derived=False) if is_burst(e)]  # the real bus's log
+    assert logger_bursts and sum(len(e["value"]) for e in logger_bursts) == len(wire_frames(recording, "can0"))
+    assert all(f["station"] is None for e in logger_bursts for f in e["value"])  # a real bus names no sender
     logged = wire_frames(recording, "can0")
     assert len([f for f in logged if f["id"] == 0x10]) >= 10 and len([f for f in logged if f["id"] == 0x11]) >= 10
     report = check_delivery(recording)

@@ -1,6 +1,7 @@
 """In real time each [[can]] bus has a bus logger, a listen-only node named after the bus: a
-ping-pong over a CAN tier (`system_can_tier`) records `iota/pingpong/can0/frames` with every frame both
-stations sent (ids, data, each station's order), `iotad check` matches each station's can_tx
+ping-pong over a CAN tier (`system_can_tier`) records the frames it hears in bursts (recording
+format 2: `iota/pingpong/can0/burst`), read back as `iota/pingpong/can0/frames` with every frame
+both stations sent (ids, data, each station's order), `iotad check` matches each station's can_tx
 against it (`can can0: STATION -> (bus)`, clean), `iotad candump --log` prints it, and a frame a
 station sent that the logger never heard is reported lost. The file says `interface = "env"`:
 the tier's bus (IOTAD_CAN_INTERFACE, IOTAD_CAN_CHANNEL), whichever tier it is."""
@@ -20,7 +21,22 @@ from iotad.recording.mcap_reader import read_recording
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "recording"))
 from wire_tamper import rewrite  # noqa: E402
 
-LOG = "iota/pingpong/can0/frames"
+LOG = "iota/pingpong/can0/frames"  # read back from the bursts
+BURSTS, TRACE = "iota/pingpong/can0/burst", "iota/pingpong/can0/@trace"
+
+
+def edit_log(messages, edit):
+    """`messages` with `edit(frames) -> frames` applied to each burst the logger recorded: on its
+    `burst` channel and in its trace, as a logger that heard otherwise would have written both."""
+    out = []
+    for m in messages:
+        value = m.value
+        if m.topic == BURSTS:
+            m = replace(m, data=packb(edit(list(value))))
+        elif m.topic == TRACE and isinstance(value, dict) and value.get("action") == "burst":
+            m = replace(m, data=packb(dict(value, value=edit(list(value["value"])))))
+        out.append(m)
+    return out
 
 
 @pytest.fixture(scope="module")
@@ -88,8 +104,9 @@ def test_a_frame_the_logger_never_heard_is_reported_lost(pingpong, tmp_path):
         value = value.get("value") if isinstance(value, dict) and "kind" in value else value
         return isinstance(value, dict) and value.get("id") == 0x10 and (value.get("data") or [None])[0] == victim
 
-    def unheard(messages):  # the log and the logger's own trace (its can_rx and frames) lose that ping
-        return [m for m in messages if not (m.topic in (LOG, "iota/pingpong/can0/@trace") and is_victim(m.value))]
+    def unheard(messages):  # the log and the logger's own trace (its can_rx and bursts) lose that ping
+        kept = [m for m in messages if not (m.topic == TRACE and is_victim(m.value))]
+        return edit_log(kept, lambda frames: [f for f in frames if not is_victim(f)])
 
     report = check_delivery(read_recording(rewrite(pingpong, tmp_path / "unheard.mcap", unheard)))
     new = new_problems(pingpong, report)
@@ -102,30 +119,39 @@ def test_a_frame_no_station_sent_is_a_note_and_a_changed_one_altered(pingpong, t
     """The log's sender is unknown: a frame on it that no station's can_tx sent may be a device
     that is not a node (or a station's final frames), so it is a note, not a problem; one whose
     data changed while a station's frame of that id is missing is altered."""
-    def with_frame(message, **fields):
-        return replace(message, data=packb(dict(message.value, **fields)))
-
-    def made_up(messages):
-        k = [i for i, m in enumerate(messages) if m.topic == LOG][5]
-        extra = replace(with_frame(messages[k], id=0x7FF), sequence=99999, publish_time=messages[k].publish_time + 1,
-                        log_time=messages[k].log_time + 1)
-        return messages[:k + 1] + [extra] + messages[k + 1:]
+    def made_up(messages):  # one more frame, 0x7FF, after the sixth the logger heard
+        def edit(frames):
+            out = []
+            for f in frames:
+                out.append(f)
+                if f["order"] == 5:
+                    out.append(dict(f, id=0x7FF))
+            return out
+        return edit_log(messages, edit)
 
     original = []
 
-    def changed(messages):
-        k = [i for i, m in enumerate(messages) if m.topic == LOG and m.value["id"] == 0x10][5]
-        original.append(messages[k].value["data"][0])
-        return messages[:k] + [with_frame(messages[k], data=[0xEE] + [0] * 7)] + messages[k + 1:]
+    def changed(messages):  # the sixth ping the logger heard carries other data
+        pings = sorted(f["order"] for m in messages if m.topic == BURSTS for f in m.value if f["id"] == 0x10)
+        sixth = pings[5]
+
+        def edit(frames):
+            out = []
+            for f in frames:
+                if f["order"] == sixth:
+                    if len(original) < 1:
+                        original.append(f["data"][0])
+                    f = dict(f, data=[0xEE] + [0] * 7)
+                out.append(f)
+            return out
+        return edit_log(messages, edit)
 
     report = check_delivery(read_recording(rewrite(pingpong, tmp_path / "made_up.mcap", made_up)))
-    # only the wire says a message its sender's trace lacks: the CAN rows have nothing against it
-    assert [(f.code, f.link) for f in new_problems(pingpong, report)] == [("unexplained", "can0.frames -> (wire)")]
+    assert not new_problems(pingpong, report)  # the log says what the logger heard; no station's send explains it
     assert any(f.code == "foreign" and "0x7FF" in f.message and "no station's can_tx sent" in f.message
                for f in report.notes)
     report = check_delivery(read_recording(rewrite(pingpong, tmp_path / "changed.mcap", changed)))
-    assert {(f.code, f.link) for f in new_problems(pingpong, report)} == {
-        ("altered", "can can0: pinger -> (bus)"), ("altered", "can0.frames -> (wire)")}
+    assert {(f.code, f.link) for f in new_problems(pingpong, report)} == {("altered", "can can0: pinger -> (bus)")}
     # the frame named is the one changed, not another of its id missing from the log (the pinger's
     # frames sent after the logger stopped are missing too)
     altered = next(f for f in report.findings if f.code == "altered" and f.link == "can can0: pinger -> (bus)")

@@ -14,7 +14,8 @@ the arm's (the motors) and the recordings'. Seed 42 draws seven faults in 60 s: 
 of arm (1.3 to 3.7 s), its link slowed with tc tbf, kill -9 of camera's recorder, two SIGSTOPs of
 the motor node (tests/fault_schedule.py). No cut past the lease, no kill of an agent or a launcher
 fits in its minute (each needs 15 to 25 s to settle); bench/bad_day.py draws them, and found a
-killed host launcher never brought back (docs/failures.md, "A bad day")."""
+killed host launcher never brought back (docs/failures.md, "A bad day"; since, its agent starts it
+again: tests/hosts/test_a_killed_host_part_is_started_again_by_its_agent.py)."""
 import pytest
 
 from bad_day_reading import read_campaign

@@ -29,15 +29,16 @@ def test_the_logger_is_a_node_named_after_the_bus_that_opens_it_listen_only(tmp_
     logger = system.nodes["can0"]
     assert is_bus_logger(system, "can0") and not is_bus_logger(system, "echo")
     assert logger.source == {"kind": "python", "ref": LOGGER_REF}
-    assert logger.params == {"bitrate": 500_000, "lag": 100.0}  # 0.1 s in the system's milliseconds
+    assert logger.params == {"bitrate": 500_000, "lag": 100.0, "batch": 5.0}  # 0.1 s, 5 ms in the system's ms
     assert (logger.restart, logger.required) == ("on-failure", False)
-    assert {c.name: c.direction for c in logger.channels.values()} == {"can_rx": "input", "frames": "output"}
+    assert {c.name: c.direction for c in logger.channels.values()} == {
+        "can_rx": "input", "can_rx_burst": "input", "frames": "output", "burst": "output"}
     config = system.node_config("can0", 0.0, ["tcp/127.0.0.1:7447"])
     assert config["can"] == {"bus": "can0", "interface": "socketcan", "channel": "vcan0", "bitrate": 500_000,
                              "options": {}, "listen_only": True}
     assert "listen_only" not in system.node_config("pinger", 0.0, [])["can"]  # a station sends
     grant = next(g for g in derive(system).grants if g.user.endswith("can0"))
-    assert "iota/pingpong/can0/frames" in grant.publish
+    assert "iota/pingpong/can0/burst" in grant.publish  # its log, in bursts (recording format 2)
 
 
 def test_log_false_runs_no_logger_and_a_bad_log_value_is_named(tmp_path):

@@ -10,7 +10,7 @@ from namespaces import split_figure2
 from iotad.launcher.options import RunOptions
 from iotad.launcher.run.run_system import fleet_for
 from iotad.launcher.system.system_file import load_system
-from iotad.launcher.hosts.host_recording import host_recording_path, local_endpoints, pinned
+from iotad.launcher.hosts.host_recording import host_files, host_recording_path, join_command, local_endpoints, pinned
 
 
 @pytest.mark.parametrize("given, arm", [
@@ -41,3 +41,17 @@ def test_each_agent_is_told_to_record_its_part_beside_the_hubs_recording(tmp_pat
     # without a recording the agents record nothing either
     fleet, _ = fleet_for(system, RunOptions(), None, None)
     assert fleet.host_orders == {"arm": RunOptions(host="arm", plain=True, no_record=True)}
+
+
+def test_the_join_command_names_every_part_of_the_hubs_and_each_hosts_recording():
+    # the hub's recorder restarted once (split_1.mcap); arm's launcher said that its recorder
+    # went on in split.arm_1.mcap; base's recorder ran through: its one predicted file
+    hosts = {"arm": host_files("rec/split.mcap", "arm", ["rec/split.arm_1.mcap"]),
+             "base": host_files("rec/split.mcap", "base", None)}
+    assert hosts == {"arm": [Path("rec/split.arm.mcap"), Path("rec/split.arm_1.mcap")],
+                     "base": [Path("rec/split.base.mcap")]}
+    assert join_command(["rec/split.mcap", "rec/split_1.mcap"], hosts) == (
+        "iotad merge rec/split.mcap rec/split_1.mcap rec/split.arm.mcap rec/split.arm_1.mcap rec/split.base.mcap "
+        "-o MERGED.mcap")
+    # the first file heard again is named once
+    assert host_files("split.mcap", "arm", ["split.arm.mcap"]) == [Path("split.arm.mcap")]

@@ -257,14 +257,57 @@ def test_a_stalled_writer_does_not_hold_a_ctrl_c_and_is_stopped(tmp_path, monkey
     os.kill(writer._process.pid, signal.SIGSTOP)
     previous = signal.signal(signal.SIGALRM, signal.default_int_handler)  # the "Ctrl-C", in 1 s
     signal.setitimer(signal.ITIMER_REAL, 1.0)
-    event = {"t": 0.0, "iota": "figure2/vision", "action": "req", "index": None, "kind": "output",
-             "value": {"padding": "x" * 1000}}
     try:
         with pytest.raises(KeyboardInterrupt):
-            for _ in range(10_000):  # 10 MB: ten times what the pipe holds
-                writer(event)
+            for k in range(10_000):  # 10 MB: ten times what the pipe holds
+                # a value of its own each (a batch writes an object it holds twice once)
+                writer({"t": 0.0, "iota": "figure2/vision", "action": "req", "index": None, "kind": "output",
+                        "value": {"padding": f"{k:05d}" + "x" * 1000}})
     finally:
         signal.setitimer(signal.ITIMER_REAL, 0)
         signal.signal(signal.SIGALRM, previous)
     assert writer.torn
     assert writer.close() == -signal.SIGKILL  # still stopped after the wait: killed
+
+
+def test_events_marshal_cannot_batch_are_written_as_the_run_itself_writes_them(tmp_path):
+    """Events go to the writer in batches (marshal); a batch holding a value marshal does not
+    write (a float or int of a subclass, as numpy's) goes as msgpack maps. Either way the file
+    holds what the engine's own process writes, in order."""
+    import enum
+
+    import numpy
+
+    from iotad.recording.engine_sink import EngineRecorder
+    from iotad.recording.mcap_sink import McapSink
+    from recorded_systems import figure2
+
+    class Level(enum.IntEnum):
+        HIGH = 3
+
+    def event(k: int, value) -> dict:
+        return {"t": k * 0.25, "iota": "figure2/vision", "action": "req", "index": None, "kind": "output",
+                "value": value}
+
+    events = [event(0, {"w": 1.5, "k": 2}), event(1, {"w": numpy.float64(0.1), "k": 3}),
+              event(2, [1, (2, 3), None, True]), event(3, {"w": 2.5, "k": Level.HIGH}), event(4, "plain")]
+    header = recording_header(figure2(), "figure2")
+    inline = McapSink(tmp_path / "inline.mcap")
+    recorder = EngineRecorder.from_header(inline, header)
+    for one in events:
+        recorder(dict(one))
+    inline.finish()
+    writer = RecordingProcess()
+    writer.open(tmp_path / "process.mcap")
+    writer.begin(header)
+    for one in events[:3]:  # a batch with a numpy float, then one with an IntEnum
+        writer(dict(one))
+    writer.add_metadata("iotad.test", {"between": "batches"})
+    for one in events[3:]:
+        writer(dict(one))
+    writer.finish()
+    _, inline_messages, _ = contents(tmp_path / "inline.mcap")
+    process, process_messages, _ = contents(tmp_path / "process.mcap")
+    assert len(inline_messages) == 10  # each event's trace message and its output's
+    assert process_messages == inline_messages
+    assert process.metadata["iotad.test"] == {"between": "batches"}

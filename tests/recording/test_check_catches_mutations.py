@@ -150,10 +150,11 @@ def test_a_wrong_value_too_long_to_show_says_where_it_differs(tmp_path, capsys):
     source = tmp_path / "buggy.mcap"
     assert main(["run", str(ROOT / "examples" / "buggy.toml"), "--virtual", "--until", "3", "-o", str(source)]) == 0
 
-    def flip(events):
-        k = [j for j, e in enumerate(events) if e["action"] == "can_tx" and e["kind"] == "output"][20]
-        value = events[k]["value"]
-        events[k] = dict(events[k], value=dict(value, data=[value["data"][0] ^ 1] + value["data"][1:]))
+    def flip(events):  # one frame of the motor's bursts (can_tx_burst: an instant's frames in one output)
+        k = [j for j, e in enumerate(events) if e["action"] == "can_tx_burst" and e["kind"] == "output"][20]
+        value = events[k]["value"][0]
+        events[k] = dict(events[k], value=[dict(value, data=[value["data"][0] ^ 1] + value["data"][1:])]
+                         + events[k]["value"][1:])
         flipped.append((value["data"][0] ^ 1, value["data"][0]))
         return events
     flipped = []
@@ -161,9 +162,9 @@ def test_a_wrong_value_too_long_to_show_says_where_it_differs(tmp_path, capsys):
     capsys.readouterr()
     assert main(["check", str(path), "--node", "motor", "--no-delivery"]) == 1
     mine, spec = flipped[0]
-    assert f"(recorded against the spec's: data[0]: {mine} against {spec})" in capsys.readouterr().out
+    assert f"(recorded against the spec's: [0].data[0]: {mine} against {spec})" in capsys.readouterr().out
     assert main(["replay", str(path), "--node", "motor"]) == 1
-    assert f"(recorded against replayed: data[0]: {mine} against {spec})" in capsys.readouterr().out
+    assert f"(recorded against replayed: [0].data[0]: {mine} against {spec})" in capsys.readouterr().out
 
 
 def test_an_event_recorded_out_of_time_order_is_named_itself(recorded, tmp_path, capsys):

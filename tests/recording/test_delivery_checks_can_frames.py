@@ -151,7 +151,9 @@ def test_a_frame_on_the_bus_when_until_stops_the_run_is_not_judged(tmp_path, cap
     assert main(["check", str(path)]) == 0
     out = capsys.readouterr().out
     assert "[not judged] can can0: pinger -> echo: frame 0x010 [04]: in flight when the run ended" in out
-    assert "[not judged] can can0: pinger -> (bus): frame 0x010 [04]: in flight" in out
+    # on the bus's side the run's end says where it was: on the wire, with its wire times
+    assert "[not judged] can can0: pinger -> (bus): frame 0x010 [04]: cut at the end: on the wire when the run " \
+           "ended at t=0.05003" in out
 
 
 def test_can_motor_frames_reach_the_bus_and_the_simulated_odrives(tmp_path, capsys):

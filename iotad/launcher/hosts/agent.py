@@ -15,7 +15,8 @@ Its wire, all under `iota/@agent/<name>` (an '@' chunk, so no system's `**` matc
   already) or {"ok": false, "error": "..."};
 - queryable `.../stop`: SIGINT to the child, as Ctrl-C would; answered once it has exited;
 - publications `.../log` (each line the child prints: {"line": text, "n": its number in the run,
-  "run": the child's pid}) and `.../exit` ({"code": N, "lines": how many it printed, "run": pid});
+  "run": the child's pid}) and `.../exit` ({"code": N, "lines": how many it printed, "run": pid},
+  with "restart": {"attempt": k, "of": max, "in_s": backoff} when the agent starts it again);
 - queryable `.../lines?after=N`: the lines numbered past N that it still keeps (the last
   `agent_lines.KEPT`), for a hub that did not hear them live (a network cut): {"run": pid,
   "first": the first number kept, "count": lines printed, "lines": [[n, text], ...]}.
@@ -28,7 +29,15 @@ for the files here. Bytes that do not hash to what the order names are refused, 
 
 The run is a child that dies with the agent (the parent-death signal, SIGTERM: its launcher then
 stops its nodes in order): an agent that is killed takes its host's part down with it, and the
-hub reports the host lost and its nodes down."""
+hub reports the host lost and its nodes down.
+
+The agent is its run's supervisor, as a launcher is its nodes': a run killed by a signal that
+nobody asked to stop (kill -9, a crash: its exit status negative) is started again from the same
+order after a backoff, `PART_RESTARTS` times at most, as `RestartPolicy` restarts a node. Here,
+not at the hub: the agent is its parent and sees the exit at once, also while its host is cut
+off from the hub (when a re-sent order could not come). A run that exits with a status of its
+own (2: its configuration; 1: its nodes failed for good) is not started again: the same order
+would fail the same way, and the hub decides what that means for the run."""
 from __future__ import annotations
 
 import dataclasses
@@ -49,10 +58,14 @@ from iotad.node_host.session_close import close_session
 from iotad.launcher.hosts.agent_lines import KeptLines
 from iotad.launcher.hosts.code_by_hash import CodeCache, CodeError, localize
 from iotad.launcher.fleet_wire import CODE_PREFIX, agent_key, code_key, digest, launcher_user
-from iotad.launcher.processes import wrapped_argv
+from iotad.launcher.processes import RestartPolicy, wrapped_argv
 from iotad.launcher.options import RunOptions
 
 RUN_LOGS_KEPT = 20  # the lines of this many runs are kept under the work folder's logs/
+# a run killed mid-way is started again this many times at most, 0.5 s, 1 s, 2 s... after its
+# death (a launcher's start takes a second or two: a faster loop would only burn the host); a
+# run that lasted healthy_after s counts its restarts from the start again
+PART_RESTARTS = RestartPolicy("on-failure", max_restarts=3, backoff=0.5, backoff_max=8.0, healthy_after=30.0)
 
 
 class AgentError(Exception):
@@ -112,6 +125,11 @@ class Agent:
         self._lock = threading.Lock()
         self._stopping = threading.Event()
         self.session = None
+        self._launch: tuple | None = None  # (command, env, digest, path) of the run in progress: its restarts
+        self._asked_stop = False  # the run in progress was asked to stop: its exit is no failure
+        self._restarts = 0  # restarts of the run in progress, in all
+        self._consecutive = 0  # ... since it last ran healthy_after s
+        self._restart_due: subprocess.Popen | None = None  # the dead run whose restart waits its backoff
 
     # ------------------------------------------------------------- serving
     def serve(self) -> int:
@@ -198,8 +216,9 @@ class Agent:
             self.session = None
 
     def _running(self) -> bool:
+        """A run is in progress (or waits for its restart): the hub's session is kept."""
         with self._lock:
-            return self.child is not None and self.child.poll() is None
+            return self.child is not None and (self.child.poll() is None or self._restart_due is self.child)
 
     def stop(self) -> None:
         self._stopping.set()
@@ -302,8 +321,11 @@ class Agent:
                     self.child = subprocess.Popen(wrapped_argv(command, signal.SIGTERM), stdout=subprocess.PIPE,
                                                   stderr=subprocess.STDOUT, text=True, env=env,
                                                   start_new_session=True)
+                    self.child.started_at = time.monotonic()  # a run that lasted is restarted at once
                     self._digest = order.get("digest")
                     self._lines.start(self.child.pid)
+                    self._launch = (command, env, order.get("digest"), path)
+                    self._asked_stop, self._restarts, self._consecutive, self._restart_due = False, 0, 0, None
                     result["child"] = self.child
             except (AgentError, OSError) as exc:
                 result["error"] = exc
@@ -319,9 +341,12 @@ class Agent:
             raise error if isinstance(error, AgentError) else AgentError(f"cannot start the run: {error}")
         child = result["child"]
         self.say(f"agent {self.name}: runs {path} (pid {child.pid})")
+        self._follow(child)
+        return {"pid": child.pid, "fetched": fetched}
+
+    def _follow(self, child: subprocess.Popen) -> None:
         log = self._log_file(child.pid)
         threading.Thread(target=self._relay, args=(child, log), daemon=True, name=f"agent-{self.name}-log").start()
-        return {"pid": child.pid, "fetched": fetched}
 
     def _log_file(self, pid: int):
         """The file this host keeps its run's lines in (the hub gets them too, but not during a
@@ -354,11 +379,60 @@ class Agent:
         if log is not None:
             log.close()
         code = child.wait()
+        restart = self._restart_after(child, code)
         with self._lock:
-            if self.child is child:
+            if self.child is child and restart is None:
                 self._remove_credentials()
-        self._publish("exit", {"code": code, "lines": printed, "run": child.pid})
-        self.say(f"agent {self.name}: the run exited with {code}")
+        exit_ = {"code": code, "lines": printed, "run": child.pid}
+        self._publish("exit", exit_ if restart is None else {**exit_, "restart": restart})
+        if restart is None:
+            self.say(f"agent {self.name}: the run exited with {code}")
+            return
+        self.say(f"agent {self.name}: the run was killed (exit {code}); starting it again in {restart['in_s']:g} s "
+                 f"(restart {restart['attempt']} of {restart['of']})")
+        if not self._stopping.wait(restart["in_s"]):
+            self._spawns.put(lambda refuse=False: self._respawn(child, refuse))
+
+    def _restart_after(self, child: subprocess.Popen, code: int) -> dict | None:
+        """The restart due for `child`, which exited with `code` ({"attempt", "of", "in_s"}), or
+        None: it was asked to stop, exited with a status of its own, or has had its restarts."""
+        with self._lock:
+            if self.child is not child or self._asked_stop or self._stopping.is_set() or code >= 0 \
+                    or self._launch is None or not PART_RESTARTS.wants_restart(code, self._restarts):
+                return None
+            if time.monotonic() - getattr(child, "started_at", 0.0) >= PART_RESTARTS.healthy_after:
+                self._consecutive = 0
+            delay = PART_RESTARTS.delay(self._consecutive)
+            self._restarts += 1
+            self._consecutive += 1
+            self._restart_due = child
+            return {"attempt": self._restarts, "of": PART_RESTARTS.max_restarts, "in_s": delay}
+
+    def _respawn(self, dead: subprocess.Popen, refuse: bool = False) -> None:
+        """Start the run that `dead` was again, from its order (on the thread of serve()), unless it
+        was stopped, or a new order started another, meanwhile."""
+        with self._lock:
+            if self._restart_due is not dead or self.child is not dead or self._asked_stop or refuse:
+                if self._restart_due is dead:
+                    self._restart_due = None
+                    self._remove_credentials()
+                return
+            self._restart_due = None
+            command, env, _, path = self._launch
+            try:
+                child = subprocess.Popen(wrapped_argv(command, signal.SIGTERM), stdout=subprocess.PIPE,
+                                         stderr=subprocess.STDOUT, text=True, env=env, start_new_session=True)
+            except OSError as exc:
+                self._remove_credentials()
+                self.say(f"agent {self.name}: cannot start the run again: {exc}")
+                self._publish("exit", {"code": -1, "lines": 0, "run": dead.pid,
+                                       "error": f"cannot start the run again: {exc}"})
+                return
+            child.started_at = time.monotonic()
+            self.child = child
+            self._lines.start(child.pid)
+        self.say(f"agent {self.name}: runs {path} again (pid {child.pid})")
+        self._follow(child)
 
     def _publish(self, part: str, payload: dict) -> None:
         # session.put, not a publisher declared once: after the hub of an earlier run closed and
@@ -377,6 +451,10 @@ class Agent:
         """SIGINT (the launcher stops its nodes in order), then SIGKILL to the group past `grace`."""
         with self._lock:
             child = self.child
+            self._asked_stop = True  # its exit is no failure: not started again
+            if self._restart_due is child:
+                self._restart_due = None
+                self._remove_credentials()
         if child is None:
             return None
         if child.poll() is None:

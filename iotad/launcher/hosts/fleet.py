@@ -2,7 +2,8 @@
 the agent of every other host (`iotad agent`, iotad/launcher/hosts/agent.py) to run that host's part,
 serves the files the system file names by their sha256 (iotad/launcher/hosts/code_by_hash.py), relays
 the agents' lines, notices an agent that disappears (and gives it its part again when it comes
-back during the run), and stops them all at the end.
+back during the run) and a part that its agent starts again after it was killed (the agent is
+its part's supervisor: iotad/launcher/hosts/agent.py), and stops them all at the end.
 
 It talks to the agents through its own client session of the hub, so it starts once the hub
 listens and needs nothing from the launcher but the hub's endpoint."""
@@ -41,7 +42,8 @@ class Fleet:
         self.exits: dict[str, int] = {}
         self.lost: list[str] = []  # hosts whose agent is gone now
         self.returns: dict[str, int] = {}  # host -> how many times it came back after it was lost
-        # told ("lost" | "back" | "resumed" | "exited", host) from a zenoh thread: the launcher
+        self.restarts: dict[str, list[dict]] = {}  # host -> its part's restarts by its agent: each its exit
+        # told ("lost" | "back" | "resumed" | "exited" | "restarting", host) from a zenoh thread: the launcher
         # marks that host's nodes (or, for a part that ended by itself, decides the run's fate)
         self.notify: Callable[[str, str], None] | None = None
         self._stop = None
@@ -246,17 +248,28 @@ class Fleet:
             code = int(payload.get("code", -1))
         except (TypeError, ValueError):
             code = -1
+        restart = payload.get("restart")
         with self._changed:
             if host not in self._started and not self._closing:
                 # the part exited before the answer to its order reached this hub: taken with it
                 self._early_exits[host] = payload
                 return
-            self.exits[host] = code
-            # its part ended by itself (not asked to stop): the launcher hears it at once, so
-            # that a part that fails as it starts ends the run now, not at its --until
-            by_itself = host in self._started and host not in self._asked_to_stop and not self._closing
-            self._changed.notify_all()
-        if by_itself and self.notify is not None:
+            if isinstance(restart, dict):
+                # killed, and started again by its agent: no exit of the host's part, which goes
+                # on (at the end of the run, the stop asked of its agent cancels the restart)
+                self.restarts.setdefault(host, []).append({"code": code, **restart})
+                if self._closing or host in self._asked_to_stop:
+                    return
+                by_itself = None
+            else:
+                self.exits[host] = code
+                # its part ended by itself (not asked to stop): the launcher hears it at once, so
+                # that a part that fails as it starts ends the run now, not at its --until
+                by_itself = host in self._started and host not in self._asked_to_stop and not self._closing
+                self._changed.notify_all()
+        if by_itself is None and self.notify is not None:
+            self.notify("restarting", host)
+        elif by_itself and self.notify is not None:
             self.notify("exited", host)
 
     def _print(self, host: str, lines: list[tuple[str, bool]]) -> None:
@@ -342,6 +355,8 @@ class Fleet:
         if code is None:
             return "no exit status (its agent did not answer)"
         back = f"; lost {self.returns[host]} time(s), back each time" if self.returns.get(host) else ""
+        if self.restarts.get(host):
+            back += f"; killed {len(self.restarts[host])} time(s), started again by its agent"
         return f"exit {code}" + (" (stopped by this run" + back + ")" if host in self._asked_to_stop else back)
 
     def close(self) -> None:

@@ -6,7 +6,9 @@ reach reaches only that host. So every other host's launcher records too, on its
 recorder is a client of that launcher's own session (which every node of the host also connects
 to), never of the hub, so that a cut link to the hub loses nothing of the host's events. Its
 file is the hub's `-o` path with the host's name before `.mcap` (`split.mcap` -> `split.arm.mcap`),
-a relative one counted from the agent's working folder (docs/hosts.md, "The recording").
+a relative one counted from the agent's working folder (docs/hosts.md, "The recording"); a
+restarted recorder goes on in `split.arm_1.mcap`, which the host's launcher announces to the hub,
+so that the run's `join them with: iotad merge ...` line names every file.
 """
 from __future__ import annotations
 
@@ -22,6 +24,21 @@ def host_recording_path(path: str | Path, host: str) -> Path:
     suffix = path.suffix if path.suffix == ".mcap" else ""
     stem = path.name[:-len(suffix)] if suffix else path.name
     return path.with_name(f"{stem}.{host}{suffix or '.mcap'}")
+
+
+def host_files(path: str | Path, host: str, heard: list[str] | None = None) -> list[Path]:
+    """Every file host `host` recorded the run to, as far as the hub knows: its first file
+    (`host_recording_path`) and each file its launcher said a restarted recorder went on in
+    (`heard`, in order: `split.arm_1.mcap`...)."""
+    first = host_recording_path(path, host)
+    return [first, *(Path(f) for f in heard or [] if Path(f) != first)]
+
+
+def join_command(hub_files: list[str | Path], hosts: dict[str, list[Path]]) -> str:
+    """The `iotad merge` that joins every file of a run: the hub's (each part, in order), then
+    each host's."""
+    files = [str(f) for f in hub_files] + [str(f) for files in hosts.values() for f in files]
+    return f"iotad merge {' '.join(files)} -o MERGED.mcap"
 
 
 def pinned(endpoints: list[str]) -> list[str]:
@@ -55,4 +72,4 @@ def run_info(host: str, hub: bool, origin: float, clock: dict[str, Any] | None =
     return info
 
 
-__all__ = ["host_recording_path", "local_endpoints", "pinned", "run_info"]
+__all__ = ["host_files", "host_recording_path", "join_command", "local_endpoints", "pinned", "run_info"]

@@ -62,6 +62,7 @@ class NodeSupervisor:
             wire.every_node(system.name, wire.ALIVE), self._on_liveliness, history=True))
         hub.declare(session.declare_subscriber(wire.every_node(system.name, wire.HEARTBEAT), self._on_heartbeat))
         self.failed_elsewhere: set[str] = set()  # other hosts' nodes their launcher gave up
+        self.host_files: dict[str, list[str]] = {}  # host -> the files its restarted recorders went on in
         if others_started:
             hub.declare(session.declare_subscriber(wire.launcher_key(system.name), self._on_launcher_event))
 
@@ -74,11 +75,18 @@ class NodeSupervisor:
 
     def _on_launcher_event(self, sample: Any) -> None:
         """Another host's launcher gave a node of its up (a configuration error, its restarts
-        spent): it will not be live, and --after-live must not wait for it."""
+        spent): it will not be live, and --after-live must not wait for it. Or its recorder was
+        restarted: the file it goes on in is noted for the run's summary."""
         try:
             event = wire.decode(sample.payload.to_bytes())
         except wire.WireError:
             return
+        if isinstance(event, dict) and event.get("event") == "recorder" and event.get("code") is None \
+                and isinstance(event.get("file"), str) and isinstance(event.get("host"), str):
+            # a host's recorder restarted in a new file: the run's `join them with` line names it
+            files = self.host_files.setdefault(event["host"], [])
+            if event["file"] not in files:
+                files.append(event["file"])
         if isinstance(event, dict) and event.get("event") == "giveup":
             node = event.get("node")
             if node in self.system.nodes and node not in self.runs:

@@ -62,6 +62,7 @@ class RecorderSupervisor:
         self._frozen = 0.0                        # s of silence of a recorder killed as frozen
         self._stopping = False
         self._since = 0.0                         # time.time() as the recording began
+        self._ended = ""                          # how the last recorder that died ended ("killed by SIGKILL")
         self.run_info, self.nodes = run_info, nodes
 
     # ------------------------------------------------------------------ allowances
@@ -132,9 +133,10 @@ class RecorderSupervisor:
         self._check_life(system_starting)
         if self._ready is not None and self._ready.exists() and self.child is not None:
             self._ready = None
+            # the news of the last one's end too: while no recorder ran, no file heard it
             self.announce("recorder", f"recorder: restarted (pid {self.child.pid}), recording continues in "
                                       f"{self.recording}; the gap since {self.recordings[-2]} ended is lost",
-                          file=str(self.recording))
+                          file=str(self.recording), after=str(self.recordings[-2]), ended=self._ended)
 
     def _check_life(self, system_starting: bool) -> None:
         beat, recorder = self._beat, self.child
@@ -168,6 +170,7 @@ class RecorderSupervisor:
         state = "is complete" if code == 0 else f"was cut short: 'iotad recover {cut}' makes it whole"
         frozen, self._frozen = self._frozen, 0.0
         why = f" (frozen: no sign of life for {frozen:.1f} s)" if frozen else ""
+        self._ended = f"{describe_exit(code)}{why} after {uptime:.1f} s"
         self.announce("recorder", f"recorder: {describe_exit(code)}{why} after {uptime:.1f} s; {cut} {state}"
                                   f"{log_tail(recorder)}", code=code, file=str(cut))
         if self._stopping:

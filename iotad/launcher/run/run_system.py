@@ -127,11 +127,16 @@ def _launch(system: System, options: RunOptions, record_to: str | None, view, su
     for line in launcher.summary():
         print(line)
     if fleet is not None and fleet.host_orders and recording is not None:
-        from iotad.launcher.hosts.host_recording import host_recording_path
+        from iotad.launcher.hosts.host_recording import host_files, join_command
 
-        others = [str(host_recording_path(record_to, host)) for host in fleet.hosts]
-        print(f"  each other host recorded its part on its own machine: {', '.join(others)}; "
-              f"join them with: iotad merge {record_to} {' '.join(others)} -o MERGED.mcap")
+        # every file written: the hub's parts (a restarted recorder goes on in split_1.mcap...),
+        # and each host's, with the files its launcher said its restarted recorders went on in
+        heard = launcher.nodes.host_files if launcher.nodes is not None else {}
+        others = {host: host_files(record_to, host, heard.get(host)) for host in fleet.hosts}
+        hub_files = (launcher.recorder.recordings if launcher.recorder is not None else []) or [record_to]
+        print(f"  each other host recorded its part on its own machine: "
+              f"{', '.join(str(f) for files in others.values() for f in files)}; "
+              f"join them with: {join_command(hub_files, others)}")
     if summary_hook is not None:
         code = summary_hook(launcher, code)
     if options.strict or system.strict:

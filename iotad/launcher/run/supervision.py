@@ -283,6 +283,8 @@ class Launcher:
             self.nodes.gave_up_elsewhere(item[1])
         elif kind == "host" and item[1] == "exited":
             self._host_exited(item[2])
+        elif kind == "host" and item[1] == "restarting":
+            self._host_restarting(item[2])
         elif kind == "host":
             self.nodes.host_changed(item[1], item[2])
 
@@ -311,6 +313,34 @@ class Launcher:
         for name in nodes:
             self.hub.publish({"event": "down", "node": name, "host": host, "pid": None, "code": code,
                               "t_ns": time.time_ns(), "message": f"host {host}: its part exited with {code}"})
+
+    def _host_restarting(self, host: str) -> None:
+        """Another host's part was killed mid-run and its agent starts it again (after a backoff,
+        a bounded number of times: iotad/launcher/hosts/agent.py). Its nodes are down until the
+        new part's nodes are live again (their tokens say so, as for any node). A part killed
+        before each of its nodes had been live is a failed start, which ends the run as
+        `_host_exited` says: a restart would most likely meet the same fate."""
+        restart = self.fleet.restarts[host][-1]
+        nodes = [name for name, spec in self.system.nodes.items() if spec.host == host]
+        never = [name for name in nodes if name not in self.nodes.ever_alive]
+        code = restart.get("code")
+        if never:
+            line = (f"host {host}: its part exited with {code} before {', '.join(never)} had been live "
+                    "(its lines above say why): stopping every node")
+            self.hub.launcher_event("host_failed", line, code=code, quiet=True, failed_host=host)
+            self._host_failed = True
+            self._want_stop("host failed", line)
+            return
+        backoff = restart.get("in_s")
+        backoff = f"{backoff:g}" if isinstance(backoff, (int, float)) else backoff
+        line = (f"host {host}: its part was killed (exit {code}); its agent starts it again in "
+                f"{backoff} s (restart {restart.get('attempt')} of {restart.get('of')}); "
+                f"its nodes ({', '.join(nodes)}) are down until they are live again")
+        self.hub.launcher_event("host_part_restarted", line, code=code, restarted_host=host,
+                                attempt=restart.get("attempt"), of=restart.get("of"), backoff_s=restart.get("in_s"))
+        for name in nodes:
+            self.hub.publish({"event": "down", "node": name, "host": host, "pid": None, "code": code,
+                              "t_ns": time.time_ns(), "message": f"host {host}: its part was killed; restarting"})
 
     def _want_stop(self, reason: str, line: str) -> None:
         """The run stops for `reason` (the first one given is the one it stops for)."""

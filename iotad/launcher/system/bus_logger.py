@@ -5,7 +5,8 @@ on `iota/<system>/<bus>/frames`. In real time the bus is python-can's, and nothi
 stations would see it, each only from its own side. So a checked system gets one more node per
 bus (unless the bus says `log = false`): `iotad.can.frame_log.BusLogger`, named after the bus
 (a name no node may take), whose node host opens the same bus listen-only (no `can_tx`; SocketCAN
-hands it every other socket's frames) and which publishes each frame it hears on `frames`.
+hands it every other socket's frames) and which records the frames it hears in bursts (recording
+format 2), read back as `frames`.
 
 Being an ordinary node is the point: the launcher starts, supervises and restarts it (restart
 "on-failure"), the status table and `iotad ls` show it, access control lets it publish its own

@@ -37,6 +37,7 @@ DEFAULT_INPUT_QUEUE = 1000     # inputs a node host holds for its engine before 
 LOGGER_REF = "iotad.can.frame_log:BusLogger"  # the class of a bus's logger node (bus_logger.py)
 CANOPEN_LOGGER_REF = "iotad.can.canopen_frame_log:CanopenBusLogger"  # ... of a bus with CiA 402 stations
 LOGGER_LAG = 0.1  # seconds a frame may wait in the logger before its log entry is late (a deadline miss)
+LOGGER_BATCH = 0.005  # seconds from the first frame of a burst the logger writes to the burst
 _PATH = re.compile(r"^[A-Za-z_][\w-]*(/[A-Za-z_][\w-]*)*$")
 _SYSTEM_NAME = re.compile(r"^[A-Za-z_][\w-]*$")
 
@@ -639,7 +640,8 @@ class _Parser:
             if not bus.log or bus.name in self.nodes:
                 continue
             hosts = [self.nodes[s].host for s in bus.stations if s in self.nodes]
-            params = {"bitrate": bus.bitrate, "lag": LOGGER_LAG / unit}  # lag: in the system's time unit
+            # lag and batch: in the system's time unit
+            params = {"bitrate": bus.bitrate, "lag": LOGGER_LAG / unit, "batch": LOGGER_BATCH / unit}
             ref = LOGGER_REF
             canopen = canopen_nodes(self.nodes[s].params for s in bus.stations if s in self.nodes)
             if canopen:  # its log names each frame by family, CANopen or CAN Simple

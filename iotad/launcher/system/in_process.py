@@ -18,7 +18,7 @@ def compose(system: System, recording_format: int = 2) -> Composite:
     """The system as one composite named after it; raises what instantiating a node raises.
     `recording_format` 2 models each bus as `iotad.can.burst_bus.BurstCanBus` (frames in bursts),
     1 as `CanBus` (a firing and an event per frame and receiver), as recordings of format 1 have it."""
-    from iotad.can.burst_bus import CAN_TX_BURST, TX_BURST, BurstCanBus, BurstCanopenCanBus
+    from iotad.can.burst_bus import CAN_TX_BURST, TX_BURST, TX_BURSTS, BurstCanBus, BurstCanopenCanBus
     from iotad.can.virtual_bus import CanBus
 
     # a bus's real-time logger (bus_logger.py) is left out: here the bus model logs its frames,
@@ -45,7 +45,12 @@ def compose(system: System, recording_format: int = 2) -> Composite:
             binds.append((f"{bus.name}.rx[{k}]", f"{station}.{CAN_RX}"))
             # a station that queues an instant's frames as one output (iotad.can.burst_bus)
             node = by_name.get(station)
-            if node is not None and CAN_TX_BURST in getattr(getattr(node, "iota_spec", None), "channels", {}):
+            spec = getattr(node, "iota_spec", None)
+            if spec is not None and TX_BURSTS in spec.params and TX_BURSTS not in system.nodes[station].params:
+                # a station that can send either way (the motor node, the simulated drives) bursts
+                # where the bus takes bursts, as its node host has it send on a real bus
+                setattr(node, TX_BURSTS, recording_format != 1)
+            if node is not None and CAN_TX_BURST in getattr(spec, "channels", {}) and getattr(node, TX_BURSTS, True):
                 if recording_format == 1:
                     raise ValueError(f"{station} sends frames in bursts ({CAN_TX_BURST}), which recording "
                                      "format 1's bus cannot take: run it in format 2")

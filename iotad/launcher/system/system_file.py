@@ -53,6 +53,7 @@ from iotad.launcher.system.system_model import (  # noqa: F401 - the model's nam
     Binding, ChannelInfo, NodeSpec, System, channel_table, instantiate, param_names)
 
 CAN_TX, CAN_RX = "can_tx", "can_rx"  # the two channels of a node on a CAN bus
+CAN_RX_BURST = "can_rx_burst"  # a station's optional input of the frames its port received together (real time)
 PEER_RESTART = "peer_restart"  # an input the node host feeds when a peer restarts (iotad.node_host.peer_restart)
 
 
@@ -279,8 +280,10 @@ class _Checker:
 
     def check_inputs_covered(self, system: System) -> None:
         bound = {b.target for b in system.bindings}
-        bound |= {Port(station, CAN_RX, None) for bus in system.buses.values() for station in bus.stations}
-        bound |= {Port(bus, CAN_RX, None) for bus in system.buses}  # a bus logger's, fed by its bus
+        # a station's frames from its bus, one by one or received together (fed by its node host)
+        bound |= {Port(station, name, None) for bus in system.buses.values() for station in bus.stations
+                  for name in (CAN_RX, CAN_RX_BURST)}
+        bound |= {Port(bus, name, None) for bus in system.buses for name in (CAN_RX, CAN_RX_BURST)}  # a bus logger's
         for node in system.nodes.values():
             restart = node.channels.get(PEER_RESTART)
             if restart is not None and restart.direction == "input":
@@ -289,6 +292,8 @@ class _Checker:
                     self.error(node.entry, f"input {PEER_RESTART} (restart notices from the node host) must be "
                                            f"one plain input with no value or an enum of channel names")
                 bound.add(Port(node.name, PEER_RESTART, None))
+            if Port(node.name, CAN_RX, None) in bound | system.external:
+                bound.add(Port(node.name, CAN_RX_BURST, None))  # the same frames, received together
             missing = [str(Port(node.name, channel.name, k)) for channel in node.channels.values()
                        if channel.direction == "input" for k in channel.members()
                        if Port(node.name, channel.name, k) not in bound | system.external]
