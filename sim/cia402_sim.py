@@ -82,7 +82,7 @@ class SimulatedCia402Drives(SimulatedOdrives):
             return self._ignored(str(exc))
         if self._is_canopen(frame):
             for drive in self.drives:  # every drive hears the bus (NMT, SYNC, the master's heartbeat)
-                drive.handle(frame, self.sim_time)
+                drive.handle(frame, self.arrival_time())
             self._drain()
         else:
             super()._receive(value)

@@ -72,12 +72,17 @@ def test_without_keepalive_a_silent_source_trips_the_watchdog(engines):
     assert sorted(s["joint"] for s in disarmed) == list(range(6))
     assert all(s["axis_error"] & WATCHDOG and s["phase"] == "FAULT" for s in disarmed)
     # Measured from the frames on the bus, per axis: the firmware trips `watchdog_timeout` after
-    # the last command it received (checked once per control step), and its cyclic heartbeat
-    # says so at the next beat. Remote requests (the node's Get_Error polls) do not feed it.
+    # the last frame it received (checked once per control step), and its cyclic heartbeat says
+    # so at the next beat. Every frame to the axis feeds it, remote requests too (the node's
+    # Get_Error polls, every 0.5 s: one that comes within the timeout of the last command, as
+    # here at 79.9 ms, holds the axis one more poll period; the firmware's CAN handler feeds the
+    # watchdog before it looks at the command).
     for node in range(1, 7):
         last_command = max(t for t, frame in odrives_received(engine, node)
                            if not frame["rtr"] and frame["id"] & 0x1F in COMMANDS)
-        trip = last_command + WATCHDOG_TIMEOUT
+        fed = [t for t, _ in odrives_received(engine, node) if t >= last_command]
+        last_feed = next(t for t, later in zip(fed, fed[1:] + [float("inf")]) if later - t > WATCHDOG_TIMEOUT)
+        trip = last_feed + WATCHDOG_TIMEOUT
         beats = heartbeats(engine, node)
         before = [(state, error) for t, state, error in beats if last_command - 0.2 < t < trip]
         after = [(t, state, error) for t, state, error in beats if t > trip + STEP]
