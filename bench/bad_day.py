@@ -111,8 +111,16 @@ def report(run, reading, baseline) -> None:
     counts: dict[str, int] = {}
     for event in reading.events:
         counts[event["event"]] = counts.get(event["event"], 0) + 1
-    restarts = [e for e in reading.events if e["event"] == "exit" and "restart" in str(e.get("message", ""))]
-    say(f"launcher events: {dict(sorted(counts.items()))}; node restarts: {len(restarts)}; "
+    # a node started again: every `live` of a node after its first (by its launcher's policy, or
+    # with its host's part); an `exit` event's message is often empty, so it cannot tell
+    seen: set = set()
+    restarts = 0
+    for event in reading.events:
+        if event["event"] == "live":
+            who = (event.get("host"), event.get("node"))
+            restarts += who in seen
+            seen.add(who)
+    say(f"launcher events: {dict(sorted(counts.items()))}; node restarts: {restarts}; "
         f"agents started again by their supervisor: {len(run.agent_restarts)}")
     for event in reading.events:  # those of the campaign, not of the stop at its end
         if event["event"] in ("exit", "stale", "lost", "down", "host_back", "giveup") \

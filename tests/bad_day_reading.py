@@ -295,17 +295,29 @@ def host_of_file(path: Path, system: str) -> str | None:
 
 
 def file_starts(campaign: Campaign) -> dict[Path, int]:
-    """Each recording's first receipt time (ns), from its summary (a file cut short has none)."""
+    """Each recording's first receipt time (ns): from its summary, or, for a file cut short (a
+    recorder killed in its turn has written no summary), from its first message read in order."""
     from mcap.reader import make_reader
+    from mcap.records import Message
+    from mcap.stream_reader import StreamReader
 
     starts = {}
     for path in campaign.files():
         try:
             with open(path, "rb") as stream:
-                statistics = make_reader(stream).get_summary().statistics
-            starts[path] = statistics.message_start_time
-        except Exception:  # noqa: BLE001 - a file without a footer: its start is not needed
-            continue
+                summary = make_reader(stream).get_summary()
+            if summary is not None and summary.statistics is not None:
+                starts[path] = summary.statistics.message_start_time
+                continue
+        except Exception:  # noqa: BLE001 - no footer: read it from its start below
+            pass
+        try:
+            with open(path, "rb") as stream:
+                first = next((r.log_time for r in StreamReader(stream).records if isinstance(r, Message)), None)
+        except Exception:  # noqa: BLE001 - cut inside its first chunk: no start to tell
+            first = None
+        if first is not None:
+            starts[path] = first
     return starts
 
 
