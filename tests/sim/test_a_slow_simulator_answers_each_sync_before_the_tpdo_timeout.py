@@ -1,10 +1,11 @@
 """Simulated CiA 402 drives whose physics runs slower than the wall clock (a loaded machine) still
 answer every SYNC within the motor node's TPDO timeout. A late step catches the world up with the
 clock, and the frames that come while that firing runs wait for its end: with the whole catch-up
-in one firing (24 steps, 80 ms on a loaded machine), the SYNCs of 60 ms went unanswered at every
-firing, the motor node took every joint out of ARMED (TPDO_TIMEOUT, 3 SYNCs of 20 ms) and re-armed
-it, over and over, and the real-time arm test found no 2 s with every joint armed. A firing now
-catches up for at most `catch_up_time` of the wall clock; the rest stays due for the next one.
+in one firing (24 steps, 80 ms on a loaded machine), SYNCs went unanswered for longer than the
+motor node's TPDO timeout (3 SYNCs of 20 ms), which takes every joint out of ARMED (TPDO_TIMEOUT)
+and re-arms it; often enough, and the real-time arm test finds no 2 s with every joint armed. A
+firing now catches up for at most `catch_up_time` of the wall clock; the rest stays due for the
+next one (with physics at half the clock's pace, a SYNC waited 235 ms before).
 
 A clock on which each physics step costs `cost` seconds (the process's time goes by while it
 computes, and frames arrive meanwhile) stands in for the loaded machine; the engine's general loop
