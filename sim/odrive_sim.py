@@ -19,8 +19,11 @@ other firings of the process), and each step's window starts at the late firing 
 240 Hz that lateness added up to a world 14 % slower than the wall clock on a busy machine, and
 the conveyor's picks, timed from what vision saw, all missed. So a step takes as many physics steps
 as the firing's instant says are due since the first step, up to `max_catch_up` (the rest is
-given up: the world falls behind rather than freezing the node); in virtual time the firings are
-on period and that is always one. Steps and cyclic frames may come up to `timing_slack` late
+given up: the world falls behind rather than freezing the node), and no more than fit in
+`catch_up_time` of the wall clock (the rest stays due for the next firing): frames that come
+while a firing runs wait for its end, and a whole catch-up of 24 steps on a loaded machine (80 ms)
+would leave the SYNCs of CiA 402 drives unanswered past the motor node's TPDO timeout. In virtual
+time the firings are on period and that is always one. Steps and cyclic frames may come up to `timing_slack` late
 before that is a deadline miss; eager virtual time fires them at the window's start, exactly on
 period.
 
@@ -35,6 +38,7 @@ in phase), so one can_tx action per message kind walks through the axes.
 from __future__ import annotations
 
 import math
+import time
 from collections import deque
 from typing import Any
 
@@ -72,6 +76,7 @@ class SimulatedOdrives(Iota):
     torque_constant = Param(1.0)    # Nm/A: Set_Limits' Current_Limit times this is the torque limit
     timing_slack = Param(0.005)     # s a step or cyclic frame may be late in real time (window width)
     max_catch_up = Param(24)        # physics steps one late step may take to catch the clock up (0.1 s)
+    catch_up_time = Param(0.02)     # s of the wall clock one firing may spend catching up (the rest: next firing)
     # True: the answers waiting at one instant go out as one `can_tx_burst` (one firing); False: one
     # `can_tx` each. `iotad run` sets it where the bus takes bursts (as for the motor node).
     tx_bursts = Param(False)
@@ -94,6 +99,7 @@ class SimulatedOdrives(Iota):
         self.sim_time = 0.0
         self.step_origin = None     # the instant of step 0 on the engine's clock (the first step's)
         self.steps_given_up = 0     # steps a late firing was owed beyond max_catch_up (real time)
+        self.wall_clock = time.perf_counter  # what a firing's catch-up is timed by (a test may stand in)
         self.next_heartbeat = 0
         self.next_encoder = 0
         self.frames_ignored = 0     # frames for none of our axes, or not understood
@@ -135,7 +141,14 @@ class SimulatedOdrives(Iota):
             self.steps_given_up += due - self.max_catch_up
             self.step_origin += (due - self.max_catch_up) * dt
             due = self.max_catch_up
-        for _ in range(max(1, due)):
+        # the steps due, but within `catch_up_time` of the wall clock: the frames that come while
+        # this firing runs wait for its end (a SYNC's TPDOs, a command that feeds a watchdog): the
+        # arm's step costs 1.1 ms (load 11), and 24 of them on a third of a core are 80 ms, past
+        # the motor node's TPDO timeout (3 SYNCs, 60 ms). What is left stays due: the next firing.
+        started = self.wall_clock()
+        for taken in range(max(1, due)):
+            if taken and self.wall_clock() - started >= self.catch_up_time:
+                break
             self._step()
 
     # A deadline on every output: a spec that allowed any delay would let a legal schedule (the
@@ -283,7 +296,7 @@ def _check_params(iota: SimulatedOdrives) -> None:
     if iota.world not in WORLDS:
         raise ValueError(f"world {iota.world!r} is not one of {', '.join(WORLDS)}")
     for name in ("step_period", "heartbeat_period", "encoder_period", "control_bandwidth", "torque_constant",
-                 "timing_slack"):
+                 "timing_slack", "catch_up_time"):
         value = getattr(iota, name)
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0 or not math.isfinite(value):
             raise ValueError(f"{name} must be a number > 0, got {value!r}")
