@@ -91,7 +91,7 @@ def expand(recording: Any, message_type: type) -> int:
     floors: dict[str, int] = {}  # per bus's trace topic: the log time of the last frame expanded
     real_time = (getattr(recording, "info", None) or {}).get("clock") != "virtual"
     frames = 0
-    for message in recording.messages:
+    for position, message in enumerate(recording.messages):
         if not message.topic.endswith("/" + wire.TRACE) or not any(m in message.data for m in markers):
             continue
         try:
@@ -106,8 +106,14 @@ def expand(recording: Any, message_type: type) -> int:
             if node not in stations:
                 stations[node] = _stations(recording, node)
             events = frame_events(event, stations[node])
+            # a bus's frames at their own wire times, ahead of what was logged at the same time
+            place = (0, 0)
         elif is_station_burst(event):
             events = sent_events(event)
+            # a station's frames stand for the one event that carried them: right after it, in
+            # its node's order (a real-time trace burst logs many events at one receipt time,
+            # and frames placed ahead of them read as taken before events the engine took first)
+            place = (1, position)
         else:
             continue
         origin = message.log_time - round(float(event["t"]) * _unit(recording) * 1e9)
@@ -121,19 +127,20 @@ def expand(recording: Any, message_type: type) -> int:
             ns = origin + round(t * _unit(recording) * 1e9)
             if floor is not None:
                 ns = floor = max(ns, floor)
-            derived.append(_message(message_type, message.topic, ns, sequences, dict(derived_event, iota=event.get("iota"))))
+            derived.append((place, _message(message_type, message.topic, ns, sequences,
+                                            dict(derived_event, iota=event.get("iota")))))
             if derived_event["kind"] == "output":  # an output is on its channel's key too
                 key = wire.channel_key(system, node, derived_event["action"], derived_event["index"])
-                derived.append(_message(message_type, key, ns, sequences, derived_event["value"]))
+                derived.append((place, _message(message_type, key, ns, sequences, derived_event["value"])))
             if derived_event["action"] == "frames":
                 frames += 1
         if floor is not None:
             floors[message.topic] = floor
     if derived:
-        merged = [(m.log_time, 0, k, m) for k, m in enumerate(derived)]
-        merged += [(m.log_time, 1, k, m) for k, m in enumerate(recording.messages)]
-        merged.sort(key=lambda item: item[:3])
-        recording.messages = [item[3] for item in merged]
+        merged = [(m.log_time, *place, 1, k, m) for k, (place, m) in enumerate(derived)]
+        merged += [(m.log_time, 1, k, 0, 0, m) for k, m in enumerate(recording.messages)]
+        merged.sort(key=lambda item: item[:5])
+        recording.messages = [item[5] for item in merged]
     return frames
 
 
