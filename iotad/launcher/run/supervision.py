@@ -299,12 +299,8 @@ class Launcher:
         required = [name for name in nodes if self.system.nodes[name].required]
         never = [name for name in nodes if name not in self.nodes.ever_alive]
         if never or required:
-            why = (f"before {', '.join(never)} had been live" if never
-                   else f"and {', '.join(required)} {'is' if len(required) == 1 else 'are'} required")
-            line = f"host {host}: its part exited with {code} {why} (its lines above say why): stopping every node"
-            self.hub.launcher_event("host_failed", line, code=code, quiet=True, failed_host=host)
-            self._host_failed = True
-            self._want_stop("host failed", line)
+            self._stop_for_host(host, code, f"before {', '.join(never)} had been live" if never
+                                else f"and {', '.join(required)} {'is' if len(required) == 1 else 'are'} required")
             return
         if code == 0:  # every node of it ended, as a node's script may end: nothing failed
             self.view.line(f"host {host}: its part ended by itself (exit 0): its nodes ({', '.join(nodes)}) ended")
@@ -325,11 +321,7 @@ class Launcher:
         never = [name for name in nodes if name not in self.nodes.ever_alive]
         code = restart.get("code")
         if never:
-            line = (f"host {host}: its part exited with {code} before {', '.join(never)} had been live "
-                    "(its lines above say why): stopping every node")
-            self.hub.launcher_event("host_failed", line, code=code, quiet=True, failed_host=host)
-            self._host_failed = True
-            self._want_stop("host failed", line)
+            self._stop_for_host(host, code, f"before {', '.join(never)} had been live")
             return
         backoff = restart.get("in_s")
         backoff = f"{backoff:g}" if isinstance(backoff, (int, float)) else backoff
@@ -341,6 +333,14 @@ class Launcher:
         for name in nodes:
             self.hub.publish({"event": "down", "node": name, "host": host, "pid": None, "code": code,
                               "t_ns": time.time_ns(), "message": f"host {host}: its part was killed; restarting"})
+
+    def _stop_for_host(self, host: str, code: Any, why: str) -> None:
+        """Another host's part ended (`code`) so that the system cannot run whole (`why`): one
+        line, a `host_failed` event, and the run stops now."""
+        line = f"host {host}: its part exited with {code} {why} (its lines above say why): stopping every node"
+        self.hub.launcher_event("host_failed", line, code=code, quiet=True, failed_host=host)
+        self._host_failed = True
+        self._want_stop("host failed", line)
 
     def _want_stop(self, reason: str, line: str) -> None:
         """The run stops for `reason` (the first one given is the one it stops for)."""
