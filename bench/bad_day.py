@@ -2,6 +2,7 @@
 faults (prints figures and writes a PNG timeline; asserts nothing).
 
     .venv/bin/python bench/bad_day.py [--minutes 10] [--seed 1] [--no-baseline] [--png FILE] [--keep DIR]
+    .venv/bin/python bench/bad_day.py --seed 3,7,11     several seeds against one fault-free run
     .venv/bin/python bench/bad_day.py --schedule-only --seed 3 --minutes 10
 
 The split (tests/bad_day_run.py `conveyor_over_three_hosts`): `brain` holds the hub, the
@@ -22,8 +23,10 @@ zenoh's 10 s lease); the link of one of them slowed with `tc tbf`; SIGSTOP of a 
 It prints the schedule; per fault the time until every axis was safe (from the CAN frames the arm
 recorded) and until the nodes it touched were heard at the hub again; commands that reached an
 axis while its host was cut; the launchers' restarts; the merged recording's gaps, each with the
-fault that caused it; `iotad check` of the merged recording; cubes placed against a fault-free run
-of the same length (`--no-baseline` skips it). Everything it starts it stops, also on Ctrl-C:
+fault that caused it; `iotad check --all` of the merged recording, each problem judged against
+the faults' windows; cubes placed against a fault-free run of the same length (`--no-baseline`
+skips it; the belt brings cubes for the whole run). With several seeds, one fault-free run serves
+them all, and a table of the goals per seed ends the output. Everything it starts it stops, also on Ctrl-C:
 the namespaces are removed and what was left in them is killed and said ("orphans").
 """
 from __future__ import annotations
@@ -64,7 +67,7 @@ def campaign(folder: Path, minutes: float, schedule: list, say) -> tuple:
 
     with hosts("brain", "arm", "camera", net=NET) as net:
         text, machine = conveyor_over_three_hosts(net.addresses[("brain", "arm")], PORT, net.addresses["arm"],
-                                                  net.addresses["camera"])
+                                                  net.addresses["camera"], minutes * 60)
         run = Campaign(net, folder, PORT, text, machine, schedule, minutes * 60)
         try:
             run.start()
@@ -140,11 +143,12 @@ def report(run, reading, baseline) -> None:
         if NODE_LINE.match(line) or line.startswith(("delivery:", "check:")):
             say(f"    {line[:150]}")
     explained = [p for p in reading.problems if p["cause"]]
-    say(f"  of the {len(reading.problems)} problems it lists (check.txt beside the recordings has them all), "
-        f"{len(explained)} fall within a fault's window (from 1 s before it to its end and settling); "
-        f"the others, first ones:" if len(explained) < len(reading.problems) else
-        f"  all {len(reading.problems)} problems it lists fall within a fault's window")
-    for problem in [p for p in reading.problems if not p["cause"]][:6]:
+    unexplained = [p for p in reading.problems if not p["cause"]]
+    say(f"  of its {len(reading.problems)} problems (check.txt beside the recordings has them all), "
+        f"{len(explained)} fall within a fault's window (from 1 s before it to its end and settling)"
+        + (f"; the {len(unexplained)} others, by node and kind: {unexplained_kinds(reading)}; first ones:"
+           if unexplained else ""))
+    for problem in unexplained[:6]:
         say(f"      {problem['where']}: {problem['line'][:140]}")
     if reading.placed is not None:
         against = "" if baseline is None else f" against {baseline.placed} in the fault-free run " \
@@ -152,6 +156,43 @@ def report(run, reading, baseline) -> None:
         say(f"cubes placed: {reading.placed}{against}")
     say(f"orphans after the stop: {sum(len(p) for p in run.orphans.values())} "
         f"{ {h: [' '.join(a)[:80] for a in p.values()] for h, p in run.orphans.items()} if run.orphans else ''}")
+
+
+def unexplained_kinds(reading) -> str:
+    """The problems no fault's window holds, counted by node and kind: 'motor late 3, ...'."""
+    counts: dict[str, int] = {}
+    for problem in reading.problems:
+        if not problem["cause"]:
+            key = f"{problem['where']} {problem['kind']}"
+            counts[key] = counts.get(key, 0) + 1
+    return ", ".join(f"{key} {n}" for key, n in sorted(counts.items(), key=lambda kv: -kv[1]))
+
+
+def goals(seed: int, run, reading, baseline) -> dict:
+    """The issue's goals for one campaign, as figures: the worst time from an axis's last setpoint
+    to safe, commands while cut, faults never recovered, gaps and problems no fault explains,
+    cubes against the fault-free run, orphans."""
+    silences = [item.silence for item in reading.faults if item.silence is not None]
+    unsafe = sum(bool(item.unsafe) for item in reading.faults)
+    never = sum(item.recovered is None and bool(item.touched or item.done.fault.target == "recorder")
+                for item in reading.faults)
+    cut = [item.commands_while_cut for item in reading.faults if item.commands_while_cut is not None]
+    return {"seed": seed, "faults": len(reading.faults),
+            "safe after setpoint (worst)": f"{max(silences) * 1e3:.0f} ms" if silences else "-",
+            "never safe": unsafe, "commands while cut": sum(cut), "never recovered": never,
+            "gaps unnamed": sum(not gap["cause"] for gap in reading.gaps) if reading.merged else "no merge",
+            "problems unexplained": f"{sum(not p['cause'] for p in reading.problems)} of {len(reading.problems)}",
+            "cubes": f"{reading.placed}" + ("" if baseline is None or reading.placed is None else
+                                           f" ({100 * reading.placed / max(1, baseline.placed):.0f} %)"),
+            "orphans": sum(len(p) for p in run.orphans.values())}
+
+
+def table(rows: list[dict]) -> None:
+    keys = list(rows[0])
+    widths = {key: max(len(key), *(len(str(row[key])) for row in rows)) for key in keys}
+    print("  ".join(key.ljust(widths[key]) for key in keys))
+    for row in rows:
+        print("  ".join(str(row[key]).ljust(widths[key]) for key in keys))
 
 
 def timeline(run, reading, baseline, path: Path) -> None:
@@ -214,30 +255,42 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--minutes", type=float, default=10.0, help="length of the campaign (default: 10)")
-    parser.add_argument("--seed", type=int, default=1, help="the schedule's seed (default: 1)")
+    parser.add_argument("--seed", default="1", help="the schedule's seed, or several: 3,7,11 (default: 1)")
     parser.add_argument("--no-baseline", action="store_true", help="skip the fault-free run of the same length")
-    parser.add_argument("--png", default="bad-day.png", help="the timeline picture (default: bad-day.png)")
-    parser.add_argument("--keep", metavar="DIR", help="keep the recordings, system files and outputs in DIR")
+    parser.add_argument("--png", default="bad-day.png", help="the timeline picture (default: bad-day.png; with "
+                        "several seeds, bad-day-seed3.png and so on)")
+    parser.add_argument("--keep", metavar="DIR", help="keep the recordings, system files and outputs in DIR "
+                        "(DIR/fault-free, DIR/bad-day or DIR/bad-day-seedN)")
     parser.add_argument("--schedule-only", action="store_true", help="print the schedule and stop")
     parser.add_argument("--report", metavar="DIR", help="no run: the figures and picture again from a folder that "
                         "--keep kept (DIR/bad-day, and DIR/fault-free if there)")
     args = parser.parse_args()
-    run_seed = args.seed
+    try:
+        seeds = [int(part) for part in args.seed.split(",")]
+    except ValueError:
+        parser.error(f"--seed takes whole numbers separated by commas, got {args.seed!r}")
+    if args.minutes <= 0:
+        parser.error("--minutes must be > 0")
     from bad_day_run import HOSTS
     from fault_schedule import draw_schedule
 
     nodes = {"sim": "arm", "motor": "arm", "vision": "camera", "interpreter": "brain", "scheduler": "brain",
              "planning": "brain", "manipulation": "brain"}
-    schedule = draw_schedule(args.seed, args.minutes * 60, nodes, cut_hosts=HOSTS[1:], recorder_hosts=HOSTS)
-    print(f"a bad day, seed {args.seed}, {args.minutes:g} min; {os.cpu_count()} cores, load average "
-          f"{' '.join(f'{x:.2f}' for x in os.getloadavg())}\nschedule ({len(schedule)} faults, from every host's "
-          "start gate):")
-    for fault in schedule:
-        print(f"  {fault.at:6.1f} s  {fault.describe()}")
+    schedules = {seed: draw_schedule(seed, args.minutes * 60, nodes, cut_hosts=HOSTS[1:], recorder_hosts=HOSTS)
+                 for seed in seeds}
+    print(f"a bad day, seed{'s' if len(seeds) > 1 else ''} {args.seed}, {args.minutes:g} min; {os.cpu_count()} cores, "
+          f"load average {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+    for seed, schedule in schedules.items():
+        print(f"schedule of seed {seed} ({len(schedule)} faults, from every host's start gate):")
+        for fault in schedule:
+            print(f"  {fault.at:6.1f} s  {fault.describe()}")
     if args.schedule_only:
         return 0
     if args.report:
+        run_seed = seeds[0]
         kept = [again(Path(args.report) / part, args.minutes) for part in ("fault-free", "bad-day")]
+        if kept[1] is None:
+            parser.error(f"{args.report}/bad-day holds no campaign (no faults.json)")
         run, reading = kept[1]
         baseline = kept[0][1] if kept[0] else None
         report(run, reading, baseline)
@@ -247,25 +300,37 @@ def main() -> int:
     signal.signal(signal.SIGINT, interrupted)
     signal.signal(signal.SIGTERM, interrupted)
     started = time.monotonic()
+    say = lambda line: print(line, flush=True)  # noqa: E731
+    keep = Path(args.keep) if args.keep else None
+    rows = []
     try:
-        keep = Path(args.keep) if args.keep else None
         baseline = None
         if not args.no_baseline:
             with (nullcontext(str(keep / "fault-free")) if keep else tempfile.TemporaryDirectory(prefix="iotad-badday-")) as folder:
                 Path(folder).mkdir(parents=True, exist_ok=True)
                 print("\nthe fault-free run first:", flush=True)
-                base_run, baseline = campaign(Path(folder), args.minutes, [], lambda line: print(line, flush=True))
+                base_run, baseline = campaign(Path(folder), args.minutes, [], say)
                 print(f"  placed {baseline.placed}; orphans {sum(len(p) for p in base_run.orphans.values())}")
-        with (nullcontext(str(keep / "bad-day")) if keep else tempfile.TemporaryDirectory(prefix="iotad-badday-")) as folder:
-            Path(folder).mkdir(parents=True, exist_ok=True)
-            print("\nthe bad day:", flush=True)
-            run, reading = campaign(Path(folder), args.minutes, schedule, lambda line: print(line, flush=True))
-            report(run, reading, baseline)
-            timeline(run, reading, baseline, Path(args.png))
-            print(f"timeline: {args.png}")
+        for seed in seeds:
+            run_seed = seed
+            name = "bad-day" if len(seeds) == 1 else f"bad-day-seed{seed}"
+            png = Path(args.png) if len(seeds) == 1 else Path(args.png).with_name(
+                f"{Path(args.png).stem}-seed{seed}{Path(args.png).suffix}")
+            with (nullcontext(str(keep / name)) if keep else tempfile.TemporaryDirectory(prefix="iotad-badday-")) as folder:
+                Path(folder).mkdir(parents=True, exist_ok=True)
+                print(f"\nthe bad day, seed {seed} ({time.monotonic() - started:.0f} s in):", flush=True)
+                run, reading = campaign(Path(folder), args.minutes, schedules[seed], say)
+                report(run, reading, baseline)
+                timeline(run, reading, baseline, png)
+                print(f"timeline: {png}")
+                rows.append(goals(seed, run, reading, baseline))
     except KeyboardInterrupt:
         print(f"stopped after {time.monotonic() - started:.0f} s: every process stopped, the namespaces removed")
         return 130
+    if len(rows) > 1:
+        print("\nthe goals, per seed (safe: from an axis's last setpoint, 100 ms allowed; the others: 0 allowed, "
+              "cubes 70 % or more):")
+        table(rows)
     print(f"{time.monotonic() - started:.0f} s in all; load average now {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
     return 0
 

@@ -233,7 +233,7 @@ def read_campaign(campaign: Campaign, check: bool = True) -> Reading:
     out = Reading(readings, launcher_events(recording, machine.name), gaps, merged_path, merge_error)
     if check:
         target = merged_path or campaign.recording
-        done = subprocess.run([sys.executable, "-m", "iotad", "check", str(target)], capture_output=True, text=True,
+        done = subprocess.run([sys.executable, "-m", "iotad", "check", "--all", str(target)], capture_output=True, text=True,
                               timeout=600, cwd=Path(__file__).resolve().parents[1])
         out.check, out.check_code = (done.stdout + done.stderr).strip(), done.returncode
         (folder / "check.txt").write_text(out.check + "\n")
@@ -322,7 +322,8 @@ def file_starts(campaign: Campaign) -> dict[Path, int]:
 
 
 def placements(recording, campaign: Campaign) -> tuple[list[float], int]:
-    """s into the campaign of each cube the conveyor's world counted placed, and how many in all."""
+    """s into the campaign of each cube the conveyor's world counted placed, and how many in all
+    (a world started again counts on from the one before it: conveyor_data)."""
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "examples"))
     from sim.worlds.conveyor_plot import conveyor_data
 

@@ -6,6 +6,8 @@ failure, and what was left in the namespaces killed and reported. Shared by benc
 conveyor) and its short campaign in tests/hosts/ (the arm of examples/arm_can.toml, lighter)."""
 from __future__ import annotations
 
+import re
+
 import subprocess
 import sys
 import time
@@ -37,12 +39,15 @@ class Machine:
     node_ids: tuple[int, ...]
 
 
-def conveyor_over_three_hosts(hub: str, port: int, arm: str, camera: str) -> tuple[str, Machine]:
+def conveyor_over_three_hosts(hub: str, port: int, arm: str, camera: str,
+                              seconds: float = 140.0) -> tuple[str, Machine]:
     """examples/conveyor.toml over brain (the hub, the scheduler, the MDL interpreter, planning,
     manipulation), arm (the world with its simulated drives, the motor node, their bus: a CAN
     bus is local to its machine) and camera (vision: what a smart camera computes beside its
     sensor). The camera's images come from the world on arm, as a camera's frames would come
-    over its own link; the motors' setpoints cross from brain to arm."""
+    over its own link; the motors' setpoints cross from brain to arm. The belt brings cubes for
+    all of `seconds` (the example's 20 last 140 s): cubes placed then measure the whole run, not
+    how soon the 20 were done."""
     hosts = {"sim": "arm", "motor": "arm", "vision": "camera", "interpreter": "brain", "scheduler": "brain",
              "planning": "brain", "manipulation": "brain"}
     text = (ROOT / "examples" / "conveyor.toml").read_text()
@@ -50,6 +55,8 @@ def conveyor_over_three_hosts(hub: str, port: int, arm: str, camera: str) -> tup
                         f'listen = ["tls/{hub}:{port}"]\n[hosts.brain]\nlisten = ["tls/{hub}:0"]\n'
                         f'[hosts.arm]\nlisten = ["tls/{arm}:0"]\n[hosts.camera]\nlisten = ["tls/{camera}:0"]\n', 1)
     text = text.replace("[system]\n", '[system]\nhub_host = "brain"\n', 1)
+    interval = float(re.search(r"cube_interval = ([\d.]+)", text).group(1))
+    text = text.replace("cube_count = 20,", f"cube_count = {max(20, int(seconds / interval) + 1)},", 1)
     for name, host in hosts.items():
         text = text.replace(f'[[node]]\nname = "{name}"\n', f'[[node]]\nname = "{name}"\nhost = "{host}"\n', 1)
     text = text.replace('"conveyor/', f'"{ROOT}/examples/conveyor/')

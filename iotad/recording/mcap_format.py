@@ -80,7 +80,9 @@ GAP_SCHEMA = {
     "properties": {"key": {"type": "string"}, "expected": {"type": "integer"}, "got": {"type": "integer"},
                    "missing": {"type": "integer"},
                    # a new process of a node, its first `got` trace events not heard (wire.restart_note)
-                   "after": {"type": "integer"}, "process": {"type": "object"}}}
+                   "after": {"type": "integer"}, "process": {"type": "object"},
+                   # a merge's note of events no file holds (a recorder down between two files)
+                   "why": {"type": "string"}}}
 MERGE_GAP_SCHEMA = {
     "title": "iotad host gap of a merged recording", "type": "object",
     "properties": {"host": {"type": ["string", "null"]}, "from_ns": {"type": "integer"}, "to_ns": {"type": "integer"},

@@ -389,10 +389,11 @@ class Recording:
             if all(isinstance(t, (int, float)) and not isinstance(t, bool) for t in times):
                 out.append({"position": at, "missing": gap["got"] - gap["expected"], "from_t": float(times[0]),
                             "to_t": float(times[1]), "log_ns": log_ns,
-                            **({"process": dict(process)} if isinstance(process, dict) else {})})
+                            **({"process": dict(process)} if isinstance(process, dict) else {}),
+                            **({"why": gap["why"]} if isinstance(gap.get("why"), str) else {})})
         launcher = self.launcher_events() if out else []
-        for gap in out:
-            gap["why"] = self._why_missed(node, gap["from_t"], gap["to_t"], launcher)
+        for gap in out:  # a merge's note says why (a recorder down between two files); else the launcher's events
+            gap.setdefault("why", self._why_missed(node, gap["from_t"], gap["to_t"], launcher))
         return sorted(out, key=lambda gap: gap["position"])
 
     def _why_missed(self, node: str, from_t: float, to_t: float, events: list[dict]) -> str:

@@ -233,18 +233,56 @@ class _Join:
         for _, si, _, _ in ordered:
             self.sources[si].kept += 1
         messages = [RecordedMessage(m.topic, t, m.publish_time, m.sequence, m.data) for t, _, _, m in ordered]
-        gaps = self._host_gaps(chosen, held, ordered)
-        left = self._recorder_gaps(recorder_gaps, messages)
+        unheard = self._unheard_between_files(messages)
+        gaps = self._host_gaps(chosen, held, ordered, unheard)
+        left = self._recorder_gaps(recorder_gaps, messages) + [note for notes in unheard.values() for note in notes]
+        left.sort(key=lambda item: item[0])
         recording = self._recording(messages, gaps, left)
         return Merged(recording, gaps, self.sources, dropped, len(left))
 
     def _traced(self, message: RecordedMessage) -> bool:
         return message.topic.endswith("/" + wire.TRACE)
 
-    def _host_gaps(self, chosen: dict, held: list[set], ordered: list) -> list[dict]:
+    def _unheard_between_files(self, messages: list[RecordedMessage]) -> dict[str, list[tuple[int, dict]]]:
+        """The trace events that no recording holds because a host's recorder was down between two
+        of its files (killed, then restarted: its successor cannot know what it missed, so it
+        noted nothing): per later file's name, a sequence-gap note (GAP_SCHEMA) for each of the
+        host's nodes' trace keys whose numbers jump from one file's last to the next file's first,
+        at that first message. A jump down is a new process (its numbers begin again), not a gap."""
+        merged: dict[str, set[int]] = {}
+        for message in messages:
+            if self._traced(message):
+                merged.setdefault(message.topic, set()).add(message.sequence)
+        by_host: dict[str | None, list[Source]] = {}
+        for source in self.sources:
+            by_host.setdefault(source.host, []).append(source)
+        out: dict[str, list[tuple[int, dict]]] = {}
+        for host, sources in by_host.items():
+            if len(sources) < 2:
+                continue
+            ends = []  # per file in the order written: {key: (first message, last message)}
+            for source in sorted(sources, key=_first_time):
+                ends.append((source, {}))
+                for message in source.recording.messages:
+                    if not message.derived and self._traced(message) and self.owner(message) == host:
+                        first_last = ends[-1][1].get(message.topic)
+                        ends[-1][1][message.topic] = (first_last[0] if first_last else message, message)
+            for (before, old), (after, new) in zip(ends, ends[1:]):
+                for key, (first, _) in new.items():
+                    last = old.get(key, (None, None))[1]
+                    if last is None or first.sequence <= last.sequence + 1:
+                        continue
+                    missing = [q for q in range(last.sequence + 1, first.sequence) if q not in merged.get(key, ())]
+                    if missing:
+                        out.setdefault(after.name, []).append((after.to_hub(first.log_time), {
+                            "key": key, "expected": last.sequence + 1, "got": first.sequence, "missing": len(missing),
+                            "why": f"its host's recorder was down between {before.name} and {after.name}"}))
+        return out
+
+    def _host_gaps(self, chosen: dict, held: list[set], ordered: list, unheard: dict) -> list[dict]:
         """The marked gaps: where a host's events are missing from the hub's recording or from its
         own (one file, or several when its launcher was started again during the run), and the
-        hosts whose recording was not given."""
+        hosts whose recording was not given. `unheard`: `_unheard_between_files`."""
         gaps: list[dict] = []
         hubs = {k for k, s in enumerate(self.sources) if s.hub}
         at_hub = set().union(*(held[k] for k in hubs)) if hubs else set()
@@ -287,14 +325,17 @@ class _Join:
                         and (spans[k][2].name in ends["restarted"] or after[2].name in ends["ended"]):
                     # the launcher restarted its recorder, which went on in the next file
                     ended = ends["ended"].get(after[2].name)
-                    gaps.append(self._gap(host, after[1], high, len(here),
+                    lost = sum(note["missing"] for _, note in unheard.get(spans[k][2].name, []))
+                    gaps.append(self._gap(host, after[1], high, len(here) + lost,
                                           f"its recorder was restarted: {after[2].name} was cut short "
                                           f"({ended or after[2].recording.truncated_reason or 'no footer'}) "
                                           f"at t={after[1] / 1e9 - self.origin:.3f} s, and the recording goes on "
                                           f"in {spans[k][2].name} from t={high / 1e9 - self.origin:.3f} s; "
                                           + (f"{len(here)} event(s) of its nodes in between only other recordings "
                                              "hold" if here else "no other recording holds an event of its nodes "
-                                             "in between")))
+                                             "in between")
+                                          + (f"; {lost} event(s) of its nodes' traces no recording holds (their "
+                                             "numbers jump across it)" if lost else "")))
                 elif after is not None and not after[2].recording.complete:
                     gaps.append(self._gap(host, after[1], high if k < len(spans) else max(end, after[1]), len(here),
                                           f"its recording ({after[2].name}) was cut short "

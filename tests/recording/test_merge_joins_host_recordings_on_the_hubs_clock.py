@@ -209,6 +209,40 @@ def test_the_hubs_recording_split_by_a_restarted_recorder_merges_with_the_restar
     assert [g["events"] for g in merged.gaps if g["host"] == "arm" and "did not reach the hub" in g["reason"]] == [1]
 
 
+def test_trace_events_lost_while_the_hubs_recorder_was_down_are_counted_and_placed_in_the_trace(tmp_path):
+    # the scheduler's events 2 and 3 happened while the hub's recorder was down: its successor
+    # began with event 4 and could not know what it missed. Vision's event 2 at t=3 is lost at
+    # the hub too, but the arm's recording holds it: not lost. A new process's numbers begin
+    # again (the scheduler restarted as the recorder came back): a jump down is no gap.
+    first = write(tmp_path / "split.mcap", "brain", [
+        scheduler(1.0, 0, ns(1.0) + MS), vision(1.5, 0, True), scheduler(1.8, 1, ns(1.8) + MS),
+        vision(2.0, 1, True)], hub=True, cut_short=True)
+    then = write(tmp_path / "split_1.mcap", "brain", [
+        restarted(3.5, "brain", str(first), str(tmp_path / "split_1.mcap")), scheduler(4.0, 4, ns(4.0) + MS),
+        vision(4.2, 3, True), scheduler(4.5, 5, ns(4.5) + MS)], hub=True)
+    arm = write(tmp_path / "split.arm.mcap", "arm", [vision(t, k, False) for k, t in enumerate((1.5, 2.0, 3.0, 4.2))],
+                offset=-AHEAD)
+    out = tmp_path / "merged.mcap"
+    write_merged(merge([first, then, arm]), out)
+    merged = read_recording(out)
+    brain = [g for g in merged_gaps(merged) if g["host"] == "brain"]
+    assert len(brain) == 1 and brain[0]["events"] == 2, brain
+    assert brain[0]["reason"].endswith("; 2 event(s) of its nodes' traces no recording holds (their numbers jump "
+                                       "across it)")
+    assert [(g["key"], g["expected"], g["got"], g["missing"]) for g in merged.gaps()] == [(SCHEDULER, 2, 4, 2)]
+    # the scheduler's trace knows where it lacks them, and why: check judges it up to there
+    (gap,) = merged.trace_gaps("scheduler")
+    assert (gap["position"], gap["missing"], gap["from_t"], gap["to_t"]) == (2, 2, 1.8, 4.0)
+    assert gap["why"] == "its host's recorder was down between split.mcap and split_1.mcap"
+    assert merged.trace_gaps("vision") == []
+
+    # the same, but the scheduler's process restarted in between: its new numbers begin at 0
+    again = write(tmp_path / "split_2.mcap", "brain", [
+        restarted(3.5, "brain", str(first), str(tmp_path / "split_2.mcap")), scheduler(4.0, 0, ns(4.0) + MS)],
+        hub=True)
+    assert merge([first, again, arm]).recorder_gaps == 0
+
+
 @pytest.mark.parametrize("case, message", [
     ("system", "recordings of different systems do not merge"),
     ("run", "are recordings of different runs of 'split'"),
