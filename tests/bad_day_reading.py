@@ -280,7 +280,12 @@ def problem_cause(second: float, done: list[Done], began_ns: int) -> str:
     found = ""
     for made in done:
         start, end = (made.start_ns - began_ns) / 1e9, (made.end_ns - began_ns) / 1e9
-        if start - 1.0 <= second <= end + settle(made.fault):
+        after = settle(made.fault)
+        if made.fault.kind == "slow":
+            # a slowed link's backlog drains after it: seed 7's 7.8 s at 256 kbit to camera had
+            # images 10 s late delivered 5 s after its end, and fresh ones dropped behind them
+            after = max(after, made.fault.duration)
+        if start - 1.0 <= second <= end + after:
             found = f"{made.fault.describe()} at {made.fault.at:.1f} s"
     return found
 
