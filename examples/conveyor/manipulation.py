@@ -11,12 +11,18 @@ object under the camera, which looks along the gripper's axis, that close upstre
 fingers (or after `max_wait`). Arm lag and a late start do not matter. The request's epoch is the program's length:
 the scheduler commits it when the motion is over and gives the arm back (vision resumes).
 `done` tells planning how the request ended (COMMIT: the motion ran).
+
+A restarted scheduler knows nothing of the request it had: it would never answer, and
+manipulation, planning (which waits for `done`) and so the whole cell would wait for ever. The
+node host tells manipulation through `peer_restart` (an enum of the channels it cares about:
+`ack`, bound to the scheduler), and a restart while it waits is the ABORT it is: `done`, not
+committed, and planning goes on (docs/failures.md, "A restart strands no request").
 """
 from __future__ import annotations
 
 from channels.mdl import MDL_PROGRAM_REQ, program_from_plain
 from channels.messages import ACK
-from iotad import Input, Iota, Output, Param
+from iotad import Enum, Input, Iota, Output, Param
 from iotad.esprit.runtime import esprit_now
 
 from conveyor_geometry import BIN, OBJECT_Z, hand_pose
@@ -26,6 +32,8 @@ GRIPPER = "drive_joint"
 CLOSED, OPEN = 0.85, 0.0
 DROP_SPACING = 0.08  # m between drop spots over the bin (examples/conveyor.toml makes it 0.3 m wide)
 MARGIN = 0.01  # m the object is still upstream of where the wait must end, at the latest hand-down
+# the channels through which a peer's restart matters: `ack`'s sender, the scheduler (not planning's)
+SCHEDULER_RESTART = Enum("manipulation_peer", "ack")
 
 
 class ManipulationControl(Iota):
@@ -52,6 +60,7 @@ class ManipulationControl(Iota):
 
     goal = Input(PICK_GOAL)
     ack = Input(ACK, switching=1)
+    peer_restart = Input(SCHEDULER_RESTART)  # fed by the node host: the scheduler restarted
     req = Output(MDL_PROGRAM_REQ, switching=REQ_SWITCHING)
     done = Output(PICK_DONE)
 
@@ -71,6 +80,12 @@ class ManipulationControl(Iota):
     def on_ack(self, value):
         if self.current is not None:
             self.out_done.append(PICK_DONE(target=self.current, committed=value == ACK.COMMIT))
+            self.current = None
+
+    @peer_restart.input
+    def scheduler_restarted(self, channel):
+        if self.current is not None:  # the request died with the old scheduler: an ABORT
+            self.out_done.append(PICK_DONE(target=self.current, committed=False))
             self.current = None
 
     # within `react` of the goal: its request is what starts the pick, and the pick tolerates a

@@ -123,3 +123,26 @@ def test_a_malformed_camera_frame_is_refused_at_the_channel():
     plain = {"t": 0.0, "rgb": "AAAA", "fov": 60.0, "eye": [0, 0, 0], "forward": [0, 0, -1], "up": [1, 0, 0]}
     with pytest.raises(BadValue, match="expected 4800 bytes"):
         CAMERA_FRAME.from_plain(plain)
+
+
+def test_a_scheduler_restart_while_manipulation_waits_is_an_abort_and_the_next_goal_is_picked():
+    """A restarted scheduler never answers the request it lost: without the notice, manipulation
+    kept its target and ignored every later goal, and planning waited for its `done` (a 10-minute
+    bad day placed no cube in the 390 s after the scheduler's kill -9)."""
+    from iotad.kernel.engine import Engine
+
+    manipulation = ManipulationControl("manipulation")
+    engine = Engine(manipulation)
+    engine.post(None, "goal", PICK_GOAL(target=3, x=0.46, y=0.33, vy=-0.05, t=1.0), t=1.0)
+    engine.post(None, "peer_restart", "ack", t=2.0)         # the scheduler restarted: no ack will come
+    engine.post(None, "goal", PICK_GOAL(target=4, x=0.46, y=0.35, vy=-0.05, t=3.0), t=3.0)
+    engine.post(None, "ack", ACK.COMMIT, t=8.0)
+    engine.run(until=9.0)
+    outputs = [(round(e["t"], 6), e["action"], e["value"]) for e in engine.trace if e["kind"] == "output"]
+    assert [(t, action) for t, action, _ in outputs] == [(1.0, "req"), (2.0, "done"), (3.0, "req"), (8.0, "done")]
+    assert [v["control"]["id"] if a == "req" else (v["target"], v["committed"]) for _, a, v in outputs] == [
+        "pick-3", (3, False), "pick-4", (4, True)]
+    # a restart with no request in flight changes nothing
+    engine.post(None, "peer_restart", "ack", t=9.5)
+    engine.run(until=10.0)
+    assert [e for e in engine.trace if e["kind"] == "output" and e["t"] > 9.0] == []
