@@ -35,8 +35,8 @@ def clock_offsets(recording: Any) -> dict[str, list[ClockOffsetAt]]:
     for event in recording.launcher_events():
         host = event.get("host")
         if event.get("event") not in CLOCK_EVENTS or not isinstance(host, str) \
-                or not all(_number(event.get(k)) for k in ("t", "offset", "bound")):
-            continue
+                or not all(_number(event.get(k)) for k in ("t", "offset", "bound")) or event.get("used") is False:
+            continue  # `used: false`: measured, not applied (worse than the one in use: clock_watch.DRIFT)
         out.setdefault(host, []).append(ClockOffsetAt(float(event["t"]), float(event["offset"]), float(event["bound"])))
     for readings in out.values():
         readings.sort()

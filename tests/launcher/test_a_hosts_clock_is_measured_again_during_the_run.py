@@ -36,6 +36,57 @@ def test_a_reading_is_a_violation_when_its_bound_or_the_nodes_error_is_past_the_
         "host": "arm", "t": 0.0, "offset": -0.0503, "bound": 0.0002, "samples": 16, "best_delay": 0.0004, "moved": 0.0}
 
 
+class Measured:
+    """`clock_offset.measure` as the test has it answer, one reading after the other."""
+
+    def __init__(self, *readings: ClockOffset):
+        self.readings = list(readings)
+
+    def __call__(self, session, system, clock=None, stop=None):
+        return self.readings.pop(0)
+
+
+def test_a_reading_across_a_slowed_link_that_knows_less_than_the_one_in_use_is_recorded_not_applied(monkeypatch):
+    """A bad day's reading across a slowed link: +142 ms +-164 ms ten seconds after +0.04 ms
+    +-0.26 ms. Applied, it moved the host's nodes 142 ms on the hub's timeline (and back at the
+    next reading). It agrees with the one in use, and knows less: recorded, not applied. A reading
+    that disagrees (the clock stepped) is applied however wide; one that knows more, of course."""
+    from iotad.launcher.hosts import clock_watch
+
+    now = [100.0]
+    good = ClockOffset(offset=0.00004, bound=0.00026, samples=16, best_delay=0.0005)
+    vague = ClockOffset(offset=0.142, bound=0.164, samples=3, best_delay=0.33)
+    better = ClockOffset(offset=0.00005, bound=0.0002, samples=16, best_delay=0.0004)
+    stepped = ClockOffset(offset=0.5, bound=0.01, samples=16, best_delay=0.02)
+    monkeypatch.setattr(clock_watch, "measure", Measured(good, vague, better, stepped))
+    watch = ClockWatch(None, "robot", "arm", 0.0, time_unit=1.0, limit=LIMIT, period=10.0, clock=lambda: now[0],
+                       report=None)
+    assert watch.first().first and watch.applied == good.offset
+    now[0] += 10.0
+    kept = watch._measure()
+    assert kept.kept is not None and watch.applied == good.offset  # the nodes' clocks stay where they were
+    assert kept.kept.bound == pytest.approx(0.00026 + clock_watch.DRIFT * 10.0)
+    assert kept.event()["used"] is False and kept.event()["offset"] == 0.142  # recorded as measured
+    assert kept.message() == ("host arm: clock offset to the hub +142.000 ms +-164.000 ms (3 round trips); not used: "
+                              "the offset in use, +0.040 ms, is still known within +-1.260 ms")
+    now[0] += 10.0
+    assert watch._measure().kept is None and watch.applied == better.offset
+    now[0] += 10.0
+    assert watch._measure().kept is None and watch.applied == stepped.offset
+
+
+def test_a_reading_not_applied_is_left_out_of_the_offsets_a_check_and_a_merge_go_by():
+    from iotad.recording.clock_offsets import clock_offsets
+
+    class Recorded:
+        def launcher_events(self):
+            return [{"event": "clock", "host": "arm", "t": 1.0, "offset": 0.00004, "bound": 0.00026},
+                    {"event": "clock", "host": "arm", "t": 11.0, "offset": 0.142, "bound": 0.164, "used": False},
+                    {"event": "clock", "host": "arm", "t": 21.0, "offset": 0.00005, "bound": 0.0002}]
+
+    assert [(r.t, r.offset) for r in clock_offsets(Recorded())["arm"]] == [(1.0, 0.00004), (21.0, 0.00005)]
+
+
 def test_the_period_is_a_setting_of_the_system_file(tmp_path):
     text = '[system]\nname = "s"\nclock_period = 2.5\n'
     assert parse_text(text, tmp_path / "s.toml").clock_period == 2.5
@@ -50,7 +101,12 @@ def next_reading(readings: queue.Queue) -> ClockReading:
     return reading
 
 
-def test_a_skew_that_changes_during_the_run_is_measured_again_and_followed():
+def test_a_skew_that_changes_during_the_run_is_measured_again_and_followed(monkeypatch):
+    from iotad.launcher.hosts import clock_watch
+
+    # readings 0.05 s apart here, 10 s in a run: the drift that a reading in use is trusted less
+    # by over a period scaled to match (at 10 s a reading within 1 ms more than the last is taken)
+    monkeypatch.setattr(clock_watch, "DRIFT", clock_watch.DRIFT * 10.0 / 0.05)
     endpoint = f"tcp/127.0.0.1:{transport.free_port()}"
     skew = [0.050]  # the host's clock: 50 ms ahead, then moved by the test
     host_clock = lambda: time.time() + skew[0]

@@ -10,7 +10,16 @@ offset moved that far since the correction they ran on (a clock drifting, or ste
 run). The first reading's offset itself is no violation: it is corrected before any node runs.
 
 Offsets are measured on `steady_wall()` clocks on both sides, the clocks node times are counted
-on: a step of a host's system clock during the run does not pass for an offset."""
+on: a step of a host's system clock during the run does not pass for an offset.
+
+A later reading that agrees with the one in use (their intervals overlap) is applied only if it
+knows the offset at least as well as that one still does: its bound grown by the drift two clocks
+may have since (`DRIFT`); one that disagrees (the clock stepped) is applied whatever its bound. A measurement
+across a slowed or cut link has round trips of a second and a bound to match (a bad day's: an
+offset of +142 ms +-164 ms, against +0.04 ms +-0.26 ms ten seconds before); applied, it moved
+every node of the host 142 ms on the hub's timeline, and back at the next reading: thousands of
+late, expired and wrong-value findings that no fault of the nodes made. Such a reading is
+recorded (`used: false`) and said, not applied."""
 from __future__ import annotations
 
 import threading
@@ -18,6 +27,10 @@ from dataclasses import dataclass
 from typing import Callable
 
 from iotad.machine.clock_offset import ClockError, ClockOffset, measure
+
+# s a clock may drift per s from another: 100 ppm, what an undisciplined crystal may do (NTP keeps
+# them within tens of ppm); a reading in use is trusted less by this much as it ages
+DRIFT = 1e-4
 
 
 @dataclass(frozen=True)
@@ -31,15 +44,20 @@ class ClockReading:
     moved: float
     first: bool
     problem: str = ""
+    kept: ClockOffset | None = None  # not applied: the offset in use, its bound grown by drift, is better
 
     def event(self) -> dict:
         """The launcher event's fields (besides `event`, `message` and the launcher's own)."""
-        return {"host": self.host, "t": self.t, **self.measured.as_plain(), "moved": self.moved}
+        return {"host": self.host, "t": self.t, **self.measured.as_plain(), "moved": self.moved,
+                **({"used": False} if self.kept is not None else {})}
 
     def message(self) -> str:
         m = self.measured
         head = (f"host {self.host}: clock offset to the hub {m.offset * 1e3:+.3f} ms +-{m.bound * 1e3:.3f} ms "
                 f"({m.samples} round trips)")
+        if self.kept is not None:
+            return (f"{head}; not used: the offset in use, {self.kept.offset * 1e3:+.3f} ms, is still known "
+                    f"within +-{self.kept.bound * 1e3:.3f} ms")
         if self.problem:
             return f"warning: host {self.host}: {self.problem}"
         if self.first:
@@ -74,6 +92,7 @@ class ClockWatch:
         self.hub_origin, self.time_unit, self.limit, self.period = hub_origin, time_unit, limit, period
         self.clock, self.report = clock, report
         self.applied: float | None = None  # the offset this host's nodes run on
+        self._in_use: tuple[ClockOffset, float] | None = None  # the reading applied, and when (host clock)
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
 
@@ -93,9 +112,20 @@ class ClockWatch:
         except ClockError as exc:
             kept = "not corrected" if self.applied is None else "corrected as measured before"
             return f"warning: host {self.host}: {exc}; this host's clock is {kept}"
-        t = (self.clock() + measured.offset - self.hub_origin) / self.time_unit
+        now = self.clock()
+        t = (now + measured.offset - self.hub_origin) / self.time_unit
+        if self._in_use is not None:
+            used, since = self._in_use
+            still = used.bound + DRIFT * max(0.0, now - since)
+            agree = max(measured.offset - measured.bound, used.offset - still) \
+                <= min(measured.offset + measured.bound, used.offset + still)
+            if agree and measured.bound > still:  # says no more than the one in use, and less surely
+                kept = ClockOffset(used.offset, still, used.samples, used.best_delay)
+                return ClockReading(self.host, (now + used.offset - self.hub_origin) / self.time_unit, measured,
+                                    0.0, False, kept=kept)
         reading = judge(self.host, t, measured, self.applied, self.limit)
         self.applied = measured.offset
+        self._in_use = (measured, now)
         return reading
 
     def start(self) -> None:

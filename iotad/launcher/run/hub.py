@@ -171,6 +171,9 @@ class Hub:
         if isinstance(reading, str):
             self.launcher_event("clock_violation", reading, host=self.host)
             return
+        if reading.kept is not None:  # not applied (clock_watch.DRIFT): recorded, the nodes' clocks unmoved
+            self.launcher_event("clock", reading.message(), quiet=True, **reading.event())
+            return
         self.origin = self.clock_watch.origin
         if self._origin_publisher is not None:
             try:
