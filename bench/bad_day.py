@@ -3,6 +3,7 @@ faults (prints figures and writes a PNG timeline; asserts nothing).
 
     .venv/bin/python bench/bad_day.py [--minutes 10] [--seed 1] [--no-baseline] [--png FILE] [--keep DIR]
     .venv/bin/python bench/bad_day.py --seed 3,7,11     several seeds against one fault-free run
+    .venv/bin/python bench/bad_day.py --seed 3 --baseline DIR   against the fault-free run --keep kept
     .venv/bin/python bench/bad_day.py --schedule-only --seed 3 --minutes 10
 
 The split (tests/bad_day_run.py `conveyor_over_three_hosts`): `brain` holds the hub, the
@@ -89,6 +90,26 @@ def again(folder: Path, minutes: float):
     run = Campaign(None, folder, PORT, text, machine, [], minutes * 60)
     run.load()
     return run, read_campaign(run)
+
+
+def kept_placements(folder: Path, minutes: float, parser):
+    """The cubes placed in a fault-free run that --keep kept in `folder` (its merged recording
+    read again, not checked): what a campaign's cubes are compared with."""
+    from bad_day_reading import Reading, placements
+    from bad_day_run import Campaign, conveyor_over_three_hosts
+    from iotad.recording.mcap_reader import read_recording
+
+    merged = folder / "conveyor.merged.mcap"
+    if not (folder / "faults.json").exists() or not merged.exists():
+        parser.error(f"--baseline {folder}: no kept fault-free run there (faults.json and conveyor.merged.mcap)")
+    text, machine = conveyor_over_three_hosts("10.0.0.1", PORT, "10.0.0.2", "10.0.0.3")
+    run = Campaign(None, folder, PORT, text, machine, [], minutes * 60)
+    run.load()
+    if abs(run.length - minutes * 60) > 1:
+        parser.error(f"--baseline {folder}: a run of {run.length:g} s, not {minutes * 60:g}")
+    out = Reading([], [], [], merged, "")
+    out.placements, out.placed = placements(read_recording(merged), run)
+    return out
 
 
 def report(run, reading, baseline) -> None:
@@ -257,6 +278,8 @@ def main() -> int:
     parser.add_argument("--minutes", type=float, default=10.0, help="length of the campaign (default: 10)")
     parser.add_argument("--seed", default="1", help="the schedule's seed, or several: 3,7,11 (default: 1)")
     parser.add_argument("--no-baseline", action="store_true", help="skip the fault-free run of the same length")
+    parser.add_argument("--baseline", metavar="DIR", help="no fault-free run: read the one an earlier --keep kept "
+                        "(DIR, or DIR/fault-free) of the same length")
     parser.add_argument("--png", default="bad-day.png", help="the timeline picture (default: bad-day.png; with "
                         "several seeds, bad-day-seed3.png and so on)")
     parser.add_argument("--keep", metavar="DIR", help="keep the recordings, system files and outputs in DIR "
@@ -305,7 +328,12 @@ def main() -> int:
     rows = []
     try:
         baseline = None
-        if not args.no_baseline:
+        if args.baseline:
+            kept = Path(args.baseline)
+            kept = kept / "fault-free" if (kept / "fault-free" / "faults.json").exists() else kept
+            baseline = kept_placements(kept, args.minutes, parser)
+            print(f"\nthe fault-free run kept in {kept}: placed {baseline.placed}", flush=True)
+        elif not args.no_baseline:
             with (nullcontext(str(keep / "fault-free")) if keep else tempfile.TemporaryDirectory(prefix="iotad-badday-")) as folder:
                 Path(folder).mkdir(parents=True, exist_ok=True)
                 print("\nthe fault-free run first:", flush=True)
