@@ -286,7 +286,8 @@ def main() -> int:
                         "(DIR/fault-free, DIR/bad-day or DIR/bad-day-seedN)")
     parser.add_argument("--schedule-only", action="store_true", help="print the schedule and stop")
     parser.add_argument("--report", metavar="DIR", help="no run: the figures and picture again from a folder that "
-                        "--keep kept (DIR/bad-day, and DIR/fault-free if there)")
+                        "--keep kept (DIR/bad-day-seedN or DIR/bad-day, merged and checked again; the cubes "
+                        "against DIR/fault-free or --baseline)")
     args = parser.parse_args()
     try:
         seeds = [int(part) for part in args.seed.split(",")]
@@ -310,15 +311,29 @@ def main() -> int:
     if args.schedule_only:
         return 0
     if args.report:
-        run_seed = seeds[0]
-        kept = [again(Path(args.report) / part, args.minutes) for part in ("fault-free", "bad-day")]
-        if kept[1] is None:
-            parser.error(f"{args.report}/bad-day holds no campaign (no faults.json)")
-        run, reading = kept[1]
-        baseline = kept[0][1] if kept[0] else None
-        report(run, reading, baseline)
-        timeline(run, reading, baseline, Path(args.png))
-        print(f"timeline: {args.png}")
+        # read again: each seed's campaign (DIR/bad-day-seedN, or DIR/bad-day), merged and checked
+        # anew by this code; the fault-free run's cubes from its kept merge (--baseline DIR by default)
+        folder = Path(args.report)
+        free = Path(args.baseline) if args.baseline else folder
+        baseline = kept_placements(free / "fault-free" if (free / "fault-free").is_dir() else free, args.minutes,
+                                   parser) if (free / "fault-free").is_dir() or args.baseline else None
+        rows = []
+        for seed in seeds:
+            run_seed = seed
+            part = folder / f"bad-day-seed{seed}"
+            kept = again(part if part.is_dir() else folder / "bad-day", args.minutes)
+            if kept is None:
+                parser.error(f"{args.report} holds no campaign of seed {seed} (bad-day-seed{seed} or bad-day)")
+            run, reading = kept
+            png = Path(args.png) if len(seeds) == 1 else Path(args.png).with_name(
+                f"{Path(args.png).stem}-seed{seed}{Path(args.png).suffix}")
+            print(f"\nseed {seed}, read again from {run.folder}:")
+            report(run, reading, baseline)
+            timeline(run, reading, baseline, png)
+            print(f"timeline: {png}")
+            rows.append(goals(seed, run, reading, baseline))
+        if len(rows) > 1:
+            table(rows)
         return 0
     signal.signal(signal.SIGINT, interrupted)
     signal.signal(signal.SIGTERM, interrupted)
