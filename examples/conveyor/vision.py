@@ -14,7 +14,11 @@ effector pose above where the target will be, then a hold whose feedback term tu
 With no target known it looks upstream, where new objects come in. A request waits at most
 `timeout`: the program is computed for the moment it is asked for, so one that waited longer
 (PENDING behind manipulation, or SUSPENDED by it) would look where the object was. The scheduler
-rejects or aborts it instead, and vision asks again with planning's next goal.
+rejects or aborts it instead, and vision asks again with planning's next goal. A request that
+died with a restarted scheduler is never answered: the node host tells vision (`peer_restart`,
+the scheduler's restart only) and vision asks again for the goal it holds. Without it the arm
+went on tracking an object long gone, planning saw no other, and a 10-minute bad day placed no
+cube in the 290 s after the scheduler's kill -9 (docs/failures.md).
 
 `near` is the offset (dx, dy) on the belt plane of the blob nearest the image centre's point
 from that point, whatever the target: the image centre is on the gripper's axis, so while
@@ -26,7 +30,7 @@ import math
 
 from channels.mdl import MDL_PROGRAM_REQ, SENSOR_READING, SENSOR_WIDTH, program_from_plain
 from channels.messages import ACK
-from iotad import Input, Iota, Output, Param
+from iotad import Enum, Input, Iota, Output, Param
 from iotad.esprit.runtime import esprit_now
 
 from conveyor_geometry import BELT_X, MIN_PIXELS, hand_pose, on_plane, pixel_ray, segment
@@ -55,6 +59,7 @@ class VisionControl(Iota):
     camera = Input(CAMERA_FRAME)
     goal = Input(LOOK_GOAL)
     ack = Input(ACK, switching=1)
+    peer_restart = Input(Enum("vision_peer", "ack"))  # fed by the node host: the scheduler (ack's sender) restarted
     seen = Output(SIGHTING)
     visual_error = Output(SENSOR_READING)
     near = Output(SENSOR_READING)
@@ -88,6 +93,12 @@ class VisionControl(Iota):
     def on_ack(self, value):
         self.acks.append(value)
         self.live = False
+
+    @peer_restart.input
+    def scheduler_restarted(self, channel):
+        if self.live and self.target_goal is not None:  # the request died with it: ask the new one
+            self.requested_for = self.target_goal.target
+            self.out_req = self._request(self.target_goal, esprit_now())
 
     # ------------------------------------------------------------------ outputs
     @seen.action(value=lambda self: self.out_seen, when=lambda self: self.out_seen is not None,

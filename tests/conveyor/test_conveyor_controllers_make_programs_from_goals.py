@@ -146,3 +146,25 @@ def test_a_scheduler_restart_while_manipulation_waits_is_an_abort_and_the_next_g
     engine.post(None, "peer_restart", "ack", t=9.5)
     engine.run(until=10.0)
     assert [e for e in engine.trace if e["kind"] == "output" and e["t"] > 9.0] == []
+
+
+def test_a_scheduler_restart_while_vision_waits_makes_it_ask_the_new_one_for_its_goal():
+    """The request vision waits on died with the old scheduler: without the notice it never asked
+    again for the same target, the arm tracked an object long gone and the cell placed nothing for
+    290 s of a bad day. It asks again, once req's switching time allows; with no request in flight
+    a restart changes nothing."""
+    from iotad.kernel.engine import Engine
+    from conveyor_types import LOOK_GOAL, REQ_SWITCHING
+
+    vision = VisionControl("vision")
+    engine = Engine(vision)
+    engine.post(None, "goal", LOOK_GOAL(target=20, x=0.45, y=0.2, vy=-0.05, t=1.0), t=1.0)
+    engine.post(None, "peer_restart", "ack", t=1.5)   # inside req's switching time: waits it out
+    engine.run(until=4.0)
+    asked = [(round(e["t"], 6), e["value"]["control"]["id"]) for e in engine.trace
+             if e["kind"] == "output" and e["action"] == "req"]
+    assert asked == [(1.0, "look-20-1"), (round(1.0 + REQ_SWITCHING + vision.switching_margin, 6), "look-20-2")]
+    engine.post(None, "ack", ACK.ABORT, t=4.5)         # the new scheduler answered: nothing in flight
+    engine.post(None, "peer_restart", "ack", t=5.0)
+    engine.run(until=7.0)
+    assert [e for e in engine.trace if e["kind"] == "output" and e["action"] == "req" and e["t"] > 4.0] == []
