@@ -17,9 +17,9 @@ knows the offset at least as well as that one still does: its bound grown by the
 may have since (`DRIFT`); one that disagrees (the clock stepped) is applied whatever its bound. A measurement
 across a slowed or cut link has round trips of a second and a bound to match (a bad day's: an
 offset of +142 ms +-164 ms, against +0.04 ms +-0.26 ms ten seconds before); applied, it moved
-every node of the host 142 ms on the hub's timeline, and back at the next reading: thousands of
-late, expired and wrong-value findings that no fault of the nodes made. Such a reading is
-recorded (`used: false`) and said, not applied."""
+every node of the host 142 ms on the hub's timeline, and back at the next reading: late,
+expired and wrong-value findings that no fault of the nodes made. Such a reading is recorded
+(`used: false`) and said, not applied; `iotad check` and `iotad merge` go by the ones applied."""
 from __future__ import annotations
 
 import threading
