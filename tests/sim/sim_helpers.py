@@ -2,11 +2,13 @@
 axis's units, and simulated controllers in virtual time with frames posted as CAN_FRAME values."""
 from __future__ import annotations
 
+import heapq
 import math
 
 import pytest
 
 from iotad import Engine
+from iotad.kernel.clock import VirtualClock
 from iotad.can import odrive
 from iotad.can.frame import Frame
 from sim.odrive_axis import AxisConfig, OdriveAxis
@@ -109,3 +111,21 @@ def make_sim():
     finally:
         for sim in sims:
             sim.close()
+
+
+class BusyClock(VirtualClock):
+    """Virtual time that also goes by while the process computes (`spend`), as a loaded machine's
+    does: an input that arrived meanwhile is taken after, at the time the process gets to it,
+    not at its arrival."""
+
+    def spend(self, seconds: float) -> None:
+        self._now += seconds
+
+    def wait(self, deadline):
+        if self._inbox and self._inbox[0][0] <= max(deadline, self._now):
+            t, _, item = heapq.heappop(self._inbox)
+            self._now = max(self._now, t)
+            return item
+        if deadline != float("inf"):
+            self._now = max(self._now, deadline)
+        return None

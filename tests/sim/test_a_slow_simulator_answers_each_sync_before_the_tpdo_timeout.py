@@ -10,15 +10,13 @@ next one (with physics at half the clock's pace, a SYNC waited 235 ms before).
 A clock on which each physics step costs `cost` seconds (the process's time goes by while it
 computes, and frames arrive meanwhile) stands in for the loaded machine; the engine's general loop
 runs it as it runs a real clock, and the same clock times the catch-up."""
-import heapq
-
 import pytest
 
 from iotad.can import canopen as co
 from iotad.can.frame import Frame
-from iotad.kernel.clock import VirtualClock
 from iotad.kernel.engine import Engine
 from sim.cia402_sim import SimulatedCia402Drives
+from sim_helpers import BusyClock
 
 pytest.importorskip("pybullet")
 
@@ -27,28 +25,11 @@ TPDO_TIMEOUT = 3     # SYNCs without a statusword before the motor node says TPD
 STEP = 0.005         # the drives' step_period in examples/arm_canopen.toml
 
 
-class SlowMachineClock(VirtualClock):
-    """Virtual time that also goes by while the process computes (`spend`): an input that
-    arrived meanwhile is taken after, at the time the process gets to it."""
-
-    def spend(self, seconds: float) -> None:
-        self._now += seconds
-
-    def wait(self, deadline):
-        if self._inbox and self._inbox[0][0] <= max(deadline, self._now):
-            t, _, item = heapq.heappop(self._inbox)
-            self._now = max(self._now, t)
-            return item
-        if deadline != float("inf"):
-            self._now = max(self._now, deadline)
-        return None
-
-
 def answer_delays(cost: float, **params) -> tuple[list[float], SimulatedCia402Drives]:
     """NMT START at 0.05 s, then a SYNC every 20 ms to 2 s; each physics step costs `cost` s.
     The delay from each SYNC to the first TPDO1 after it."""
     iota = SimulatedCia402Drives("drives", world="arm", step_period=STEP, timing_slack=0.01, **params)
-    clock = SlowMachineClock(0.0)
+    clock = BusyClock(0.0)
     step = iota.plant.step
 
     def costly_step():

@@ -9,15 +9,13 @@ motor node's auto_rearm gave up (REARM_LIMIT) and the arm stayed in FAULT for th
 A clock that stalls once (nothing runs for `length`; what came meanwhile is taken when it wakes,
 as a real process's queue is) stands in for the loaded machine; the engine's general loop runs it
 as it runs a real clock. A host that really stops sending still trips the watchdog."""
-import heapq
-
 import pytest
 
 from iotad.can import odrive
 from iotad.can.odrive import AXIS_ERROR, AXIS_STATE
-from iotad.kernel.clock import VirtualClock
 from iotad.kernel.engine import Engine
 from sim.odrive_sim import SimulatedOdrives
+from sim_helpers import BusyClock
 
 pytest.importorskip("pybullet")
 
@@ -27,7 +25,7 @@ NODE = 1
 FEED = 0.045         # s between the host's frames (the conveyor's motor node: 40-50 ms)
 
 
-class StallingClock(VirtualClock):
+class StallingClock(BusyClock):
     """Virtual time in which the process sleeps from `at` for `length`: inputs that arrive
     meanwhile are taken when it wakes, in their order, and nothing fires before."""
 
@@ -38,14 +36,8 @@ class StallingClock(VirtualClock):
     def wait(self, deadline):
         if not self.stalled and max(deadline, self._inbox[0][0] if self._inbox else deadline) >= self.at:
             self.stalled = True
-            self._now = max(self._now, self.at + self.length)
-        if self._inbox and self._inbox[0][0] <= max(deadline, self._now):
-            t, _, item = heapq.heappop(self._inbox)
-            self._now = max(self._now, t)
-            return item
-        if deadline != float("inf"):
-            self._now = max(self._now, deadline)
-        return None
+            self.spend(max(0.0, self.at + self.length - self._now))
+        return super().wait(deadline)
 
 
 def run(stall_at: float, stall: float, feed_until: float = 1.2, gap: tuple = ()) -> SimulatedOdrives:
