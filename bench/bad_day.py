@@ -79,9 +79,8 @@ def campaign(folder: Path, minutes: float, schedule: list, say) -> tuple:
     return run, read_campaign(run)
 
 
-def again(folder: Path, minutes: float):
-    """(campaign, reading) of a kept folder, read again; None if there is none."""
-    from bad_day_reading import read_campaign
+def kept_campaign(folder: Path, minutes: float):
+    """The campaign that --keep kept in `folder`, its schedule as made; None if there is none."""
     from bad_day_run import Campaign, conveyor_over_three_hosts
 
     if not (folder / "faults.json").exists():
@@ -89,22 +88,27 @@ def again(folder: Path, minutes: float):
     text, machine = conveyor_over_three_hosts("10.0.0.1", PORT, "10.0.0.2", "10.0.0.3")
     run = Campaign(None, folder, PORT, text, machine, [], minutes * 60)
     run.load()
-    return run, read_campaign(run)
+    return run
+
+
+def again(folder: Path, minutes: float):
+    """(campaign, reading) of a kept folder, read again; None if there is none."""
+    from bad_day_reading import read_campaign
+
+    run = kept_campaign(folder, minutes)
+    return None if run is None else (run, read_campaign(run))
 
 
 def kept_placements(folder: Path, minutes: float, parser):
     """The cubes placed in a fault-free run that --keep kept in `folder` (its merged recording
     read again, not checked): what a campaign's cubes are compared with."""
     from bad_day_reading import Reading, placements
-    from bad_day_run import Campaign, conveyor_over_three_hosts
     from iotad.recording.mcap_reader import read_recording
 
     merged = folder / "conveyor.merged.mcap"
-    if not (folder / "faults.json").exists() or not merged.exists():
+    run = kept_campaign(folder, minutes) if merged.exists() else None
+    if run is None:
         parser.error(f"--baseline {folder}: no kept fault-free run there (faults.json and conveyor.merged.mcap)")
-    text, machine = conveyor_over_three_hosts("10.0.0.1", PORT, "10.0.0.2", "10.0.0.3")
-    run = Campaign(None, folder, PORT, text, machine, [], minutes * 60)
-    run.load()
     if abs(run.length - minutes * 60) > 1:
         parser.error(f"--baseline {folder}: a run of {run.length:g} s, not {minutes * 60:g}")
     out = Reading([], [], [], merged, "")
