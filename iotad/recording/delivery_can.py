@@ -410,16 +410,25 @@ def _unheard_before_start(waiting: dict[str, dict[tuple, list[int]]], sent: dict
     starts hears the last of them, so of the twins (the same frame, sent again and again, as an
     ODrive's heartbeat is) sent before the start it keeps as many as it received beyond those
     sent after; the earlier ones, if left, would be paired with its first receptions, and every
-    reception after with a frame sent periods before it (false 'reordered', then 'lost')."""
+    reception after with a frame sent periods before it (false 'reordered', then 'lost').
+    The sends after the start that it received are counted up to its last reception of the
+    frame: the twins sent after that (while it stopped, or after it had stopped, as a sender
+    that outlives it sends them) reached nothing, and counted they would push a twin it did
+    hear out of the candidates (its first reception then 'altered')."""
     received: dict[tuple, int] = {}
-    for _, frame in got:
+    last_got: dict[tuple, float] = {}
+    for t, frame in got:
         received[frame] = received.get(frame, 0) + 1
+        last_got[frame] = max(t, last_got.get(frame, -math.inf))
     for sender, queues in waiting.items():
         for frame, queue in queues.items():
             before = sum(1 for k in queue if life.before_start(sent[sender][k][0]))  # the earliest sends
             if not before:
                 continue
-            keep = max(0, received.get(frame, 0) - (len(queue) - before))
+            heard_until = last_got.get(frame, -math.inf)
+            after = sum(1 for k in queue if not life.before_start(sent[sender][k][0])
+                        and sent[sender][k][0] <= heard_until)
+            keep = max(0, received.get(frame, 0) - after)
             for _ in range(before - keep):
                 queue.pop()
 
