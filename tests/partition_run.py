@@ -310,6 +310,9 @@ class Partition:
     commanded_after: set[int]      # axes sent Set_Input_Pos after the heal
     link_events: dict[str, int]    # LINK_LOST / LINK_FOUND reports of the motor node
     silence: float | None          # on the motor node's own clock: from the last setpoint it took to its first IDLE
+    # per axis never told safe: what it was told and said, and what the motor node reported of it,
+    # from 2 s before the cut to the heal (seconds from the cut): why, when the assertion fails
+    story: dict[int, list[str]] = field(default_factory=dict)
 
 
 def read_partition(recording, system: str, cut_ns: int, heal_ns: int, node_ids=NODE_IDS, motor: str = "motor",
@@ -318,7 +321,7 @@ def read_partition(recording, system: str, cut_ns: int, heal_ns: int, node_ids=N
     motor node and the drives' node, `node_ids` the axes."""
     from iotad.recording.mcap_reader import read_recording
 
-    frames, events, trace = [], {"LINK_LOST": 0, "LINK_FOUND": 0}, []
+    frames, events, trace, reports = [], {"LINK_LOST": 0, "LINK_FOUND": 0}, [], []
     senders = (f"iota/{system}/{motor}/can_tx", f"iota/{system}/{drives}/can_tx")
     messages = read_recording(recording).messages if isinstance(recording, (str, Path)) else recording.messages
     for message in messages:
@@ -331,6 +334,9 @@ def read_partition(recording, system: str, cut_ns: int, heal_ns: int, node_ids=N
             event = message.value["event"]
             if event in events and cut_ns <= message.publish_time:
                 events[event] += 1
+            if event != "HEARTBEAT" and cut_ns - 2_000_000_000 <= message.publish_time <= heal_ns:
+                axis = node_ids[int(message.topic.rsplit("/", 1)[1])]
+                reports.append((message.publish_time, axis, f"motor node reports {event}"))
     frames.sort()
     safe: dict[int, float | None] = {}
     for node in node_ids:
@@ -349,6 +355,7 @@ def read_partition(recording, system: str, cut_ns: int, heal_ns: int, node_ids=N
             safe[node] = 0.0
         else:
             safe[node] = (idle[0] - cut_ns) / 1e9 if idle else None
+    story = {node: _story(node, frames, reports, cut_ns, heal_ns) for node in node_ids if safe[node] is None}
     last_idle = cut_ns + int(max([s for s in safe.values() if s is not None], default=0.0) * 1e9)
     while_cut = [(n, cmd, data) for t, n, cmd, data in frames if last_idle < t < heal_ns]
     settled = last_idle + 150_000_000  # a heartbeat period (0.1 s) and some for it to be sent
@@ -360,7 +367,31 @@ def read_partition(recording, system: str, cut_ns: int, heal_ns: int, node_ids=N
         idle_heartbeats=beats.count(IDLE), armed_heartbeats=beats.count(CLOSED_LOOP),
         rearmed={n for t, n, cmd, data in frames if t > heal_ns and cmd == SET_AXIS_STATE and data[0] == CLOSED_LOOP},
         commanded_after={n for t, n, cmd, data in frames if t > heal_ns and cmd == SET_INPUT_POS},
-        link_events=events, silence=silence_of(trace))
+        link_events=events, silence=silence_of(trace), story=story)
+
+
+def _story(node: int, frames: list, reports: list, cut_ns: int, heal_ns: int) -> list[str]:
+    """What axis `node` was told (Set_Axis_State) and said (its heartbeat's state), and what the
+    motor node reported of it, from 2 s before the cut to the heal: seconds from the cut."""
+    names = {value: name for name, value in AXIS_STATE.items()}
+    lines = []
+    for t, n, cmd, data in frames:
+        if n == node and cut_ns - 2_000_000_000 <= t <= heal_ns and cmd in (SET_AXIS_STATE, HEARTBEAT):
+            state = data[0] if cmd == SET_AXIS_STATE else data[4]
+            verb = "told" if cmd == SET_AXIS_STATE else "says"
+            lines.append((t, f"{verb} {names.get(state, state)}"
+                             + (f" (axis error 0x{int.from_bytes(data[:4], 'little'):x})"
+                                if cmd == HEARTBEAT and any(data[:4]) else "")))
+    lines += [(t, text) for t, n, text in reports if n == node]
+    lines.sort()
+    # a heartbeat every 0.1 s: keep each change of what it says, not every beat
+    out, said = [], None
+    for t, text in lines:
+        if text.startswith("says") and text == said:
+            continue
+        said = text if text.startswith("says") else said
+        out.append(f"{(t - cut_ns) / 1e9:+.3f} s: {text}")
+    return out
 
 
 def silence_of(trace: list[dict]) -> float | None:

@@ -41,7 +41,7 @@ def test_a_partition_mid_motion_puts_the_motors_safe_and_the_system_resumes(tmp_
     # took, plus its deadline tolerance. From the cut on the wall clock it is about 60-80 ms
     # (printed below; bench/hosts.py gives p50 and max over cuts), which a loaded machine may
     # stretch: that figure is measured, not asserted.
-    assert all(partition.safe[node] is not None for node in NODE_IDS), (partition.safe, output[-2000:])
+    assert all(partition.safe[node] is not None for node in NODE_IDS), (partition.safe, partition.story, output[-2000:])
     assert partition.silence is not None and 0.06 <= partition.silence <= 0.06 + 0.02 + 0.005, partition
     assert partition.commands_while_cut == 0, partition
     assert partition.idle_heartbeats >= 6 and partition.armed_heartbeats == 0, partition
