@@ -9,7 +9,9 @@ it has been seen for `fit_after` seconds, `belt_speed` before. Goals:
 - manipulative (`pick`, to manipulation): that object, once it has been seen `min_sightings`
   times and will be in reach (predicted y below `pick_y` by the time the hand is down), if
   manipulation is free. `done` frees it; an object whose pick did not commit is tried again
-  while it is still in reach.
+  while it is still in reach, and so is one seen on the belt again after its pick committed
+  (COMMIT says the motion ran for its epoch, not that the hand holds the object: a grasp that
+  closed on nothing, after a cut or a stall, leaves it on the belt where its track predicts).
 
 An object predicted past `lost_y` (downstream, out of reach) is given up. While manipulation
 has the arm, sightings are ignored: the camera then looks at the hand's work (a held object
@@ -68,6 +70,7 @@ class Planning(Iota):
         self.out_look = None
         self.out_pick = None
         self.picked = 0
+        self.regrasps = 0  # objects seen on the belt again after their pick committed
 
     @seen.input
     def on_seen(self, sighting):
@@ -105,7 +108,14 @@ class Planning(Iota):
                 continue
             predicted = track.y_at(t, track.velocity(vy0, self.fit_after))
             if abs(track.x - x) < self.match_x and abs(predicted - y) < self.match_y:
-                if track.state == "seen":  # a held or placed object is no longer on the belt
+                if track.state == "done":
+                    # still on the belt where it would be had nobody touched it: the pick ran
+                    # (committed) but the hand closed on nothing. A new track of it, to pick
+                    # again while it is in reach (its old fit spans the failed grasp)
+                    track.x, track.t0, track.y0, track.t1, track.y1 = x, t, y, t, y
+                    track.hits, track.state = 1, "seen"
+                    self.regrasps += 1
+                elif track.state == "seen":  # a held object is not on the belt
                     track.x = (track.x * track.hits + x) / (track.hits + 1)
                     track.t1, track.y1 = t, y
                     track.hits += 1

@@ -7,6 +7,8 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+from iotad.kernel.api import close_iotas
+
 
 @dataclass(frozen=True)
 class Window:
@@ -61,10 +63,4 @@ def firing_window(system: Any, policy: Any, iota: str, action: str, index: Any, 
                 return None
         return None
     finally:
-        for leaf in engine.leaves.values():
-            close = getattr(leaf.iota, "close", None)
-            if callable(close):
-                try:
-                    close()
-                except Exception:  # noqa: BLE001 - a node's close fault must not hide the answer
-                    pass
+        close_iotas(leaf.iota for leaf in engine.leaves.values())

@@ -93,16 +93,10 @@ def _run(system: System, args: VirtualOptions, writer) -> int:
 
 
 def close_nodes(leaves) -> None:
-    """Close what the nodes hold (a PyBullet world, by its `close()`), as their processes would at
-    their end: a second run in this process (a test, a notebook) must not find the first one's
-    worlds open under their keys."""
-    for leaf in leaves:
-        close = getattr(leaf.iota, "close", None)
-        if callable(close):
-            try:
-                close()
-            except Exception:  # noqa: BLE001 - the run is over; one node's close fault must not hide its result
-                pass
+    """Close what the nodes hold (a PyBullet world), as their processes would at their end."""
+    from iotad.kernel.api import close_iotas
+
+    close_iotas(leaf.iota for leaf in leaves)
 
 
 def _run_composed(system: System, args: VirtualOptions, writer, root, leaves: dict, inputs: list) -> int:

@@ -44,6 +44,57 @@ def test_planning_looks_then_picks_once_the_object_will_be_in_reach(monkeypatch)
     assert planning.out_look is None and len(planning.tracks) == 1
 
 
+def test_an_object_seen_on_the_belt_after_its_pick_committed_is_picked_again(monkeypatch):
+    """COMMIT says the pick's motion ran for its epoch, not that the hand holds the object: after
+    a cut or a stall the hand may close on nothing (a 10-minute bad day had 20 picks that ran to
+    their end and held nothing, each object then let go by). Seen again on the belt where its
+    track predicts, it is picked again; the next object upstream is a new track."""
+    from conveyor_types import PICK_DONE
+
+    planning = Planning("planning")
+    planning.init()
+    t, y = 2.0, 0.50
+    while planning.out_pick is None and t < 10:
+        feed(planning, monkeypatch, t, y)
+        t, y = t + 0.1, y - 0.005
+    first = planning.out_pick
+    assert first is not None and first.target == 0
+    planning.out_pick = None
+    # the pick's 5 s go by (sightings then are the hand's work, ignored); it commits
+    t, y = t + 5.0, y - 0.25
+    monkeypatch.setattr("planning.esprit_now", lambda: t)
+    planning.on_done(PICK_DONE(target=0, committed=True))
+    assert planning.out_pick is None and planning.regrasps == 0
+    # the object is still on the belt, where the belt carried it: picked again
+    while planning.out_pick is None and y > planning.lost_y:
+        feed(planning, monkeypatch, t, y)
+        t, y = t + 0.1, y - 0.005
+    again = planning.out_pick
+    assert again is not None and again.target == 0 and planning.regrasps == 1
+    assert again.y == pytest.approx(y + 0.005, abs=1e-9)  # from the new sightings, not the old track
+
+
+def test_a_placed_object_is_not_picked_again_and_the_next_one_is_a_new_track(monkeypatch):
+    from conveyor_types import PICK_DONE
+
+    planning = Planning("planning")
+    planning.init()
+    t, y = 2.0, 0.50
+    while planning.out_pick is None and t < 10:
+        feed(planning, monkeypatch, t, y)
+        t, y = t + 0.1, y - 0.005
+    planning.out_pick = None
+    t += 5.0
+    monkeypatch.setattr("planning.esprit_now", lambda: t)
+    planning.on_done(PICK_DONE(target=0, committed=True))
+    # nothing where object 0 would be (it is in the bin); the next object comes 0.35 m upstream
+    y_next = 0.50
+    while planning.out_pick is None and t < 30:
+        feed(planning, monkeypatch, t, y_next)
+        t, y_next = t + 0.1, y_next - 0.005
+    assert planning.out_pick is not None and planning.out_pick.target == 1 and planning.regrasps == 0
+
+
 def test_manipulation_asks_for_the_arm_with_one_pick_program(monkeypatch):
     monkeypatch.setattr("manipulation.esprit_now", lambda: 6.0)
     manipulation = ManipulationControl("manipulation")

@@ -44,6 +44,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
+from iotad.kernel.api import close_iotas
 from iotad.kernel.ports import Port, PortSyntaxError
 from iotad.launcher.system.declaration import (  # noqa: F401 - the declaration's names, as callers know them here
     DEFAULT_INPUT_QUEUE, LOOPBACK_LISTEN, RESTART_MODES, TABLE_HINT, CanBusSpec, Declaration, HostSpec, NodeDecl,
@@ -105,11 +106,14 @@ class _Checker:
                 with _said_if_slow(f"still building node {node.name}'s IOTA to check it, after {SLOW_BUILD:g} s: "
                                    "its module or init may block (Ctrl-C stops)"):
                     instance = instantiate(node)
-                node.channels = channel_table(instance)
-                node.param_names = param_names(instance)
-                claims = getattr(instance, "can_node_ids", None)
-                if callable(claims):
-                    self.can_claims[node.name] = claims()
+                try:
+                    node.channels = channel_table(instance)
+                    node.param_names = param_names(instance)
+                    claims = getattr(instance, "can_node_ids", None)
+                    if callable(claims):
+                        self.can_claims[node.name] = claims()
+                finally:  # built to be read, not run: a simulator's world is not left open
+                    close_iotas([instance])
             except Exception as exc:  # noqa: BLE001 - whatever the spec raises is the user's message
                 message = str(exc).strip() or type(exc).__name__
                 from iotad.kernel.code_fault import fault_where
