@@ -196,7 +196,9 @@ def unexplained_kinds(reading) -> str:
 def goals(seed: int, run, reading, baseline) -> dict:
     """The issue's goals for one campaign, as figures: the worst time from an axis's last setpoint
     to safe, commands while cut, faults never recovered, gaps and problems no fault explains,
-    cubes against the fault-free run, orphans."""
+    cubes against the fault-free run, the share of the run no cut or slowed link took, orphans."""
+    from bad_day_reading import impaired_share
+
     silences = [item.silence for item in reading.faults if item.silence is not None]
     unsafe = sum(bool(item.unsafe) for item in reading.faults)
     never = sum(item.recovered is None and bool(item.touched or item.done.fault.target == "recorder")
@@ -209,6 +211,8 @@ def goals(seed: int, run, reading, baseline) -> dict:
             "problems unexplained": f"{sum(not p['cause'] for p in reading.problems)} of {len(reading.problems)}",
             "cubes": f"{reading.placed}" + ("" if baseline is None or reading.placed is None else
                                            f" ({100 * reading.placed / max(1, baseline.placed):.0f} %)"),
+            # the share of the run a cut or slowed link left: what bounds the cubes (impaired_share)
+            "links whole": f"{100 * (1 - impaired_share(run)):.0f} %",
             "orphans": sum(len(p) for p in run.orphans.values())}
 
 

@@ -347,3 +347,23 @@ def placements(recording, campaign: Campaign) -> tuple[list[float], int]:
             times.extend([t + origin - campaign.began_ns / 1e9] * (counts["placed"] - last))
             last = counts["placed"]
     return times, last
+
+
+def impaired_share(campaign: Campaign) -> float:
+    """The share of the campaign during which the link of arm or camera was cut or slowed (the
+    union of those faults' spans). The cell cannot pick through a cut by design (the motors go
+    safe, vision sees nothing), nor through a link slowed below what its images and setpoints
+    need: the cubes a campaign can place are bounded by the time left, whatever recovers how fast."""
+    spans = sorted((d.start_ns, d.end_ns) for d in campaign.done
+                   if d.fault.kind in ("partition", "slow") and not d.missed and d.end_ns > d.start_ns)
+    total, current = 0, None
+    for start, end in spans:
+        if current is not None and start <= current[1]:
+            current[1] = max(current[1], end)
+            continue
+        if current is not None:
+            total += current[1] - current[0]
+        current = [start, end]
+    if current is not None:
+        total += current[1] - current[0]
+    return total / 1e9 / campaign.length if campaign.length else 0.0

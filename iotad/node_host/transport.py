@@ -23,6 +23,30 @@ def reachable(endpoint: str) -> str:
     return endpoint.replace("0.0.0.0", "127.0.0.1")
 
 
+# What a socket toward another host may hold unsent (bytes asked; Linux grants twice as much). The
+# default grows to ~4 MB, and a link slowed to 1 Mbit/s held traces and images there for seconds,
+# out of reach of zenoh's priorities and of its DROP across hosts: vision saw the belt 1.4 s late.
+# 16 KB asked is 0.26 s of such a link, and on a LAN (RTT ~0.2 ms) still ~150 MB/s.
+CROSS_HOST_SNDBUF = 16384
+
+
+def bounded_send_buffer(endpoints: Iterable[str]) -> list[str]:
+    """`endpoints`, each tcp/ or tls/ one that may reach another host (not loopback) with zenoh's
+    `so_sndbuf` endpoint setting, unless it has one. The endpoint's own config (after '#') is the
+    only way zenoh 1.10 takes it for TLS links: `transport/link/tcp/so_sndbuf` applies to TCP
+    links only (measured with `ss -tm`)."""
+    out = []
+    for endpoint in endpoints:
+        protocol, _, rest = endpoint.partition("/")
+        address = rest.split("?", 1)[0].split("#", 1)[0]
+        host = address.rpartition(":")[0].strip("[]")
+        if protocol in ("tcp", "tls") and host not in ("127.0.0.1", "localhost", "::1") \
+                and "so_sndbuf=" not in endpoint:
+            endpoint += (";" if "#" in endpoint else "#") + f"so_sndbuf={CROSS_HOST_SNDBUF}"
+        out.append(endpoint)
+    return out
+
+
 def endpoint_problem(text: object) -> str:
     """Why `text` is not a zenoh endpoint such as tcp/127.0.0.1:7447 ("" when it is one): checked
     before zenoh sees it, so that zenoh's own error (a Rust source path) never reaches the user."""

@@ -65,7 +65,7 @@ class Hub:
         return self.system.opens_hub(self.host)
 
     def _open(self, recorded: bool) -> None:
-        from iotad.node_host.transport import open_session, reachable
+        from iotad.node_host.transport import bounded_send_buffer, open_session, reachable
         from iotad.launcher.system.can_env import unresolved
 
         system, access = self.system, self.access
@@ -83,7 +83,9 @@ class Hub:
                 listen = pinned(listen)
                 self.local = local_endpoints(listen)
         try:
-            self.session = open_session(listen, connect, **(access.hub_options() if access else {}))
+            # toward other hosts, a socket buffer that holds no seconds of a slowed link (transport.py)
+            self.session = open_session(bounded_send_buffer(listen), bounded_send_buffer(connect),
+                                        **(access.hub_options() if access else {}))
         except Exception as exc:  # noqa: BLE001 - zenoh says why in its message
             text = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
             if "Address already in use" in text:
@@ -104,9 +106,14 @@ class Hub:
         self._publisher = session.declare_publisher(wire.launcher_key(system.name))
         self._declared.append(self._publisher)
         # outputs are counted from the nodes' traces (iotad/launcher/run/tally.py), from before
-        # this host waits for the hub's origin: another host's nodes may run by then
-        self._declared.append(session.declare_subscriber(wire.every_node(system.name, wire.TRACE),
-                                                         lambda sample: count_trace(self.tally, system.name, sample)))
+        # this host waits for the hub's origin: another host's nodes may run by then. Another
+        # host's launcher counts its own nodes' only: a subscription to every trace would bring
+        # every other host's whole trace stream across its link (vision's camera images, the
+        # CAN bus), which on a link slowed to 256 kbit/s held the setpoints to arm back by up
+        # to 3 s, and the arm's link watch tripped 48 times in 20 s
+        count = lambda sample: count_trace(self.tally, system.name, sample)  # noqa: E731
+        for key in trace_keys_counted(system, self.host):
+            self._declared.append(session.declare_subscriber(key, count))
         if self.opens_hub:
             if self.origin is None:
                 self.origin = wall()
@@ -233,3 +240,11 @@ class Hub:
             problem = close_session(session)
             if problem:
                 print(problem, flush=True)
+
+
+def trace_keys_counted(system: System, host: str | None) -> list[str]:
+    """The trace keys whose outputs `host`'s launcher counts for its summary: every node's at the
+    hub (the run's whole summary), the host's own nodes' elsewhere."""
+    if system.opens_hub(host):
+        return [wire.every_node(system.name, wire.TRACE)]
+    return [wire.trace_key(system.name, node.name) for node in system.nodes_on(host)]

@@ -405,7 +405,9 @@ class Launcher:
             violations, examples = Counter(self.tally.violations), self.tally.examples.lines()
             recordings = self.recorder.recordings if self.recorder is not None else []
             more = self.tally.examples.more(str(recordings[0]) if recordings else None)
-        for node in system.nodes.values():
+        # another host's launcher counts its own nodes' outputs only (hub.trace_keys_counted)
+        counted = system.nodes.values() if system.opens_hub(self.host) else system.nodes_on(self.host)
+        for node in counted:
             for channel in node.channels.values():
                 if channel.direction != "output":
                     continue
