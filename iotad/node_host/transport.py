@@ -23,10 +23,10 @@ def reachable(endpoint: str) -> str:
     return endpoint.replace("0.0.0.0", "127.0.0.1")
 
 
-# What a socket toward another host may hold unsent (bytes asked; Linux grants twice as much). The
-# default grows to ~4 MB, and a link slowed to 1 Mbit/s held traces and images there for seconds,
-# out of reach of zenoh's priorities and of its DROP across hosts: vision saw the belt 1.4 s late.
-# 16 KB asked is 0.26 s of such a link, and on a LAN (RTT ~0.2 ms) still ~150 MB/s.
+# What a socket toward another host may hold unsent (bytes asked; Linux grants twice as much). A
+# zenoh TLS link's socket had 3.9 MB (`ss -tm`): 30 s of a link slowed to 1 Mbit/s, out of reach
+# of zenoh's priorities and of its DROP across hosts. 32 KB is 0.26 s of such a link, and on a
+# LAN (RTT ~0.2 ms) still ~150 MB/s.
 CROSS_HOST_SNDBUF = 16384
 
 
