@@ -3,10 +3,9 @@
 The camera frame carries its image as raw RGB bytes (an immutable value): an array of 4800 ints
 per frame would cost more to check and record than the rest of the system. On the wire and in
 recordings the bytes are zlib-compressed, then base64 (`zlib:...`): a rendered frame's flat
-colours shrink about 45 times (4800 bytes to ~100). Raw, the camera's 10 frames a second were
-most of what arm sent to the other hosts besides the traces, and over a link slowed to 1 Mbit/s
-they queued in zenoh for 1.4 s, so vision saw the belt 1.4 s late. Older recordings' plain
-base64 frames still read.
+colours shrink about 45 times (4800 bytes to ~100). Raw, the camera's 10 frames a second (about
+0.5 Mbit/s) were most of what arm's nodes sent to the other hosts, the traces aside (docs/hosts.md,
+"A slowed link"). Older recordings' plain base64 frames still read.
 """
 from __future__ import annotations
 
@@ -73,8 +72,8 @@ class RgbImageType(Type):
         return bytes(self.size)
 
     def json_schema(self) -> dict:
-        # zlib's worst case (incompressible bytes): 5 bytes a 16 KB block and 6 more; base64 of it
-        packed = self.size + 5 * (self.size // 16384 + 1) + 6
+        # zlib's worst case, its compressBound (zlib.h), base64 of it
+        packed = self.size + (self.size >> 12) + (self.size >> 14) + (self.size >> 25) + 13
         return {"type": "string", "title": self.name,
                 "description": "'zlib:' then the base64 of the zlib-compressed RGB bytes",
                 "maxLength": len(ZLIB) + (packed + 2) // 3 * 4}

@@ -7,13 +7,15 @@ it has been seen for `fit_after` seconds, `belt_speed` before. Goals:
 - perceptual (`look`, to vision): the furthest-downstream object still to pick, or none (-1:
   look upstream); sent when it changes and every `refresh` seconds with the newest estimate;
 - manipulative (`pick`, to manipulation): that object, once it has been seen `min_sightings`
-  times and will be in reach (predicted y below `pick_y` by the time the hand is down), if
+  times over `fit_after` seconds and will be in reach (predicted y below `pick_y` by the time the hand is down), if
   manipulation is free. `done` frees it; an object whose pick did not commit is tried again
   while it is still in reach, and so is one seen on the belt again after its pick committed
   (COMMIT says the motion ran for its epoch, not that the hand holds the object: a grasp that
   closed on nothing, after a cut or a stall, leaves it on the belt where its track predicts).
 
-An object predicted past `lost_y` (downstream, out of reach) is given up. While manipulation
+An object predicted past `lost_y` (downstream, out of reach) is given up, and so is a track unseen
+for `forget_after` seconds; one whose fitted velocity does not go with the belt is no object to
+pick (`off`: it takes its own sightings until it is unseen that long). While manipulation
 has the arm, sightings are ignored: the camera then looks at the hand's work (a held object
 seen from above lands anywhere on the belt plane), not at the belt.
 """
@@ -54,6 +56,8 @@ class Planning(Iota):
     pick_y = Param(0.25)         # m: pick once the object is predicted below this by then
     lost_y = Param(-0.30)        # m: past this an object is out of reach
     refresh = Param(1.0)         # s between look goals for the same target
+    forget_after = Param(15.0)   # s unseen after which a track is given up (longer than a pick, while
+                                 # sightings are ignored; a cut camera's tracks go, new ones come after)
     belt_half_width = Param(0.08)  # m: sightings further from the belt's centre line are not objects on it
 
     seen = Input(SIGHTING)
@@ -119,6 +123,8 @@ class Planning(Iota):
                     track.x = (track.x * track.hits + x) / (track.hits + 1)
                     track.t1, track.y1 = t, y
                     track.hits += 1
+                elif track.state == "off":  # still where it lies: it keeps its sightings, not a new track's
+                    track.t1, track.y1 = t, y
                 return
         if y > self.lost_y:
             self.tracks.append(Track(self.next_id, colour, x, y, t))
@@ -127,7 +133,17 @@ class Planning(Iota):
     def _plan(self, now: float) -> None:
         vy0 = -self.belt_speed
         for track in self.tracks:
-            if track.state in ("seen", "picking") and track.y_at(now, track.velocity(vy0, self.fit_after)) < self.lost_y:
+            vy = track.velocity(vy0, self.fit_after)
+            if track.state in ("seen", "picking") and track.y_at(now, vy) < self.lost_y:
+                track.state = "lost"
+            elif track.state == "seen" and vy > -self.belt_speed / 4:
+                # its fit stands still or goes upstream: not carried by the belt (knocked off it,
+                # the hand's work seen from above). Kept as a candidate, such a track was never
+                # predicted past lost_y, stayed the look target, and the look at it, out of reach,
+                # pointed the camera away from the belt for good (a 10-minute bad day placed
+                # nothing in its last 425 s). Kept as "off", it takes its own sightings
+                track.state = "off"
+            elif track.state in ("seen", "off") and now - track.t1 > self.forget_after:
                 track.state = "lost"
         self.tracks = [t for t in self.tracks if t.state != "lost" and not (t.state == "done" and now - t.t1 > 30)]
         candidates = [t for t in self.tracks if t.state == "seen"]
@@ -142,7 +158,8 @@ class Planning(Iota):
             else:
                 self.out_look = LOOK_GOAL(target=target.id, x=target.x, y=target.y1,
                                           vy=target.velocity(vy0, self.fit_after), t=target.t1)
-        if target is None or target.hits < self.min_sightings:
+        # its own fit first: an object that only the prior says is moving may lie off the belt
+        if target is None or target.hits < self.min_sightings or target.t1 - target.t0 < self.fit_after:
             return
         vy = target.velocity(vy0, self.fit_after)
         if target.y_at(now + self.pick_lead, vy) <= self.pick_y:

@@ -95,6 +95,38 @@ def test_a_placed_object_is_not_picked_again_and_the_next_one_is_a_new_track(mon
     assert planning.out_pick is not None and planning.out_pick.target == 1 and planning.regrasps == 0
 
 
+def test_an_object_off_the_belt_is_no_target_and_an_unseen_track_is_given_up(monkeypatch):
+    """A track that stands still (an object knocked off the belt, within its width) was never
+    predicted past lost_y: it stayed planning's look target, the look at it was out of reach, the
+    camera never saw the belt again, and a 10-minute bad day placed nothing in its last 425 s."""
+    planning = Planning("planning")
+    planning.init()
+    t = 2.0
+    while t < 4.0:                              # 2 s of sightings, standing still
+        feed(planning, monkeypatch, t, 0.02)
+        t = round(t + 0.1, 6)
+    assert [track.state for track in planning.tracks] == ["off"]
+    assert planning.out_pick is None and planning.out_look.target == -1   # looks upstream again
+    feed(planning, monkeypatch, t, 0.02)        # its own sightings go to it, not to a new track
+    assert len(planning.tracks) == 1
+    # an object on the belt meanwhile is a track, a target, and picked
+    y = 0.50
+    while planning.out_pick is None and t < 20:
+        feed(planning, monkeypatch, t, y)
+        t, y = round(t + 0.1, 6), y - 0.005
+    assert planning.out_pick is not None and planning.out_pick.target == 1
+    # unseen for forget_after (a camera cut off), every track is given up
+    planning.out_pick, planning.busy = None, False
+    monkeypatch.setattr("planning.esprit_now", lambda: t + planning.forget_after + 0.1)
+    planning.on_done(PICK_DONE_OF(1))
+    assert [track.id for track in planning.tracks if track.state != "done"] == []
+
+
+def PICK_DONE_OF(target):
+    from conveyor_types import PICK_DONE
+    return PICK_DONE(target=target, committed=False)
+
+
 def test_manipulation_asks_for_the_arm_with_one_pick_program(monkeypatch):
     monkeypatch.setattr("manipulation.esprit_now", lambda: 6.0)
     manipulation = ManipulationControl("manipulation")
