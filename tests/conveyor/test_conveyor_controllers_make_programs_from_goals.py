@@ -10,7 +10,7 @@ import pytest
 from channels.mdl import Program
 from channels.messages import ACK
 from conveyor_variant import FOLDER, ROOT
-from conveyor_types import PICK_GOAL, SIGHTING
+from conveyor_types import PICK_DONE, PICK_GOAL, SIGHTING
 from manipulation import ManipulationControl
 from planning import Planning
 from vision import VisionControl
@@ -44,22 +44,25 @@ def test_planning_looks_then_picks_once_the_object_will_be_in_reach(monkeypatch)
     assert planning.out_look is None and len(planning.tracks) == 1
 
 
-def test_an_object_seen_on_the_belt_after_its_pick_committed_is_picked_again(monkeypatch):
-    """COMMIT says the pick's motion ran for its epoch, not that the hand holds the object: after
-    a cut or a stall the hand may close on nothing (a 10-minute bad day had 20 picks that ran to
-    their end and held nothing, each object then let go by). Seen again on the belt where its
-    track predicts, it is picked again; the next object upstream is a new track."""
-    from conveyor_types import PICK_DONE
-
+def picking_the_first_object(monkeypatch):
+    """Planning fed an object on the belt until it asks for its pick: (planning, t, y) then."""
     planning = Planning("planning")
     planning.init()
     t, y = 2.0, 0.50
     while planning.out_pick is None and t < 10:
         feed(planning, monkeypatch, t, y)
         t, y = t + 0.1, y - 0.005
-    first = planning.out_pick
-    assert first is not None and first.target == 0
+    assert planning.out_pick is not None and planning.out_pick.target == 0
     planning.out_pick = None
+    return planning, t, y
+
+
+def test_an_object_seen_on_the_belt_after_its_pick_committed_is_picked_again(monkeypatch):
+    """COMMIT says the pick's motion ran for its epoch, not that the hand holds the object: after
+    a cut or a stall the hand may close on nothing (a 10-minute bad day had 20 picks that ran to
+    their end and held nothing, each object then let go by). Seen again on the belt where its
+    track predicts, it is picked again; the next object upstream is a new track."""
+    planning, t, y = picking_the_first_object(monkeypatch)
     # the pick's 5 s go by (sightings then are the hand's work, ignored); it commits
     t, y = t + 5.0, y - 0.25
     monkeypatch.setattr("planning.esprit_now", lambda: t)
@@ -75,15 +78,7 @@ def test_an_object_seen_on_the_belt_after_its_pick_committed_is_picked_again(mon
 
 
 def test_a_placed_object_is_not_picked_again_and_the_next_one_is_a_new_track(monkeypatch):
-    from conveyor_types import PICK_DONE
-
-    planning = Planning("planning")
-    planning.init()
-    t, y = 2.0, 0.50
-    while planning.out_pick is None and t < 10:
-        feed(planning, monkeypatch, t, y)
-        t, y = t + 0.1, y - 0.005
-    planning.out_pick = None
+    planning, t, _ = picking_the_first_object(monkeypatch)
     t += 5.0
     monkeypatch.setattr("planning.esprit_now", lambda: t)
     planning.on_done(PICK_DONE(target=0, committed=True))
@@ -118,13 +113,8 @@ def test_an_object_off_the_belt_is_no_target_and_an_unseen_track_is_given_up(mon
     # unseen for forget_after (a camera cut off), every track is given up
     planning.out_pick, planning.busy = None, False
     monkeypatch.setattr("planning.esprit_now", lambda: t + planning.forget_after + 0.1)
-    planning.on_done(PICK_DONE_OF(1))
+    planning.on_done(PICK_DONE(target=1, committed=False))
     assert [track.id for track in planning.tracks if track.state != "done"] == []
-
-
-def PICK_DONE_OF(target):
-    from conveyor_types import PICK_DONE
-    return PICK_DONE(target=target, committed=False)
 
 
 def test_manipulation_asks_for_the_arm_with_one_pick_program(monkeypatch):
