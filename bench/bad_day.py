@@ -26,7 +26,8 @@ recorded) and until the nodes it touched were heard at the hub again; commands t
 axis while its host was cut; the launchers' restarts; the merged recording's gaps, each with the
 fault that caused it; `iotad check --all` of the merged recording, each problem judged against
 the faults' windows; cubes placed against a fault-free run of the same length (`--no-baseline`
-skips it; the belt brings cubes for the whole run). With several seeds, one fault-free run serves
+skips it; the belt brings cubes for the whole run), beside the share of the run during which no
+link was cut or slowed ("links whole": the cell cannot pick through those, so it bounds the cubes). With several seeds, one fault-free run serves
 them all, and a table of the goals per seed ends the output. Everything it starts it stops, also on Ctrl-C:
 the namespaces are removed and what was left in them is killed and said ("orphans").
 """
