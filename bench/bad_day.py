@@ -27,9 +27,10 @@ axis while its host was cut; the launchers' restarts; the merged recording's gap
 fault that caused it; `iotad check --all` of the merged recording, each problem judged against
 the faults' windows; cubes placed against a fault-free run of the same length (`--no-baseline`
 skips it; the belt brings cubes for the whole run), beside the share of the run during which no
-link was cut or slowed ("links whole": the cell cannot pick through those, so it bounds the cubes). With several seeds, one fault-free run serves
-them all, and a table of the goals per seed ends the output. Everything it starts it stops, also on Ctrl-C:
-the namespaces are removed and what was left in them is killed and said ("orphans").
+link was cut or slowed ("links whole": the cell cannot pick through those, so it bounds the
+cubes). With several seeds, one fault-free run serves them all, and a table of the goals per
+seed ends the output. Everything it starts it stops, also on Ctrl-C: the namespaces are removed
+and what was left in them is killed and said ("orphans").
 """
 from __future__ import annotations
 
