@@ -7,8 +7,8 @@ it has been seen for `fit_after` seconds, `belt_speed` before. Goals:
 - perceptual (`look`, to vision): the furthest-downstream object still to pick, or none (-1:
   look upstream); sent when it changes and every `refresh` seconds with the newest estimate;
 - manipulative (`pick`, to manipulation): that object, once it has been seen `min_sightings`
-  times over `fit_after` seconds and will be in reach (predicted y below `pick_y` by the time the hand is down), if
-  manipulation is free. `done` frees it; an object whose pick did not commit is tried again
+  times over `fit_after` seconds and will be in reach (predicted y below `pick_y` by the time
+  the hand is down), if manipulation is free. `done` frees it; an object whose pick did not commit is tried again
   while it is still in reach, and so is one seen on the belt again after its pick committed
   (COMMIT says the motion ran for its epoch, not that the hand holds the object: a grasp that
   closed on nothing, after a cut or a stall, leaves it on the belt where its track predicts).
