@@ -8,10 +8,11 @@ it has been seen for `fit_after` seconds, `belt_speed` before. Goals:
   look upstream); sent when it changes and every `refresh` seconds with the newest estimate;
 - manipulative (`pick`, to manipulation): that object, once it has been seen `min_sightings`
   times over `fit_after` seconds and will be in reach (predicted y below `pick_y` by the time
-  the hand is down), if manipulation is free. `done` frees it; an object whose pick did not commit is tried again
-  while it is still in reach, and so is one seen on the belt again after its pick committed
-  (COMMIT says the motion ran for its epoch, not that the hand holds the object: a grasp that
-  closed on nothing, after a cut or a stall, leaves it on the belt where its track predicts).
+  the hand is down), if manipulation is free. `done` frees it; an object whose pick did not
+  commit is tried again while it is still in reach, and so is one seen on the belt again after
+  its pick committed (COMMIT says the motion ran for its epoch, not that the hand holds the
+  object: a grasp that closed on nothing, after a cut or a stall, leaves it on the belt where
+  its track predicts).
 
 An object predicted past `lost_y` (downstream, out of reach) is given up, and so is a track unseen
 for `forget_after` seconds; one whose fitted velocity does not go with the belt is no object to
