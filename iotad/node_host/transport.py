@@ -37,8 +37,7 @@ def bounded_send_buffer(endpoints: Iterable[str]) -> list[str]:
     links only (measured with `ss -tm`)."""
     out = []
     for endpoint in endpoints:
-        protocol, _, rest = endpoint.partition("/")
-        address = rest.split("?", 1)[0].split("#", 1)[0]
+        protocol, _, address = _parts(endpoint)
         host = address.rpartition(":")[0].strip("[]")
         if protocol in ("tcp", "tls") and host not in ("127.0.0.1", "localhost", "::1") \
                 and "so_sndbuf=" not in endpoint:
@@ -47,13 +46,18 @@ def bounded_send_buffer(endpoints: Iterable[str]) -> list[str]:
     return out
 
 
+def _parts(endpoint: str) -> tuple[str, str, str]:
+    """(protocol, "/" or "", address) of an endpoint: its metadata and config are zenoh's business."""
+    protocol, slash, rest = endpoint.partition("/")
+    return protocol, slash, rest.split("?", 1)[0].split("#", 1)[0]
+
+
 def endpoint_problem(text: object) -> str:
     """Why `text` is not a zenoh endpoint such as tcp/127.0.0.1:7447 ("" when it is one): checked
     before zenoh sees it, so that zenoh's own error (a Rust source path) never reaches the user."""
     if not isinstance(text, str):
         return f"expected a zenoh endpoint PROTOCOL/ADDRESS:PORT such as tcp/127.0.0.1:7447, got {text!r}"
-    protocol, slash, address = text.partition("/")
-    address = address.split("?", 1)[0].split("#", 1)[0]  # metadata and config are zenoh's business
+    protocol, slash, address = _parts(text)
     ip = protocol in ("tcp", "udp", "tls", "quic")
     if not slash or not protocol or not address or (ip and not address.rpartition(":")[2].isdigit()):
         return f"expected a zenoh endpoint PROTOCOL/ADDRESS:PORT such as tcp/127.0.0.1:7447, got {text!r}"

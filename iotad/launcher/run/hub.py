@@ -242,9 +242,15 @@ class Hub:
                 print(problem, flush=True)
 
 
+def counted_nodes(system: System, host: str | None) -> list:
+    """The nodes whose outputs `host`'s launcher counts for its summary: every node at the hub
+    (the run's whole summary), the host's own elsewhere."""
+    return list(system.nodes.values()) if system.opens_hub(host) else system.nodes_on(host)
+
+
 def trace_keys_counted(system: System, host: str | None) -> list[str]:
-    """The trace keys whose outputs `host`'s launcher counts for its summary: every node's at the
-    hub (the run's whole summary), the host's own nodes' elsewhere."""
+    """The trace keys `host`'s launcher subscribes to for its summary (`counted_nodes`): at the hub
+    every node's, by one key expression."""
     if system.opens_hub(host):
         return [wire.every_node(system.name, wire.TRACE)]
-    return [wire.trace_key(system.name, node.name) for node in system.nodes_on(host)]
+    return [wire.trace_key(system.name, node.name) for node in counted_nodes(system, host)]
