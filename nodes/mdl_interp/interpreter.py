@@ -107,6 +107,7 @@ class MdlInterpreter(Iota):
         self.sensor_time = [-math.inf] * self.K
         self.incoming = None            # a command waiting for the next tick
         self.running = None             # ProgramRun
+        self.began = False              # running started or resumed since the last step
         self.suspended = {}             # program id -> ProgramRun, oldest first
         self.waiting_reported = False
         self.out_setpoint = None
@@ -194,7 +195,10 @@ class MdlInterpreter(Iota):
             self.command = self._held_within_limits(self.position)
         previous = self.command
         if self.running is not None:
-            self._run(self.running, steps)
+            # a program that starts or resumes begins at its first step: the ticks a stall
+            # skipped before it passed while it did not run, and crediting them would end it early
+            self._run(self.running, 1 if self.began else steps)
+            self.began = False
         dt = steps * period
         self.out_setpoint = self._setpoints_type(
             position=list(self.command), velocity_ff=[(c - p) / dt for c, p in zip(self.command, previous)],
@@ -403,6 +407,7 @@ class MdlInterpreter(Iota):
             self.running = saved
             if saved.current is not None and self.command is not None:
                 saved.current.reanchor(self.command, saved.current.ticks * self._robot.period)
+            self.began = True
             return
         try:
             refused = self._refused.pop(new.id, None)
@@ -416,6 +421,7 @@ class MdlInterpreter(Iota):
             self._report_program_end(new.id, "FAULT", "NONE", "", (0, 0))
             return
         self.running = ProgramRun(compiled)
+        self.began = True
         self.waiting_reported = False
 
     def _suspend(self, run: ProgramRun) -> None:

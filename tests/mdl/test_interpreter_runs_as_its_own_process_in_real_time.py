@@ -34,7 +34,8 @@ def test_a_program_runs_to_its_end_in_real_time(tmp_path):
     assert (end["program"], end["end"]) == ("reach", "DONE")
     # 650 ticks (1.3 s) from the first tick after the command: the next grid point's (650), or
     # the current one's if that tick came late, after the command (649); a tick more than a
-    # period late on a busy machine steps by the ticks that passed, and may end it that late
+    # period late on a busy machine steps by the ticks that passed, and may end it that late (but
+    # never earlier: the tick a program starts at is one step, however late it came)
     assert 649 <= end["tick"] - int(command["t"] / 0.002 + 1e-6) <= 675
     assert end["t"] - command["t"] == pytest.approx(1.3, abs=0.05)
     last = [e["value"]["position"] for e in mdl if e["action"] == "setpoints"][-1]
