@@ -5,6 +5,7 @@ faults (prints figures and writes a PNG timeline; asserts nothing).
     .venv/bin/python bench/bad_day.py --seed 3,7,11     several seeds against one fault-free run
     .venv/bin/python bench/bad_day.py --seed 3 --baseline DIR   against the fault-free run --keep kept
     .venv/bin/python bench/bad_day.py --schedule-only --seed 3 --minutes 10
+    .venv/bin/python bench/bad_day.py --minutes 1.9 --no-baseline --schedule '25 slow arm 20 1mbit; 70 slow arm 20 256kbit'
 
 The split (tests/bad_day_run.py `conveyor_over_three_hosts`): `brain` holds the hub, the
 scheduler, the MDL interpreter, planning and manipulation; `arm` the world with its simulated
@@ -62,7 +63,7 @@ def interrupted(signum, frame) -> None:
     raise KeyboardInterrupt
 
 
-def campaign(folder: Path, minutes: float, schedule: list, say) -> tuple:
+def campaign(folder: Path, minutes: float, schedule: list, say, traces_home: bool = True) -> tuple:
     """One run of the conveyor over three hosts under `schedule` (empty: fault-free); (campaign, reading)."""
     from bad_day_reading import read_campaign
     from bad_day_run import Campaign, conveyor_over_three_hosts
@@ -70,7 +71,7 @@ def campaign(folder: Path, minutes: float, schedule: list, say) -> tuple:
 
     with hosts("brain", "arm", "camera", net=NET) as net:
         text, machine = conveyor_over_three_hosts(net.addresses[("brain", "arm")], PORT, net.addresses["arm"],
-                                                  net.addresses["camera"], minutes * 60)
+                                                  net.addresses["camera"], minutes * 60, traces_home=traces_home)
         run = Campaign(net, folder, PORT, text, machine, schedule, minutes * 60)
         try:
             run.start()
@@ -295,6 +296,11 @@ def main() -> int:
     parser.add_argument("--keep", metavar="DIR", help="keep the recordings, system files and outputs in DIR "
                         "(DIR/fault-free, DIR/bad-day or DIR/bad-day-seedN)")
     parser.add_argument("--schedule-only", action="store_true", help="print the schedule and stop")
+    parser.add_argument("--schedule", metavar="FAULTS", help="no drawn schedule: these faults, one campaign "
+                        "(e.g. '25 slow arm 20 1mbit; 70 slow arm 20 256kbit'; tests/fault_schedule.py "
+                        "parse_schedule says how each kind is written)")
+    parser.add_argument("--traces-at-hub", action="store_true", help="arm and camera send their nodes' traces "
+                        "to the hub as well (by default they keep them home: [hosts.NAME] traces = \"home\")")
     parser.add_argument("--report", metavar="DIR", help="no run: the figures and picture again from a folder that "
                         "--keep kept (DIR/bad-day-seedN or DIR/bad-day, merged and checked again; the cubes "
                         "against DIR/fault-free or --baseline)")
@@ -306,16 +312,33 @@ def main() -> int:
     if args.minutes <= 0:
         parser.error("--minutes must be > 0")
     from bad_day_run import HOSTS
-    from fault_schedule import draw_schedule
+    from fault_schedule import draw_schedule, parse_schedule
 
     nodes = {"sim": "arm", "motor": "arm", "vision": "camera", "interpreter": "brain", "scheduler": "brain",
              "planning": "brain", "manipulation": "brain"}
-    schedules = {seed: draw_schedule(seed, args.minutes * 60, nodes, cut_hosts=HOSTS[1:], recorder_hosts=HOSTS)
-                 for seed in seeds}
-    print(f"a bad day, seed{'s' if len(seeds) > 1 else ''} {args.seed}, {args.minutes:g} min; {os.cpu_count()} cores, "
-          f"load average {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+    if args.schedule is not None:
+        if len(seeds) > 1 or args.report:
+            parser.error("--schedule runs one campaign: give no list of seeds and no --report")
+        try:
+            given = parse_schedule(args.schedule)
+        except ValueError as exc:
+            parser.error(f"--schedule: {exc}")
+        late = [f for f in given if f.end > args.minutes * 60]
+        if late:
+            parser.error(f"--schedule: {late[0].describe()} at {late[0].at:g} s ends after the campaign's "
+                         f"{args.minutes * 60:g} s (--minutes)")
+        schedules = {seeds[0]: given}
+    else:
+        schedules = {seed: draw_schedule(seed, args.minutes * 60, nodes, cut_hosts=HOSTS[1:], recorder_hosts=HOSTS)
+                     for seed in seeds}
+    traces_home = not args.traces_at_hub
+    print(f"a bad day, {'a given schedule' if args.schedule is not None else 'seed' + ('s' if len(seeds) > 1 else '')} "
+          f"{'' if args.schedule is not None else args.seed + ', '}{args.minutes:g} min; {os.cpu_count()} cores, "
+          f"load average {' '.join(f'{x:.2f}' for x in os.getloadavg())}; arm's and camera's traces "
+          f"{'stay home' if traces_home else 'go to the hub as well'}")
     for seed, schedule in schedules.items():
-        print(f"schedule of seed {seed} ({len(schedule)} faults, from every host's start gate):")
+        print(f"schedule{'' if args.schedule is not None else f' of seed {seed}'} ({len(schedule)} faults, "
+              "from every host's start gate):")
         for fault in schedule:
             print(f"  {fault.at:6.1f} s  {fault.describe()}")
     if args.schedule_only:
@@ -362,7 +385,7 @@ def main() -> int:
             with (nullcontext(str(keep / "fault-free")) if keep else tempfile.TemporaryDirectory(prefix="iotad-badday-")) as folder:
                 Path(folder).mkdir(parents=True, exist_ok=True)
                 print("\nthe fault-free run first:", flush=True)
-                base_run, baseline = campaign(Path(folder), args.minutes, [], say)
+                base_run, baseline = campaign(Path(folder), args.minutes, [], say, traces_home)
                 print(f"  placed {baseline.placed}; orphans {sum(len(p) for p in base_run.orphans.values())}")
         for seed in seeds:
             run_seed = seed
@@ -372,7 +395,7 @@ def main() -> int:
             with (nullcontext(str(keep / name)) if keep else tempfile.TemporaryDirectory(prefix="iotad-badday-")) as folder:
                 Path(folder).mkdir(parents=True, exist_ok=True)
                 print(f"\nthe bad day, seed {seed} ({time.monotonic() - started:.0f} s in):", flush=True)
-                run, reading = campaign(Path(folder), args.minutes, schedules[seed], say)
+                run, reading = campaign(Path(folder), args.minutes, schedules[seed], say, traces_home)
                 report(run, reading, baseline)
                 timeline(run, reading, baseline, png)
                 print(f"timeline: {png}")

@@ -40,14 +40,20 @@ class Machine:
 
 
 def conveyor_over_three_hosts(hub: str, port: int, arm: str, camera: str,
-                              seconds: float = 140.0) -> tuple[str, Machine]:
+                              seconds: float = 140.0, traces_home: bool = True) -> tuple[str, Machine]:
     """examples/conveyor.toml over brain (the hub, the scheduler, the MDL interpreter, planning,
     manipulation), arm (the world with its simulated drives, the motor node, their bus: a CAN
     bus is local to its machine) and camera (vision: what a smart camera computes beside its
     sensor). The camera's images come from the world on arm, as a camera's frames would come
     over its own link; the motors' setpoints cross from brain to arm. The belt brings cubes for
     all of `seconds` (the example's 20 last 140 s): cubes placed then measure the whole run, not
-    how soon the 20 were done."""
+    how soon the 20 were done.
+
+    `traces_home`: arm and camera keep their nodes' traces on their own recordings, as a robot
+    whose arm and camera reach the brain over radio links would: the arm's traces (about 3.5
+    Mbit/s, its CAN bus's frames among them) fill a link slowed to 1 Mbit/s, and its outputs
+    queued behind them arrived 1.1 s late (7 s at 256 kbit/s), so vision saw a belt that had
+    moved on. The merge joins every host's file (docs/hosts.md, "A slowed link")."""
     hosts = {"sim": "arm", "motor": "arm", "vision": "camera", "interpreter": "brain", "scheduler": "brain",
              "planning": "brain", "manipulation": "brain"}
     text = (ROOT / "examples" / "conveyor.toml").read_text()
@@ -55,6 +61,9 @@ def conveyor_over_three_hosts(hub: str, port: int, arm: str, camera: str,
                         f'listen = ["tls/{hub}:{port}"]\n[hosts.brain]\nlisten = ["tls/{hub}:0"]\n'
                         f'[hosts.arm]\nlisten = ["tls/{arm}:0"]\n[hosts.camera]\nlisten = ["tls/{camera}:0"]\n', 1)
     text = text.replace("[system]\n", '[system]\nhub_host = "brain"\n', 1)
+    if traces_home:
+        for host in ("arm", "camera"):
+            text = text.replace(f"[hosts.{host}]\n", f'[hosts.{host}]\ntraces = "home"\n', 1)
     interval = float(re.search(r"cube_interval = ([\d.]+)", text).group(1))
     text = text.replace("cube_count = 20,", f"cube_count = {max(20, int(seconds / interval) + 1)},", 1)
     for name, host in hosts.items():

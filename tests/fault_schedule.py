@@ -106,3 +106,45 @@ def _shortest(t: float, nodes: dict[str, str], cut_hosts: tuple[str, ...], kinds
              "stop": Fault(t, "stop", nodes[node], 0.2, target=f"node:{node}"),
              "kill": Fault(t, "kill", nodes[node], target=f"node:{node}")}
     return [least[kind] for kind in kinds]
+
+
+def parse_schedule(text: str) -> list[Fault]:
+    """A schedule written out rather than drawn: faults separated by `;`, each `AT KIND HOST`
+    and then what the kind needs, as `describe` names it:
+
+        25 slow arm 20 1mbit; 70 partition camera 12; 90 stop arm node:sim 0.5; 100 kill brain recorder
+
+    (a slowed link: seconds and rate; a partition: seconds; SIGSTOP: the process and seconds; a
+    kill -9: the process, `node:NAME`, `agent`, `launcher` or `recorder`). ValueError says what
+    is wrong with which fault. Faults are taken in the order of their times."""
+    faults = []
+    for part in (p.strip() for p in text.split(";")):
+        if not part:
+            continue
+        words = part.split()
+        shape = {"slow": "AT slow HOST SECONDS RATE", "partition": "AT partition HOST SECONDS",
+                 "stop": "AT stop HOST node:NAME SECONDS", "kill": "AT kill HOST node:NAME|agent|launcher|recorder"}
+        kind = words[1] if len(words) > 1 else ""
+        if kind not in shape:
+            raise ValueError(f"{part!r}: the second word is the kind of fault, one of {', '.join(KINDS)}")
+        if len(words) != len(shape[kind].split()):
+            raise ValueError(f"{part!r}: a {kind} is written {shape[kind]!r}")
+        try:
+            at = float(words[0])
+            if kind == "slow":
+                fault = Fault(at, kind, words[2], float(words[3]), rate=words[4])
+            elif kind == "partition":
+                fault = Fault(at, kind, words[2], float(words[3]))
+            elif kind == "stop":
+                fault = Fault(at, kind, words[2], float(words[4]), target=words[3])
+            else:
+                fault = Fault(at, kind, words[2], target=words[3])
+        except ValueError:
+            raise ValueError(f"{part!r}: times and seconds are numbers ({shape[kind]})") from None
+        target = fault.target.split(":")[0]
+        if kind in ("stop", "kill") and target not in ("node",) + (KILL_TARGETS[1:] if kind == "kill" else ()):
+            raise ValueError(f"{part!r}: the process is node:NAME" + (", agent, launcher or recorder" if kind == "kill" else ""))
+        if fault.at < 0 or fault.duration < 0:
+            raise ValueError(f"{part!r}: times and seconds are >= 0")
+        faults.append(fault)
+    return sorted(faults, key=lambda f: f.at)

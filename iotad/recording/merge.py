@@ -162,6 +162,7 @@ class _Join:
 
     def __init__(self, sources: list[Source]):
         self.sources = sources
+        self._subscribed: dict[str, bool] = {}  # topic -> whether the hub's recorder subscribed to it
         base = sources[0].recording
         self.base = base
         self.origin = float(run_info(base)["origin"])
@@ -279,6 +280,16 @@ class _Join:
                             "why": f"its host's recorder was down between {before.name} and {after.name}"}))
         return out
 
+    def _hub_subscribed(self, topic: str) -> bool:
+        """Whether the hub's recorder subscribed to `topic` (its `keys`; a file that names none
+        subscribed to everything). Asked once per topic."""
+        known = self._subscribed
+        if topic not in known:
+            keys = [source.recording.info.get("keys") for source in self.sources if source.hub]
+            known[topic] = any(not isinstance(k, list) or any(isinstance(e, str) and wire.keyexpr_matches(e, topic)
+                                                              for e in k) for k in keys)
+        return known[topic]
+
     def _host_gaps(self, chosen: dict, held: list[set], ordered: list, unheard: dict) -> list[dict]:
         """The marked gaps: where a host's events are missing from the hub's recording or from its
         own (one file, or several when its launcher was started again during the run), and the
@@ -296,10 +307,13 @@ class _Join:
             mine = set().union(*(held[si] for si in indices))
             own = sorted((t, key) for key, (t, _, _, m) in chosen.items() if self._traced(m) and self.owner(m) == host)
             if hubs and not hubs & set(indices):
-                # events of this host's nodes that its recording holds and the hub's does not
+                # events of this host's nodes that its recording holds and the hub's does not,
+                # where the hub's was made to hold them (a host that keeps its traces home,
+                # `[hosts.NAME] traces = "home"`, sends the hub none: nothing is missing there)
                 run: list[int] = []
                 for t, key in [*own, (None, None)]:
-                    if key is not None and key in mine and key not in at_hub:
+                    if key is not None and key in mine and key not in at_hub \
+                            and self._hub_subscribed(chosen[key][3].topic):
                         run.append(t)
                     elif run:
                         gaps.append(self._gap(host, run[0], run[-1], len(run),

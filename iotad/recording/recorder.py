@@ -111,12 +111,14 @@ def expand_keys(keys: Iterable[str]) -> list[str]:
     return out
 
 
-def trace_keys(system: str, nodes: list[str] | None = None) -> list[str]:
+def trace_keys(system: str, nodes: list[str] | None = None, every_beat: bool = False) -> list[str]:
     """What a trace-sourced recorder subscribes to: no channel key, so no wake-up per message.
-    `nodes`: only theirs (and the launchers' events), not every node's."""
+    `nodes`: only their traces (and the launchers' events), not every node's; their heartbeats
+    too, or every node's with `every_beat` (the hub's, when a host keeps its traces home)."""
     if nodes is not None:
-        return [*(wire.node_key(system, node, suffix) for node in nodes for suffix in (wire.TRACE, wire.HEARTBEAT)),
-                wire.launcher_key(system)]
+        beats = [wire.every_node(system, wire.HEARTBEAT)] if every_beat else \
+            [wire.node_key(system, node, wire.HEARTBEAT) for node in nodes]
+        return [*(wire.node_key(system, node, wire.TRACE) for node in nodes), wire.launcher_key(system), *beats]
     return [wire.every_node(system, wire.TRACE), wire.launcher_key(system), wire.every_node(system, wire.HEARTBEAT)]
 
 
@@ -161,8 +163,10 @@ class Recorder:
                 raise ValueError("a trace-sourced recording records one whole system: give 'iota/SYS/**' "
                                  "or a system file, not single keys")
             # a host's own recording (`nodes`: that host's): only its nodes' traces and beats cross
-            # from the other hosts' links to it; the hub's recording has theirs
-            self.keys = trace_keys(self.system, None if nodes is None else list(nodes))
+            # from the other hosts' links to it; the hub's recording has theirs. The hub's own
+            # recording with `nodes` (a host keeps its traces home): every node's heartbeats still
+            self.keys = trace_keys(self.system, None if nodes is None else list(nodes),
+                                   every_beat=bool(self.run and self.run.get("hub")))
         # trace-sourced: node paths whose outputs their own traces record (the system file's
         # nodes, every node seen on @trace) and every key a node published an output on
         self._nodes: set[str] = set() if self.declaration is None else set(self.declaration.nodes)

@@ -243,14 +243,15 @@ class Hub:
 
 
 def counted_nodes(system: System, host: str | None) -> list:
-    """The nodes whose outputs `host`'s launcher counts for its summary: every node at the hub
-    (the run's whole summary), the host's own elsewhere."""
-    return list(system.nodes.values()) if system.opens_hub(host) else system.nodes_on(host)
+    """The nodes whose outputs `host`'s launcher counts for its summary: at the hub the run's
+    (but those of hosts that keep their traces home, which their own launchers count), the
+    host's own elsewhere."""
+    return system.nodes_traced_at(host)
 
 
 def trace_keys_counted(system: System, host: str | None) -> list[str]:
     """The trace keys `host`'s launcher subscribes to for its summary (`counted_nodes`): at the hub
-    every node's, by one key expression."""
-    if system.opens_hub(host):
+    every node's by one key expression, unless some host keeps its traces home."""
+    if system.opens_hub(host) and not system.hosts_keeping_traces():
         return [wire.every_node(system.name, wire.TRACE)]
     return [wire.trace_key(system.name, node.name) for node in counted_nodes(system, host)]

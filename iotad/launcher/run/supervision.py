@@ -189,6 +189,8 @@ class Launcher:
                 reach = list(hub.local)  # the host's own launcher, not the hub
             if not opens:
                 nodes = list(self.runs)  # its own nodes (the hub records the others)
+            elif self.system.hosts_keeping_traces():  # the others but those that keep theirs home
+                nodes = [node.name for node in self.system.nodes_traced_at(self.host)]
         recorder = RecorderSupervisor(
             self.system, self._recording, hub=reach, run_dir=self.run_dir,
             env=self.access.recorder_env() if self.access else None, events=self.events,
@@ -421,6 +423,10 @@ class Launcher:
                         shown = ", ".join(f"{v} x{n}" for v, n in sorted(labelled, key=_label_order))
                     lines.append(f"  {str(port):<24} {'-> ' + receivers if receivers else '':<22} "
                                  f"{total:>4} events{': ' + shown if shown else ''}")
+        home = system.hosts_keeping_traces() if system.opens_hub(self.host) else []
+        if home:
+            lines.append(f"  not counted here: the nodes of {', '.join(home)}, which keep their traces home "
+                         "(their host's launcher and recording count them)")
         lines.append(f"  violations: {sum(violations.values())}"
                      + (" (" + ", ".join(f"{p} x{n}" for p, n in sorted(violations.items())) + ")" if violations else ""))
         lines += [f"    {example}" for example in examples] + ([f"    {more}"] if more else [])

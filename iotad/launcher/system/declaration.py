@@ -139,10 +139,16 @@ class DebugDecl:
     unknown: tuple[str, ...] = ()    # keys other than allow_pub
 
 
+# where a host's nodes' traces go: "hub" (to the hub's recorder and summary, and to the host's own
+# recorder), or "home" (to the host's own recorder only: for a host on a link too thin for them)
+TRACES_TO = ("hub", "home")
+
+
 @dataclass(frozen=True)
 class HostSpec:
     name: str
     listen: list[str] = field(default_factory=lambda: list(LOOPBACK_LISTEN))
+    traces: str = "hub"
 
 
 @dataclass(frozen=True)
@@ -377,17 +383,22 @@ class _Parser:
             if not isinstance(table, dict):
                 self.error(entry, "must be a table")
                 continue
-            for key in sorted(set(table) - {"listen"}):
-                self.error(entry, f"unknown key {key!r} (expected listen)")
-            host = HostSpec(name)
+            for key in sorted(set(table) - {"listen", "traces"}):
+                self.error(entry, f"unknown key {key!r} (expected listen or traces)")
+            listen = list(LOOPBACK_LISTEN)
             if "listen" in table:
                 value = [table["listen"]] if isinstance(table["listen"], str) else table["listen"]
                 problem = _endpoint_list_problem(value) or ("" if value else "an empty list: it must listen somewhere")
                 if problem:
                     self.error(entry, f"listen: {problem}")
                 else:
-                    host = HostSpec(name, value)
-            self.hosts[name] = host
+                    listen = value
+            traces = table.get("traces", "hub")
+            if traces not in TRACES_TO:
+                self.error(entry, f"traces must be \"hub\" (the hub hears this host's nodes' traces and records "
+                                  f"them) or \"home\" (only this host's own recording holds them), got {traces!r}")
+                traces = "hub"
+            self.hosts[name] = HostSpec(name, listen, traces)
 
     # ------------------------------------------------------------ [[node]]
     def table_list(self, key: str) -> list:
@@ -418,6 +429,9 @@ class _Parser:
             hub_host = self.settings["hub_host"] = next(n.host for n in self.nodes.values())
         if hub_host is not None and hosts_used and hub_host not in hosts_used | set(self.hosts):
             self.error("[system]", f"hub_host {hub_host!r} is not a host of any node")
+        if hub_host is not None and hub_host in self.hosts and self.hosts[hub_host].traces == "home":
+            self.error(f"[hosts.{hub_host}]", "traces = \"home\" on the hub's own host: its nodes' traces are "
+                                              "at the hub already (give it to a host on a thin link to the hub)")
 
     def parse_node(self, raw: dict, entry: str) -> NodeDecl | None:
         for key in sorted(set(raw) - _NODE_KEYS):

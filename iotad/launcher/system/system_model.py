@@ -233,6 +233,20 @@ class System:
         """The nodes a launcher for `host` runs (all of them when `host` is None), in file order."""
         return [n for n in self.nodes.values() if host is None or n.host == host]
 
+    def hosts_keeping_traces(self) -> list[str]:
+        """The hosts whose nodes' traces stay home (`[hosts.NAME] traces = "home"`): their own
+        recording holds them, and the hub hears their outputs but not their traces."""
+        return [name for name, spec in self.hosts.items() if spec.traces == "home"]
+
+    def nodes_traced_at(self, host: str | None) -> list[NodeSpec]:
+        """The nodes whose traces the launcher for `host` subscribes to, for its summary and its
+        recorder: at the hub every node but those of hosts that keep their traces home; on
+        another host its own."""
+        if not self.opens_hub(host):
+            return self.nodes_on(host)
+        home = set(self.hosts_keeping_traces())
+        return [n for n in self.nodes.values() if n.host not in home]
+
     def opens_hub(self, host: str | None) -> bool:
         """Whether the launcher for `host` listens on the hub endpoints (else it connects to them)."""
         return host is None or host == self.hub_host
