@@ -290,6 +290,13 @@ class Accounts:
     def in_gap(self, key: str, seq: int) -> bool:
         return any(expected <= seq < got for expected, got in self.gaps.get(key, ()))
 
+    def trace_not_held(self, node: str) -> bool:
+        """Whether this recording was not made to hold `node`'s trace (its recorder subscribed to
+        other nodes' only: one host's own recording, or the hub's when `node`'s host keeps its
+        traces home) and holds none of it: what `node` sent is judged where its trace is, in
+        the merge of the hosts' recordings."""
+        return not self.events.get(node) and not self.recording.subscribed_to_trace(node)
+
     def trace_gap(self, node: str) -> bool:
         return bool(self.gaps.get(wire.trace_key(self.system.name, node)))
 
@@ -347,7 +354,7 @@ def read_accounts(recording: Recording, system: RecordedSystem, tolerance: float
         # spec units; in virtual time a binding delivers at the instant of the firing
         0.0 if virtual else (GRACE if grace is None else grace) / unit,
         recording.specs, info.get("origin_ns") if virtual else None,
-        reading.events, reading.claims, reading.wire, reading.lives(recording.specs), gaps, trace_gaps,
+        reading.events, reading.claims, reading.wire, reading.lives(recording.specs, recording), gaps, trace_gaps,
         {} if virtual else widenings(recording))
 
 
@@ -393,11 +400,15 @@ class _Reading:
                 self.wire.setdefault(message.topic, []).append(message)
         self.number_claims()
 
-    def lives(self, specs: dict) -> dict[str, Life]:
-        """When each node ran: its own runs, or (virtual time) until the run's last sign of life."""
+    def lives(self, specs: dict, recording: Recording) -> dict[str, Life]:
+        """When each node ran: its own runs, or (virtual time) until the run's last sign of life.
+        A node whose trace the recording was not made to hold has none here, its heartbeats
+        notwithstanding: what it took is in another host's recording."""
         end = max((t for node_signs in self.signs.values() for t in node_signs), default=0.0)
         nodes = set(self.events) | set(specs) | {p.node for b in self.system.bindings for p in b}
-        return {node: Life(self.starts.get(node, []), self.signs.get(node, []), end if self.virtual else None)
+        held = {node for node in nodes if node in self.events or recording.subscribed_to_trace(node)}
+        return {node: Life(self.starts.get(node, []), self.signs.get(node, []) if node in held else [],
+                           end if self.virtual else None)
                 for node in nodes}
 
     def take(self, node: str, t: float, event: dict, data: bytes) -> None:

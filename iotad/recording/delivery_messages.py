@@ -337,6 +337,10 @@ def _unclaimed(acc: Accounts, rows: Rows, link: Link, item: Got, source: Port) -
     sent_t = acc.node_t(sender, item.ident[1])
     last = max((c.t for c in acc.claims.get(item.key, [])), default=None)
     trace_end = acc.life[sender].trace_end if sender in acc.life else None
+    if acc.trace_not_held(sender):
+        rows.finding(link, "untraced", item.t, f"#{seq} received at t={item.t:.6g}; {sender}'s trace is not in this "
+                      "recording, which was made to hold other nodes' (merge the hosts' recordings to judge it)", False)
+        return
     if acc.in_gap(item.key, seq) or acc.trace_gap(sender):
         rows.finding(link, "untraced", item.t, f"#{seq} received at t={item.t:.6g}; {sender}'s trace lost "
                       "events there (a sequence gap), so it may have claimed it", False)

@@ -224,6 +224,17 @@ class Recording:
                 found.add(parsed[1])
         return sorted(found)
 
+    def subscribed_to_trace(self, node: str) -> bool:
+        """Whether the recorder subscribed to `node`'s trace: a recording that names its `keys`
+        may hold only some nodes' (one host's own, or the hub's when a host keeps its traces
+        home), where another node's heartbeats may still be; what it was not made to hold is
+        judged in the merge of the hosts' recordings, not here."""
+        keys = self.info.get("keys")
+        if not isinstance(keys, list):
+            return True
+        trace = wire.trace_key(self.system or "", node)
+        return any(isinstance(k, str) and wire.keyexpr_matches(k, trace) for k in keys)
+
     @property
     def format_version(self) -> int:
         """The recording format it states (`iotad.recording` metadata "format"); 1 where it states none."""

@@ -24,8 +24,11 @@ def check_recording(recording, file: str, *, node: str | None = None, tolerance:
     if not own_params:
         raise CheckError("--iota and --param apply to --spec; without --spec each node is checked against "
                          "its own spec, with the parameters it ran with")
-    nodes = [node] if node else sorted(specs)
-    if not nodes:
+    # a recording made to hold some nodes' traces (one host's own, or the hub's when a host keeps
+    # its traces home) checks those; the others are said, and judged in the merge
+    elsewhere = [] if node else sorted(n for n in specs if not recording.subscribed_to_trace(n))
+    nodes = [node] if node else sorted(n for n in specs if n not in elsewhere)
+    if not nodes and not elsewhere:
         raise CheckError(f"{file} holds no node specs: nothing to check against")
     if not recording.messages and recording.complete:
         # specs and nothing else, in a whole file: what `iotad recover` keeps of a file cut short
@@ -45,6 +48,9 @@ def check_recording(recording, file: str, *, node: str | None = None, tolerance:
         print(f"{name}: NOT CHECKED: a node of the recorded system file that never ran (the recording holds "
               f"neither its spec nor any event of it: it never went live)")
     unchecked += never
+    for name in elsewhere:
+        print(f"{name}: in another host's recording: this one was made to hold other nodes' traces "
+              f"(check the merge of the hosts' recordings)")
     if not recording.complete:
         print(f"{file}: INCOMPLETE recording ({recording.truncated_reason or 'cut short'}): only what it "
               f"holds is checked, and a window still open where it ends is not judged; "
@@ -156,9 +162,7 @@ def _check_node(recording, node: str, asked: str | None, file: str, tolerance: f
 def _never_ran(recording, specs: dict, unchecked: list[str]) -> list[str]:
     """Nodes of the recorded system file (a real-time run's system.toml) that the recording holds
     nothing of, where it was made to hold them (its key expressions cover their @trace)."""
-    from iotad.node_host import wire
     from iotad.launcher.system.declaration import SystemFileError
-    from iotad.node_host.wire import keyexpr_matches
     from iotad.recording.recorded_system import recorded_declaration
 
     try:
@@ -168,15 +172,8 @@ def _never_ran(recording, specs: dict, unchecked: list[str]) -> list[str]:
     if declaration is None:
         return []
     names = declaration.file_nodes
-    keys = recording.info.get("keys")
-    system = recording.system or ""
-
-    def covered(node: str) -> bool:
-        trace = wire.trace_key(system, node)
-        return not isinstance(keys, list) or any(isinstance(k, str) and keyexpr_matches(k, trace) for k in keys)
-
     seen = set(specs) | set(unchecked) | set(recording.nodes())
-    return sorted(n for n in names if n not in seen and covered(n))
+    return sorted(n for n in names if n not in seen and recording.subscribed_to_trace(n))
 
 
 def _unchecked(recording, specs: dict) -> list[str]:
@@ -187,5 +184,5 @@ def _unchecked(recording, specs: dict) -> list[str]:
     named = {n for n in listed if isinstance(n, str)} if isinstance(listed, list) else set()
     # only the traces of nodes without a spec are read here: the others are checked anyway
     return sorted(n for n in (named | set(recording.nodes())) - set(specs)
-                  if n and (n in named or any(e.get("kind") in ("input", "output", "internal")
-                                              for e in recording.trace(n))))
+                  if n and recording.subscribed_to_trace(n)
+                  and (n in named or any(e.get("kind") in ("input", "output", "internal") for e in recording.trace(n))))
