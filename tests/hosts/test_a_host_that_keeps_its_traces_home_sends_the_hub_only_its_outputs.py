@@ -73,7 +73,7 @@ def test_a_strict_run_with_a_host_that_keeps_its_traces_home_is_refused_in_a_lin
     system.write_text(keeps_traces_home(figure2_over("127.0.0.1", "127.0.0.1", port=7628)))
     done = iotad("run", system, "--strict", "--insecure", "--until", "1", "--plain", "--no-record", timeout=60)
     assert done.returncode != 0
-    assert "a strict run judges every node's violations at the hub, but arm keep their traces home" in done.stderr, \
+    assert "a strict run judges every node's violations at the hub, but arm keeps its traces home" in done.stderr, \
         done.stdout[-2000:] + done.stderr[-2000:]
     assert "Traceback" not in done.stderr
 

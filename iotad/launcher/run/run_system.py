@@ -85,9 +85,10 @@ def _launch(system: System, options: RunOptions, record_to: str | None, view, su
     home = system.hosts_keeping_traces()
     if (options.strict or system.strict) and home and system.opens_hub(options.host):
         # a strict run's verdict counts the violations the hub hears on the nodes' traces
-        raise RunError(f"a strict run judges every node's violations at the hub, but {', '.join(home)} "
-                       "keep their traces home ([hosts.NAME] traces = \"home\"): run it without strict, or "
-                       "judge it after the run with iotad merge and iotad check")
+        keeps = "keeps its" if len(home) == 1 else "keep their"
+        raise RunError(f"a strict run judges every node's violations at the hub, but {', '.join(home)} {keeps} "
+                       "traces home ([hosts.NAME] traces = \"home\"): run it without strict, or judge it after "
+                       "the run with iotad merge and iotad check")
 
     if not options.local:
         from iotad.node_host.zenoh_runtime import use_for
