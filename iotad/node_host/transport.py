@@ -72,7 +72,11 @@ def make_config(listen: Iterable[str] = DEFAULT_LISTEN, connect: Iterable[str] =
     """`extra` maps zenoh config paths (e.g. "transport/link/tx/queue/size/data") to JSON values;
     it cannot turn multicast scouting back on. `credentials`: authenticate with zenoh's
     user-password scheme (and, with a dictionary, check the peers that connect here). `tls`: the
-    certificates for `tls/` endpoints, with mutual authentication (iotad/machine/certificates.py)."""
+    certificates for `tls/` endpoints, with mutual authentication (iotad/machine/certificates.py).
+    Every endpoint that may reach another host gets a bounded socket send buffer
+    (`bounded_send_buffer`): a launcher's, and a node's of an open run, which links across hosts
+    itself."""
+    listen, connect = bounded_send_buffer(listen), bounded_send_buffer(connect)
     config = zenoh.Config()
     for path, value in (extra or {}).items():
         config.insert_json5(path, json.dumps(value))

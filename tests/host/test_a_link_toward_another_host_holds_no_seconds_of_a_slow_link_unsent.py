@@ -1,7 +1,7 @@
 """A socket's send buffer grows to ~4 MB by default, and over a link slowed to 1 Mbit/s that holds
-seconds of traces and images out of reach of zenoh's priorities and of its DROP across hosts. The
-launchers' sessions bound it on every endpoint that may reach another host, through the
-endpoint's own zenoh config: zenoh 1.10 takes `transport/link/tcp/so_sndbuf` for TCP links only,
+seconds of traces and images out of reach of zenoh's priorities and of its DROP across hosts. Every
+session (a launcher's, a node's of an open run) bounds it on every endpoint that may reach another
+host, through the endpoint's own zenoh config: zenoh 1.10 takes `transport/link/tcp/so_sndbuf` for TCP links only,
 while the endpoint's `#so_sndbuf=` holds for TLS as well (this test measures it with `ss`)."""
 import json
 import shutil
@@ -13,7 +13,7 @@ import zenoh
 
 from agent_helpers import authority_for
 from iotad.machine.certificates import host_files
-from iotad.node_host.transport import CROSS_HOST_SNDBUF, bounded_send_buffer, free_port
+from iotad.node_host.transport import CROSS_HOST_SNDBUF, bounded_send_buffer, free_port, make_config
 
 
 def test_endpoints_that_may_reach_another_host_are_bounded_and_the_rest_left_alone():
@@ -23,6 +23,14 @@ def test_endpoints_that_may_reach_another_host_are_bounded_and_the_rest_left_alo
         f"tls/10.0.0.1:7447#so_sndbuf={CROSS_HOST_SNDBUF}", f"tcp/10.0.0.2:0#so_sndbuf={CROSS_HOST_SNDBUF}",
         "tcp/127.0.0.1:7447", "tcp/[::1]:7447", "unixsock-stream//tmp/hub.sock",
         "tls/10.0.0.1:7448#so_sndbuf=65536", f"tls/10.0.0.1:7449#iface=eth0;so_sndbuf={CROSS_HOST_SNDBUF}"]
+
+
+def test_every_session_bounds_its_endpoints_toward_other_hosts_a_nodes_of_an_open_run_too():
+    # an open run's node listens on its host's address and links to the other hosts' nodes itself
+    config = make_config(["tcp/10.0.0.2:0"], ["tcp/10.0.0.1:7447", "tcp/127.0.0.1:7447"])
+    assert json.loads(config.get_json("listen/endpoints")) == [f"tcp/10.0.0.2:0#so_sndbuf={CROSS_HOST_SNDBUF}"]
+    assert json.loads(config.get_json("connect/endpoints")) == [f"tcp/10.0.0.1:7447#so_sndbuf={CROSS_HOST_SNDBUF}",
+                                                                 "tcp/127.0.0.1:7447"]
 
 
 def _send_buffers(port: int) -> list[int]:

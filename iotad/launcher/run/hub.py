@@ -65,7 +65,7 @@ class Hub:
         return self.system.opens_hub(self.host)
 
     def _open(self, recorded: bool) -> None:
-        from iotad.node_host.transport import bounded_send_buffer, open_session, reachable
+        from iotad.node_host.transport import open_session, reachable
         from iotad.launcher.system.can_env import unresolved
 
         system, access = self.system, self.access
@@ -84,8 +84,7 @@ class Hub:
                 self.local = local_endpoints(listen)
         try:
             # toward other hosts, a socket buffer that holds no seconds of a slowed link (transport.py)
-            self.session = open_session(bounded_send_buffer(listen), bounded_send_buffer(connect),
-                                        **(access.hub_options() if access else {}))
+            self.session = open_session(listen, connect, **(access.hub_options() if access else {}))
         except Exception as exc:  # noqa: BLE001 - zenoh says why in its message
             text = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
             if "Address already in use" in text:
