@@ -178,6 +178,11 @@ def report(run, reading, baseline) -> None:
            if unexplained else ""))
     for problem in unexplained[:6]:
         say(f"      {problem['where']}: {problem['line'][:140]}")
+    inside = sum(1 for _, cause in reading.trips if cause)
+    say(f"the motor node's link watch tripped {len(reading.trips)} time(s) (every axis safe for want of "
+        f"setpoints), {inside} inside a fault's window" + (
+            ": " + ", ".join(f"{run.seconds(t):.1f} s" for t, cause in reading.trips if not cause)[:200]
+            + " outside" if inside < len(reading.trips) else ""))
     if reading.placed is not None:
         against = "" if baseline is None else f" against {baseline.placed} in the fault-free run " \
                                               f"({100 * reading.placed / max(1, baseline.placed):.0f} %)"

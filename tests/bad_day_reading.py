@@ -53,6 +53,9 @@ class Reading:
     placements: list[float] = field(default_factory=list)  # s into the campaign of each cube placed
     placed: int | None = None
     problems: list[dict] = field(default_factory=list)  # those `iotad check` listed, each with its "cause"
+    # the motor node's link watch: the wall-clock ns of each LINK_LOST it reported (every axis
+    # made safe for want of setpoints), each with the fault whose window holds it ('' if none)
+    trips: list[tuple[int, str]] = field(default_factory=list)
 
 
 def takes_setpoints_away(fault, machine) -> bool:
@@ -88,6 +91,19 @@ def frames(recording, system: str, motor: str, drives: str) -> list[tuple[int, i
         if message.topic in senders:
             value = message.value
             out.append((message.publish_time, value["id"] >> 5, value["id"] & 0x1F, bytes(value["data"])))
+    return sorted(out)
+
+
+def link_watch_trips(recording, system: str, motor: str) -> list[int]:
+    """The receipt times (ns) of the motor node's LINK_LOST reports on `joint_status`: each is its
+    link watch making every axis safe because setpoints stopped coming (one report per axis)."""
+    prefix = f"iota/{system}/{motor}/joint_status/"
+    out = []
+    for message in recording.messages:
+        if message.topic.startswith(prefix):
+            value = message.value
+            if isinstance(value, dict) and value.get("event") == "LINK_LOST":
+                out.append(message.log_time)
     return sorted(out)
 
 
@@ -249,6 +265,10 @@ def read_campaign(campaign: Campaign, check: bool = True) -> Reading:
         for problem in out.problems:
             problem["cause"] = problem_cause(problem["t"] + origin - campaign.began_ns / 1e9, campaign.done,
                                              campaign.began_ns)
+    reports = link_watch_trips(recording, machine.name, machine.motor)
+    # a trip reports once per axis, at one instant: one trip per run of reports within 50 ms
+    starts = [t for k, t in enumerate(reports) if k == 0 or t - reports[k - 1] > 50_000_000]
+    out.trips = [(t, problem_cause((t - campaign.began_ns) / 1e9, campaign.done, campaign.began_ns)) for t in starts]
     try:
         out.placements, out.placed = placements(recording, campaign)
     except RecordingError:
