@@ -28,6 +28,7 @@ also while the hub was out of reach. Each file's metadata says whose it is (`iot
 """
 from __future__ import annotations
 
+import bisect
 import json
 from collections import Counter
 from dataclasses import dataclass, field
@@ -44,6 +45,9 @@ from iotad.recording.recorded_clock import ToHub, offsets, run_info
 
 MERGE_METADATA = "iotad.merge"
 ORIGIN_TOLERANCE = 1e-6  # s: two files whose runs began further apart are of different runs
+# ns: how far outside the stretch between a host's two files another file's copy of an event may
+# lie (the hub's receipt of it, against the host's clock moved onto the hub's)
+HELD_SLACK = 500_000_000
 
 
 class MergeError(RecordingError):
@@ -249,11 +253,14 @@ class _Join:
         of its files (killed, then restarted: its successor cannot know what it missed, so it
         noted nothing): per later file's name, a sequence-gap note (GAP_SCHEMA) for each of the
         host's nodes' trace keys whose numbers jump from one file's last to the next file's first,
-        at that first message. A jump down is a new process (its numbers begin again), not a gap."""
-        merged: dict[str, set[int]] = {}
+        at that first message. A jump down is a new process (its numbers begin again), not a gap.
+        A number counts as held only where another file holds it in the stretch between the two
+        (on the hub's clock, within HELD_SLACK): an earlier process of the same node numbered its
+        events from 0 too, and its numbers fill no later process's gap."""
+        merged: dict[str, list[tuple[int, int]]] = {}  # key -> (hub time, sequence), in time order
         for message in messages:
             if self._traced(message):
-                merged.setdefault(message.topic, set()).add(message.sequence)
+                merged.setdefault(message.topic, []).append((message.log_time, message.sequence))
         by_host: dict[str | None, list[Source]] = {}
         for source in self.sources:
             by_host.setdefault(source.host, []).append(source)
@@ -273,7 +280,11 @@ class _Join:
                     last = old.get(key, (None, None))[1]
                     if last is None or first.sequence <= last.sequence + 1:
                         continue
-                    missing = [q for q in range(last.sequence + 1, first.sequence) if q not in merged.get(key, ())]
+                    times = merged.get(key, [])
+                    low = bisect.bisect_left(times, (before.to_hub(last.log_time) - HELD_SLACK, -1))
+                    high = bisect.bisect_right(times, (after.to_hub(first.log_time) + HELD_SLACK, 1 << 64))
+                    there = {q for _, q in times[low:high]}
+                    missing = [q for q in range(last.sequence + 1, first.sequence) if q not in there]
                     if missing:
                         out.setdefault(after.name, []).append((after.to_hub(first.log_time), {
                             "key": key, "expected": last.sequence + 1, "got": first.sequence, "missing": len(missing),

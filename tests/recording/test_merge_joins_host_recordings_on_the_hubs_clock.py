@@ -337,3 +337,19 @@ def test_a_host_launcher_started_again_in_the_run_records_a_second_file_and_both
     assert len(between) == 1 and between[0]["events"] == 2, merged.gaps
     assert "between its recordings split.arm.mcap and split.arm-2.mcap" in between[0]["reason"]
     assert between[0]["from_ns"] == ns(2.0) + 2 * MS and between[0]["to_ns"] == ns(3.0) + 2 * MS
+
+
+def test_an_earlier_process_numbers_fill_no_gap_of_a_later_one(tmp_path):
+    # the scheduler ran 0..4, restarted (numbering from 0 again: 0, 1), then the hub's recorder
+    # was killed; its successor began with the new process's event 5: 2, 3 and 4 of the new
+    # process are lost, though the first process's own 2, 3 and 4 are in the first file
+    first = write(tmp_path / "split.mcap", "brain", [
+        *(scheduler(1.0 + k / 10, k, ns(1.0 + k / 10) + MS) for k in range(5)),
+        scheduler(2.0, 0, ns(2.0) + MS), scheduler(2.1, 1, ns(2.1) + MS)], hub=True, cut_short=True)
+    then = write(tmp_path / "split_1.mcap", "brain", [
+        restarted(3.5, "brain", str(first), str(tmp_path / "split_1.mcap")), scheduler(4.0, 5, ns(4.0) + MS)], hub=True)
+    arm = write(tmp_path / "split.arm.mcap", "arm", [vision(1.5, 0, False)], offset=-AHEAD)
+    out = tmp_path / "merged.mcap"
+    write_merged(merge([first, then, arm]), out)
+    merged = read_recording(out)
+    assert [(g["key"], g["expected"], g["got"], g["missing"]) for g in merged.gaps()] == [(SCHEDULER, 2, 5, 3)]
