@@ -15,6 +15,9 @@ sensor. So a partition of arm takes the motors' setpoints away (the motor node's
 make them safe), one of camera takes the arm's eyes away (the scheduler must not strand a
 request), and both reach the hub through their own routers. TLS and access control on, started
 as a person would: certificates, an agent on arm and on camera, one `iotad run --certs` on brain.
+arm and camera keep their nodes' traces home (`[hosts.NAME] traces = "home"`), as a robot whose
+arm and camera reach the brain over radio links would: each host's own file holds them, and the
+merge joins the files (`--traces-at-hub` sends them to the hub as well, the way before).
 
 Faults (tests/fault_schedule.py, drawn from `--seed`): kill -9 of a random node, of a host's agent
 (which this benchmark starts again after 1 s, as systemd's Restart=on-failure would), of a host's
