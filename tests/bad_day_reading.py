@@ -94,6 +94,20 @@ def frames(recording, system: str, motor: str, drives: str) -> list[tuple[int, i
     return sorted(out)
 
 
+def node_hosts(recording, machine) -> dict[str, str | None]:
+    """node -> its host: the campaign's nodes, and those the recorded system file adds (a CAN
+    bus's logger, on its stations' host)."""
+    from iotad.launcher.system.declaration import SystemFileError
+    from iotad.recording.recorded_system import recorded_declaration
+
+    try:
+        declared = recorded_declaration(recording)
+    except SystemFileError:
+        declared = None
+    hosts = {name: node.host for name, node in declared.nodes.items()} if declared is not None else {}
+    return {**hosts, **machine.nodes}
+
+
 def link_watch_trips(recording, system: str, motor: str) -> list[int]:
     """The receipt times (ns) of the motor node's LINK_LOST reports on `joint_status`: each is its
     link watch making every axis safe because setpoints stopped coming (one report per axis)."""
@@ -216,12 +230,13 @@ def read_campaign(campaign: Campaign, check: bool = True) -> Reading:
     else:  # what each file holds, read alone
         recording = read_recording(campaign.recording, salvage=True)
         gaps = []
+    host_of = node_hosts(recording, machine)
     for message in recording.messages:  # recorders' own sequence gaps the merge kept
         if message.topic == GAP_TOPIC:
             value = message.value
             key = str(value.get("key", ""))
             node = key.split("/")[2] if key.count("/") >= 2 else ""
-            gaps.append({"host": machine.nodes.get(node), "from_ns": message.log_time, "to_ns": message.log_time,
+            gaps.append({"host": host_of.get(node), "from_ns": message.log_time, "to_ns": message.log_time,
                          "events": value.get("missing", 0),
                          "reason": f"recorder sequence gap on {value.get('key', '?')}"})
     for gap in gaps:
