@@ -510,6 +510,13 @@ class _Join:
         info["writer"] = "iotad merge"
         info["merged"] = json.dumps([s.name for s in self.sources])
         info["run"] = json.dumps({"origin": self.origin, "hosts": hosts, "hub_host": self.hub_host})
+        # what the merged recording was made to hold: what any of its files' recorders subscribed
+        # to (the hub's alone leaves out a host that keeps its traces home; check reads this)
+        keys = [source.recording.info.get("keys") for source in self.sources]
+        if all(isinstance(k, list) for k in keys):
+            info["keys"] = json.dumps(sorted({key for k in keys for key in k if isinstance(key, str)}))
+        else:
+            info.pop("keys", None)
         if messages:
             info["started_ns"] = json.dumps(messages[0].log_time)
         missing = sum(int(g.get("missing", 0) or 0) for _, g in recorder_gaps if isinstance(g, dict))

@@ -62,8 +62,10 @@ def test_the_hub_records_none_of_the_arms_traces_and_the_merge_holds_them(tmp_pa
     # and the hub's file lacking them is no gap: it was not made to hold them
     assert merged_gaps(merged) == [], merged_gaps(merged)
     checked = check_of_a_real_run(merged_path)
+    # every node judged in the merge, vision too: it holds what the arm's file was made to hold
     for node in ("scheduler", "vision", "manipulation"):
-        assert f"{node}: " in checked and "NOT CHECKED" not in checked, checked[-3000:]
+        assert f"\n{node}: " in "\n" + checked and f"{node}: in another host's recording" not in checked, checked[-3000:]
+    assert "NOT CHECKED" not in checked and "vision.req -> scheduler.req[0]   " in checked, checked[-3000:]
     replayed = iotad("replay", merged_path, "--node", "vision")
     assert replayed.returncode == 0 and "vision: replay agrees" in replayed.stdout, replayed.stdout + replayed.stderr
 
