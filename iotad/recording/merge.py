@@ -296,9 +296,9 @@ class _Join:
         subscribed to everything). Asked once per topic."""
         known = self._subscribed
         if topic not in known:
-            keys = [source.recording.info.get("keys") for source in self.sources if source.hub]
-            known[topic] = any(not isinstance(k, list) or any(isinstance(e, str) and wire.keyexpr_matches(e, topic)
-                                                              for e in k) for k in keys)
+            parsed = wire.parse_key(topic)
+            node = parsed[1] if parsed else ""
+            known[topic] = any(source.recording.subscribed_to_trace(node) for source in self.sources if source.hub)
         return known[topic]
 
     def _host_gaps(self, chosen: dict, held: list[set], ordered: list, unheard: dict) -> list[dict]:
