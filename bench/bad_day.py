@@ -340,8 +340,8 @@ def main() -> int:
         schedules = {seed: draw_schedule(seed, args.minutes * 60, nodes, cut_hosts=HOSTS[1:], recorder_hosts=HOSTS)
                      for seed in seeds}
     traces_home = not args.traces_at_hub
-    print(f"a bad day, {'a given schedule' if args.schedule is not None else 'seed' + ('s' if len(seeds) > 1 else '')} "
-          f"{'' if args.schedule is not None else args.seed + ', '}{args.minutes:g} min; {os.cpu_count()} cores, "
+    which = "a given schedule" if args.schedule is not None else f"seed{'s' if len(seeds) > 1 else ''} {args.seed}"
+    print(f"a bad day, {which}, {args.minutes:g} min; {os.cpu_count()} cores, "
           f"load average {' '.join(f'{x:.2f}' for x in os.getloadavg())}; arm's and camera's traces "
           f"{'stay home' if traces_home else 'go to the hub as well'}")
     for seed, schedule in schedules.items():
