@@ -83,7 +83,6 @@ class Hub:
                 listen = pinned(listen)
                 self.local = local_endpoints(listen)
         try:
-            # toward other hosts, a socket buffer that holds no seconds of a slowed link (transport.py)
             self.session = open_session(listen, connect, **(access.hub_options() if access else {}))
         except Exception as exc:  # noqa: BLE001 - zenoh says why in its message
             text = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
@@ -241,16 +240,9 @@ class Hub:
                 print(problem, flush=True)
 
 
-def counted_nodes(system: System, host: str | None) -> list:
-    """The nodes whose outputs `host`'s launcher counts for its summary: at the hub the run's
-    (but those of hosts that keep their traces home, which their own launchers count), the
-    host's own elsewhere."""
-    return system.nodes_traced_at(host)
-
-
 def trace_keys_counted(system: System, host: str | None) -> list[str]:
-    """The trace keys `host`'s launcher subscribes to for its summary (`counted_nodes`): at the hub
-    every node's by one key expression, unless some host keeps its traces home."""
+    """The trace keys `host`'s launcher subscribes to for its summary (`System.nodes_traced_at`): at
+    the hub every node's by one key expression, unless some host keeps its traces home."""
     if system.opens_hub(host) and not system.hosts_keeping_traces():
         return [wire.every_node(system.name, wire.TRACE)]
-    return [wire.trace_key(system.name, node.name) for node in counted_nodes(system, host)]
+    return [wire.trace_key(system.name, node.name) for node in system.nodes_traced_at(host)]

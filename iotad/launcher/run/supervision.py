@@ -37,7 +37,7 @@ from iotad.node_host import wire
 from iotad.kernel.clock import steady_wall
 from iotad.node_host.stop_signals import Flag
 from iotad.launcher.access.access_control import AccessControl
-from iotad.launcher.run.hub import Hub, LauncherError, counted_nodes
+from iotad.launcher.run.hub import Hub, LauncherError
 from iotad.launcher.run.node_run import NodeRun, NodeState
 from iotad.launcher.run.node_supervision import NodeSupervisor, settle, status_rows, stop_nodes
 from iotad.launcher.options import AccessOptions, LaunchOptions, RecordingOptions
@@ -407,7 +407,7 @@ class Launcher:
             violations, examples = Counter(self.tally.violations), self.tally.examples.lines()
             recordings = self.recorder.recordings if self.recorder is not None else []
             more = self.tally.examples.more(str(recordings[0]) if recordings else None)
-        for node in counted_nodes(system, self.host):  # another host's launcher: its own nodes
+        for node in system.nodes_traced_at(self.host):  # another host's launcher: its own nodes
             for channel in node.channels.values():
                 if channel.direction != "output":
                     continue
