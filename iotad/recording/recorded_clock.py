@@ -56,11 +56,23 @@ def offsets(recording: Any) -> list[Offset]:
 
 class ToHub:
     """Host clock nanoseconds -> hub clock nanoseconds, by the offset measured last before that
-    time (the first one before any measurement)."""
+    time (the first one before any measurement), and never earlier than any earlier host time's.
+
+    A new offset smaller than the one before would map the host's next moments before its last
+    ones: the merge, which orders by these times, would put a node's later events before its
+    earlier ones, and a check that replays its trace would judge them in that order. Where an
+    offset steps back, the hub's time holds still until the host's catches up, so a host's file
+    keeps its own order."""
 
     def __init__(self, measured: list[Offset]):
         self.measured = measured
         self._since = [o.since_ns for o in measured]
+        # per offset: the hub time that the host times before it reached, which none after may precede
+        self._floor: list[int | None] = [None]
+        for before, after in zip(measured, measured[1:]):
+            reached = after.since_ns + round(before.offset * 1e9)
+            last = self._floor[-1]
+            self._floor.append(reached if last is None else max(reached, last))
 
     def offset_at(self, ns: int) -> Offset | None:
         if not self.measured:
@@ -69,8 +81,12 @@ class ToHub:
         return self.measured[max(k, 0)]
 
     def __call__(self, ns: int) -> int:
-        offset = self.offset_at(ns)
-        return ns if offset is None else ns + round(offset.offset * 1e9)
+        if not self.measured:
+            return ns
+        k = max(bisect.bisect_right(self._since, ns) - 1, 0)
+        hub = ns + round(self.measured[k].offset * 1e9)
+        floor = self._floor[k]
+        return hub if floor is None or hub >= floor else floor
 
 
 def to_hub(recording: Any) -> ToHub:

@@ -323,6 +323,35 @@ def test_a_host_clock_measured_again_moves_later_times_by_the_newer_offset(tmp_p
     assert times == {1.0: ns(1.0) + MS, 3.0: ns(3.0) + MS}
 
 
+def test_an_offset_that_steps_back_keeps_the_host_files_own_order(tmp_path):
+    """A later measurement found the arm's offset 9 ms smaller: its events of the next 9 ms, moved
+    by it, would fall before the last ones moved by the offset before. The hub's time holds still
+    until the arm's catches up, so they keep the arm file's order (they once swapped a bus log's
+    inputs and outputs in the merge, and check judged its frame counter 8 frames ahead)."""
+    from iotad.recording.recorded_clock import to_hub
+
+    measured = ns(2.0) + 50 * MS
+    steps = [ns(2.0) + 50 * MS + k * MS for k in range(1, 25)]  # every ms after it, on the arm's clock
+    arm = write(tmp_path / "split.arm.mcap", "arm", [
+        (VISION, ns(1.9) + 50 * MS, ns(1.9) + 50 * MS, 0, event("vision", 1.9)),
+        (VISION, measured - MS, measured - MS, 1, event("vision", 1.999)),
+        ("iota/split/@launcher", measured, measured, 0,
+         {"event": "clock", "host": "arm", "t": 2.0, "offset": -0.059, "bound": 0.0002}),
+        *[(VISION, at, at, 2 + k, event("vision", 2.0 + (k + 1) / 1000)) for k, at in enumerate(steps)],
+    ], offset=-AHEAD)
+    clock = to_hub(read_recording(arm))
+    assert clock(measured - MS) == ns(2.0) - MS
+    # the new offset holds from the host's time of the measurement (t=2 on the hub's, +59 ms on
+    # the arm's), where the old one had reached t=2.009: held there until the new one passes it
+    assert [(clock(at) - ns(2.0)) // MS for at in steps] == [*range(1, 9), *[9] * 10, *range(10, 16)]
+    hub = write(tmp_path / "split.mcap", "brain", [scheduler(1.0, 0, ns(1.0) + MS)], hub=True)
+    merged = merge([hub, arm])
+    order = [m.value["t"] for m in merged.recording.messages if m.topic == VISION]
+    assert order == sorted(order) and len(order) == 26
+    times = [m.log_time for m in merged.recording.messages if m.topic == VISION]
+    assert times == sorted(times)
+
+
 def test_a_host_launcher_started_again_in_the_run_records_a_second_file_and_both_merge(tmp_path):
     """The arm's agent died and a new one took the arm's part again: its launcher recorded the
     rest to split.arm-2.mcap. Both files are the arm's; the stretch between them that only the
