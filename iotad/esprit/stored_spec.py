@@ -12,7 +12,7 @@ from typing import Any
 
 from iotad.esprit import load_iota, load_text
 from iotad.kernel.model import param_values
-from iotad.kernel.python_loader import LoadError, load_object, module_from_text, package_of
+from iotad.kernel.python_loader import LoadError, load_object, module_from_text, neighbour_sources, package_of
 from iotad.kernel.types import to_plain
 
 
@@ -32,6 +32,10 @@ def spec_record(iota: Any, path: str, time_unit: float = 1.0) -> dict:
         # the module's name too: a module of a package imports its neighbours relatively
         source = {"kind": "python", "ref": f"{file}:{cls.__name__}", "module": cls.__module__}
         text = Path(file).read_text() if file and Path(file).is_file() else None
+        if text is not None:
+            return {"path": path, "source": source, "text": text, "neighbours": neighbour_sources(file),
+                    "params": to_plain(param_values(iota)), "channels": channel_list(spec, param_values(iota)),
+                    "time_unit": time_unit}
     return {"path": path, "source": source, "text": text, "params": to_plain(param_values(iota)),
             "channels": channel_list(spec, param_values(iota)), "time_unit": time_unit}
 
@@ -62,7 +66,9 @@ def build_node(spec: dict, name: str | None = None) -> Any:
         file, _, cls_name = ref.rpartition(":")
         if text:
             try:
-                module = module_from_text(text, file, package_of(source.get("module"), file))
+                neighbours = spec.get("neighbours")
+                module = module_from_text(text, file, package_of(source.get("module"), file),
+                                          neighbours if isinstance(neighbours, dict) else None)
             except LoadError as exc:
                 raise StoredSpecError(str(exc)) from None
             cls = getattr(module, cls_name, None)

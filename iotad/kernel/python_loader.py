@@ -1,9 +1,12 @@
 """Loading a Python IOTA class named as "path/to/file.py:Class" or "package.module:Class", or from
-the source text a recording stored (`module_from_text`)."""
+the source text a recording stored (`module_from_text`), with the texts of the modules beside it
+that it imports (`neighbour_sources`)."""
 from __future__ import annotations
 
+import ast
 import hashlib
 import importlib
+import importlib.abc
 import importlib.util
 import linecache
 import os
@@ -157,12 +160,103 @@ def package_of(module: str | None, where: str) -> str | None:
     return module.rpartition(".")[0] or None
 
 
-def module_from_text(text: str, file: str, package: str | None = None) -> Any:
+# the most source text a node's neighbours may add to its stored spec (a folder of data files
+# named .py is no reason to make every recording megabytes larger)
+NEIGHBOURS_LIMIT = 1 << 20
+
+
+def neighbour_sources(file: str | Path) -> dict[str, str]:
+    """The source texts of the modules beside `file` (in its folder, no package's) that it imports,
+    and those they import, by module name: what a recording stores with a node's own text, so that
+    the node can be rebuilt where that folder is gone or has changed (a check on another machine,
+    or after an edit). Modules of packages and installed ones are left to the import system."""
+    folder = Path(file).parent
+    found: dict[str, str] = {}
+    pending = [Path(file)]
+    size = 0
+    while pending:
+        try:
+            tree = ast.parse(pending.pop().read_text())
+        except (OSError, SyntaxError, ValueError, UnicodeDecodeError):
+            continue  # the node's own load says what is wrong with it
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Import):
+                names = [alias.name for alias in node.names]
+            elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+                names = [node.module]
+            else:
+                continue
+            for name in names:
+                top = name.partition(".")[0]
+                path = folder / f"{top}.py"
+                if top in found or top == Path(file).stem or not path.is_file():
+                    continue
+                try:
+                    text = path.read_text()
+                except (OSError, UnicodeDecodeError):
+                    continue
+                size += len(text)
+                if size > NEIGHBOURS_LIMIT:
+                    return found
+                found[top] = text
+                pending.append(path)
+    return found
+
+
+class _StoredModules(importlib.abc.MetaPathFinder, importlib.abc.Loader):
+    """Imports the neighbour modules a recording stored, from their texts, ahead of any file."""
+
+    def __init__(self, texts: dict[str, str]):
+        self.texts = texts
+
+    def find_spec(self, name, path=None, target=None):
+        if name not in self.texts:
+            return None
+        return importlib.util.spec_from_loader(name, self, origin=f"<recorded {name}.py>")
+
+    def create_module(self, spec):
+        return None
+
+    def exec_module(self, module) -> None:
+        text = self.texts[module.__name__]
+        filename = f"<recorded {module.__name__}.py {hashlib.sha1(text.encode()).hexdigest()[:12]}>"
+        linecache.cache[filename] = (len(text), None, text.splitlines(True), filename)
+        module.__file__ = filename
+        exec(compile(text, filename, "exec"), module.__dict__)
+
+
+@contextmanager
+def _neighbours_from(texts: dict[str, str] | None):
+    """While a stored node's module runs: its stored neighbours are what `import` finds by their
+    names, not the files of the same names (changed since, or gone) nor modules of those names
+    this process imported before; afterwards, whatever was there before is back."""
+    if not texts:
+        yield
+        return
+    saved = {name: sys.modules.pop(name) for name in texts if name in sys.modules}
+    finder = _StoredModules(texts)
+    sys.meta_path.insert(0, finder)
+    try:
+        yield
+    finally:
+        sys.meta_path.remove(finder)
+        for name in texts:
+            sys.modules.pop(name, None)
+        sys.modules.update(saved)
+
+
+def module_from_text(text: str, file: str, package: str | None = None,
+                     neighbours: dict[str, str] | None = None) -> Any:
     """Import a Python source stored in a recording as a module (a LoadError if it does not run);
     its text goes to linecache so that the
     dependency analysis (iotad.kernel.dependencies) can still read the functions' source.
-    In `package` (imported first), so that its relative imports find the package's modules."""
-    digest = hashlib.sha1(text.encode()).hexdigest()[:12]
+    In `package` (imported first), so that its relative imports find the package's modules.
+    `neighbours`: the stored texts of the modules beside it that it imports (`neighbour_sources`),
+    which it gets instead of the files; without them (an older recording), the files, where they
+    still are."""
+    neighbours = {str(k): v for k, v in (neighbours or {}).items() if isinstance(v, str)}
+    digest = hashlib.sha1("\0".join([text, *(f"{k}\0{v}" for k, v in sorted(neighbours.items()))]).encode()
+                          ).hexdigest()[:12]
     name = f"_iotad_recorded_{digest}"
     if package:
         try:
@@ -183,7 +277,8 @@ def module_from_text(text: str, file: str, package: str | None = None) -> Any:
     module.__file__ = filename
     sys.modules[name] = module
     try:
-        exec(compile(text, filename, "exec"), module.__dict__)
+        with _neighbours_from(neighbours):
+            exec(compile(text, filename, "exec"), module.__dict__)
     except Exception as exc:
         del sys.modules[name]
         raise LoadError(f"stored source of {file}: {type(exc).__name__}: {exc}") from None

@@ -398,9 +398,17 @@ class NodeHost:
         config = self.config
         params = config.params if isinstance(self.root, Composite) else param_values(self.root)
         source = dict(config.source)
+        neighbours = {}
         if source.get("kind") == "python" and not isinstance(self.root, Composite):
             source["module"] = type(self.root).__module__  # replay resolves its relative imports there
+            where = str(source.get("ref", "")).rpartition(":")[0]
+            if where.endswith(".py") and self.text:
+                from iotad.kernel.python_loader import neighbour_sources
+
+                # the modules beside it that it imports, for a check where that folder is gone
+                neighbours = neighbour_sources(where)
         return {"system": config.system, "path": config.path, "source": source, "text": self.text,
+                **({"neighbours": neighbours} if neighbours else {}),
                 "params": plain_params(params), "channels": self.table.described,
                 "time_unit": config.time_unit, "origin": self.clock.origin_wall, "pid": os.getpid(),
                 "trace": wire.trace_key(config.system, config.path), "started": time.time(),

@@ -96,7 +96,15 @@ def test_a_stored_spec_that_no_longer_builds_is_named(recorded, tmp_path, capsys
     # Python: the requester's and scheduler's stored source
     path = rewrite(recorded, tmp_path / "spec.mcap",
                    attachment=_break_spec("scheduler", lambda text: text.replace("class Scheduler", "class Scheduler $", 1)))
-    for args in (["check", str(path)], ["replay", str(path), "--node", "scheduler"]):
+    # check says it of that node and judges the others; asked for that node alone, or to replay it,
+    # it is the one error
+    assert main(["check", str(path)]) == 1
+    out = capsys.readouterr().out.splitlines()
+    said = [line for line in out if line.startswith("scheduler: NOT CHECKED: ")]
+    assert len(said) == 1 and "SyntaxError" in said[0], out
+    assert any(line.startswith("vision: ") and "0 problem(s)" in line for line in out), out
+    assert out[-1].startswith("check: PROBLEMS FOUND (1 node(s) not checked)"), out
+    for args in (["check", str(path), "--node", "scheduler"], ["replay", str(path), "--node", "scheduler"]):
         status, err = run(args, tmp_path, capsys)
         assert status == 2 and len(err) == 1, err
         assert "scheduler" in err[0] and "SyntaxError" in err[0]
@@ -106,9 +114,9 @@ def test_a_stored_spec_that_no_longer_builds_is_named(recorded, tmp_path, capsys
     record_run(load_text(COMPOSITE, "clocked.iota").factory("clocked")("clocked"), esprit, until=5,
                inputs=[{"t": 0.0, "action": "go"}])
     path = rewrite(esprit, tmp_path / "esprit.mcap", attachment=_break_spec("clocked", lambda text: "$" + text))
-    status, err = run(["check", str(path)], tmp_path, capsys)
-    assert status == 2 and len(err) == 1, err
-    assert "the spec of node 'clocked' stored in" in err[0] and "does not build: EspritError" in err[0]
+    assert main(["check", str(path)]) == 1
+    out = capsys.readouterr().out
+    assert "clocked: NOT CHECKED: the spec of node 'clocked' stored in" in out and "does not build: EspritError" in out
 
 
 @pytest.mark.parametrize("damage", [lambda data: None, lambda data: b"{not json", lambda data: b"[1, 2]"],
