@@ -8,7 +8,8 @@ downstream of where the object will be when the hand is down, even if the progra
 (the scheduler's mdl_command has a switching time of 1 s), so the hand waits still and the belt
 does the last centimetres; the wait ends on an interrupt, `near.dy < close_at`: vision sees the
 object under the camera, which looks along the gripper's axis, that close upstream of the
-fingers (or after `max_wait`). Arm lag and a late start do not matter. The request's epoch is the program's length:
+fingers, or once the hand has waited `hold_margin` past the wait the goal predicts (`max_wait` at
+most), so that the program ends within its epoch. Arm lag and a late start do not matter. The request's epoch is the program's length:
 the scheduler commits it when the motion is over and gives the arm back (vision resumes).
 `done` tells planning how the request ended (COMMIT: the motion ran).
 
@@ -53,6 +54,13 @@ class ManipulationControl(Iota):
     carry_time = Param(1.0)
     open_time = Param(0.45)       # s to open it (a ramp cut short leaves it half closed: no release)
     epoch_margin = Param(0.4)     # s more than the program should take (camera frames, sensor ages)
+    # s the hand waits down past the expected wait at most, less than epoch_margin: the program
+    # ends within its epoch. A wait to max_wait outlived it (the object came later than a stale
+    # goal said, or vision's `near` was cut off with the camera), the scheduler committed the
+    # pick in the middle of its carry, the gripper stayed closed on the object, and the camera
+    # took the held object for new ones on the belt: picks of nothing for 16 s of a bad day.
+    # Closing on time instead misses at worst, and a missed object is picked again (planning).
+    hold_margin = Param(0.3)
     above = Param(0.10)           # m above the object's centre on the way in and out
     carry_height = Param(0.30)    # m: grasp point height over the bin
     grasp_offset = Param(0.01)    # m: grasp point above the object's centre when closing
@@ -65,6 +73,9 @@ class ManipulationControl(Iota):
     done = Output(PICK_DONE)
 
     def init(self):
+        if not 0 <= self.hold_margin < self.epoch_margin:
+            raise ValueError(f"hold_margin ({self.hold_margin!r} s) must be at least 0 and less than epoch_margin "
+                             f"({self.epoch_margin!r} s): the pick must end within its epoch")
         self.current = None     # the target being picked
         self.out_req = None
         self.out_done = []
@@ -108,17 +119,19 @@ class ManipulationControl(Iota):
         meet_y = min(goal.y + goal.vy * (down - goal.t) - self.close_at - MARGIN, self.meet_y_max)
         x = goal.x
         z_in, z_grasp = OBJECT_Z + self.above, OBJECT_Z + self.grasp_offset
+        expected = self._expected_wait(goal, now, meet_y)
+        wait = min(self.max_wait, expected + self.hold_margin)
         atoms = [
             {"u": {"kind": "minimum_jerk", "pose": hand_pose(x, meet_y, z_in)}, "T": self.approach_time},
             {"u": {"kind": "minimum_jerk", "pose": hand_pose(x, meet_y, z_grasp)}, "T": self.down_time},
-            {"u": {"kind": "hold"}, "T": self.max_wait, "xi": f"near.dy < {self.close_at!r}"},
+            {"u": {"kind": "hold"}, "T": wait, "xi": f"near.dy < {self.close_at!r}"},
             {"u": {"kind": "ramp", "target": {GRIPPER: CLOSED}}, "T": self.close_time},
             {"u": {"kind": "minimum_jerk", "pose": hand_pose(x, meet_y, z_in + 0.08)}, "T": self.lift_time},
             {"u": {"kind": "minimum_jerk", "pose": hand_pose(*self._drop_point(), self.carry_height)},
              "T": self.carry_time},
             {"u": {"kind": "ramp", "target": {GRIPPER: OPEN}}, "T": self.open_time},
         ]
-        epoch = sum(a["T"] for a in atoms) - self.max_wait + self._expected_wait(goal, now, meet_y) + self.epoch_margin
+        epoch = sum(a["T"] for a in atoms) - wait + expected + self.epoch_margin
         program = program_from_plain({"id": f"pick-{goal.target}", "behaviours": [
             {"name": "approach", "atoms": atoms[:3]}, {"name": "grasp", "atoms": atoms[3:5]},
             {"name": "place", "atoms": atoms[5:]}]})

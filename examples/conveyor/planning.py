@@ -60,6 +60,11 @@ class Planning(Iota):
     forget_after = Param(15.0)   # s unseen after which a track is given up (longer than a pick, while
                                  # sightings are ignored; a cut camera's tracks go, new ones come after)
     belt_half_width = Param(0.08)  # m: sightings further from the belt's centre line are not objects on it
+    # s: a pick goal only from a target seen this recently (picks are decided on sightings 5-26 ms
+    # old). A track unseen for seconds (the camera cut off) predicts the object wrongly: a bad day's
+    # picks from 4-6 s old tracks met nothing, or waited past their epoch. Such a target is looked
+    # at again first.
+    pick_fresh = Param(0.25)
 
     seen = Input(SIGHTING)
     done = Input(PICK_DONE)
@@ -160,7 +165,8 @@ class Planning(Iota):
                 self.out_look = LOOK_GOAL(target=target.id, x=target.x, y=target.y1,
                                           vy=target.velocity(vy0, self.fit_after), t=target.t1)
         # its own fit first: an object that only the prior says is moving may lie off the belt
-        if target is None or target.hits < self.min_sightings or target.t1 - target.t0 < self.fit_after:
+        if target is None or target.hits < self.min_sightings or target.t1 - target.t0 < self.fit_after \
+                or now - target.t1 > self.pick_fresh:
             return
         vy = target.velocity(vy0, self.fit_after)
         if target.y_at(now + self.pick_lead, vy) <= self.pick_y:

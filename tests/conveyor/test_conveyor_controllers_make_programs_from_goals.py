@@ -57,6 +57,27 @@ def picking_the_first_object(monkeypatch):
     return planning, t, y
 
 
+def test_a_target_not_seen_for_a_while_is_looked_at_again_before_it_is_picked(monkeypatch):
+    """A track the camera lost (cut off) would be picked where its fit puts it by now: a bad day's
+    picks from 4-6 s old tracks met nothing. It is looked at first, and picked once seen again."""
+    planning = Planning("planning")
+    planning.init()
+    t, y = 2.0, 0.50
+    while t < 3.5:  # tracked until it is nearly in reach
+        feed(planning, monkeypatch, t, y)
+        t, y = t + 0.1, y - 0.005
+    assert planning.out_pick is None
+    # unseen for 3 s (the camera's host cut off); a sighting of something else off the belt
+    # line wakes planning: by its fit the object is in reach, but its last sighting is old
+    later = t + 3.0
+    monkeypatch.setattr("planning.esprit_now", lambda: later)
+    planning.on_seen(sighting(later, 0.45, x=0.2))
+    assert planning.out_pick is None
+    assert planning.out_look is not None and planning.out_look.target == 0
+    feed(planning, monkeypatch, later + 0.1, y - 0.05 * 3.1)  # seen again where the belt brought it
+    assert planning.out_pick is not None and planning.out_pick.target == 0
+
+
 def test_an_object_seen_on_the_belt_after_its_pick_committed_is_picked_again(monkeypatch):
     """COMMIT says the pick's motion ran for its epoch, not that the hand holds the object: after
     a cut or a stall the hand may close on nothing (a 10-minute bad day had 20 picks that ran to
@@ -136,9 +157,14 @@ def test_manipulation_asks_for_the_arm_with_one_pick_program(monkeypatch):
     assert down.position[2] < approach.position[2]
     assert atoms[2].xi == f"near.dy < {manipulation.close_at!r}"
     assert dict(atoms[3].u.target) == {"drive_joint": 0.85} and dict(atoms[6].u.target) == {"drive_joint": 0.0}
-    # the epoch covers the program when it starts at once (the longest wait)
+    # the epoch covers the program when it starts at once (the longest wait), and the hand waits
+    # hold_margin past the expected wait at most: the whole program, waiting its longest, ends
+    # within the epoch (a pick committed mid-carry kept the object in its closed gripper)
     fixed = sum(a.T for a in atoms) - atoms[2].T
-    assert request.epoch > fixed
+    expected = request.epoch - fixed - manipulation.epoch_margin
+    assert 0 < expected < manipulation.max_wait - manipulation.hold_margin
+    assert atoms[2].T == pytest.approx(expected + manipulation.hold_margin)
+    assert sum(a.T for a in atoms) < request.epoch
     # one pick at a time; the ack reports it to planning
     manipulation.on_goal(PICK_GOAL(target=4, x=0.46, y=0.5, vy=-0.05, t=6.0))
     assert manipulation.current == 3
