@@ -12,7 +12,8 @@ was bound) and its node host feeds it one event each time a node bound to one of
 source it waits on) or one of its outputs (a reader that may have lost what it was sent: the MDL
 interpreter lost the program the scheduler sent it) comes back after it went away:
 its liveliness token `iota/<system>/<peer>/@alive` vanished (killed, crashed, stopped by the
-launcher as frozen) and reappeared. A node host declares the token after its subscribers, so a
+launcher as frozen) and reappeared with another process behind it (a host cut off past zenoh's
+lease loses its tokens too, and brings them back with the same processes: no notice). A node host declares the token after its subscribers, so a
 request sent on the notice reaches the new process. The notice arrives as an input from the
 node's own key `iota/<system>/<node>/peer_restart`, so it is in the trace and the recording, and
 replay feeds it back like any input; `iotad pub` can send one by hand.
@@ -74,17 +75,30 @@ def notice_values(channel_type: Any, channels: Iterable[str]) -> list[Any]:
 
 
 class PeerWatch:
-    """Calls `on_restart(peer_path)` (on a zenoh thread) each time the liveliness token of one of
-    `peers` (node paths of `system`) reappears after it vanished. A token already there when the
-    watch starts, or that first appears later, is a start, not a restart."""
+    """Calls `on_restart(peer_path)` each time the liveliness token of one of `peers` (node paths
+    of `system`) reappears after it vanished, and the process behind it is another one. A token
+    already there when the watch starts, or that first appears later, is a start, not a restart.
 
-    def __init__(self, session: Any, system: str, peers: Iterable[str], on_restart: Callable[[str], None]):
-        self.system, self.peers = system, set(peers)
+    A token also vanishes when its host is cut off for longer than zenoh's lease (10 s), and comes
+    back with the links, its process untouched: no restart, and a notice would make an IOTA give
+    up what it asked of it (vision asked the scheduler again for a goal 23 s old, out of reach).
+    So the watch asks each peer who it is (its `@spec` answer's pid and start time) when its
+    token appears, and again when it comes back: the same process is a `rejoin` (counted, no
+    notice); another one, or no answer within `ask_timeout`, is a restart. The asking is done on
+    a thread of the watch's own, never on zenoh's."""
+
+    def __init__(self, session: Any, system: str, peers: Iterable[str], on_restart: Callable[[str], None],
+                 ask_timeout: float = 2.0):
+        self.session, self.system, self.peers = session, system, set(peers)
         self._on_restart = on_restart
+        self.ask_timeout = ask_timeout
         self._lock = threading.Lock()
         self._present: set[str] = set()
         self._lost: set[str] = set()
+        self._process: dict[str, tuple | None] = {}  # the (pid, start) behind each peer's token
         self.restarts: dict[str, int] = {}
+        self.rejoins: dict[str, int] = {}
+        self._closed = threading.Event()
         self.subscriber = session.liveliness().declare_subscriber(
             wire.every_node(system, wire.ALIVE), self._on_sample, history=True)
 
@@ -102,14 +116,39 @@ class PeerWatch:
             if path in self._present:
                 return  # the same token seen twice (history and live)
             self._present.add(path)
-            restarted = path in self._lost
+            back = path in self._lost
             self._lost.discard(path)
-            if restarted:
-                self.restarts[path] = self.restarts.get(path, 0) + 1
-        if restarted:
+        threading.Thread(target=self._identify, args=(path, back), name=f"peer {path}", daemon=True).start()
+
+    def _identify(self, path: str, back: bool) -> None:
+        process = self.process_of(path)
+        with self._lock:
+            before = self._process.get(path)
+            self._process[path] = process
+            if not back or self._closed.is_set():
+                return
+            rejoined = process is not None and process == before
+            counts = self.rejoins if rejoined else self.restarts
+            counts[path] = counts.get(path, 0) + 1
+        if not rejoined:
             self._on_restart(path)
 
+    def process_of(self, path: str) -> tuple | None:
+        """(pid, start time) of the process that answers for `path` now, None without an answer."""
+        try:
+            for reply in self.session.get(wire.node_key(self.system, path, wire.SPEC), timeout=self.ask_timeout):
+                ok = getattr(reply, "ok", None)
+                if ok is None:
+                    continue
+                described = wire.decode(ok.payload.to_bytes())
+                if isinstance(described, dict) and described.get("pid") is not None:
+                    return described.get("pid"), described.get("started")
+        except Exception:  # noqa: BLE001 - a closed session, a refused query: who it is stays unknown
+            return None
+        return None
+
     def undeclare(self) -> None:
+        self._closed.set()
         self.subscriber.undeclare()
 
 
@@ -125,9 +164,12 @@ def watch_for_host(session: Any, config: Any, channel_type: Any, post: Callable[
     key = wire.channel_key(config.system, config.path, PEER_RESTART)
     payloads = {peer: [wire.encode(value) for value in notice_values(channel_type, channels)]
                 for peer, channels in peers.items()}
+    payloads = {peer: notices for peer, notices in payloads.items() if notices}  # the peers it cares about
+    if not payloads:
+        return None
 
     def restarted(peer: str) -> None:
         for payload in payloads[peer]:
             post(RawInput(PEER_RESTART, None, payload, None, key))
 
-    return PeerWatch(session, config.system, peers, restarted)
+    return PeerWatch(session, config.system, payloads, restarted)

@@ -1,5 +1,6 @@
 """Who may write what, derived from a checked system: per node the key expressions it may
-publish (its outputs, `@trace`, `@heartbeat`, its `@alive` token and `@spec` replies) and
+publish (its outputs, `@trace`, `@heartbeat`, its `@alive` token and `@spec` replies), query (the
+`@spec` of the peers whose restarts it is told of, to tell a restart from a return) and
 subscribe (the outputs bound to its inputs, and its own input keys), read access for the recorder
 and the introspection tools, and write access for `iotad pub` only on the inputs named in
 `[system.debug] allow_pub`. `Policy.acl()` turns it into zenoh's own `access_control`
@@ -11,6 +12,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from iotad.node_host import wire
+from iotad.node_host.peer_restart import PEER_RESTART, notice_values, peers_of
 from iotad.launcher.system.ros2_tables import widen_grant
 from iotad.launcher.system.system_file import System
 
@@ -125,6 +127,13 @@ def derive(system: System) -> Policy:
             # its launcher measures the host's clock during the run; the node's clock follows
             grant.subscribe.append(wire.host_origin_key(name, node.host))
         grant.serve = [f"{base}/{wire.SPEC}"]
+        if PEER_RESTART in node.channels:
+            # its host asks a peer whose token came back which process it is (a restart, or the
+            # same one back after a cut past the lease): the @spec of those peers, no other's
+            kind = node.channels[PEER_RESTART].type
+            peers = peers_of(name, node.name, system.inputs_of(node.name), system.readers_of(node.name))
+            grant.ask = [wire.node_key(name, peer, wire.SPEC) for peer, channels in sorted(peers.items())
+                         if notice_values(kind, channels)]
         grant.tokens = [f"{base}/{wire.ALIVE}"]
         # peer_restart inputs watch the others' tokens; every node waits for its launcher's start gate
         grant.watch = [wire.every_node(name, wire.ALIVE), wire.gate_key(name, "*")]
