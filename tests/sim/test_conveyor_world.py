@@ -189,3 +189,18 @@ def test_cubes_at_rest_in_the_bin_sleep_and_a_newcomer_lands_on_them(world):
     # it did not fall through the sleeping cube: it rests on top of it, both in the bin
     assert z1 == pytest.approx(z0 + world.cube_size, abs=0.01)
     assert z0 == pytest.approx(0.01 + world.cube_size / 2, abs=0.01)  # on the bin's floor (0.01 thick)
+
+
+def test_a_cube_at_rest_on_a_pile_higher_than_the_rim_is_in_the_bin(world):
+    import pybullet
+
+    for cube in world.cubes:
+        cube.spawn_time = math.inf  # none rides in: the test places them
+    pile = world.cubes[:3]
+    for k, cube in enumerate(pile):  # one on the other, at the bin's centre
+        drop_into_bin(world, cube, 0.03 + k * (world.cube_size + 0.005))
+        for _ in range(round(1.0 / DT)):
+            world.step()
+    top = pybullet.getBasePositionAndOrientation(pile[-1].body, physicsClientId=world.client)[0]
+    assert top[2] > world.bin_height  # its centre over the rim
+    assert [cube.state for cube in pile] == ["placed"] * 3 and world.placed == 3
