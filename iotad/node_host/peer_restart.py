@@ -13,8 +13,9 @@ source it waits on) or one of its outputs (a reader that may have lost what it w
 interpreter lost the program the scheduler sent it) comes back after it went away:
 its liveliness token `iota/<system>/<peer>/@alive` vanished (killed, crashed, stopped by the
 launcher as frozen) and reappeared with another process behind it (a host cut off past zenoh's
-lease loses its tokens too, and brings them back with the same processes: no notice). A node host declares the token after its subscribers, so a
-request sent on the notice reaches the new process. The notice arrives as an input from the
+lease loses its tokens too, and brings them back with the same processes: no notice). A node
+host declares the token after its subscribers and its `@spec` queryable, so a request sent on
+the notice reaches the new process, and the watch can ask it who it is. The notice arrives as an input from the
 node's own key `iota/<system>/<node>/peer_restart`, so it is in the trace and the recording, and
 replay feeds it back like any input; `iotad pub` can send one by hand.
 
