@@ -1,5 +1,6 @@
 """Systems and recording helpers several test folders share: the Figure 2 demo system, an ESPRIT
-composite, a way to tamper with a recorded trace, and the check of a real-time run's recording."""
+composite, a way to tamper with a recorded trace, a message-by-message copy of a recording with
+payloads or attachments changed (`rewrite`), and the check of a real-time run's recording."""
 import contextlib
 import io
 import re
@@ -108,3 +109,24 @@ def check_of_a_real_run(path, *options: str) -> str:
                 expired = re.match(r"(\S+) was enabled at t=(\S+) and had to fire by", text)
                 assert expired and expired.groups() in fired_late, out
     return out
+
+
+def rewrite(source, target, data=lambda topic, k, data: data, attachment=lambda name, data: data):
+    """Copy a recording message by message: `data(topic, k, bytes)` is the k-th message of that
+    topic's new payload; `attachment(name, bytes)` an attachment's (None drops it)."""
+    recording = read_recording(source)
+    sink = McapSink(target)
+    for item in recording.attachments:
+        changed = attachment(item.name, item.data)
+        if changed is not None:
+            sink.attach(item.name, item.media_type, changed)
+    for name, fields in recording.metadata.items():
+        sink.writer.add_metadata(name, fields)
+    seen = {}
+    for message in recording.messages:
+        k = seen[message.topic] = seen.get(message.topic, -1) + 1
+        channel = sink.channel(message.topic, "any", {})
+        sink.write(channel, message.log_time, message.publish_time, message.sequence,
+                   data(message.topic, k, message.data))
+    sink.finish()
+    return target

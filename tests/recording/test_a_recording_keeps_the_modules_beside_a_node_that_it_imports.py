@@ -13,6 +13,7 @@ from iotad.kernel.compose import Composite
 from iotad.kernel.python_loader import load_object, neighbour_sources
 from iotad.recording.engine_sink import record_run
 from iotad.recording.mcap_reader import read_recording
+from recorded_systems import rewrite
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -84,8 +85,6 @@ def test_a_recording_without_them_whose_neighbours_are_gone_says_so_for_that_nod
     folder = tmp_path / "robot"
     path = recorded(tmp_path)
     # what a recording of an older iotad holds: the node's own text alone
-    from test_damaged_recordings_are_clear_errors_not_passes import rewrite
-
     def older(name, data):
         if name != "spec/counter.json":
             return data

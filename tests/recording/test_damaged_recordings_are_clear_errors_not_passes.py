@@ -12,7 +12,7 @@ from iotad.recording.engine_sink import record_run
 from iotad.recording.mcap_format import packb
 from iotad.recording.mcap_reader import read_recording
 from iotad.recording.mcap_sink import McapSink
-from recorded_systems import COMPOSITE, figure2
+from recorded_systems import COMPOSITE, figure2, rewrite
 
 READERS = [["info"], ["check"], ["replay", "--node", "scheduler"], ["export", "--json", "-o", "{out}"]]
 
@@ -22,27 +22,6 @@ def recorded(tmp_path_factory):
     path = tmp_path_factory.mktemp("rec") / "fig2.mcap"
     record_run(figure2(), path, until=30)
     return path
-
-
-def rewrite(source, target, data=lambda topic, k, data: data, attachment=lambda name, data: data):
-    """Copy a recording message by message: `data(topic, k, bytes)` is the k-th message of that
-    topic's new payload; `attachment(name, bytes)` an attachment's (None drops it)."""
-    recording = read_recording(source)
-    sink = McapSink(target)
-    for item in recording.attachments:
-        changed = attachment(item.name, item.data)
-        if changed is not None:
-            sink.attach(item.name, item.media_type, changed)
-    for name, fields in recording.metadata.items():
-        sink.writer.add_metadata(name, fields)
-    seen = {}
-    for message in recording.messages:
-        k = seen[message.topic] = seen.get(message.topic, -1) + 1
-        channel = sink.channel(message.topic, "any", {})
-        sink.write(channel, message.log_time, message.publish_time, message.sequence,
-                   data(message.topic, k, message.data))
-    sink.finish()
-    return target
 
 
 def first_trace_event(change):
