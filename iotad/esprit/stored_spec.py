@@ -32,11 +32,9 @@ def spec_record(iota: Any, path: str, time_unit: float = 1.0) -> dict:
         # the module's name too: a module of a package imports its neighbours relatively
         source = {"kind": "python", "ref": f"{file}:{cls.__name__}", "module": cls.__module__}
         text = Path(file).read_text() if file and Path(file).is_file() else None
-        if text is not None:
-            return {"path": path, "source": source, "text": text, "neighbours": neighbour_sources(file),
-                    "params": to_plain(param_values(iota)), "channels": channel_list(spec, param_values(iota)),
-                    "time_unit": time_unit}
-    return {"path": path, "source": source, "text": text, "params": to_plain(param_values(iota)),
+    # a Python node's: the modules beside it that it imports (docs/internals.md, `neighbours`)
+    neighbours = {"neighbours": neighbour_sources(file)} if source["kind"] == "python" and text is not None else {}
+    return {"path": path, "source": source, "text": text, **neighbours, "params": to_plain(param_values(iota)),
             "channels": channel_list(spec, param_values(iota)), "time_unit": time_unit}
 
 

@@ -153,21 +153,27 @@ class PeerWatch:
         self.subscriber.undeclare()
 
 
+def told_of(system: str, path: str, inputs: dict[str, list[str]], readers: dict[str, list[str]] | None,
+            channel_type: Any) -> dict[str, list[Any]]:
+    """peer node path -> the values of the notices its restart makes (`notice_values`), for the
+    peers whose restarts the node is told of at all: what its host watches, and whose `@spec`
+    the access policy lets it ask (to tell a restart from a return after a cut)."""
+    notices = {peer: notice_values(channel_type, channels)
+               for peer, channels in peers_of(system, path, inputs, readers).items()}
+    return {peer: values for peer, values in notices.items() if values}
+
+
 def watch_for_host(session: Any, config: Any, channel_type: Any, post: Callable[[Any], None]) -> PeerWatch | None:
     """The node host's watch: for a root IOTA with a `peer_restart` input, post a notice to the
     engine (`post`, never dropped by a full input queue) for each restart of a node bound to
-    one of its inputs or outputs. None when the IOTA has no such input or no peers."""
+    one of its inputs or outputs. None when the IOTA has no such input or no peers it is told of."""
     from iotad.node_host.host_clock import RawInput
 
-    peers = peers_of(config.system, config.path, config.inputs, config.readers)
-    if not peers:
+    notices = told_of(config.system, config.path, config.inputs, config.readers, channel_type)
+    if not notices:
         return None
     key = wire.channel_key(config.system, config.path, PEER_RESTART)
-    payloads = {peer: [wire.encode(value) for value in notice_values(channel_type, channels)]
-                for peer, channels in peers.items()}
-    payloads = {peer: notices for peer, notices in payloads.items() if notices}  # the peers it cares about
-    if not payloads:
-        return None
+    payloads = {peer: [wire.encode(value) for value in values] for peer, values in notices.items()}
 
     def restarted(peer: str) -> None:
         for payload in payloads[peer]:

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from iotad.node_host import wire
-from iotad.node_host.peer_restart import PEER_RESTART, notice_values, peers_of
+from iotad.node_host.peer_restart import PEER_RESTART, told_of
 from iotad.launcher.system.ros2_tables import widen_grant
 from iotad.launcher.system.system_file import System
 
@@ -130,10 +130,9 @@ def derive(system: System) -> Policy:
         if PEER_RESTART in node.channels:
             # its host asks a peer whose token came back which process it is (a restart, or the
             # same one back after a cut past the lease): the @spec of those peers, no other's
-            kind = node.channels[PEER_RESTART].type
-            peers = peers_of(name, node.name, system.inputs_of(node.name), system.readers_of(node.name))
-            grant.ask = [wire.node_key(name, peer, wire.SPEC) for peer, channels in sorted(peers.items())
-                         if notice_values(kind, channels)]
+            peers = told_of(name, node.name, system.inputs_of(node.name), system.readers_of(node.name),
+                            node.channels[PEER_RESTART].type)
+            grant.ask = [wire.node_key(name, peer, wire.SPEC) for peer in sorted(peers)]
         grant.tokens = [f"{base}/{wire.ALIVE}"]
         # peer_restart inputs watch the others' tokens; every node waits for its launcher's start gate
         grant.watch = [wire.every_node(name, wire.ALIVE), wire.gate_key(name, "*")]
