@@ -491,7 +491,22 @@ def virtual_arm(seconds: float = 5.0) -> dict:
     return {"virtual_s": seconds, "wall_s": wall, "speed": seconds / wall, "events": len(engine.trace)}
 
 
-def inside(count: int, seconds: float, rate: float = RATE, faults: int = 20, tpdo_timeout: int = 25) -> None:
+BUSY = "while True: pass"  # one core's worth of other work: a robot's vision or planning beside the node
+
+
+def busy_processes(count: int) -> list[subprocess.Popen]:
+    return [subprocess.Popen([sys.executable, "-c", BUSY]) for _ in range(count)]
+
+
+def stop_all(processes: list[subprocess.Popen]) -> None:
+    for process in processes:
+        process.kill()
+    for process in processes:
+        process.wait()
+
+
+def inside(count: int, seconds: float, rate: float = RATE, faults: int = 20, tpdo_timeout: int = 25,
+           busy: int = 0, protocols: tuple[str, ...] = ("odrive", "cia402")) -> None:
     """The measuring side, inside the tier: start the echo peer, measure, stop it."""
     import can
 
@@ -509,8 +524,13 @@ def inside(count: int, seconds: float, rate: float = RATE, faults: int = 20, tpd
         if peer.poll() is None:
             peer.kill()
             peer.wait()
-    motor = motor_loop(seconds, rate, faults=faults) if seconds > 0 else None
-    cia402 = motor_loop(seconds, rate, protocol="cia402", faults=faults, tpdo_timeout=tpdo_timeout) if seconds > 0 else None
+    others = busy_processes(busy)  # beside the motor loops only: the round trips above are the baseline
+    try:
+        motor = motor_loop(seconds, rate, faults=faults) if seconds > 0 and "odrive" in protocols else None
+        cia402 = (motor_loop(seconds, rate, protocol="cia402", faults=faults, tpdo_timeout=tpdo_timeout)
+                  if seconds > 0 and "cia402" in protocols else None)
+    finally:
+        stop_all(others)
     print("RESULT " + json.dumps({"raw": raw, "iotad": wrapped, "motor": motor, "cia402": cia402,
                                   "tier": os.environ.get("IOTAD_CAN_TIER")}))
 
@@ -526,21 +546,31 @@ def main() -> int:
     parser.add_argument("--tpdo-timeout", type=int, default=25,
                         help="the CiA 402 joints' TPDO timeout, SYNCs (25: 50 ms at 500 Hz; the node's default is 3)")
     parser.add_argument("--tier", help="vcan | uml | udp_multicast (default: the best here)")
+    parser.add_argument("--busy", type=int, default=0,
+                        help="processes that each keep a core busy beside the motor loops (0), as a robot's "
+                             "vision and planning would")
+    parser.add_argument("--protocols", default="odrive,cia402",
+                        help="the motor loops to run: odrive, cia402 or both (default odrive,cia402)")
     parser.add_argument("--inside", action="store_true", help=argparse.SUPPRESS)
     parser.add_argument("--echo", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
+    unknown = set(args.protocols.split(",")) - {"odrive", "cia402"}
+    if unknown:
+        parser.error(f"--protocols: unknown {', '.join(sorted(unknown))}; choose odrive, cia402 or both")
     if args.echo:
         echo()
         return 0
     if args.inside:
-        inside(args.count, args.seconds, args.rate, args.faults, args.tpdo_timeout)
+        inside(args.count, args.seconds, args.rate, args.faults, args.tpdo_timeout, args.busy,
+               tuple(args.protocols.split(",")))
         return 0
     from iotad.can.tiers import TierBus
 
     bus = TierBus(args.tier)
     print(f"CAN tier: {bus.describe()}  (interface {bus.interface}, channel {bus.channel})", flush=True)
     result = bus.run([sys.executable, __file__, "--inside", "--count", str(args.count), "--seconds", str(args.seconds),
-                      "--rate", str(args.rate), "--faults", str(args.faults), "--tpdo-timeout", str(args.tpdo_timeout)],
+                      "--rate", str(args.rate), "--faults", str(args.faults), "--tpdo-timeout", str(args.tpdo_timeout),
+                      "--busy", str(args.busy), "--protocols", args.protocols],
                      timeout=600 + args.seconds, cwd=str(ROOT))
     result.check()
     report = json.loads(next(l for l in result.output.splitlines() if l.startswith("RESULT "))[7:])
@@ -551,6 +581,9 @@ def main() -> int:
               f"{figures['mean_us']:9.1f} {figures['max_us']:9.1f}")
     print(f"iotad.can.bus / raw: p50 x{wrapped['p50_us'] / raw['p50_us']:.2f}, "
           f"p99 x{wrapped['p99_us'] / raw['p99_us']:.2f}   (run took {result.seconds:.1f} s, tier {bus.name})")
+    if args.busy:
+        print(f"\nbeside the motor loops: {args.busy} busy process(es), each spinning on a core "
+              f"(this machine has {os.cpu_count()} cores)")
     motor = report["motor"]
     if motor:
         print(f"\nmotor node, {JOINTS} joints at {args.rate:g} Hz for {motor['seconds']:.1f} s "

@@ -9,8 +9,8 @@ Interfaces: `socketcan` (a Linux CAN device: vcan0, can0), `udp_multicast` (an I
 standing for a bus, allowed only inside a private network namespace), `virtual` (python-can's
 in-process bus, for one process). Every `RealTimeBus` is the same small interface, python-can's
 BusABC (`send`, `recv`, `fileno`, `shutdown`), plus `send_frame`/`recv_frame`, a `name` and
-`describe()`. A bus never hands back a frame it sent itself (python-can's udp_multicast does, so
-the frames it sent are filtered out).
+`describe()`. A bus never hands back a frame it sent itself. `udp_multicast` is iotad's own
+station (`iotad.can.udp_multicast`) on python-can's wire format: the two share a bus.
 Failures to open say why and what to do (`BusUnavailable`). The interface name `env` (no
 channel) opens the bus the environment names, as `open_env_bus` does.
 """
@@ -20,7 +20,6 @@ import errno
 import os
 import socket
 import time
-from collections import deque
 
 from .frame import Frame, FrameError
 
@@ -28,7 +27,6 @@ INTERFACES = ("socketcan", "udp_multicast", "virtual")
 ENV = "env"  # not an interface: "the bus the environment names" (a tier's IOTAD_CAN_INTERFACE/CHANNEL)
 UDP_GROUP = "239.74.163.2"   # the project's IPv4 group for udp_multicast buses
 UDP_PORT = 43113
-OWN_WAIT, OWN_LIMIT = 2.0, 4096  # udp_multicast: s a sent frame may take to come back; sends remembered at most
 
 VIRTUAL_CHANNEL = "iotad"
 
@@ -38,33 +36,26 @@ TIER_HINT = ("run it with a CAN bus: `python -m iotad.can.tiers run -- CMD...` (
              "network namespace, or in user-mode Linux where the kernel has no CAN; docs/can.md)")
 
 
-def _content(msg) -> tuple:
-    """What tells one frame from another: equal contents are interchangeable on a bus."""
-    return msg.arbitration_id, msg.is_extended_id, msg.is_remote_frame, msg.dlc, bytes(msg.data)
-
-
 class BusUnavailable(RuntimeError):
     """A bus that cannot be opened here; the message says why and what to do instead."""
 
 
 class RealTimeBus:
     """One open CAN bus with python-can's BusABC interface (`send(msg)`, `recv(timeout)` of
-    `can.Message`s, `fileno`, `shutdown`), plus `send_frame`/`recv_frame` in `Frame`s. `send`
-    takes a `Frame` too. Never hands back a frame it sent itself."""
+    `can.Message`s, `fileno`, `shutdown`), plus `send_frame`/`recv_frame` in `Frame`s and
+    `recv_plain`, what a node's CAN port takes. `send` takes a `Frame` too. Never hands back a
+    frame it sent itself (udp_multicast's own station drops them: `iotad.can.udp_multicast`)."""
 
-    def __init__(self, bus, interface: str, channel: str, filter_own: bool = False):
+    def __init__(self, bus, interface: str, channel: str):
         self.bus = bus                   # the python-can BusABC underneath
         self.interface, self.channel = interface, channel
         self.name = f"{interface}:{channel}"
         self.sent = self.received = 0
-        # udp_multicast hands every frame back to its sender: remember what was sent and drop
-        # one matching frame per send. Equal frames are interchangeable, so counting is enough:
-        # frame content -> send times of those not back yet, so that a frame from another
-        # station costs one dict lookup (a control loop hears thousands a second).
-        self._own: dict[tuple, deque] | None = {} if filter_own else None
-        self._outstanding = 0            # sends not back yet, over every content
-        self._next_sweep = 0.0
-        self.clock = time.monotonic
+        # a bus that can send a Frame and hand over plain values without a can.Message
+        # (iotad's udp_multicast station) is asked directly: a control loop sends and hears
+        # thousands of frames a second
+        self._send_frame = getattr(bus, "send_frame", None)
+        self._recv_plain = getattr(bus, "recv_plain", None)
 
     def describe(self) -> str:
         return f"{self.interface} bus on {self.channel}"
@@ -72,35 +63,28 @@ class RealTimeBus:
     def send(self, msg, timeout: float | None = None) -> None:
         """Send a `can.Message` or a `Frame`."""
         if isinstance(msg, Frame):
-            msg = msg.to_can_message()
-        elif not hasattr(msg, "arbitration_id"):
+            self.send_frame(msg, timeout)
+            return
+        if not hasattr(msg, "arbitration_id"):
             raise FrameError(f"send needs a can.Message or a Frame, got {type(msg).__name__} {msg!r}")
-        if self._own is not None:
-            now = self.clock()
-            self._own.setdefault(_content(msg), deque()).append(now)
-            self._outstanding += 1
-            if self._outstanding > OWN_LIMIT or now >= self._next_sweep:
-                self._sweep(now)
         self.bus.send(msg, timeout=timeout)
         self.sent += 1
 
     def recv(self, timeout: float | None = None):
         """The next `can.Message` from another station, or None after `timeout` s (None: wait)."""
-        deadline = None if timeout is None else time.monotonic() + timeout
-        while True:
-            left = None if deadline is None else max(0.0, deadline - time.monotonic())
-            message = self.bus.recv(timeout=left)
-            if message is None:
-                return None
-            if self._own is not None and not message.is_error_frame and self._drop_own(message):
-                continue
+        message = self.bus.recv(timeout=timeout)
+        if message is not None:
             self.received += 1
-            return message
+        return message
 
     def send_frame(self, frame: Frame, timeout: float | None = None) -> None:
         if not isinstance(frame, Frame):
             raise FrameError(f"send_frame needs a Frame, got {type(frame).__name__} {frame!r}")
-        self.send(frame, timeout)
+        if self._send_frame is not None:
+            self._send_frame(frame, timeout)
+        else:
+            self.bus.send(frame.to_can_message(), timeout=timeout)
+        self.sent += 1
 
     def recv_frame(self, timeout: float | None = None) -> tuple[float, Frame] | None:
         """(receive time, Frame) of the next classic frame from another station, or None after
@@ -116,30 +100,25 @@ class RealTimeBus:
             except FrameError:
                 continue
 
-    def _drop_own(self, message) -> bool:
-        content = _content(message)
-        times = self._own.get(content)
-        if not times:
-            return False
-        times.popleft()
-        self._outstanding -= 1
-        if not times:
-            del self._own[content]
-        return True
-
-    def _sweep(self, now: float) -> None:
-        """Forget sends older than OWN_WAIT s: lost in a socket buffer, they will never come back."""
-        self._next_sweep = now + OWN_WAIT / 4
-        for content in list(self._own):
-            times = self._own[content]
-            while times and now - times[0] > OWN_WAIT:
-                times.popleft()
-                self._outstanding -= 1
-            if not times:
-                del self._own[content]
-        if self._outstanding > OWN_LIMIT:  # a flood within OWN_WAIT: none of it is worth a scan
-            self._own.clear()
-            self._outstanding = 0
+    def recv_plain(self, timeout: float | None, limit: int) -> tuple[list[dict], list]:
+        """Up to `limit` things other stations sent: the first within `timeout` s (None: wait),
+        then what the bus already holds. (plain canFrame values, in order; the rest, in order:
+        can.Messages of error frames and CAN FD frames, FrameErrors of what is no frame.)"""
+        if self._recv_plain is not None:
+            frames, others = self._recv_plain(timeout, limit)
+        else:
+            frames, others = [], []
+            message = self.bus.recv(timeout=timeout)
+            while message is not None:
+                try:
+                    frames.append(Frame.from_can_message(message).plain())
+                except FrameError:
+                    others.append(message)
+                if len(frames) + len(others) >= limit:
+                    break
+                message = self.bus.recv(timeout=0)
+        self.received += len(frames)
+        return frames, others
 
     def fileno(self) -> int:
         return self.bus.fileno()
@@ -189,13 +168,16 @@ def open_bus(interface: str, channel: str | None = None, **kw) -> RealTimeBus:
         kw.setdefault("port", UDP_PORT)
         kw.setdefault("hop_limit", 1)
         kw.setdefault("fd", False)
+        kw.pop("bitrate", None)  # a multicast group has no bit rate (python-can ignores it too)
+        from .udp_multicast import UdpMulticastBus
+
         try:
-            bus = can.Bus(interface="udp_multicast", channel=channel, **kw)
-        except OSError as exc:
+            bus = UdpMulticastBus(channel, **kw)
+        except (OSError, can.CanError) as exc:
             raise BusUnavailable(f"udp_multicast group {channel}: {exc}; in a private network namespace the "
                                  f"loopback needs multicast and a route: `ip link set lo up && ip link set lo "
                                  f"multicast on && ip route add 224.0.0.0/4 dev lo`") from None
-        return RealTimeBus(bus, interface, channel, filter_own=True)
+        return RealTimeBus(bus, interface, channel)
     channel = channel or VIRTUAL_CHANNEL
     bus = can.Bus(interface="virtual", channel=channel, receive_own_messages=False, **kw)
     return RealTimeBus(bus, interface, channel)

@@ -71,6 +71,11 @@ class Frame:
         return _FRAME_RECORD(id=self.id, extended=self.extended, rtr=self.rtr, dlc=len(self.data),
                              data=list(self.data) + [0] * (8 - len(self.data)))
 
+    def plain(self) -> dict:
+        """The CAN_FRAME value as payloads and traces carry it (a dict; data zero-padded to 8)."""
+        return {"id": self.id, "extended": self.extended, "rtr": self.rtr, "dlc": len(self.data),
+                "data": list(self.data) + [0] * (8 - len(self.data))}
+
     @classmethod
     def from_value(cls, value: Any) -> "Frame":
         """The frame of a CAN_FRAME value (a record, or its plain dict as traces and payloads hold it)."""

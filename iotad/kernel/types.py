@@ -547,10 +547,30 @@ def _compile_struct(struct: StructType) -> None:
                            "slow_plain": struct.to_plain, "slow_from": struct.from_plain,
                            "new": object.__new__, "NAMES": frozenset(struct.field_names),
                            "generic_init": Record.__init__, "float": float}
-    check, build, init = [], [], []
+    env["slow_from_plain"] = StructType.from_plain.__get__(struct)
+    check, build, init, parse, fill = [], [], [], [], []
     for k, (name, ftype) in enumerate(struct.fields.items()):
         env[f"c{k}"], env[f"b{k}"] = ftype.checked_plain, ftype.from_checked_plain
+        env[f"f{k}"] = ftype.from_plain
         kind = type(ftype)
+        # from_plain: a field of the plain class and in range is taken as it is (a float made a
+        # float); anything else makes the whole value take the generic method, which says what
+        parse.append(f"        v{k} = plain[{name!r}]")
+        if kind in (IntType, FloatType):
+            plain_test = "v{k}.__class__ is int" if kind is IntType else _FLOAT_PLAIN.replace("{a}", "v{k}")
+            parse.append(f"        if not ({plain_test.format(k=k)} and lo{k} <= v{k} <= hi{k}) and v{k} is not None:")
+            parse.append("            raise BadValue")
+        elif kind is BoolType:
+            parse.append(f"        if v{k} is not True and v{k} is not False and v{k} is not None:")
+            parse.append("            raise BadValue")
+        elif kind is EnumType:
+            parse.append(f"        if not (v{k}.__class__ is str and v{k} in set{k}) and v{k} is not None:")
+            parse.append("            raise BadValue")
+        else:
+            parse.append(f"        if v{k} is not None:")
+            parse.append(f"            v{k} = f{k}(v{k})")
+        fill.append(f"        r.{name} = None if v{k} is None else float(v{k})" if kind is FloatType
+                    else f"        r.{name} = v{k}")
         check.append(f"        v{k} = value.{name}")
         if kind in (IntType, FloatType):
             env[f"lo{k}"], env[f"hi{k}"] = _range(ftype)
@@ -592,6 +612,17 @@ def _compile_struct(struct: StructType) -> None:
         "        return slow_from(plain)",
         "    return r",
         "",
+        "def from_plain(plain):",
+        "    if plain.__class__ is dict and plain.keys() == NAMES:",
+        "      try:",
+        *parse,
+        "        r = new(R)",
+        *fill,
+        "        return r",
+        "      except BadValue:",
+        "        pass  # the generic method says which field, in its words",
+        "    return slow_from_plain(plain)",
+        "",
         "def __init__(self, *args, **fields):",
         "    if not args and fields.keys() == NAMES:",
         *(init or ["        pass"]),
@@ -601,6 +632,8 @@ def _compile_struct(struct: StructType) -> None:
     exec(compile(source, f"<struct {struct.name}>", "exec"), env)
     struct.checked_plain = env["checked_plain"]
     struct.from_checked_plain = env["from_checked_plain"]
+    if struct.fields:
+        struct.from_plain = env["from_plain"]
     struct.record.__init__ = env["__init__"]
 
 
@@ -616,8 +649,11 @@ def _compile_array(array: ArrayType) -> None:
         plain = "{a}.__class__ is int" if type(element) is IntType else _FLOAT_PLAIN
         tests = [f"{plain.format(a=a)} and lo <= {a} <= hi" for a in names]
     lo, hi = _range(element) if isinstance(element, _Number) else (-math.inf, math.inf)
-    env = {"generic": ArrayType.checked_plain.__get__(array), "n": n, "lo": lo, "hi": hi}
+    env = {"generic": ArrayType.checked_plain.__get__(array), "generic_from": ArrayType.from_plain.__get__(array),
+           "n": n, "lo": lo, "hi": hi}
     unpack = f"        {', '.join(names)}{',' if n == 1 else ''} = value" if n else "        pass"
+    # from_plain: a list or tuple of plain items in range, as a fresh list (floats made floats)
+    built = f"[{', '.join(f'float({a})' for a in names)}]" if type(element) is FloatType else "list(value)"
     source = "\n".join([
         "def checked_plain(value):",
         "    if value.__class__ is list and len(value) == n:",
@@ -625,6 +661,14 @@ def _compile_array(array: ArrayType) -> None:
         f"        if {' and '.join(tests) or 'True'}:",
         "            return value[:]",
         "    return generic(value)",
+        "",
+        "def from_plain(value):",
+        "    if (value.__class__ is list or value.__class__ is tuple) and len(value) == n:",
+        unpack,
+        f"        if {' and '.join(tests) or 'True'}:",
+        f"            return {built}",
+        "    return generic_from(value)",
     ])
     exec(compile(source, f"<array {array.name}>", "exec"), env)
     array.checked_plain = env["checked_plain"]
+    array.from_plain = env["from_plain"]

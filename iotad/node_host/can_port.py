@@ -70,7 +70,7 @@ class CanPort:
     def send(self, value: Any) -> str | None:
         """Put a `canFrame` value on the bus; the reason it could not, or None."""
         try:
-            self.bus.send(Frame.from_value(value).to_can_message())
+            self.bus.send_frame(Frame.from_value(value))
         except FrameError as exc:
             self.send_errors += 1
             return f"not a CAN frame: {exc}"
@@ -82,55 +82,38 @@ class CanPort:
 
     def _receive(self) -> None:
         bus, post, stop, key = self.bus, self.post, self._stop, self.key
+        # what the bus already holds goes with the first frame, in one input (`can_rx_burst`):
+        # a node that fell behind catches up in one step, not one per frame
+        limit = BURST_MAX if self.burst else 1
         while not stop.is_set():
             try:
-                message = bus.recv(timeout=0.1)
+                frames, others = bus.recv_plain(0.1, limit)
             except Exception as exc:  # noqa: BLE001 - python-can raises many kinds
                 if stop.is_set():
                     return  # the bus is shutting down under us
                 self._problem(RECEIVE_FAILED, f"{type(exc).__name__}: {exc}")
                 stop.wait(RETRY)
                 continue
-            if message is None:
-                continue
-            plain = self._plain(message)
-            if not self.burst:
-                if plain is not None:
-                    post(DecodedInput(CAN_RX, None, plain, None, key))
-                continue
-            # what else the bus already holds goes with it, in one input (`can_rx_burst`): a node
-            # that fell behind catches up in one step, not one per frame
-            frames = [] if plain is None else [plain]
-            while len(frames) < BURST_MAX:
-                try:
-                    message = bus.recv(timeout=0)
-                except Exception:  # noqa: BLE001 - the next blocking receive says what it is
-                    break
-                if message is None:
-                    break
-                plain = self._plain(message)
-                if plain is not None:
-                    frames.append(plain)
+            for other in others:
+                self._unusable(other)
+            self.received += len(frames)
             if len(frames) == 1:
                 post(DecodedInput(CAN_RX, None, frames[0], None, key))
             elif frames:
                 post(DecodedInput(CAN_RX_BURST, None, frames, None, key))
 
-    def _plain(self, message: Any) -> dict | None:
-        """The canFrame plain value of a message received (as a payload would carry it, without the
-        msgpack round trip), or None for what no IOTA can take (recorded as a problem)."""
-        if getattr(message, "is_error_frame", False):
-            self._problem(ERROR_FRAME, describe_error_frame(message.arbitration_id, message.data))
-            return None
-        try:
-            frame = Frame.from_can_message(message)
-        except FrameError as exc:
-            self.unusable += 1  # CAN FD: not a classic frame any IOTA could take
-            self._problem(UNUSABLE, str(exc))
-            return None
-        self.received += 1
-        value = frame.to_value()
-        return {"id": value.id, "extended": value.extended, "rtr": value.rtr, "dlc": value.dlc, "data": value.data}
+    def _unusable(self, other: Any) -> None:
+        """Record what came on the bus that no IOTA can take: an error frame (the controller's
+        report of a bus problem), a CAN FD frame, a datagram that is no frame (FrameError)."""
+        if getattr(other, "is_error_frame", False):
+            self._problem(ERROR_FRAME, describe_error_frame(other.arbitration_id, other.data))
+            return
+        self.unusable += 1
+        if isinstance(other, FrameError):
+            self._problem(UNUSABLE, str(other))
+        else:
+            self._problem(UNUSABLE, f"CAN FD frame 0x{other.arbitration_id:X} with {other.dlc} bytes is not "
+                                    f"classic CAN")
 
     def _problem(self, violation: str, said: str) -> None:
         t = self.now()

@@ -7,6 +7,7 @@ import uuid
 
 import can
 
+from iotad.can.bus import RealTimeBus
 from iotad.can.error_frames import describe_error_frame
 from iotad.node_host.can_port import ERROR_FRAME, RECEIVE_FAILED, RETRY, UNUSABLE, CanPort
 
@@ -94,7 +95,8 @@ class RecordedWaits(threading.Event):
 def test_a_failing_bus_is_retried_after_a_pause_and_recorded():
     port = CanPort({"bus": "arm_bus", "interface": "virtual", "channel": "unused"}, lambda item: None,
                    now=lambda: 7.0)
-    port.bus = bus = FailingBus(failures=3)
+    bus = FailingBus(failures=3)
+    port.bus = RealTimeBus(bus, "virtual", "unused")
     port._stop = stop = RecordedWaits()
     port._thread = threading.Thread(target=port._receive, daemon=True)
     port._thread.start()

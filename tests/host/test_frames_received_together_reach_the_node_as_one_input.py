@@ -9,6 +9,7 @@ import threading
 
 import can
 
+from iotad.can.bus import RealTimeBus
 from iotad.kernel.clock import VirtualClock
 from iotad.kernel.engine import Engine
 from iotad.node_host.can_port import BURST_MAX, ERROR_FRAME, CanPort
@@ -37,7 +38,7 @@ def received(messages, burst: bool, expected_items: int):
         if sum(len(i.payload) if i.name == "can_rx_burst" else 1 for i in items) >= expected_items:
             done.set()
     port = CanPort({"bus": "arm_bus", "interface": "virtual", "channel": "held"}, post, now=lambda: 1.0, burst=burst)
-    port.bus = HeldBus(messages)
+    port.bus = RealTimeBus(HeldBus(messages), "virtual", "held")
     thread = threading.Thread(target=port._receive, daemon=True)
     thread.start()
     try:

@@ -6,7 +6,7 @@ import random
 
 import pytest
 
-from iotad.kernel.types import Array, BadValue, Bool, Enum, Float, Int, Record, Struct, Type
+from iotad.kernel.types import Array, ArrayType, BadValue, Bool, Enum, Float, Int, Record, Struct, StructType, Type
 
 COLOUR = Enum("colour", "RED", "GREEN")
 INNER = Struct("inner", x=Float(-1, 1), n=Int(0, 9))
@@ -125,3 +125,37 @@ def test_types_spelled_the_same_check_the_same_and_build_the_same():
         except (BadValue, TypeError):  # TypeError: an unhashable value for the enum (as check does)
             continue
         assert outcome(twin.from_checked_plain, plain) == outcome(twin.from_plain, plain)
+
+
+def plain_of(t, rng, odd):
+    """A plain value for `t` as a payload brings it: a dict for a struct (a key missing or extra
+    now and then), a list or tuple for an array; each part an oddity with probability `odd`."""
+    if rng.random() < odd:
+        return rng.choice(ODDITIES + [{"x": 1}, {"x": 0.5, "n": 3, "y": 1}])
+    if isinstance(t, type(OUTER)):
+        plain = {name: plain_of(ft, rng, odd) for name, ft in t.fields.items()}
+        if rng.random() < odd:
+            plain.pop(rng.choice(list(plain)))
+        return plain
+    if isinstance(t, type(OUTER.fields["data"])):
+        items = [plain_of(t.element, rng, odd) for _ in range(t.length + (rng.random() < odd))]
+        return tuple(items) if rng.random() < 0.2 else items
+    return value_of(t, rng, odd)
+
+
+@pytest.mark.parametrize("t", [OUTER, INNER, Array(Float, 2), Array(Int(0, 255), 8), Array(Bool, 3), ODD],
+                         ids=lambda t: t.name)
+def test_from_plain_agrees_with_the_generic_method(t):
+    """What an input's payload becomes: the compiled `from_plain` of a struct or a short array
+    of numbers builds what the generic method builds, and refuses with its words."""
+    generic = {StructType: StructType.from_plain, ArrayType: ArrayType.from_plain}[type(t)]
+    rng = random.Random(f"plain {t.name}")
+    taken = 0
+    for _ in range(3000):
+        plain = plain_of(t, rng, rng.choice([0.0, 0.01, 0.1, 0.5]))
+        fast, slow = outcome(t.from_plain, plain), outcome(lambda p: generic(t, p), plain)
+        assert fast == slow, plain
+        taken += fast[0] == "ok"
+        if fast[0] == "ok" and isinstance(plain, (list, dict)):
+            assert t.from_plain(plain) is not plain  # a fresh value, never the payload's
+    assert taken > 100

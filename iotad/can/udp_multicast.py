@@ -1,0 +1,292 @@
+"""`UdpMulticastBus`: a CAN bus on an IP multicast group, on python-can's `udp_multicast` wire
+format (one msgpack map per frame, as `can.interfaces.udp_multicast.utils.pack_message` writes it),
+so that it and python-can's own bus are stations of one bus.
+
+Why our own station rather than python-can's: a motor node with six joints at 500 Hz hears 6,000
+datagrams a second, half of them its own frames coming back (multicast loopback cannot be refused
+per socket). python-can's bus waits in `select` before each datagram, reads its kernel timestamp,
+and builds a fully checked `can.Message` of it, which the node then dropped (its own) or turned
+into a `canFrame` value; that was most of the node's CPU (docs/can.md, "Benchmark"). This bus:
+
+- drops its own frames by their bytes, before decoding them (`OwnEchoes`): the datagram that comes
+  back is the one it sent, byte for byte;
+- drains what the socket holds without a wait per datagram (`recv_plain`), and decodes each into
+  the plain `canFrame` value an IOTA takes, with the checks a `Frame` makes;
+- is python-can's `BusABC` too (`send`, `recv`, `shutdown`, `fileno`), for the tools that want
+  `can.Message`s (candump, scans); that path keeps python-can's kernel receive timestamps.
+
+A datagram that is no frame (not msgpack, a key missing, an id too long for its kind) is handed
+back as a `FrameError`, to be recorded, never raised out of the receive loop.
+"""
+from __future__ import annotations
+
+import errno
+import select
+import socket
+import struct
+import time
+from collections import deque
+
+import can
+import msgpack
+
+from .frame import EXTENDED_ID_MAX, STANDARD_ID_MAX, Frame, FrameError
+
+SO_TIMESTAMPNS = getattr(socket, "SO_TIMESTAMPNS", 35)
+MAX_DATAGRAM = 4096       # python-can's frames are under 200 bytes; anything longer is no frame
+RECEIVE_BUFFER = 1 << 20  # bytes the kernel may hold for us: ~1,300 frames, 0.2 s of a busy bus
+OWN_WAIT, OWN_LIMIT = 2.0, 4096  # s a sent frame may take to come back; sends remembered at most
+
+_PADDING = [[0] * n for n in range(9)]  # zero bytes that pad a frame's data to 8, by how many
+
+
+class OwnEchoes:
+    """The frames a station sent that have not come back yet, by any key that tells frames apart
+    (here the datagram's bytes). Equal keys are interchangeable, so counting is enough: one
+    returning copy is dropped per send, and a frame from another station with the same key, once
+    ours is back, is delivered. Sends older than OWN_WAIT s are forgotten (lost in a socket
+    buffer, they never come back); more than OWN_LIMIT outstanding is a flood, forgotten at once."""
+
+    def __init__(self, clock=time.monotonic):
+        self.clock = clock
+        self._times: dict = {}   # key -> send times of those not back yet
+        self.outstanding = 0
+        self._next_sweep = 0.0
+
+    def sent(self, key) -> None:
+        now = self.clock()
+        times = self._times.get(key)
+        if times is None:
+            self._times[key] = times = deque()
+        times.append(now)
+        self.outstanding += 1
+        if self.outstanding > OWN_LIMIT or now >= self._next_sweep:
+            self._sweep(now)
+
+    def came_back(self, key) -> bool:
+        """True (and forgotten) if `key` is one of ours coming back; a dict lookup otherwise."""
+        times = self._times.get(key)
+        if not times:
+            return False
+        times.popleft()
+        self.outstanding -= 1
+        if not times:
+            del self._times[key]
+        return True
+
+    def _sweep(self, now: float) -> None:
+        self._next_sweep = now + OWN_WAIT / 4
+        for key in list(self._times):
+            times = self._times[key]
+            while times and now - times[0] > OWN_WAIT:
+                times.popleft()
+                self.outstanding -= 1
+            if not times:
+                del self._times[key]
+        if self.outstanding > OWN_LIMIT:  # a flood within OWN_WAIT: none of it is worth a scan
+            self._times.clear()
+            self.outstanding = 0
+
+
+def pack(frame: Frame) -> bytes:
+    """A frame as python-can's udp_multicast sends it (`pack_message` of its can.Message)."""
+    return msgpack.packb({
+        "timestamp": 0.0, "arbitration_id": frame.id, "is_extended_id": frame.extended,
+        "is_remote_frame": frame.rtr, "is_error_frame": False, "channel": None, "dlc": len(frame.data),
+        "data": frame.data, "is_fd": False, "bitrate_switch": False, "error_state_indicator": False,
+    }, use_bin_type=True)
+
+
+def pack_message(message: can.Message) -> bytes:
+    return msgpack.packb({
+        "timestamp": message.timestamp, "arbitration_id": message.arbitration_id,
+        "is_extended_id": message.is_extended_id, "is_remote_frame": message.is_remote_frame,
+        "is_error_frame": message.is_error_frame, "channel": message.channel, "dlc": message.dlc,
+        "data": bytes(message.data), "is_fd": message.is_fd, "bitrate_switch": message.bitrate_switch,
+        "error_state_indicator": message.error_state_indicator,
+    }, use_bin_type=True)
+
+
+def _fields(datagram: bytes) -> dict:
+    try:
+        fields = msgpack.unpackb(datagram, raw=False)
+    except Exception as exc:  # noqa: BLE001 - msgpack raises several kinds for bytes that are no map
+        raise FrameError(f"a datagram of {len(datagram)} bytes that is no python-can frame ({exc})") from None
+    if not isinstance(fields, dict):
+        raise FrameError(f"a datagram that is no python-can frame: {fields!r:.80}")
+    return fields
+
+
+def message_of(fields: dict, timestamp: float = 0.0) -> can.Message:
+    """The can.Message of a datagram's fields, checked as python-can checks what it receives."""
+    unknown = sorted(str(key) for key in fields if key not in _MESSAGE_FIELDS and key != "timestamp")
+    missing = [key for key in _REQUIRED if key not in fields]
+    if unknown or missing:
+        raise FrameError(f"a python-can frame that does not check: "
+                         f"{'unknown ' + ', '.join(unknown) if unknown else ''}"
+                         f"{'; ' if unknown and missing else ''}{'missing ' + ', '.join(missing) if missing else ''}")
+    known = {key: value for key, value in fields.items() if key != "timestamp"}
+    known["timestamp"] = timestamp
+    try:
+        return can.Message(check=True, **known)
+    except (TypeError, ValueError) as exc:
+        raise FrameError(f"a python-can frame that does not check: {exc}") from None
+
+
+_MESSAGE_FIELDS = ("arbitration_id", "is_extended_id", "is_remote_frame", "is_error_frame", "channel", "dlc",
+                   "data", "is_fd", "bitrate_switch", "error_state_indicator")
+_REQUIRED = ("arbitration_id", "is_extended_id", "dlc", "data")  # python-can would take a missing one as 0
+
+
+def plain_of(fields: dict):
+    """The plain `canFrame` value of a datagram's fields ({id, extended, rtr, dlc, data}, data
+    zero-padded to 8), or the can.Message of an error frame or a CAN FD frame, which no IOTA takes.
+    Raises FrameError for what is no frame."""
+    ident, extended, rtr = fields.get("arbitration_id"), fields.get("is_extended_id"), fields.get("is_remote_frame")
+    dlc, data = fields.get("dlc"), fields.get("data")
+    # the usual frame, checked in one go: the same checks `Frame` makes
+    if (ident.__class__ is int and extended.__class__ is bool and rtr.__class__ is bool and dlc.__class__ is int
+            and data.__class__ is bytes and not fields.get("is_error_frame") and not fields.get("is_fd")
+            and 0 <= ident <= (EXTENDED_ID_MAX if extended else STANDARD_ID_MAX)):
+        if rtr:
+            if 0 <= dlc <= 8 and not any(data):
+                return {"id": ident, "extended": extended, "rtr": True, "dlc": dlc, "data": [0] * 8}
+        elif dlc == len(data) <= 8:
+            return {"id": ident, "extended": extended, "rtr": False, "dlc": dlc, "data": [*data, *_PADDING[8 - dlc]]}
+    message = message_of(fields)  # anything else, said as python-can and `Frame` say it
+    if message.is_error_frame or message.is_fd:
+        return message
+    value = Frame.from_can_message(message).to_value()
+    return {"id": value.id, "extended": value.extended, "rtr": value.rtr, "dlc": value.dlc, "data": value.data}
+
+
+class UdpMulticastBus(can.BusABC):
+    """One station on a multicast group standing for a CAN bus. `channel` is the group (IPv4 or
+    IPv6), `port` the UDP port, `hop_limit` the multicast TTL (1: never past this host's
+    routers). Classic CAN only (`fd` must be False). Never hands back a frame it sent."""
+
+    def __init__(self, channel: str, port: int, hop_limit: int = 1, fd: bool = False, **kwargs):
+        if fd:
+            raise can.CanInterfaceNotImplementedError("iotad's udp_multicast bus carries classic CAN only")
+        super().__init__(channel, **kwargs)
+        self.channel_info = f"udp_multicast {channel}:{port}"
+        self._socket = _open_socket(channel, port, hop_limit)
+        self._destination = (channel, port)
+        self._poll = select.poll()
+        self._poll.register(self._socket, select.POLLIN)
+        self.own = OwnEchoes()
+        self._can_protocol = can.CanProtocol.CAN_20
+
+    # --- sending ---------------------------------------------------------------------------
+
+    def send(self, msg: can.Message, timeout: float | None = None) -> None:
+        if msg.is_fd:
+            raise can.CanOperationError("cannot send a CAN FD frame on a classic CAN bus")
+        self._send(pack_message(msg), timeout)
+
+    def send_frame(self, frame: Frame, timeout: float | None = None) -> None:
+        self._send(pack(frame), timeout)
+
+    def _send(self, datagram: bytes, timeout: float | None) -> None:
+        self.own.sent(datagram)
+        try:
+            if timeout is not None and not select.select([], [self._socket], [], timeout)[1]:
+                raise can.CanTimeoutError(f"the socket took no frame within {timeout} s")
+            self._socket.sendto(datagram, self._destination)
+        except OSError as exc:
+            self.own.came_back(datagram)  # it never went out, so it will not come back
+            raise can.CanOperationError(f"failed to send on {self.channel_info}: {exc}") from exc
+
+    # --- receiving -------------------------------------------------------------------------
+
+    def recv_plain(self, timeout: float | None, limit: int) -> tuple[list[dict], list]:
+        """Up to `limit` things another station sent, waiting at most `timeout` s (None: for
+        ever) for the first and not at all for the rest: (the plain canFrame values, in order;
+        the rest, in order: can.Messages of error and CAN FD frames, FrameErrors of datagrams
+        that are no frame)."""
+        frames, others = [], []
+        sock, own, flags = self._socket, self.own, socket.MSG_DONTWAIT
+        waited = False
+        while len(frames) + len(others) < limit:
+            try:
+                datagram = sock.recv(MAX_DATAGRAM, flags)
+            except BlockingIOError:
+                if waited or frames or others:
+                    break
+                waited = True
+                if not self._poll.poll(None if timeout is None else max(0, int(timeout * 1000 + 0.999))):
+                    break
+                continue
+            if own.came_back(datagram):
+                continue
+            try:
+                got = plain_of(_fields(datagram))
+            except FrameError as exc:
+                others.append(exc)
+                continue
+            (frames if got.__class__ is dict else others).append(got)
+        return frames, others
+
+    def _recv_internal(self, timeout: float | None):
+        deadline = None if timeout is None else time.monotonic() + timeout
+        while True:
+            left = None if deadline is None else max(0.0, deadline - time.monotonic())
+            if not self._poll.poll(None if left is None else int(left * 1000 + 0.999)):
+                return None, False
+            try:
+                datagram, ancillary, _, _ = self._socket.recvmsg(MAX_DATAGRAM, socket.CMSG_SPACE(16),
+                                                                 socket.MSG_DONTWAIT)
+            except BlockingIOError:
+                continue
+            if self.own.came_back(datagram):
+                continue
+            timestamp = time.time()
+            for level, kind, data in ancillary:
+                if level == socket.SOL_SOCKET and kind == SO_TIMESTAMPNS and len(data) >= 16:
+                    seconds, nanoseconds = struct.unpack("@ll", data[:16])
+                    timestamp = seconds + nanoseconds * 1e-9
+            try:
+                return message_of(_fields(datagram), timestamp), False
+            except FrameError as exc:
+                raise can.CanOperationError(f"could not unpack a received frame: {exc}") from None
+
+    def fileno(self) -> int:
+        return self._socket.fileno()
+
+    def shutdown(self) -> None:
+        super().shutdown()
+        self._socket.close()
+
+
+def _open_socket(group: str, port: int, hop_limit: int) -> socket.socket:
+    """A UDP socket bound to `port`, a member of `group`, as python-can's bus opens one (so both
+    share the port: SO_REUSEADDR and SO_REUSEPORT), with kernel receive timestamps."""
+    try:
+        family = socket.getaddrinfo(group, port, type=socket.SOCK_DGRAM)[0][0]
+    except socket.gaierror as exc:
+        raise can.CanInitializationError(f"udp_multicast group {group!r}: {exc}") from None
+    sock = socket.socket(family, socket.SOCK_DGRAM)
+    try:
+        ttl = struct.pack("@I", hop_limit)
+        if family == socket.AF_INET:
+            sock.setsockopt(socket.IPPROTO_IP, socket.IP_MULTICAST_TTL, ttl)
+        else:
+            sock.setsockopt(socket.IPPROTO_IPV6, socket.IPV6_MULTICAST_HOPS, ttl)
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEPORT, 1)
+        sock.setsockopt(socket.SOL_SOCKET, SO_TIMESTAMPNS, 1)
+        try:  # the kernel caps it at net.core.rmem_max, silently
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, RECEIVE_BUFFER)
+        except OSError as exc:
+            if exc.errno not in (errno.EPERM, errno.EINVAL):
+                raise
+        sock.bind(("", port))
+        member = socket.inet_pton(family, group)
+        if family == socket.AF_INET:
+            sock.setsockopt(socket.IPPROTO_IP, socket.IP_ADD_MEMBERSHIP, member + struct.pack("@I", socket.INADDR_ANY))
+        else:
+            sock.setsockopt(socket.IPPROTO_IPV6, socket.IPV6_JOIN_GROUP, member + struct.pack("@I", 0))
+    except OSError as exc:
+        sock.close()
+        raise can.CanInitializationError(f"udp_multicast group {group}:{port}: {exc}") from exc
+    return sock
