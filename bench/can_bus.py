@@ -163,7 +163,8 @@ channel = "{channel}"
 stations = ["motor"]
 log = false  # no bus logger process: the bench measures the motor node alone (this process watches the bus)
 """
-JOINTS, RATE, SCALE = 6, 500.0, 1e-4   # setpoint k carries position k * SCALE rad (mod 20000)
+JOINTS, RATE, SCALE = 6, 500.0, 1e-4   # setpoint k carries position k * SCALE rad (mod WRAP)
+WRAP = 60000  # setpoints told apart: a 60 s run at 500 Hz (30,000) fits, within the joints' 6.3 rad
 
 
 def motor_pid() -> int:
@@ -370,7 +371,7 @@ def motor_loop(seconds: float, rate: float = RATE, port: int = 7447, protocol: s
             raise SystemExit("the motor node did not come up within 120 s")
 
         def setpoint(k):
-            q = (k % 20000) * SCALE
+            q = (k % WRAP) * SCALE
             return wire.encode({"position": [q] * JOINTS, "velocity_ff": [0.0] * JOINTS, "torque_ff": [0.0] * JOINTS})
 
         # warm-up: until every axis is armed and gets setpoints (start-up, arming)
@@ -380,7 +381,7 @@ def motor_loop(seconds: float, rate: float = RATE, port: int = 7447, protocol: s
             time.sleep(1.0 / rate)
             k += 1
             with lock:
-                if len({node for (kk, node) in arrivals if kk == (k - 50) % 20000}) == JOINTS:
+                if len({node for (kk, node) in arrivals if kk == (k - 50) % WRAP}) == JOINTS:
                     break
         else:
             raise SystemExit("the motor node did not arm its six axes within 120 s of warm-up")
@@ -394,7 +395,7 @@ def motor_loop(seconds: float, rate: float = RATE, port: int = 7447, protocol: s
         late_publish = 0
         n = 0
         while time.perf_counter() - start < seconds:
-            published[(first + n) % 20000] = time.time()
+            published[(first + n) % WRAP] = time.time()
             publisher.put(setpoint(first + n), attachment=wire.encode_attachment(first + n))
             n += 1
             delay = start + n / rate - time.perf_counter()

@@ -79,8 +79,14 @@ class Frame:
     @classmethod
     def from_value(cls, value: Any) -> "Frame":
         """The frame of a CAN_FRAME value (a record, or its plain dict as traces and payloads hold it)."""
-        if value.__class__ is _FRAME_RECORD:  # the usual case, the checks below in one go
-            id, extended, rtr, dlc, data = value.id, value.extended, value.rtr, value.dlc, value.data
+        kind = value.__class__
+        # the usual cases, the checks below in one go (a dict: an output on its way to a bus)
+        if kind is _FRAME_RECORD or kind is dict:
+            if kind is dict:
+                get = value.get
+                id, extended, rtr, dlc, data = get("id"), get("extended"), get("rtr"), get("dlc"), get("data")
+            else:
+                id, extended, rtr, dlc, data = value.id, value.extended, value.rtr, value.dlc, value.data
             if (id is not None and extended is not None and rtr is not None and dlc.__class__ is int
                     and 0 <= dlc <= 8 and data.__class__ is list and len(data) == 8):
                 rtr = bool(rtr)

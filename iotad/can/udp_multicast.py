@@ -8,8 +8,11 @@ per socket). python-can's bus waits in `select` before each datagram, reads its 
 and builds a fully checked `can.Message` of it, which the node then dropped (its own) or turned
 into a `canFrame` value; that was most of the node's CPU (docs/can.md, "Benchmark"). This bus:
 
-- drops its own frames by their bytes, before decoding them (`OwnEchoes`): the datagram that comes
-  back is the one it sent, byte for byte;
+- never hears its own frames: each station names itself in every frame it sends (the `channel`
+  field of python-can's map, written first: `iotad-<pid>-<6 random hex digits>`, which python-can
+  shows as the message's channel), and a socket filter (classic BPF, `SO_ATTACH_FILTER`) drops the
+  datagrams that begin so in the kernel, before they wake the receiving thread; where no filter
+  can be attached, the same test is made on each datagram's first bytes;
 - drains what the socket holds without a wait per datagram (`recv_plain`), and decodes each into
   the plain `canFrame` value an IOTA takes, with the checks a `Frame` makes;
 - is python-can's `BusABC` too (`send`, `recv`, `shutdown`, `fileno`), for the tools that want
@@ -21,12 +24,11 @@ back as a `FrameError`, to be recorded, never raised out of the receive loop.
 from __future__ import annotations
 
 import errno
+import os
 import select
 import socket
 import struct
 import time
-from collections import deque
-
 import can
 import msgpack
 
@@ -35,76 +37,73 @@ from .frame import EXTENDED_ID_MAX, STANDARD_ID_MAX, Frame, FrameError
 SO_TIMESTAMPNS = getattr(socket, "SO_TIMESTAMPNS", 35)
 MAX_DATAGRAM = 4096       # python-can's frames are under 200 bytes; anything longer is no frame
 RECEIVE_BUFFER = 1 << 20  # bytes the kernel may hold for us: ~1,300 frames, 0.2 s of a busy bus
-OWN_WAIT, OWN_LIMIT = 2.0, 4096  # s a sent frame may take to come back; sends remembered at most
 
 _PADDING = [[0] * n for n in range(9)]  # zero bytes that pad a frame's data to 8, by how many
 
 
-class OwnEchoes:
-    """The frames a station sent that have not come back yet, by any key that tells frames apart
-    (here the datagram's bytes). Equal keys are interchangeable, so counting is enough: one
-    returning copy is dropped per send, and a frame from another station with the same key, once
-    ours is back, is delivered. Sends older than OWN_WAIT s are forgotten (lost in a socket
-    buffer, they never come back); more than OWN_LIMIT outstanding is a flood, forgotten at once."""
-
-    def __init__(self, clock=time.monotonic):
-        self.clock = clock
-        self._times: dict = {}   # key -> send times of those not back yet
-        self.outstanding = 0
-        self._next_sweep = 0.0
-
-    def sent(self, key) -> None:
-        now = self.clock()
-        times = self._times.get(key)
-        if times is None:
-            self._times[key] = times = deque()
-        times.append(now)
-        self.outstanding += 1
-        if self.outstanding > OWN_LIMIT or now >= self._next_sweep:
-            self._sweep(now)
-
-    def came_back(self, key) -> bool:
-        """True (and forgotten) if `key` is one of ours coming back; a dict lookup otherwise."""
-        times = self._times.get(key)
-        if not times:
-            return False
-        times.popleft()
-        self.outstanding -= 1
-        if not times:
-            del self._times[key]
-        return True
-
-    def _sweep(self, now: float) -> None:
-        self._next_sweep = now + OWN_WAIT / 4
-        for key in list(self._times):
-            times = self._times[key]
-            while times and now - times[0] > OWN_WAIT:
-                times.popleft()
-                self.outstanding -= 1
-            if not times:
-                del self._times[key]
-        if self.outstanding > OWN_LIMIT:  # a flood within OWN_WAIT: none of it is worth a scan
-            self._times.clear()
-            self.outstanding = 0
+def station_prefix(name: str) -> bytes:
+    """The first bytes of every frame a station named `name` sends: a map of python-can's 11 keys
+    whose first is its `channel`, the station's name."""
+    return b"\x8b" + msgpack.packb("channel") + msgpack.packb(name)
 
 
-def pack(frame: Frame) -> bytes:
-    """A frame as python-can's udp_multicast sends it (`pack_message` of its can.Message)."""
-    return msgpack.packb({
+def pack(prefix: bytes, frame: Frame) -> bytes:
+    """A frame as python-can's udp_multicast carries it (the keys of `pack_message`), sent by the
+    station whose `station_prefix` is `prefix`."""
+    return prefix + msgpack.packb({
         "timestamp": 0.0, "arbitration_id": frame.id, "is_extended_id": frame.extended,
-        "is_remote_frame": frame.rtr, "is_error_frame": False, "channel": None, "dlc": len(frame.data),
+        "is_remote_frame": frame.rtr, "is_error_frame": False, "dlc": len(frame.data),
         "data": frame.data, "is_fd": False, "bitrate_switch": False, "error_state_indicator": False,
-    }, use_bin_type=True)
+    }, use_bin_type=True)[1:]  # a map of the 10 other keys, less its own header
 
 
-def pack_message(message: can.Message) -> bytes:
-    return msgpack.packb({
+def pack_message(prefix: bytes, message: can.Message) -> bytes:
+    return prefix + msgpack.packb({
         "timestamp": message.timestamp, "arbitration_id": message.arbitration_id,
         "is_extended_id": message.is_extended_id, "is_remote_frame": message.is_remote_frame,
-        "is_error_frame": message.is_error_frame, "channel": message.channel, "dlc": message.dlc,
-        "data": bytes(message.data), "is_fd": message.is_fd, "bitrate_switch": message.bitrate_switch,
+        "is_error_frame": message.is_error_frame, "dlc": message.dlc, "data": bytes(message.data),
+        "is_fd": message.is_fd, "bitrate_switch": message.bitrate_switch,
         "error_state_indicator": message.error_state_indicator,
-    }, use_bin_type=True)
+    }, use_bin_type=True)[1:]
+
+
+def own_frame_filter(prefix: bytes) -> list[tuple[int, int, int, int]]:
+    """A classic BPF program (code, jt, jf, k per instruction) for a UDP socket that drops the
+    datagrams beginning with `prefix` and keeps every other. A UDP socket's filter sees the
+    datagram from its 8-byte UDP header on."""
+    chunks, at = [], 0
+    while at < len(prefix):
+        size = 4 if len(prefix) - at >= 4 else 2 if len(prefix) - at >= 2 else 1
+        chunks.append((at, size, int.from_bytes(prefix[at:at + size], "big")))
+        at += size
+    program = []
+    for k, (at, size, value) in enumerate(chunks):
+        load = {4: _BPF_W, 2: _BPF_H, 1: _BPF_B}[size]
+        program.append((_BPF_LD | load | _BPF_ABS, 0, 0, _UDP_HEADER + at))
+        # equal: on to the next chunk; different: to the last instruction, which keeps it
+        program.append((_BPF_JMP | _BPF_JEQ | _BPF_K, 0, 2 * (len(chunks) - k - 1) + 1, value))
+    program.append((_BPF_RET | _BPF_K, 0, 0, 0))           # every byte ours: drop it
+    program.append((_BPF_RET | _BPF_K, 0, 0, 0xFFFFFFFF))  # keep it whole
+    return program
+
+
+_BPF_LD, _BPF_W, _BPF_H, _BPF_B, _BPF_ABS = 0x00, 0x00, 0x08, 0x10, 0x20
+_BPF_JMP, _BPF_JEQ, _BPF_K, _BPF_RET = 0x05, 0x10, 0x00, 0x06
+_UDP_HEADER = 8
+SO_ATTACH_FILTER = getattr(socket, "SO_ATTACH_FILTER", 26)
+
+
+def attach_filter(sock: socket.socket, program: list[tuple[int, int, int, int]]) -> bool:
+    """Attach a classic BPF program to `sock`; False where the kernel or platform has none."""
+    import ctypes
+
+    code = ctypes.create_string_buffer(b"".join(struct.pack("HBBI", *instruction) for instruction in program))
+    try:  # struct sock_fprog {unsigned short len; struct sock_filter *filter;}; the kernel copies it
+        sock.setsockopt(socket.SOL_SOCKET, SO_ATTACH_FILTER,
+                        struct.pack("HL", len(program), ctypes.addressof(code)))
+    except OSError:
+        return False
+    return True
 
 
 def _fields(datagram: bytes) -> dict:
@@ -174,7 +173,11 @@ class UdpMulticastBus(can.BusABC):
         self._destination = (channel, port)
         self._poll = select.poll()
         self._poll.register(self._socket, select.POLLIN)
-        self.own = OwnEchoes()
+        # what python-can shows as our frames' channel: a process id is unique on a host at a time,
+        # and the random part tells two stations of one process apart
+        self.station = f"iotad-{os.getpid()}-{os.urandom(3).hex()}"
+        self._prefix = station_prefix(self.station)
+        self.filtered_in_kernel = attach_filter(self._socket, own_frame_filter(self._prefix))
         self._can_protocol = can.CanProtocol.CAN_20
 
     # --- sending ---------------------------------------------------------------------------
@@ -182,19 +185,17 @@ class UdpMulticastBus(can.BusABC):
     def send(self, msg: can.Message, timeout: float | None = None) -> None:
         if msg.is_fd:
             raise can.CanOperationError("cannot send a CAN FD frame on a classic CAN bus")
-        self._send(pack_message(msg), timeout)
+        self._send(pack_message(self._prefix, msg), timeout)
 
     def send_frame(self, frame: Frame, timeout: float | None = None) -> None:
-        self._send(pack(frame), timeout)
+        self._send(pack(self._prefix, frame), timeout)
 
     def _send(self, datagram: bytes, timeout: float | None) -> None:
-        self.own.sent(datagram)
         try:
             if timeout is not None and not select.select([], [self._socket], [], timeout)[1]:
                 raise can.CanTimeoutError(f"the socket took no frame within {timeout} s")
             self._socket.sendto(datagram, self._destination)
         except OSError as exc:
-            self.own.came_back(datagram)  # it never went out, so it will not come back
             raise can.CanOperationError(f"failed to send on {self.channel_info}: {exc}") from exc
 
     # --- receiving -------------------------------------------------------------------------
@@ -205,7 +206,7 @@ class UdpMulticastBus(can.BusABC):
         the rest, in order: can.Messages of error and CAN FD frames, FrameErrors of datagrams
         that are no frame)."""
         frames, others = [], []
-        sock, own, flags = self._socket, self.own, socket.MSG_DONTWAIT
+        sock, own, flags = self._socket, self._prefix, socket.MSG_DONTWAIT
         waited = False
         while len(frames) + len(others) < limit:
             try:
@@ -217,7 +218,7 @@ class UdpMulticastBus(can.BusABC):
                 if not self._poll.poll(None if timeout is None else max(0, int(timeout * 1000 + 0.999))):
                     break
                 continue
-            if own.came_back(datagram):
+            if datagram.startswith(own):  # ours, where no socket filter dropped it
                 continue
             try:
                 got = plain_of(_fields(datagram))
@@ -238,7 +239,7 @@ class UdpMulticastBus(can.BusABC):
                                                                  socket.MSG_DONTWAIT)
             except BlockingIOError:
                 continue
-            if self.own.came_back(datagram):
+            if datagram.startswith(self._prefix):
                 continue
             timestamp = time.time()
             for level, kind, data in ancillary:

@@ -69,16 +69,27 @@ class CanPort:
 
     def send(self, value: Any) -> str | None:
         """Put a `canFrame` value on the bus; the reason it could not, or None."""
-        try:
-            self.bus.send_frame(Frame.from_value(value))
-        except FrameError as exc:
-            self.send_errors += 1
-            return f"not a CAN frame: {exc}"
-        except Exception as exc:  # noqa: BLE001 - a full transmit queue, a bus gone down
-            self.send_errors += 1
-            return f"CAN bus {self.name!r} refused a frame: {exc}"
-        self.sent += 1
-        return None
+        problems = self.send_all((value,))
+        return problems[0] if problems else None
+
+    def send_all(self, values) -> list[str]:
+        """Put an instant's `canFrame` values on the bus in their order (a `can_tx_burst`); the
+        reasons of those that could not go, in order (the others still go)."""
+        problems = []
+        send = self.bus.send_frame
+        for value in values:
+            try:
+                send(Frame.from_value(value))
+            except FrameError as exc:
+                self.send_errors += 1
+                problems.append(f"not a CAN frame: {exc}")
+                continue
+            except Exception as exc:  # noqa: BLE001 - a full transmit queue, a bus gone down
+                self.send_errors += 1
+                problems.append(f"CAN bus {self.name!r} refused a frame: {exc}")
+                continue
+            self.sent += 1
+        return problems
 
     def _receive(self) -> None:
         bus, post, stop, key = self.bus, self.post, self._stop, self.key

@@ -328,10 +328,8 @@ class NodeHost:
                 self._report(event["t"], CAN_TX, None, "can_send_failed", problem)
         elif self.can is not None and (event["iota"], event["action"], event["index"]) == self._can_burst_source:
             # an instant's frames as one output (iotad.can.burst_bus): on a real bus, one by one in order
-            for value in event["value"] or ():
-                problem = self.can.send(value)
-                if problem is not None:
-                    self._report(event["t"], CAN_TX_BURST, None, "can_send_failed", problem)
+            for problem in self.can.send_all(event["value"] or ()):
+                self._report(event["t"], CAN_TX_BURST, None, "can_send_failed", problem)
         port[0].put(wire.encode(event["value"]), attachment=wire.encode_attachment(seq, send_ns))
         event["key"], event["seq"], event["send_ns"] = port[2], seq, send_ns
 

@@ -1,53 +1,61 @@
 """udp_multicast hands every frame back to the socket that sent it. iotad's station
-(`iotad.can.udp_multicast`) drops exactly one returning copy per send, by its bytes (equal frames
-are interchangeable), delivers every frame of another station, also one equal to a frame it sent
-once its own copy has come back, and forgets sends that never came back after OWN_WAIT seconds.
-It shares a bus with python-can's own udp_multicast station, the third party whose wire format it
-speaks: each hears the other's frames exactly, and a datagram that is no frame is handed back as
-a FrameError, not raised."""
+(`iotad.can.udp_multicast`) names itself first in every frame it sends, and a socket filter drops
+what begins so before it wakes the receiver (or, with no filter, the receive loop does): it never
+hears its own frames, and hears every frame of another station, also one equal to its own. It
+shares a bus with python-can's own udp_multicast station, the third party whose wire format it
+speaks: each hears the other's frames exactly, and a datagram that is no frame is handed back as a
+FrameError, not raised."""
 import pytest
 
-from iotad.can.udp_multicast import OWN_LIMIT, OWN_WAIT, OwnEchoes, pack, plain_of, _fields
+from iotad.can.udp_multicast import _fields, own_frame_filter, pack, plain_of, station_prefix
 from iotad.can.frame import Frame, FrameError
 
 
-def echoes_and_clock():
-    now = [100.0]
-    return OwnEchoes(clock=lambda: now[0]), now
+def test_a_station_s_frames_begin_with_its_name_and_python_can_reads_them():
+    from can.interfaces.udp_multicast.utils import unpack_message
+
+    prefix = station_prefix("iotad-1234-abcdef")
+    for frame in (Frame(0x123, b"\x01\x02\x03"), Frame(0x1ABCDEF, b"\xff" * 8, extended=True), Frame.remote(0x7FF, 4)):
+        datagram = pack(prefix, frame)
+        assert datagram.startswith(prefix)
+        message = unpack_message(datagram, check=True)  # python-can's own reading of it
+        assert message.channel == "iotad-1234-abcdef" and Frame.from_can_message(message) == frame
 
 
-def test_one_returning_copy_is_dropped_per_send_and_an_equal_frame_after_it_is_delivered():
-    own, _ = echoes_and_clock()
-    a, b = pack(Frame(0x10, b"\x01")), pack(Frame(0x10, b"\x02"))
-    own.sent(a)
-    own.sent(b)
-    own.sent(a)
-    assert [own.came_back(x) for x in (pack(Frame(0x21, b"\x01\x02")), a, b, a, a)] == [False, True, True, True, False]
-    assert own.outstanding == 0
+def run_filter(program, packet: bytes) -> int:
+    """What a classic BPF program of loads, equality jumps and returns gives for `packet`."""
+    pc, a = 0, 0
+    while True:
+        code, jt, jf, k = program[pc]
+        if code & 0x07 == 0x06:
+            return k
+        if code & 0x07 == 0x00:
+            size = {0x00: 4, 0x08: 2, 0x10: 1}[code & 0x18]
+            if k + size > len(packet):
+                return 0  # the kernel drops a packet read past its end
+            a, pc = int.from_bytes(packet[k:k + size], "big"), pc + 1
+            continue
+        assert code == 0x15
+        pc += 1 + (jt if a == k else jf)
 
 
-def test_remote_frames_and_extended_ids_are_told_apart():
-    own, _ = echoes_and_clock()
-    own.sent(pack(Frame(0x10, b"", rtr=True)))
-    assert not own.came_back(pack(Frame(0x10, b"")))
-    assert not own.came_back(pack(Frame(0x10, b"", extended=True)))
-    assert own.came_back(pack(Frame(0x10, b"", rtr=True)))
+@pytest.mark.parametrize("length", [1, 2, 3, 4, 5, 21, 24])
+def test_the_socket_filter_drops_exactly_the_datagrams_that_begin_with_the_prefix(length):
+    import random
 
+    rng = random.Random(length)
+    prefix = bytes(rng.randrange(256) for _ in range(length))
+    program = own_frame_filter(prefix)
+    header = bytes(8)  # a UDP socket's filter reads from the UDP header on
+    assert run_filter(program, header + prefix + b"rest") == 0
+    assert run_filter(program, header + prefix) == 0
+    for k in range(length):  # one byte different anywhere: kept
+        other = bytearray(prefix)
+        other[k] ^= 1 << rng.randrange(8)
+        assert run_filter(program, header + bytes(other) + b"rest") == 0xFFFFFFFF
+    from can.interfaces.udp_multicast.utils import pack_message  # python-can's station: its map begins otherwise
 
-def test_a_send_that_never_came_back_is_forgotten_and_cannot_hide_a_later_frame():
-    own, now = echoes_and_clock()
-    a = pack(Frame(0x10, b"\x05"))
-    own.sent(a)  # our copy is lost in a socket buffer
-    now[0] += OWN_WAIT + 1
-    own.sent(pack(Frame(0x7FF, b"")))  # a send sweeps what waited too long
-    assert not own.came_back(a)
-
-
-def test_a_flood_of_sends_that_never_come_back_is_bounded():
-    own, _ = echoes_and_clock()
-    for k in range(OWN_LIMIT + 10):
-        own.sent(pack(Frame(0x10, k.to_bytes(2, "little"))))
-    assert own.outstanding <= OWN_LIMIT
+    assert run_filter(program, header + pack_message(Frame(0x10, b"\x01").to_can_message())) == 0xFFFFFFFF
 
 
 def test_a_datagram_decodes_to_the_value_a_frame_gives():
@@ -56,7 +64,7 @@ def test_a_datagram_decodes_to_the_value_a_frame_gives():
 
     for frame in (Frame(0x123, b"\x01\x02\x03"), Frame(0x1ABCDEF, b"\xff" * 8, extended=True),
                   Frame.remote(0x7FF, 4), Frame(0, b"")):
-        assert plain_of(_fields(pack(frame))) == frame.plain()
+        assert plain_of(_fields(pack(station_prefix("iotad-1-abcdef"), frame))) == frame.plain()
         assert plain_of(_fields(pack_message(frame.to_can_message()))) == frame.plain()  # python-can's own packing
     error = plain_of(_fields(pack_message(can.Message(arbitration_id=0x004, is_error_frame=True, dlc=8,
                                                       data=bytes(8), is_extended_id=True))))
@@ -66,7 +74,7 @@ def test_a_datagram_decodes_to_the_value_a_frame_gives():
 @pytest.mark.parametrize("datagram, said", [
     (b"\xc1garbage", "no python-can frame"),
     (b"\x93\x01\x02\x03", "no python-can frame"),
-    (pack(Frame(0x10, b"\x01")).replace(b"arbitration_id", b"arbitration_ix"), "does not check"),
+    (pack(station_prefix("s"), Frame(0x10, b"\x01")).replace(b"arbitration_id", b"arbitration_ix"), "does not check"),
 ])
 def test_a_datagram_that_is_no_frame_is_a_frame_error(datagram, said):
     with pytest.raises(FrameError, match=said):
@@ -75,7 +83,7 @@ def test_a_datagram_that_is_no_frame_is_a_frame_error(datagram, said):
 
 def test_a_standard_id_over_11_bits_is_no_frame():
     import msgpack
-    fields = msgpack.unpackb(pack(Frame(0x10, b"\x01")), raw=False)
+    fields = msgpack.unpackb(pack(station_prefix("s"), Frame(0x10, b"\x01")), raw=False)
     fields["arbitration_id"] = 0x800
     with pytest.raises(FrameError, match=r"less than 2\^11"):
         plain_of(fields)
@@ -102,8 +110,24 @@ def drain(take, seconds=1.0):
 sent_by_us = [Frame(0x10 + k, bytes([k] * (k % 9))) for k in range(20)] + [Frame.remote(0x7FF, 3)]
 for frame in sent_by_us:
     ours.send_frame(frame)
-heard_by_them = [Frame.from_can_message(m) for m in drain(lambda t: theirs.recv(t))]
-heard_back = drain(lambda t: ours.recv_plain(t, 64)[0])
+them_heard = drain(lambda t: theirs.recv(t))
+heard_by_them = [Frame.from_can_message(m) for m in them_heard]
+station = ours.bus
+try:  # the kernel's filter dropped our frames: nothing waits in our socket
+    station._socket.recv(4096, socket.MSG_DONTWAIT)
+    queued = True
+except BlockingIOError:
+    queued = False
+# with the filter taken off, the receive loop still drops them, and a second iotad station of this
+# process still hears them (it is another station), also one equal to a frame it sent itself
+station._socket.setsockopt(socket.SOL_SOCKET, 27, 0)  # SO_DETACH_FILTER
+second = open_env_bus()
+second.send_frame(sent_by_us[1])
+for frame in sent_by_us:
+    ours.send_frame(frame)
+heard_back = [p for got in drain(lambda t: ours.recv_plain(t, 64)[0]) for p in got]
+heard_by_second = [p for got in drain(lambda t: second.recv_plain(t, 64)[0]) for p in got]
+second.shutdown()
 
 sent_by_them = [Frame(0x1ABCDE0 + k, bytes([255 - k] * 8), extended=True) for k in range(20)]
 sent_by_them.append(sent_by_us[0])  # a frame equal to one of ours, from another station
@@ -121,7 +145,9 @@ theirs.send(Frame(0x42, b"\x42").to_can_message())
 after = drain(lambda t: ours.recv_plain(t, 64))
 ours.shutdown(); theirs.shutdown()
 print("RESULT " + json.dumps({
+    "filtered_in_kernel": station.filtered_in_kernel, "queued": queued, "station": station.station,
     "heard_by_them": [f.plain() for f in heard_by_them], "heard_back": heard_back,
+    "heard_by_second": heard_by_second, "their_channels": [m.channel for m in them_heard],
     "plains": plains, "others": [str(o) for o in others],
     "after_plains": [p for got in after for p in got[0]], "after_others": [str(o) for got in after for o in got[1]],
 }))
@@ -140,7 +166,11 @@ def test_iotad_s_station_and_python_can_s_share_a_bus(can_bus):
     ours = [Frame(0x10 + k, bytes([k] * (k % 9))) for k in range(20)] + [Frame.remote(0x7FF, 3)]
     theirs = [Frame(0x1ABCDE0 + k, bytes([255 - k] * 8), extended=True) for k in range(20)] + [ours[0]]
     assert got["heard_by_them"] == [f.plain() for f in ours]   # python-can decodes every frame we sent
-    assert got["heard_back"] == []                              # and none of ours comes back to us
+    assert set(got["their_channels"]) == {got["station"]}       # and sees who sent them
+    assert got["filtered_in_kernel"] and not got["queued"]      # ours never reached our socket
+    # nor our receive loop, with no filter: only the second station's frame, equal to one of ours
+    assert got["heard_back"] == [ours[1].plain()]
+    assert got["heard_by_second"] == [f.plain() for f in ours]  # another station of this process hears them
     assert got["plains"] == [f.plain() for f in theirs] and got["others"] == []
     assert got["after_plains"] == [Frame(0x42, b"\x42").plain()]
     assert len(got["after_others"]) == 1 and "no python-can frame" in got["after_others"][0]
