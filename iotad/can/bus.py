@@ -56,6 +56,7 @@ class RealTimeBus:
         # thousands of frames a second
         self._send_frame = getattr(bus, "send_frame", None)
         self._recv_plain = getattr(bus, "recv_plain", None)
+        self._send_plain = getattr(bus, "send_plain", None)
 
     def describe(self) -> str:
         return f"{self.interface} bus on {self.channel}"
@@ -85,6 +86,14 @@ class RealTimeBus:
         else:
             self.bus.send(frame.to_can_message(), timeout=timeout)
         self.sent += 1
+
+    def send_plain(self, value) -> None:
+        """Send a `canFrame` value (a plain dict, or a record); FrameError for what is no frame."""
+        if self._send_plain is not None and value.__class__ is dict:
+            self._send_plain(value)
+            self.sent += 1
+        else:
+            self.send_frame(Frame.from_value(value))
 
     def recv_frame(self, timeout: float | None = None) -> tuple[float, Frame] | None:
         """(receive time, Frame) of the next classic frame from another station, or None after

@@ -190,6 +190,21 @@ class UdpMulticastBus(can.BusABC):
     def send_frame(self, frame: Frame, timeout: float | None = None) -> None:
         self._send(pack(self._prefix, frame), timeout)
 
+    def send_plain(self, value: dict) -> None:
+        """Send a `canFrame` plain value (what a node's output carries, checked against the
+        type: id, dlc, 8 data bytes in range), without making a Frame of it first; anything a
+        Frame would refuse (an 11-bit id past 0x7FF, a remote frame with data) goes by
+        `Frame.from_value`, which says why (FrameError)."""
+        ident, extended, rtr, dlc, data = value["id"], value["extended"], value["rtr"], value["dlc"], value["data"]
+        if (extended is False and rtr is False and ident.__class__ is int and 0 <= ident <= STANDARD_ID_MAX
+                and dlc.__class__ is int and 0 <= dlc <= 8 and data.__class__ is list and len(data) == 8):
+            self._send(self._prefix + msgpack.packb({
+                "timestamp": 0.0, "arbitration_id": ident, "is_extended_id": False, "is_remote_frame": False,
+                "is_error_frame": False, "dlc": dlc, "data": bytes(data[:dlc]), "is_fd": False,
+                "bitrate_switch": False, "error_state_indicator": False}, use_bin_type=True)[1:], None)
+            return
+        self.send_frame(Frame.from_value(value))
+
     def _send(self, datagram: bytes, timeout: float | None) -> None:
         try:
             if timeout is not None and not select.select([], [self._socket], [], timeout)[1]:

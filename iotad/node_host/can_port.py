@@ -76,10 +76,10 @@ class CanPort:
         """Put an instant's `canFrame` values on the bus in their order (a `can_tx_burst`); the
         reasons of those that could not go, in order (the others still go)."""
         problems = []
-        send = self.bus.send_frame
+        send = self.bus.send_plain
         for value in values:
             try:
-                send(Frame.from_value(value))
+                send(value)
             except FrameError as exc:
                 self.send_errors += 1
                 problems.append(f"not a CAN frame: {exc}")

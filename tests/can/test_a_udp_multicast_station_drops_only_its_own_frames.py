@@ -174,3 +174,34 @@ def test_iotad_s_station_and_python_can_s_share_a_bus(can_bus):
     assert got["plains"] == [f.plain() for f in theirs] and got["others"] == []
     assert got["after_plains"] == [Frame(0x42, b"\x42").plain()]
     assert len(got["after_others"]) == 1 and "no python-can frame" in got["after_others"][0]
+
+
+def test_a_plain_value_is_sent_as_its_frame_is_and_what_is_no_frame_is_refused():
+    """`send_plain` (a node's checked output, packed at once) writes the bytes `send_frame` writes
+    for every value, and refuses what a Frame refuses with the Frame's words."""
+    import random
+
+    from iotad.can.udp_multicast import UdpMulticastBus
+
+    class Sent(UdpMulticastBus):
+        def __init__(self):  # no socket: the datagrams are kept
+            self._prefix, self.datagrams = station_prefix("iotad-1-abcdef"), []
+
+        def _send(self, datagram, timeout):
+            self.datagrams.append(datagram)
+
+    rng = random.Random(4)
+    for _ in range(500):
+        extended, rtr = rng.random() < 0.2, rng.random() < 0.1
+        dlc = rng.randrange(9)
+        frame = (Frame.remote(rng.randrange(0x800), dlc, extended) if rtr else
+                 Frame(rng.randrange(0x20000000 if extended else 0x800), bytes(rng.randrange(256) for _ in range(dlc)),
+                       extended=extended))
+        by_plain, by_frame = Sent(), Sent()
+        by_plain.send_plain(frame.plain())
+        by_frame.send_frame(frame)
+        assert by_plain.datagrams == by_frame.datagrams, frame
+    for bad, said in (({"id": 0x800, "extended": False, "rtr": False, "dlc": 0, "data": [0] * 8}, "11-bit"),
+                      ({"id": 0x10, "extended": False, "rtr": False, "dlc": 9, "data": [0] * 8}, "dlc must be 0..8")):
+        with pytest.raises(FrameError, match=said):
+            Sent().send_plain(bad)
