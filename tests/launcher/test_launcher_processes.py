@@ -41,6 +41,11 @@ def observed_pair(tmp_path):
         proc = context.__enter__()
         started.append(context)
         assert observer.wait_all_alive(("src", "dst"), 15), proc.output.read_text()
+        # live to the launcher too, not only to the observer: a token reaches each session over
+        # its own link, and a node frozen (SIGSTOP) between the two never reaches the launcher's,
+        # which then kills it after start_timeout as a node that never went live, not as a stale one
+        assert wait_until(lambda: all(f"{name}: live (pid" in proc.output.read_text() for name in ("src", "dst")), 15), \
+            proc.output.read_text()
         return proc, observer
 
     started = []
