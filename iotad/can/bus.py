@@ -43,7 +43,7 @@ class BusUnavailable(RuntimeError):
 class RealTimeBus:
     """One open CAN bus with python-can's BusABC interface (`send(msg)`, `recv(timeout)` of
     `can.Message`s, `fileno`, `shutdown`), plus `send_frame`/`recv_frame` in `Frame`s and
-    `recv_plain`, what a node's CAN port takes. `send` takes a `Frame` too. Never hands back a
+    `send_plain`/`recv_plain` in plain `canFrame` values, what a node's CAN port moves. `send` takes a `Frame` too. Never hands back a
     frame it sent itself (udp_multicast's own station drops them: `iotad.can.udp_multicast`)."""
 
     def __init__(self, bus, interface: str, channel: str):
