@@ -322,8 +322,8 @@ def _packer(spec: MessageSpec):
     with one struct (whole-byte signals), for `encode`; None for any other."""
     if spec.cmd_id not in _UNPACKERS:
         return None
-    unpack = _UNPACKERS[spec.cmd_id][0]
-    return (struct.Struct(unpack.__self__.format).pack, spec.cmd_id, frozenset(spec.signal_names),
+    layout = _UNPACKERS[spec.cmd_id][0].__self__  # the struct that reads the message writes it
+    return (layout.pack, spec.cmd_id, frozenset(spec.signal_names),
             tuple((signal.name, signal.kind, signal.scale) for signal in spec.signals))
 
 

@@ -157,8 +157,7 @@ def plain_of(fields: dict):
     message = message_of(fields)  # anything else, said as python-can and `Frame` say it
     if message.is_error_frame or message.is_fd:
         return message
-    value = Frame.from_can_message(message).to_value()
-    return {"id": value.id, "extended": value.extended, "rtr": value.rtr, "dlc": value.dlc, "data": value.data}
+    return Frame.from_can_message(message).plain()
 
 
 class UdpMulticastBus(can.BusABC):

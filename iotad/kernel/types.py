@@ -547,7 +547,6 @@ def _compile_struct(struct: StructType) -> None:
                            "slow_plain": struct.to_plain, "slow_from": struct.from_plain,
                            "new": object.__new__, "NAMES": frozenset(struct.field_names),
                            "generic_init": Record.__init__, "float": float}
-    env["slow_from_plain"] = StructType.from_plain.__get__(struct)
     check, build, init, parse, fill = [], [], [], [], []
     for k, (name, ftype) in enumerate(struct.fields.items()):
         env[f"c{k}"], env[f"b{k}"] = ftype.checked_plain, ftype.from_checked_plain
@@ -621,7 +620,7 @@ def _compile_struct(struct: StructType) -> None:
         "        return r",
         "      except BadValue:",
         "        pass  # the generic method says which field, in its words",
-        "    return slow_from_plain(plain)",
+        "    return slow_from(plain)",
         "",
         "def __init__(self, *args, **fields):",
         "    if not args and fields.keys() == NAMES:",
