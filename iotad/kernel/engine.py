@@ -22,7 +22,7 @@ from iotad.kernel.compose import Endpoint, Flat, Leaf, expand, flatten
 from iotad.kernel.instant import running
 from iotad.kernel.model import ALL_STATE, ANY, INDEX, Action, Channel, is_by_state
 from iotad.kernel.policy import Eager
-from iotad.kernel.types import BadValue, same_checks
+from iotad.kernel.types import BadValue, CheckedPlain, same_checks
 from iotad.kernel.wire_delay import LaterDelivery
 
 INF = math.inf
@@ -544,7 +544,8 @@ class Engine:
             self._violation(now, path, channel, index, "unknown_input",
                             f"{path} has no input channel {channel}{'' if index is None else f'[{index}]'}")
             return
-        self._deliver(slot, value, now)
+        # a port's value that its type's checks built already (the CAN port's frames)
+        self._deliver(slot, value, now, meta.__class__ is CheckedPlain and same_checks(meta.type, slot.type))
 
     def _deliver(self, slot: Slot, plain: Any, now: float, checked: bool = False) -> None:
         """An input event: always enabled, never blocked; rejected only if it breaks its contract.

@@ -509,6 +509,19 @@ def to_plain(value: Any) -> Any:
     return value
 
 
+class CheckedPlain:
+    """The mark of an input whose plain value a port already built with `type`'s checks (the CAN
+    port's frames, checked as `iotad.can.frame.Frame` checks them): the engine then builds the value
+    with `from_checked_plain` when the input's own type checks the same (`same_checks`), and
+    records the plain value as it came, which is already as that type writes it. Checking each
+    frame a second time was a tenth of a motor node's engine thread at 500 Hz (docs/performance.md)."""
+
+    __slots__ = ("type",)
+
+    def __init__(self, type: Type) -> None:
+        self.type = type
+
+
 def same_checks(a: Type | None, b: Type | None) -> bool:
     """Whether every value `a.check` accepts `b.check` accepts too, and `b` builds it back from
     `a`'s plain data as `b.from_plain` would: the same type, an equal one, or one spelled the same

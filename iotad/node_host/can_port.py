@@ -5,16 +5,19 @@ The node's IOTA never sees python-can: it reads and writes `canFrame` values on 
 exactly as it does on the modelled bus of `iotad run --virtual`. So the same IOTA runs against a
 real controller on can0, a simulated one on vcan0, or the bus model in virtual time. Frames are
 received on a thread of their own (python-can blocks) and handed over as plain values (no wire
-format carried them, so no msgpack round trip): the engine thread type-checks them like any other
-input, so a frame and a zenoh input are ordered alike.
+format carried them, so no msgpack round trip) and marked as built with canFrame's checks
+(`CheckedPlain`), which the engine then does not repeat; the engine thread takes them in order
+with the zenoh inputs.
 """
 from __future__ import annotations
 
 import threading
 from typing import Any, Callable
 
+from iotad.can.burst_types import CAN_FRAMES
 from iotad.can.error_frames import describe_error_frame
-from iotad.can.frame import Frame, FrameError
+from iotad.can.frame import CAN_FRAME, Frame, FrameError
+from iotad.kernel.types import CheckedPlain
 from iotad.node_host.host_clock import DecodedInput
 
 CAN_TX, CAN_RX = "can_tx", "can_rx"
@@ -23,6 +26,9 @@ CAN_RX_BURST = "can_rx_burst"  # a node's input of the frames received together,
 BURST_MAX = 64  # frames at most in one can_rx_burst (what a waiting socket holds is taken in these)
 TX_BURSTS = "tx_bursts"  # the param of a station that can send either way; its host sets it true
 KEY_PREFIX = "can/"  # an input trace event's `key` for a frame from the bus: can/<bus> (no zenoh key)
+# the bus's receive built each frame with Frame's checks, which are canFrame's: the engine need not
+# check it again (iotad.kernel.types.CheckedPlain)
+CHECKED_FRAME, CHECKED_FRAMES = CheckedPlain(CAN_FRAME), CheckedPlain(CAN_FRAMES)
 RETRY = 0.1  # s between receive attempts on a bus that fails (an interface gone down): no busy loop
 
 # What the reader thread saw that no IOTA can take, as the violations the host records (on can_rx):
@@ -109,9 +115,9 @@ class CanPort:
                 self._unusable(other)
             self.received += len(frames)
             if len(frames) == 1:
-                post(DecodedInput(CAN_RX, None, frames[0], None, key))
+                post(DecodedInput(CAN_RX, None, frames[0], key, CHECKED_FRAME))
             elif frames:
-                post(DecodedInput(CAN_RX_BURST, None, frames, None, key))
+                post(DecodedInput(CAN_RX_BURST, None, frames, key, CHECKED_FRAMES))
 
     def _unusable(self, other: Any) -> None:
         """Record what came on the bus that no IOTA can take: an error frame (the controller's

@@ -48,9 +48,15 @@ class RawInput:
 
 class DecodedInput(RawInput):
     """An input a port hands over already as its plain value (`payload`): the CAN port's frames,
-    which no wire format carried, go to the engine without a msgpack round trip."""
+    which no wire format carried, go to the engine without a msgpack round trip. `checked`: a
+    `CheckedPlain` when the port built the value with its type's checks (the engine does not check
+    it again)."""
 
-    __slots__ = ()
+    __slots__ = ("checked",)
+
+    def __init__(self, name: str, index: int | None, payload: Any, key: str | None = None, checked: Any = None):
+        super().__init__(name, index, payload, None, key)
+        self.checked = checked
 
 
 class HostClock(RealClock):
@@ -170,7 +176,7 @@ class HostClock(RealClock):
                     continue
             elif item.__class__ is DecodedInput:
                 self.current_input = item
-                item = (None, item.name, item.index, item.payload, item.attachment)
+                item = (None, item.name, item.index, item.payload, item.checked)
             elif item is STOP:
                 self.report_overflow()
                 self._flush_trace()

@@ -12,7 +12,7 @@ import can
 from iotad.can.bus import RealTimeBus
 from iotad.kernel.clock import VirtualClock
 from iotad.kernel.engine import Engine
-from iotad.node_host.can_port import BURST_MAX, ERROR_FRAME, CanPort
+from iotad.node_host.can_port import BURST_MAX, CHECKED_FRAME, CHECKED_FRAMES, ERROR_FRAME, CanPort
 from iotad.recording.bursts import is_station_burst, sent_events
 from nodes.can_motor import CanMotor
 
@@ -58,6 +58,7 @@ def test_what_the_bus_holds_goes_in_one_input_in_order():
     items, port = received([frame(0), frame(1), error, frame(2)], burst=True, expected_items=3)
     [item] = items
     assert (item.name, item.key) == ("can_rx_burst", "can/arm_bus")
+    assert item.checked is CHECKED_FRAMES  # built with Frame's checks: the engine does not check them again
     assert [f["data"][:4] for f in item.payload] == [list(struct.pack("<f", k)) for k in range(3)]
     assert [problem for problem, _, _ in port.take_problems()] == [ERROR_FRAME]  # recorded, not passed on
 
@@ -66,7 +67,7 @@ def test_a_flood_goes_in_inputs_of_at_most_burst_max_and_a_lone_frame_on_can_rx(
     items, _ = received([frame(k) for k in range(BURST_MAX + 6)], burst=True, expected_items=BURST_MAX + 6)
     assert [(i.name, len(i.payload)) for i in items] == [("can_rx_burst", BURST_MAX), ("can_rx_burst", 6)]
     items, _ = received([frame(0)], burst=True, expected_items=1)
-    assert [i.name for i in items] == ["can_rx"]
+    assert [(i.name, i.checked) for i in items] == [("can_rx", CHECKED_FRAME)]
 
 
 def test_a_node_without_the_input_gets_each_frame_on_can_rx():
