@@ -231,7 +231,13 @@ class MdlInterpreter(Iota):
                     self._start_atom(run)
                 hit = self._interrupted(run)
             except MissingInput as missing:
-                return self._hold(run, missing)
+                if not _is_wait(run.current):
+                    return self._hold(run, missing)
+                # A wait moves nothing, and its T is the longest its author lets it wait: its
+                # clock runs on, and it ends at T as it would if its interrupt never held. (A bad
+                # day's camera cut froze a pick's wait for `near` until its epoch ran out.)
+                self._wait_unread(run, missing)
+                hit = None
             except ProgramFault as fault:
                 return self._fail(run, str(fault))
             except Exception as exc:  # noqa: BLE001 - what a program's numbers make fail is its fault
@@ -445,6 +451,15 @@ class MdlInterpreter(Iota):
             self._fault(run.program.id, f"behaviours[{atom.behaviour}].atoms[{atom.index}] reads {missing}; "
                                         "motors held")
 
+    def _wait_unread(self, run: ProgramRun, missing: MissingInput) -> None:
+        """A wait whose interrupt cannot be read goes on to its T; said once per cause and atom."""
+        key = (run.behaviour, run.atom, missing.key)
+        if run.unread != key:
+            run.unread = key
+            atom = run.spec
+            self._fault(run.program.id, f"behaviours[{atom.behaviour}].atoms[{atom.index}] reads {missing}; "
+                                        f"a wait: it ends at its T ({atom.T:g} s) unless the value comes")
+
     def _fail(self, run: ProgramRun, message: str) -> None:
         self._fault(run.program.id, f"program {run.program.id!r} stopped: {message}; motors held")
         self._atom_ended(run, "FAULT", "NONE", "")
@@ -512,3 +527,10 @@ def __getattr__(name: str):
     if name.startswith(prefix) and name[len(prefix):].isdigit() and int(name[len(prefix):]) >= 1:
         return interpreter_class(int(name[len(prefix):]))
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def _is_wait(current) -> bool:
+    """Whether the atom under way is a wait: a hold with no feedback gains and an end T, which
+    moves nothing whatever its interrupt reads."""
+    atom = None if current is None else current.atom
+    return atom is not None and atom.kind == "hold" and not atom.gains and atom.ticks is not None

@@ -194,6 +194,7 @@ class ProgramRun:
         self.atom = 0
         self.current: AtomRun | None = None
         self.holding: tuple | None = None  # why the motors are held (MissingInput.key), if they are
+        self.unread: tuple | None = None   # why a wait's interrupt cannot be read (MissingInput.key), if so
 
     @property
     def spec(self) -> CompiledAtom:
