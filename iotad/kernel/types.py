@@ -513,8 +513,9 @@ class CheckedPlain:
     """The mark of an input whose plain value a port already built with `type`'s checks (the CAN
     port's frames, checked as `iotad.can.frame.Frame` checks them): the engine then builds the value
     with `from_checked_plain` when the input's own type checks the same (`same_checks`), and
-    records the plain value as it came, which is already as that type writes it. Checking each
-    frame a second time was a tenth of a motor node's engine thread at 500 Hz (docs/performance.md)."""
+    records the plain value as it came, which is already as that type writes it. (The second check
+    and its write-back were a tenth of a 500 Hz motor node's engine thread under cProfile;
+    docs/performance.md, round 8, says what that bought.)"""
 
     __slots__ = ("type",)
 

@@ -231,13 +231,7 @@ class MdlInterpreter(Iota):
                     self._start_atom(run)
                 hit = self._interrupted(run)
             except MissingInput as missing:
-                if not _is_wait(run.current):
-                    return self._hold(run, missing)
-                # A wait moves nothing, and its T is the longest its author lets it wait: its
-                # clock runs on, and it ends at T as it would if its interrupt never held. (A bad
-                # day's camera cut froze a pick's wait for `near` until its epoch ran out.)
-                self._wait_unread(run, missing)
-                hit = None
+                return self._hold(run, missing)
             except ProgramFault as fault:
                 return self._fail(run, str(fault))
             except Exception as exc:  # noqa: BLE001 - what a program's numbers make fail is its fault
@@ -296,14 +290,26 @@ class MdlInterpreter(Iota):
         run.current = AtomRun(atom, self.command, goal)
 
     def _interrupted(self, run: ProgramRun):
-        """(level, condition) of the outermost interrupt that holds, or None."""
+        """(level, condition) of the outermost interrupt that holds, or None. MissingInput for
+        one that cannot be read, except in a wait: a wait moves nothing, and its T is the longest
+        its author lets it wait, so an interrupt it cannot read is one that does not hold, and
+        its clock runs on to T (a bad day's camera cut froze a pick's wait for vision's `near`
+        until the scheduler's epoch ran out)."""
         compiled, atom = run.compiled, run.spec
         where = f"behaviours[{atom.behaviour}]"
+        wait = _is_wait(run.current)
         for level, condition, place in (("PLAN", compiled.xi, "xi"),
                                         ("BEHAVIOUR", compiled.behaviour_xi[run.behaviour], f"{where}.xi"),
                                         ("ATOM", atom.xi, f"{where}.atoms[{atom.index}].xi")):
-            if condition is not None and self._evaluate(condition, place):
-                return level, condition.text
+            if condition is None:
+                continue
+            try:
+                if self._evaluate(condition, place):
+                    return level, condition.text
+            except MissingInput as missing:
+                if not wait:
+                    raise
+                self._wait_unread(run, missing)
         return None
 
     def _evaluate(self, expression: CompiledExpression, where: str):

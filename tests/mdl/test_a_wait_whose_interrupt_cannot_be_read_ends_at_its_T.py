@@ -45,3 +45,19 @@ def test_a_move_whose_interrupt_cannot_be_read_still_holds_the_motors(make_run):
     assert {p for _, p in run.setpoints(0)} == {0.0}
     [fault] = run.values("fault")
     assert "reads proximity: no value from sensor[1] (proximity) yet; motors held" in fault["message"]
+
+
+def test_an_interrupt_it_can_read_still_ends_a_wait_whose_plan_interrupt_it_cannot(make_run):
+    run = make_run()
+    plan = program("pick", hold(T=0.5, xi="proximity.distance < 0.1"), ramp({"joint1": 0.2}, T=0.2),
+                   xi="visual_error.x > 100")  # visual_error never comes
+    run.command(plan, t=0.0)
+    run.sensor(PROXIMITY, [0.05, 0.0], t=0.1001)
+    run.run(until=1.0)
+    wait = run.values("atom_end")[0]
+    assert (wait["end"], wait["level"], wait["tick"]) == ("INTERRUPTED", "ATOM", 11)
+    # the ramp moves: its plan's interrupt still cannot be read, and it holds the motors
+    assert {p for _, p in run.setpoints(0)} == {0.0}
+    messages = [v["message"] for v in run.values("fault")]
+    assert any("reads visual_error" in m and "a wait: it ends at its T (0.5 s)" in m for m in messages)
+    assert any("reads visual_error" in m and m.endswith("motors held") for m in messages)
