@@ -12,14 +12,13 @@ from typing import Any
 
 from iotad.can.frame import Frame
 from iotad.can.odrive import (AXIS_STATE, CONTROL_MODE, INPUT_MODE, MESSAGES, EncodeError, MalformedFrame,
-                              UnknownFrame, decode, encode, request, undefined_values)
+                              UnknownFrame, decode, encode, frame_id, request, undefined_values)
 
 from .drive_link import FAULT, UNARMED, DriveLink
 from .joint_map import JointConfig, JointMapError
 
 CLOSED_LOOP = AXIS_STATE["CLOSED_LOOP_CONTROL"]
 FF_MAX = 32.767  # Set_Input_Pos carries Vel_FF and Torque_FF as int16 x 0.001
-ESTIMATES = MESSAGES["Get_Encoder_Estimates"]
 _ESTIMATES = struct.Struct("<ff").unpack  # Pos_Estimate, Vel_Estimate (turns, turns/s), float32
 
 
@@ -32,7 +31,7 @@ class OdriveLink(DriveLink):
     def __init__(self, node, index: int):
         super().__init__(node, index)
         self.idle_sent = False  # IDLE went out for closed loop the node did not command (UNCOMMANDED_STATE)
-        self._estimates_id = self.joint.node_id << 5 | ESTIMATES.cmd_id
+        self._estimates_id = frame_id(self.joint.node_id, "Get_Encoder_Estimates")
         try:  # a limit or gain no float32 holds (1e39) is refused when the node is built
             _arming_frames(self.joint)
         except EncodeError as exc:
