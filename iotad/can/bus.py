@@ -183,13 +183,24 @@ def open_bus(interface: str, channel: str | None = None, **kw) -> RealTimeBus:
         try:
             bus = UdpMulticastBus(channel, **kw)
         except (OSError, can.CanError) as exc:
-            raise BusUnavailable(f"udp_multicast group {channel}: {exc}; in a private network namespace the "
-                                 f"loopback needs multicast and a route: `ip link set lo up && ip link set lo "
-                                 f"multicast on && ip route add 224.0.0.0/4 dev lo`") from None
+            said = str(exc) if isinstance(exc, can.CanInitializationError) else f"udp_multicast group {channel}: {exc}"
+            raise BusUnavailable(f"{said}; {_namespace_hint(channel)}") from None  # (the station's own errors name the group)
         return RealTimeBus(bus, interface, channel)
     channel = channel or VIRTUAL_CHANNEL
     bus = can.Bus(interface="virtual", channel=channel, receive_own_messages=False, **kw)
     return RealTimeBus(bus, interface, channel)
+
+
+def _namespace_hint(group: str) -> str:
+    """How a private network namespace carries `group` (IPv4, or IPv6: Linux loops no IPv6
+    multicast back on the loopback, so it needs an interface of its own that stays inside)."""
+    if ":" in group:
+        return ("an IPv6 group needs an interface that carries multicast, which Linux's loopback does not for "
+                "IPv6: in a private network namespace, a veth pair kept inside it (`ip link add can6a type veth "
+                "peer name can6b`, both set up, `sysctl net.ipv6.conf.default.accept_dad=0` before), and the bus "
+                "opened with allow_real_interfaces")
+    return ("in a private network namespace the loopback needs multicast and a route: `ip link set lo up && "
+            "ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo`")
 
 
 def env_bus() -> tuple[str, str | None] | None:

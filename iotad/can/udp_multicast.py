@@ -168,9 +168,11 @@ class UdpMulticastBus(can.BusABC):
     def __init__(self, channel: str, port: int, hop_limit: int = 1, fd: bool = False, **kwargs):
         if fd:
             raise can.CanInterfaceNotImplementedError("iotad's udp_multicast bus carries classic CAN only")
+        # the socket before BusABC's state: a group that cannot be opened leaves no bus behind that
+        # python-can would warn was "not properly shut down"
+        self._socket = _open_socket(channel, port, hop_limit)
         super().__init__(channel, **kwargs)
         self.channel_info = f"udp_multicast {channel}:{port}"
-        self._socket = _open_socket(channel, port, hop_limit)
         self._destination = (channel, port)
         self._poll = select.poll()
         self._poll.register(self._socket, select.POLLIN)
@@ -302,5 +304,6 @@ def _open_socket(group: str, port: int, hop_limit: int) -> socket.socket:
             sock.setsockopt(socket.IPPROTO_IPV6, socket.IPV6_JOIN_GROUP, member + struct.pack("@I", 0))
     except OSError as exc:
         sock.close()
-        raise can.CanInitializationError(f"udp_multicast group {group}:{port}: {exc}") from exc
+        where = f"[{group}]:{port}" if family == socket.AF_INET6 else f"{group}:{port}"  # an IPv6 group has colons
+        raise can.CanInitializationError(f"udp_multicast group {where}: {exc}") from exc
     return sock

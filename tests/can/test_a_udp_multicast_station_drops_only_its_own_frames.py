@@ -4,7 +4,7 @@ what begins so before it wakes the receiver (or, with no filter, the receive loo
 hears its own frames, and hears every frame of another station, also one equal to its own. It
 shares a bus with python-can's own udp_multicast station, the third party whose wire format it
 speaks: each hears the other's frames exactly, and a datagram that is no frame is handed back as a
-FrameError, not raised."""
+FrameError, not raised. All of it holds on an IPv6 group too (python-can's default channel is one)."""
 import pytest
 
 from iotad.can.udp_multicast import _fields, own_frame_filter, pack, plain_of, station_prefix
@@ -96,8 +96,11 @@ from iotad.can.bus import open_env_bus
 from iotad.can.frame import Frame
 
 group = os.environ["IOTAD_CAN_CHANNEL"]
+ipv6 = ":" in group
+# an IPv6 group travels on the namespace's own veth pair (tests below): nothing leaves through it
+options = {"allow_real_interfaces": True} if ipv6 else {}
 theirs = can.Bus(interface="udp_multicast", channel=group, port=43113, hop_limit=1, fd=False)  # python-can's
-ours = open_env_bus()
+ours = open_env_bus(**options)
 
 def drain(take, seconds=1.0):
     got, deadline = [], time.monotonic() + seconds
@@ -121,7 +124,7 @@ except BlockingIOError:
 # with the filter taken off, the receive loop still drops them, and a second iotad station of this
 # process still hears them (it is another station), also one equal to a frame it sent itself
 station._socket.setsockopt(socket.SOL_SOCKET, 27, 0)  # SO_DETACH_FILTER
-second = open_env_bus()
+second = open_env_bus(**options)
 second.send_frame(sent_by_us[1])
 for frame in sent_by_us:
     ours.send_frame(frame)
@@ -138,8 +141,11 @@ for got in drain(lambda t: ours.recv_plain(t, 64)):
     plains += got[0]
     others += got[1]
 # a datagram that is no frame, then a frame: the first is handed back, the second still comes
-raw = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-raw.setsockopt(socket.IPPROTO_IP, socket.IP_MULTICAST_TTL, 1)
+raw = socket.socket(socket.AF_INET6 if ipv6 else socket.AF_INET, socket.SOCK_DGRAM)
+if ipv6:
+    raw.setsockopt(socket.IPPROTO_IPV6, socket.IPV6_MULTICAST_HOPS, 1)
+else:
+    raw.setsockopt(socket.IPPROTO_IP, socket.IP_MULTICAST_TTL, 1)
 raw.sendto(b"\xc1 not msgpack", (group, 43113))
 theirs.send(Frame(0x42, b"\x42").to_can_message())
 after = drain(lambda t: ours.recv_plain(t, 64))
@@ -155,13 +161,50 @@ print("RESULT " + json.dumps({
 
 
 def test_iotad_s_station_and_python_can_s_share_a_bus(can_bus):
-    import json
-
     if can_bus.interface != "udp_multicast":
         pytest.skip(f"the tier is {can_bus.name}, which has no udp_multicast station")
     result = can_bus.run_python(SHARED_BUS, timeout=60)
     result.check()
-    line = next(line for line in result.output.splitlines() if line.startswith("RESULT "))
+    shared_a_bus(result.output)
+
+
+# Linux loops no IPv6 multicast back on the loopback (a group there reaches no socket, not even
+# another of the same process), so an IPv6 group needs an interface that carries multicast: a
+# veth pair made inside the private namespace, both ends kept there, no address beyond their
+# link-local ones (DAD off: a tentative address sends nothing for its first second or two).
+IPV6_NAMESPACE = ("ip link set lo up && sysctl -qw net.ipv6.conf.default.accept_dad=0 "
+                  "&& ip link add can6a type veth peer name can6b && ip link set can6a up && ip link set can6b up")
+PYTHON_CAN_IPV6_GROUP = "ff15:7079:7468:6f6e:6465:6d6f:6d63:6173"  # python-can's default udp_multicast channel
+
+
+def test_they_share_an_ipv6_group_too(tmp_path):
+    import os
+    import shutil
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    if not shutil.which("unshare") or not shutil.which("ip"):
+        pytest.skip("`unshare` or `ip` is missing (util-linux, iproute2)")
+    probe = subprocess.run(["unshare", "-rn", "sh", "-c", IPV6_NAMESPACE], capture_output=True, text=True, timeout=30)
+    if probe.returncode != 0:
+        pytest.skip(f"no private network namespace with an IPv6 veth pair here: {(probe.stderr or probe.stdout).strip()}")
+    script = tmp_path / "shared_bus.py"
+    script.write_text(SHARED_BUS)
+    root = Path(__file__).resolve().parents[2]
+    env = dict(os.environ, IOTAD_CAN_INTERFACE="udp_multicast", IOTAD_CAN_CHANNEL=PYTHON_CAN_IPV6_GROUP,
+               PYTHONPATH=str(root))
+    done = subprocess.run(["unshare", "-rn", "sh", "-c", f'{IPV6_NAMESPACE} && exec "$@"', "iotad-can6",
+                           sys.executable, str(script)], capture_output=True, text=True, timeout=60, env=env, cwd=root)
+    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
+    shared_a_bus(done.stdout)
+
+
+def shared_a_bus(output: str) -> None:
+    """SHARED_BUS's result, as it must be on any group."""
+    import json
+
+    line = next(line for line in output.splitlines() if line.startswith("RESULT "))
     got = json.loads(line[len("RESULT "):])
     ours = [Frame(0x10 + k, bytes([k] * (k % 9))) for k in range(20)] + [Frame.remote(0x7FF, 3)]
     theirs = [Frame(0x1ABCDE0 + k, bytes([255 - k] * 8), extended=True) for k in range(20)] + [ours[0]]
@@ -205,3 +248,30 @@ def test_a_plain_value_is_sent_as_its_frame_is_and_what_is_no_frame_is_refused()
                       ({"id": 0x10, "extended": False, "rtr": False, "dlc": 9, "data": [0] * 8}, "dlc must be 0..8")):
         with pytest.raises(FrameError, match=said):
             Sent().send_plain(bad)
+
+
+def test_an_ipv6_group_with_no_interface_to_carry_it_says_how_to_make_one():
+    """A private namespace with only its loopback has nothing that carries IPv6 multicast: opening
+    the group is a BusUnavailable naming the veth pair that would, not an OSError, and leaves no
+    half-made bus behind."""
+    import shutil
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    if not shutil.which("unshare"):
+        pytest.skip("`unshare` is missing (util-linux)")
+    opens = ("from iotad.can.bus import BusUnavailable, open_bus\n"
+             f"try:\n    open_bus('udp_multicast', {PYTHON_CAN_IPV6_GROUP!r})\n"
+             "except BusUnavailable as exc:\n    print('REFUSED', exc)\n")
+    done = subprocess.run(["unshare", "-rn", "sh", "-c", 'ip link set lo up && exec "$@"', "iotad-can6",
+                           sys.executable, "-c", opens], capture_output=True, text=True, timeout=30,
+                          cwd=Path(__file__).resolve().parents[2])
+    if done.returncode != 0 and "unshare" in done.stderr:
+        pytest.skip(f"no private network namespace here: {done.stderr.strip()}")
+    assert done.returncode == 0, done.stderr[-2000:]
+    said = done.stdout
+    assert said.startswith(f"REFUSED udp_multicast group [{PYTHON_CAN_IPV6_GROUP}]:43113: "), said
+    assert "veth pair" in said and "allow_real_interfaces" in said and "224.0.0.0/4" not in said, said
+    assert said.count(PYTHON_CAN_IPV6_GROUP) == 1, said  # the group named once
+    assert "not properly shut down" not in done.stderr, done.stderr  # no half-made bus left for python-can to warn of
