@@ -31,8 +31,9 @@ axis while its host was cut; the launchers' restarts; the merged recording's gap
 fault that caused it; `iotad check --all` of the merged recording, each problem judged against
 the faults' windows; cubes placed against a fault-free run of the same length (`--no-baseline`
 skips it; the belt brings cubes for the whole run), beside the share of the run during which no
-link was cut or slowed ("links whole": the cell cannot pick through those, so it bounds the
-cubes). With several seeds, one fault-free run serves them all, and a table of the goals per
+link was cut or slowed below what the cell needs, 256 kbit/s ("links usable": the cell cannot
+pick through those, so it bounds the cubes), and the cubes against the fault-free run's in that
+share of its time ("per usable time"). With several seeds, one fault-free run serves them all, and a table of the goals per
 seed ends the output. Everything it starts it stops, also on Ctrl-C: the namespaces are removed
 and what was left in them is killed and said ("orphans").
 """
@@ -207,9 +208,11 @@ def unexplained_kinds(reading) -> str:
 def goals(seed: int, run, reading, baseline) -> dict:
     """The issue's goals for one campaign, as figures: the worst time from an axis's last setpoint
     to safe, commands while cut, faults never recovered, gaps and problems no fault explains,
-    cubes against the fault-free run, the share of the run no cut or slowed link took, orphans."""
+    cubes against the fault-free run, the share of the run no cut or too slow a link took and the
+    cubes against the fault-free run's in that share of its time, orphans."""
     from bad_day_reading import impaired_share
 
+    usable = 1 - impaired_share(run)
     silences = [item.silence for item in reading.faults if item.silence is not None]
     unsafe = sum(bool(item.unsafe) for item in reading.faults)
     never = sum(item.recovered is None and bool(item.touched or item.done.fault.target == "recorder")
@@ -222,8 +225,11 @@ def goals(seed: int, run, reading, baseline) -> dict:
             "problems unexplained": f"{sum(not p['cause'] for p in reading.problems)} of {len(reading.problems)}",
             "cubes": f"{reading.placed}" + ("" if baseline is None or reading.placed is None else
                                            f" ({100 * reading.placed / max(1, baseline.placed):.0f} %)"),
-            # the share of the run a cut or slowed link left: what bounds the cubes (impaired_share)
-            "links whole": f"{100 * (1 - impaired_share(run)):.0f} %",
+            # the share of the run no cut or too slow a link took: what bounds the cubes (impaired_share)
+            "links usable": f"{100 * usable:.0f} %",
+            # the cubes against what the fault-free run placed in as much time
+            "per usable time": "-" if baseline is None or reading.placed is None or not usable else
+                               f"{100 * reading.placed / max(1, baseline.placed) / usable:.0f} %",
             "orphans": sum(len(p) for p in run.orphans.values())}
 
 

@@ -7,11 +7,23 @@ from __future__ import annotations
 
 import math
 import random
+import re
 from dataclasses import dataclass
 
 LEASE = 10.0  # s: zenoh's default lease; a cut longer than it closes the links (docs/hosts.md, section 8)
 KINDS = ("partition", "slow", "stop", "kill")
 KILL_TARGETS = ("node", "agent", "launcher", "recorder")
+_RATE = re.compile(r"^([\d.]+)(bit|kbit|mbit|gbit)$", re.IGNORECASE)
+_RATE_UNIT = {"bit": 1, "kbit": 1_000, "mbit": 1_000_000, "gbit": 1_000_000_000}
+
+
+def rate_bits(rate: str) -> float:
+    """Bits a second of a `tc tbf` rate as a schedule writes it ("64kbit", "1mbit"); ValueError
+    for anything else (tc would refuse it only when the fault is made)."""
+    found = _RATE.match(rate.strip())
+    if not found or not float(found.group(1)) > 0:
+        raise ValueError(f"not a tc rate: {rate!r} (a number above 0 with bit, kbit, mbit or gbit: 256kbit)")
+    return float(found.group(1)) * _RATE_UNIT[found.group(2).lower()]
 
 
 @dataclass(frozen=True)
@@ -146,5 +158,10 @@ def parse_schedule(text: str) -> list[Fault]:
             raise ValueError(f"{part!r}: the process is node:NAME" + (", agent, launcher or recorder" if kind == "kill" else ""))
         if fault.at < 0 or fault.duration < 0:
             raise ValueError(f"{part!r}: times and seconds are >= 0")
+        if kind == "slow":
+            try:
+                rate_bits(fault.rate)
+            except ValueError as exc:
+                raise ValueError(f"{part!r}: {exc}") from None
         faults.append(fault)
     return sorted(faults, key=lambda f: f.at)

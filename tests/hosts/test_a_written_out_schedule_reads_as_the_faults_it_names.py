@@ -23,6 +23,8 @@ def test_each_kind_reads_as_the_fault_it_names_in_time_order():
     ("3 stop arm agent 1", "the process is node:NAME"),
     ("3 zap arm", "the second word is the kind of fault, one of partition, slow, stop, kill"),
     ("-3 partition arm 2", "times and seconds are >= 0"),
+    ("3 slow arm 2 fast", "'3 slow arm 2 fast': not a tc rate: 'fast'"),
+    ("3 slow arm 2 0kbit", "not a tc rate: '0kbit'"),
 ])
 def test_a_fault_written_wrong_is_said_with_its_text(text, said):
     with pytest.raises(ValueError) as raised:
