@@ -119,7 +119,7 @@ def kept_placements(folder: Path, minutes: float, parser):
     if abs(run.length - minutes * 60) > 1:
         parser.error(f"--baseline {folder}: a run of {run.length:g} s, not {minutes * 60:g}")
     out = Reading([], [], [], merged, "")
-    out.placements, out.placed = placements(read_recording(merged), run)
+    out.placements, out.placed, out.fates = placements(read_recording(merged), run)
     return out
 
 
@@ -190,7 +190,12 @@ def report(run, reading, baseline) -> None:
     if reading.placed is not None:
         against = "" if baseline is None else f" against {baseline.placed} in the fault-free run " \
                                               f"({100 * reading.placed / max(1, baseline.placed):.0f} %)"
-        say(f"cubes placed: {reading.placed}{against}")
+        fates = reading.fates
+        said = f"; of the {fates['brought']} the belts brought, {fates['missed']} fell off the belt's end, " \
+               f"{fates['dropped']} dropped, {fates['gone with a world']} went with the " \
+               f"{fates['worlds restarted']} world(s) started again (the world's node killed, or its host's part)" \
+            if fates else ""
+        say(f"cubes placed: {reading.placed}{against}{said}")
     say(f"orphans after the stop: {sum(len(p) for p in run.orphans.values())} "
         f"{ {h: [' '.join(a)[:80] for a in p.values()] for h, p in run.orphans.items()} if run.orphans else ''}")
 

@@ -53,6 +53,7 @@ class Reading:
     check_code: int | None = None
     placements: list[float] = field(default_factory=list)  # s into the campaign of each cube placed
     placed: int | None = None
+    fates: dict = field(default_factory=dict)  # what became of the cubes the belts brought (cube_fates)
     problems: list[dict] = field(default_factory=list)  # those `iotad check` listed, each with its "cause"
     # the motor node's link watch: the wall-clock ns of each LINK_LOST it reported (every axis
     # made safe for want of setpoints), each with the fault whose window holds it ('' if none)
@@ -286,7 +287,7 @@ def read_campaign(campaign: Campaign, check: bool = True) -> Reading:
     starts = [t for k, t in enumerate(reports) if k == 0 or t - reports[k - 1] > 50_000_000]
     out.trips = [(t, problem_cause((t - campaign.began_ns) / 1e9, campaign.done, campaign.began_ns)) for t in starts]
     try:
-        out.placements, out.placed = placements(recording, campaign)
+        out.placements, out.placed, out.fates = placements(recording, campaign)
     except RecordingError:
         pass  # not the conveyor
     return out
@@ -369,9 +370,10 @@ def file_starts(campaign: Campaign) -> dict[Path, int]:
     return starts
 
 
-def placements(recording, campaign: Campaign) -> tuple[list[float], int]:
-    """s into the campaign of each cube the conveyor's world counted placed, and how many in all
-    (a world started again counts on from the one before it: conveyor_data)."""
+def placements(recording, campaign: Campaign) -> tuple[list[float], int, dict]:
+    """s into the campaign of each cube the conveyor's world counted placed, how many in all
+    (a world started again counts on from the one before it: conveyor_data), and what became of
+    every cube the belts brought (`cube_fates`)."""
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "examples"))
     from sim.worlds.conveyor_plot import conveyor_data
 
@@ -382,7 +384,30 @@ def placements(recording, campaign: Campaign) -> tuple[list[float], int]:
         if counts["placed"] > last:
             times.extend([t + origin - campaign.began_ns / 1e9] * (counts["placed"] - last))
             last = counts["placed"]
-    return times, last
+    return times, last, cube_fates(data["tally"], data["restarts"])
+
+
+def cube_fates(tally: list[tuple[float, dict]], restarts: list[float]) -> dict:
+    """What became of the cubes the belts brought, from the world's counts carried across its
+    restarts (conveyor_data): placed, fell off the belt's end ("missed"), dropped, and gone with a
+    world that was started again (on its belt or in its hand when its node was killed: the new
+    world's belt starts empty), with how many worlds were. The rest were on the belt or in the hand
+    at the end."""
+    fates = {"brought": 0, "placed": 0, "missed": 0, "dropped": 0, "gone with a world": 0, "worlds restarted": 0}
+    if not tally:
+        return fates
+    cuts, last, start = sorted(restarts), None, {"spawned": 0, "placed": 0, "missed": 0, "dropped": 0}
+    for t, counts in tally:
+        while cuts and t >= cuts[0]:
+            cuts.pop(0)
+            if last is not None:  # the world before ended with `last`: what it held besides its fates is gone
+                fates["gone with a world"] += sum(sign * (last[key] - start[key]) for key, sign in
+                                                  (("spawned", 1), ("placed", -1), ("missed", -1), ("dropped", -1)))
+                fates["worlds restarted"] += 1
+                start = {key: last[key] for key in start}
+        last = counts
+    fates.update(brought=last["spawned"], placed=last["placed"], missed=last["missed"], dropped=last["dropped"])
+    return fates
 
 
 # What the cell's traffic across hosts needs, measured: arm's link slowed to 256 kbit/s for 50 s
