@@ -33,9 +33,10 @@ the faults' windows; cubes placed against a fault-free run of the same length (`
 skips it; the belt brings cubes for the whole run), beside the share of the run during which no
 link was cut or slowed below what the cell needs, 256 kbit/s ("links usable": the cell cannot
 pick through those, so it bounds the cubes), and the cubes against the fault-free run's in that
-share of its time ("per usable time"). With several seeds, one fault-free run serves them all, and a table of the goals per
-seed ends the output. Everything it starts it stops, also on Ctrl-C: the namespaces are removed
-and what was left in them is killed and said ("orphans").
+share of its time ("per usable time"), and what became of the others (fell off the belt's end,
+dropped, gone with a world started again). With several seeds, one fault-free run serves them
+all, and a table of the goals per seed ends the output. Everything it starts it stops, also on
+Ctrl-C: the namespaces are removed and what was left in them is killed and said ("orphans").
 """
 from __future__ import annotations
 

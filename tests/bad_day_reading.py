@@ -424,7 +424,8 @@ def impaired_share(campaign: Campaign) -> float:
     setpoints do not fit), so the cubes a campaign can place are bounded by the time left,
     whatever recovers how fast. A link slowed to what still carries that traffic takes nothing."""
     spans = sorted((d.start_ns, d.end_ns) for d in campaign.done
-                   if (d.fault.kind == "partition" or d.fault.kind == "slow" and rate_bits(d.fault.rate) < CELL_NEEDS_BITS)
+                   if (d.fault.kind == "partition"
+                       or d.fault.kind == "slow" and rate_bits(d.fault.rate) < CELL_NEEDS_BITS)
                    and not d.missed and d.end_ns > d.start_ns)
     total, current = 0, None
     for start, end in spans:

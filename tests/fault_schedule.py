@@ -13,7 +13,7 @@ from dataclasses import dataclass
 LEASE = 10.0  # s: zenoh's default lease; a cut longer than it closes the links (docs/hosts.md, section 8)
 KINDS = ("partition", "slow", "stop", "kill")
 KILL_TARGETS = ("node", "agent", "launcher", "recorder")
-_RATE = re.compile(r"^([\d.]+)(bit|kbit|mbit|gbit)$", re.IGNORECASE)
+_RATE = re.compile(r"^(\d+(?:\.\d+)?)(bit|kbit|mbit|gbit)$", re.IGNORECASE)  # tc reads the units in any case
 _RATE_UNIT = {"bit": 1, "kbit": 1_000, "mbit": 1_000_000, "gbit": 1_000_000_000}
 
 
